@@ -1,0 +1,66 @@
+"""shprobe: spherical-harmonic lighting in Python.
+
+Irradiance environment maps (Ramamoorthi & Hanrahan 2001), SH of any degree and Wigner rotation
+(Lisle & Huang 2007), the H-basis (Habel & Wimmer 2010) and precomputed radiance transfer.
+
+The public names below are imported lazily, so ``import shprobe`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from ._version import __version__
+
+# public name -> module that defines it
+_EXPORTS: dict[str, str] = {
+    # SH basis (foundation)
+    "sh_basis": "sh",
+    "sh_index": "sh",
+    "sh_lm": "sh",
+    "num_coeffs": "sh",
+    "lmax_of": "sh",
+    # zonal functions
+    "clamped_cosine_factors": "zonal",
+    "zonal_coeffs": "zonal",
+    "circular_window": "zonal",
+    "convolve": "zonal",
+    # rotation
+    "wigner_d": "rotation",
+    "rotate": "rotation",
+    # errors
+    "ShprobeError": "errors",
+    # probes in, irradiance out
+    "load_env": "prefilter",
+    "project": "prefilter",
+    "irradiance": "prefilter",
+    "irradiance_matrix": "prefilter",
+    "reference_irradiance": "prefilter",
+    "read_image": "images",
+    "write_image": "images",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    mod = _EXPORTS.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'shprobe' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{mod}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .errors import ShprobeError
+    from .images import read_image, write_image
+    from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
+    from .rotation import rotate, wigner_d
+    from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
+    from .zonal import circular_window, clamped_cosine_factors, convolve, zonal_coeffs

@@ -1,0 +1,5 @@
+"""``python -m shprobe`` runs the command-line tool."""
+
+from .cli.main import main
+
+raise SystemExit(main())

@@ -1,0 +1,65 @@
+"""Entry point: the ``shprobe`` command group and its one-line error handling."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from .._version import __version__
+from ..errors import ShprobeError
+from . import hbasis as _hbasis
+from . import prefilter as _prefilter
+from . import prt as _prt
+from . import render as _render
+from . import sh as _sh
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, "--version", "-V", prog_name="shprobe")
+def cli() -> None:
+    """shprobe: spherical-harmonic lighting — irradiance environment maps, SH rotation,
+    H-basis and precomputed radiance transfer.
+
+    Start with `shprobe demo`, which needs no files.
+    """
+
+
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt):
+    _mod.register(cli)
+
+
+def _err(msg: str) -> None:
+    click.echo(f"shprobe: error: {msg}", err=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; bad input gives one line on stderr and a non-zero exit, no traceback."""
+    try:
+        rv = cli.main(args=argv, prog_name="shprobe", standalone_mode=False)
+    except click.exceptions.Exit as e:
+        return e.exit_code
+    except click.exceptions.Abort:
+        _err("aborted")
+        return 130
+    except click.ClickException as e:
+        _err(e.format_message().replace("\n", " "))
+        return e.exit_code
+    except ShprobeError as e:
+        _err(str(e))
+        return 1
+    except FileNotFoundError as e:
+        _err(f"{e.filename}: no such file")
+        return 1
+    except OSError as e:
+        name = f"{e.filename}: " if e.filename else ""
+        _err(f"{name}{e.strerror or e}")
+        return 1
+    except KeyboardInterrupt:
+        _err("interrupted")
+        return 130
+    return rv if isinstance(rv, int) else 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,3 @@
+"""Lighting presets: the R&H 2001 Fig. 2 coefficient tables."""
+
+from __future__ import annotations

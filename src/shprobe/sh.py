@@ -1,0 +1,164 @@
+"""Real orthonormal spherical harmonics of any degree (Lisle & Huang 2007, §2.1).
+
+Convention (the one used everywhere in shprobe, see ``shprobe.conventions``): real orthonormal
+SH with the signs of Ramamoorthi & Hanrahan 2001, Fig. 2 / eq. 3 — no Condon–Shortley phase —
+and flat index ``k = l(l+1) + m``:
+
+    y00 = 0.282095
+    y1-1 = 0.488603 y,  y10 = 0.488603 z,  y11 = 0.488603 x
+    y2-2 = 1.092548 xy, y2-1 = 1.092548 yz, y20 = 0.315392 (3z² − 1),
+    y21 = 1.092548 xz,  y22 = 0.546274 (x² − y²)
+
+Lisle & Huang's unnormalised recurrence starts from Y11 = −x, Y1−1 = −y: it carries the
+Condon–Shortley phase (−1)^m, which shprobe removes. Here the recurrence is run on normalised
+quantities so that nothing overflows at high degree:
+
+    y_lm  = √2 · P̄_l^|m|(z) · Re (x + iy)^m     (m > 0)
+    y_l,-m = √2 · P̄_l^|m|(z) · Im (x + iy)^m    (m > 0)
+    y_l0  = P̄_l^0(z)
+
+with (x + iy)^m built by LH's algebraic edge recurrence (no trigonometric calls) and the
+normalised z-polynomials P̄ by
+
+    P̄_00 = 1/√(4π),  P̄_mm = √((2m+1)/(2m)) P̄_{m-1,m-1},  P̄_{m+1,m} = √(2m+3) z P̄_mm,
+    P̄_lm = a_lm (z P̄_{l-1,m} − b_lm P̄_{l-2,m}),
+    a_lm = √((4l²−1)/(l²−m²)),  b_lm = √(((l−1)²−m²)/(4(l−1)²−1)),
+
+the LH interior recurrence with the normalising constants K_lm folded into each step.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import ShprobeError
+
+#: Largest degree shprobe accepts.
+LMAX_LIMIT = 1024
+
+
+def num_coeffs(lmax: int) -> int:
+    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``."""
+    return (lmax + 1) ** 2
+
+
+def sh_index(l: int, m: int) -> int:
+    """Flat index k = l(l+1) + m."""
+    if l < 0 or abs(m) > l:
+        raise ShprobeError(f"no spherical harmonic with l={l}, m={m}")
+    return l * (l + 1) + m
+
+
+def sh_lm(k: int) -> tuple[int, int]:
+    """Inverse of :func:`sh_index`: (l, m) of flat index ``k``."""
+    if k < 0:
+        raise ShprobeError(f"flat SH index must be >= 0, got {k}")
+    l = int(np.sqrt(k))
+    while (l + 1) ** 2 <= k:
+        l += 1
+    while l * l > k:
+        l -= 1
+    return l, k - l * (l + 1)
+
+
+def lmax_of(n_coeffs: int) -> int:
+    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square."""
+    l = math.isqrt(max(int(n_coeffs), 0)) - 1
+    if l < 0 or (l + 1) ** 2 != n_coeffs:
+        raise ShprobeError(f"{n_coeffs} coefficients is not (lmax+1)² for any lmax")
+    return l
+
+
+def degrees(lmax: int) -> NDArray[np.int64]:
+    """Degree l of every flat index up to ``lmax`` (length K)."""
+    return np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+
+
+def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
+    """Validate a degree argument."""
+    if isinstance(lmax, bool) or int(lmax) != lmax:
+        raise ShprobeError(f"SH degree must be an integer, got {lmax!r}")
+    lmax = int(lmax)
+    if lmax < 0 or lmax > limit:
+        raise ShprobeError(f"SH degree lmax={lmax} out of range 0..{limit}")
+    return lmax
+
+
+@lru_cache(maxsize=64)
+def recurrence_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m]."""
+    a = np.zeros((lmax + 1, lmax + 1))
+    b = np.zeros((lmax + 1, lmax + 1))
+    for m in range(lmax + 1):
+        for l in range(m + 2, lmax + 1):
+            a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
+            b[l, m] = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
+    a.flags.writeable = False
+    b.flags.writeable = False
+    return a, b
+
+
+def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
+    d = np.asarray(dirs)
+    if d.dtype not in (np.float32, np.float64):
+        d = d.astype(np.float64)
+    if d.ndim < 1 or d.shape[-1] != 3:
+        raise ShprobeError(f"directions must have shape (..., 3), got {d.shape}")
+    return d
+
+
+def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
+    """Reference numpy implementation of :func:`sh_basis` (vectorised over directions)."""
+    d = _as_dirs(dirs)
+    lmax = check_lmax(lmax)
+    out_dtype = d.dtype
+    x, y, z = (np.asarray(d[..., i], dtype=np.float64) for i in range(3))
+    out = np.empty((*d.shape[:-1], num_coeffs(lmax)), dtype=np.float64)
+    a, b = recurrence_tables(lmax)
+    sqrt2 = np.sqrt(2.0)
+    c = np.ones_like(x)  # Re (x+iy)^m
+    s = np.zeros_like(x)  # Im (x+iy)^m
+    pmm = np.full_like(x, 0.5 / np.sqrt(np.pi))
+    for m in range(lmax + 1):
+        if m > 0:
+            c, s = x * c - y * s, x * s + y * c
+            pmm = pmm * np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        p2 = pmm
+        _store(out, m, m, p2, c, s, sqrt2)
+        if m + 1 <= lmax:
+            p1 = np.sqrt(2.0 * m + 3.0) * z * pmm
+            _store(out, m + 1, m, p1, c, s, sqrt2)
+            for l in range(m + 2, lmax + 1):
+                p = a[l, m] * (z * p1 - b[l, m] * p2)
+                _store(out, l, m, p, c, s, sqrt2)
+                p2, p1 = p1, p
+    return out.astype(out_dtype, copy=False)
+
+
+def _store(out, l, m, p, c, s, sqrt2):
+    k0 = l * (l + 1)
+    if m == 0:
+        out[..., k0] = p
+    else:
+        out[..., k0 + m] = sqrt2 * p * c
+        out[..., k0 - m] = sqrt2 * p * s
+
+
+def sh_basis(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
+    """Real orthonormal SH y_lm of unit directions, for all l ≤ ``lmax``.
+
+    Parameters
+    ----------
+    dirs : (..., 3) unit vectors, float32 or float64 (other types become float64).
+    lmax : maximum degree, 0 ≤ lmax ≤ 1024.
+
+    Returns
+    -------
+    (..., (lmax+1)²) array of the same float type, flat index k = l(l+1)+m, R&H signs.
+    Computed by the normalised algebraic recurrence of Lisle & Huang 2007 §2.1 (no trig).
+    """
+    return sh_basis_numpy(dirs, lmax)

@@ -1,0 +1,51 @@
+"""Shared fixtures: where the test data lives, and seeded random directions."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def shared_dir() -> Path:
+    """$SHPROBE_TEST_DATA, default ../shared beside the checkout."""
+    env = os.environ.get("SHPROBE_TEST_DATA")
+    return Path(env) if env else REPO.parent / "shared"
+
+
+def data_file(*parts: str) -> Path:
+    """Path of a shared test file, or skip the test with a clear reason."""
+    p = shared_dir().joinpath(*parts)
+    if not p.is_file():
+        pytest.skip(f"test data {p} not found (set SHPROBE_TEST_DATA to the shared/ folder)")
+    return p
+
+
+@pytest.fixture
+def grace_path() -> Path:
+    return data_file("probes", "grace.hdr")
+
+
+@pytest.fixture
+def ennis_path() -> Path:
+    return data_file("probes", "ennis.hdr")
+
+
+@pytest.fixture
+def bunny_path() -> Path:
+    return data_file("meshes", "bunny.obj")
+
+
+def random_dirs(n: int, seed: int = 0, dtype=np.float64) -> np.ndarray:
+    """n uniformly distributed unit vectors."""
+    v = np.random.default_rng(seed).normal(size=(n, 3))
+    return (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(dtype)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)
