@@ -14,7 +14,9 @@ Real-basis Wigner matrices in shprobe's basis (R&H signs), Lisle & Huang 2007 §
 
       D(R) = Z(γ − π/2) Jᵀ Z(β) J Z(α + π/2)      for R = Rz(γ) Ry(β) Rz(α)   (LH eq. 6)
 
-  with Z(φ) the real-basis z-rotation (2×2 rotations by mφ on the (m, −m) pairs).
+  with Z(φ) the real-basis z-rotation (2×2 rotations by mφ on the (m, −m) pairs). As
+  d_{n,m} = (−1)^(m−n) d_{m,n}, Jᵀ = S J S with S = diag((−1)^m) = Z(π) on each block, so
+  D(R) = Z(γ + π/2) J Z(β + π) J Z(α + π/2): two products with the same table J.
 """
 
 from __future__ import annotations
@@ -93,19 +95,19 @@ def _euler_cs(R):
     so that at gimbal lock (sin β ≈ 0) the split of α + γ is arbitrary but the product exact.
     """
     cb = R[2, 2]
-    sb = np.hypot(R[0, 2], R[1, 2])
+    sb = np.sqrt(R[0, 2] * R[0, 2] + R[1, 2] * R[1, 2])
     if sb > 0.0:
         cg = R[0, 2] / sb
         sg = R[1, 2] / sb
     else:
         cg = 1.0
         sg = 0.0
-    nrm = np.hypot(cb, sb)
+    nrm = np.sqrt(cb * cb + sb * sb)
     cb /= nrm
     sb /= nrm
     ca = cb * (cg * R[0, 0] + sg * R[1, 0]) - sb * R[2, 0]
     sa = -sg * R[0, 0] + cg * R[1, 0]
-    nrm = np.hypot(ca, sa)
+    nrm = np.sqrt(ca * ca + sa * sa)
     if nrm > 0.0:
         ca /= nrm
         sa /= nrm
@@ -142,69 +144,71 @@ def _multiples(c, s, lmax, cm, sm):
 
 
 @nb.njit(cache=True)
-def _zrot(l, cm, sm, src, dst):
-    """dst = Z(φ) src on one degree-l block (rows m + l)."""
-    C = src.shape[1]
+def _zrot(l, cm, sm, src, s0, srow, sch, dst, d0, drow, dch, C):
+    """dst = Z(φ) src on one degree-l block. Flat arrays with strides: row m (m = −l..l) and
+    channel ch of src live at ``s0 + (m + l)·srow + ch·sch`` (likewise dst)."""
     for ch in range(C):
-        dst[l, ch] = src[l, ch]
-    for m in range(1, l + 1):
-        c = cm[m]
-        s = sm[m]
-        for ch in range(C):
-            ap = src[l + m, ch]
-            an = src[l - m, ch]
-            dst[l + m, ch] = c * ap - s * an
-            dst[l - m, ch] = s * ap + c * an
+        dst[d0 + l * drow + ch * dch] = src[s0 + l * srow + ch * sch]
+        for m in range(1, l + 1):
+            c = cm[m]
+            s = sm[m]
+            ap = src[s0 + (l + m) * srow + ch * sch]
+            an = src[s0 + (l - m) * srow + ch * sch]
+            dst[d0 + (l + m) * drow + ch * dch] = c * ap - s * an
+            dst[d0 + (l - m) * drow + ch * dch] = s * ap + c * an
 
 
 @nb.njit(cache=True)
-def _jmul(l, P, Q, src, dst, transpose):
-    """dst = J src (or Jᵀ src) on one degree-l block; J = d^l(π/2) as P ⊕ Q quadrants."""
-    C = src.shape[1]
+def _jmul(l, P, Q, src, dst, C):
+    """dst = J src on one degree-l block; J = d^l(π/2) = P ⊕ Q quadrants. Channel-major
+    scratch: row m of channel ch at ``ch·(2l+1) + l + m``. d^l(π/2) is a checkerboard: P_mn
+    vanishes unless l+m+n is even, Q_mn unless it is odd, so half the terms are skipped."""
     o = pq_offset(l)
     w = l + 1
-    for m in range(l + 1):
-        for ch in range(C):
-            dst[l + m, ch] = 0.0
-            dst[l - m, ch] = 0.0
-    for m in range(l + 1):
-        for n in range(l + 1):
-            if transpose:
-                p = P[o + n * w + m]
-                q = Q[o + n * w + m]
-            else:
-                p = P[o + m * w + n]
-                q = Q[o + m * w + n]
-            for ch in range(C):
-                dst[l + m, ch] += p * src[l + n, ch]
-            if m > 0 and n > 0:
-                for ch in range(C):
-                    dst[l - m, ch] += q * src[l - n, ch]
+    W = 2 * l + 1
+    for ch in range(C):
+        b = ch * W + l
+        for m in range(l + 1):
+            r = o + m * w
+            acc = 0.0
+            for n in range((l + m) & 1, l + 1, 2):
+                acc += P[r + n] * src[b + n]
+            dst[b + m] = acc
+            if m > 0:
+                acc = 0.0
+                n0 = (l + m + 1) & 1
+                for n in range(n0 if n0 else 2, l + 1, 2):
+                    acc += Q[r + n] * src[b - n]
+                dst[b - m] = acc
 
 
 @nb.njit(cache=True)
-def _rotate_block(l, P, Q, ang, src, dst, t1, t2):
-    """dst = D^l(R) src; ``ang`` rows: cos/sin multiples of α+π/2, β, γ−π/2."""
-    _zrot(l, ang[0], ang[1], src, t1)
-    _jmul(l, P, Q, t1, t2, False)
-    _zrot(l, ang[2], ang[3], t2, t1)
-    _jmul(l, P, Q, t1, t2, True)
-    _zrot(l, ang[4], ang[5], t2, dst)
+def _rotate_block(l, P, Q, ang, src, s0, dst, d0, C, t1, t2):
+    """dst = D^l(R) src = Z(γ+π/2) J Z(β+π) J Z(α+π/2) src for a block stored (row, channel)
+    at s0 / d0 (rows of ``ang``: cos/sin multiples of those three angles). From
+    D = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2) with Jᵀ = S J S, S = diag((−1)^m), S Z(φ) = Z(φ + π)."""
+    W = 2 * l + 1
+    _zrot(l, ang[0], ang[1], src, s0, C, 1, t1, 0, 1, W, C)
+    _jmul(l, P, Q, t1, t2, C)
+    _zrot(l, ang[2], ang[3], t2, 0, 1, W, t1, 0, 1, W, C)
+    _jmul(l, P, Q, t1, t2, C)
+    _zrot(l, ang[4], ang[5], t2, 0, 1, W, dst, d0, C, 1, C)
 
 
 @nb.njit(cache=True)
 def _angles(R, lmax, ang):
     ca, sa, cb, sb, cg, sg = _euler_cs(R)
     _multiples(-sa, ca, lmax, ang[0], ang[1])  # α + π/2
-    _multiples(cb, sb, lmax, ang[2], ang[3])  # β
-    _multiples(sg, -cg, lmax, ang[4], ang[5])  # γ − π/2
+    _multiples(-cb, -sb, lmax, ang[2], ang[3])  # β + π
+    _multiples(-sg, cg, lmax, ang[4], ang[5])  # γ + π/2
 
 
 @nb.njit(cache=True)
 def rotate_batch(Rs, coeffs, lmax, P, Q):
     """Rotate coeffs (Nc, K, C) by Rs (Nr, 3, 3); each of Nr, Nc is 1 (shared) or N.
 
-    Returns (N, K, C) and the largest orthogonality error of the rotations.
+    Returns (N, K, C) and the largest orthogonality error of the rotations. Both inputs
+    must be C-contiguous.
     """
     nr = Rs.shape[0]
     nc = coeffs.shape[0]
@@ -212,21 +216,22 @@ def rotate_batch(Rs, coeffs, lmax, P, Q):
     K = coeffs.shape[1]
     C = coeffs.shape[2]
     out = np.empty((n, K, C))
+    src = coeffs.reshape(-1)
+    dst = out.reshape(-1)
     ang = np.empty((6, lmax + 1))
-    t1 = np.empty((2 * lmax + 1, C))
-    t2 = np.empty((2 * lmax + 1, C))
+    t1 = np.empty((2 * lmax + 1) * C)
+    t2 = np.empty((2 * lmax + 1) * C)
     err = 0.0
     for i in range(n):
         if nr > 1 or i == 0:
             R = Rs[i if nr > 1 else 0]
             err = max(err, _orth_error(R))
             _angles(R, lmax, ang)
-        c = coeffs[i if nc > 1 else 0]
-        o = out[i]
+        s0 = (i if nc > 1 else 0) * K * C
+        d0 = i * K * C
         for l in range(lmax + 1):
-            k0 = l * l
-            w = 2 * l + 1
-            _rotate_block(l, P, Q, ang, c[k0:k0 + w], o[k0:k0 + w], t1, t2)
+            k0 = l * l * C
+            _rotate_block(l, P, Q, ang, src, s0 + k0, dst, d0 + k0, C, t1, t2)
     return out, err
 
 
@@ -238,18 +243,19 @@ def wigner_full(Rs, lmax, P, Q):
     out = np.zeros((n, K, K))
     ang = np.empty((6, lmax + 1))
     w = 2 * lmax + 1
-    eye = np.eye(w)
-    t1 = np.empty((w, w))
-    t2 = np.empty((w, w))
-    blk = np.empty((w, w))
+    t1 = np.empty(w * w)
+    t2 = np.empty(w * w)
+    blk = np.empty(w * w)
     err = 0.0
     for i in range(n):
         err = max(err, _orth_error(Rs[i]))
         _angles(Rs[i], lmax, ang)
         for l in range(lmax + 1):
             wl = 2 * l + 1
+            eye = np.eye(wl).reshape(-1)
+            _rotate_block(l, P, Q, ang, eye, 0, blk, 0, wl, t1, t2)
             k0 = l * l
-            _rotate_block(l, P, Q, ang, eye[:wl, :wl], blk[:wl, :wl], t1[:wl, :wl],
-                          t2[:wl, :wl])
-            out[i, k0:k0 + wl, k0:k0 + wl] = blk[:wl, :wl]
+            for a in range(wl):
+                for b in range(wl):
+                    out[i, k0 + a, k0 + b] = blk[a * wl + b]
     return out, err

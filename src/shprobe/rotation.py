@@ -120,6 +120,11 @@ def _check_err(err: float) -> None:
         )
 
 
+@lru_cache(maxsize=256)
+def _lmax_of(K: int) -> int:
+    return lmax_of(K)
+
+
 def _kernels():
     from . import _rotation_kernels
 
@@ -160,6 +165,17 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     batch (..., 3, 3) / (..., 4); the leading axes of both broadcast. float32 coefficients
     stay float32 (the arithmetic is float64).
     """
+    if (type(coeffs) is np.ndarray and coeffs.ndim == 2 and coeffs.dtype == np.float64
+            and type(rotation) is np.ndarray and rotation.shape == (3, 3)
+            and rotation.dtype == np.float64):
+        # fast path: one (K, C) set, one matrix
+        K, C = coeffs.shape
+        lmax = _lmax_of(K)
+        out, err = _kernels().rotate_batch(np.ascontiguousarray(rotation).reshape(1, 3, 3),
+                                           np.ascontiguousarray(coeffs).reshape(1, K, C),
+                                           lmax, *_j_tables(lmax))
+        _check_err(err)
+        return out.reshape(K, C)
     c = np.asarray(coeffs)
     if c.dtype not in (np.float32, np.float64):
         c = c.astype(np.float64)
@@ -168,7 +184,7 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     one_d = c.ndim == 1
     if one_d:
         c = c[:, None]
-    lmax = lmax_of(c.shape[-2])
+    lmax = _lmax_of(c.shape[-2])
     K, C = c.shape[-2:]
     R = _matrices(rotation)
     br, bc = R.shape[:-2], c.shape[:-2]
