@@ -148,17 +148,52 @@ def _store(out, l, m, p, c, s, sqrt2):
         out[..., k0 - m] = sqrt2 * p * s
 
 
-def sh_basis(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
+@lru_cache(maxsize=64)
+def _diag_table(lmax: int) -> NDArray[np.float64]:
+    d = np.ones(lmax + 1)
+    m = np.arange(1, lmax + 1)
+    d[1:] = np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+    d.flags.writeable = False
+    return d
+
+
+def sh_basis(
+    dirs: ArrayLike, lmax: int, out: NDArray[np.floating] | None = None
+) -> NDArray[np.floating]:
     """Real orthonormal SH y_lm of unit directions, for all l ≤ ``lmax``.
 
     Parameters
     ----------
-    dirs : (..., 3) unit vectors, float32 or float64 (other types become float64).
+    dirs : (..., 3) unit vectors, float32 or float64 (other types become float64). They are
+        used as given (not normalised).
     lmax : maximum degree, 0 ≤ lmax ≤ 1024.
+    out : optional preallocated C-contiguous (..., (lmax+1)²) array of the same float type
+        as ``dirs``; it is filled and returned.
 
     Returns
     -------
     (..., (lmax+1)²) array of the same float type, flat index k = l(l+1)+m, R&H signs.
-    Computed by the normalised algebraic recurrence of Lisle & Huang 2007 §2.1 (no trig).
+    Computed by the normalised algebraic recurrence of Lisle & Huang 2007 §2.1 (no trig; see
+    the module docstring), in float64 arithmetic, by a single-threaded numba kernel
+    (``shprobe._sh_kernels``) that writes each direction's row straight into the output.
+    :func:`sh_basis_numpy` is the vectorised numpy reference of the same recurrence.
     """
-    return sh_basis_numpy(dirs, lmax)
+    d = _as_dirs(dirs)
+    lmax = check_lmax(lmax)
+    K = num_coeffs(lmax)
+    shape = (*d.shape[:-1], K)
+    if out is None:
+        out = np.empty(shape, dtype=d.dtype)
+    elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != d.dtype
+          or not out.flags.c_contiguous or not out.flags.writeable):
+        raise ShprobeError(
+            f"out must be a writeable C-contiguous {d.dtype} array of shape {shape}"
+        )
+    if out.size == 0:
+        return out
+    from ._sh_kernels import sh_rows
+
+    a, b = recurrence_tables(lmax)
+    sh_rows(np.ascontiguousarray(d.reshape(-1, 3)), lmax, a, b, _diag_table(lmax),
+            out.reshape(-1, K))
+    return out

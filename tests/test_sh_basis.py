@@ -1,0 +1,110 @@
+"""sh_basis against independent evaluations: quadrature orthonormality, scipy's complex SH
+(Condon–Shortley phase removed) to l = 64, the addition theorem and P_l(u·v) to l = 256."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import eval_legendre, sph_harm_y
+
+from shprobe import ShprobeError
+from shprobe.sh import sh_basis, sh_basis_numpy
+
+from .conftest import random_dirs
+
+
+def scipy_real_sh(dirs, lmax):
+    """R&H-signed real SH from scipy.special.sph_harm_y (which carries the CS phase)."""
+    x, y, z = dirs.T
+    theta = np.arctan2(np.hypot(x, y), z)  # accurate near the poles, unlike arccos
+    phi = np.arctan2(y, x)
+    out = np.empty((len(dirs), (lmax + 1) ** 2))
+    for l in range(lmax + 1):
+        m = np.arange(l + 1)
+        Y = sph_harm_y(l, m[:, None], theta[None, :], phi[None, :])  # (l+1, N)
+        k0 = l * (l + 1)
+        out[:, k0] = Y[0].real
+        sign = np.sqrt(2) * (-1.0) ** m[1:, None]
+        out[:, k0 + m[1:]] = (sign * Y[1:].real).T
+        out[:, k0 - m[1:]] = (sign * Y[1:].imag).T
+    return out
+
+
+def band_norm(lmax):
+    l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+    return np.sqrt((2 * l + 1) / (4 * np.pi))
+
+
+def test_orthonormal_by_quadrature_l16():
+    lmax = 16
+    n = lmax + 2  # Gauss–Legendre exact for degree 2n−1 ≥ 2·lmax in z
+    z, w = np.polynomial.legendre.leggauss(n)
+    nphi = 2 * lmax + 2
+    phi = np.arange(nphi) * 2 * np.pi / nphi
+    s = np.sqrt(1 - z * z)
+    u = np.stack(np.broadcast_arrays(s[:, None] * np.cos(phi), s[:, None] * np.sin(phi),
+                                     z[:, None]), -1).reshape(-1, 3)
+    wt = np.repeat(w * 2 * np.pi / nphi, nphi)
+    Y = sh_basis(u, lmax)
+    G = (Y * wt[:, None]).T @ Y
+    np.testing.assert_allclose(G, np.eye((lmax + 1) ** 2), atol=1e-13)
+
+
+def test_against_scipy_every_l_to_64():
+    lmax = 64
+    d = np.concatenate([random_dirs(300, seed=3),
+                        [[0, 0, 1], [0, 0, -1], [1, 0, 0], [0.6, 0.8, 0], [0, 1e-9, 1]]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    err = np.abs(sh_basis(d, lmax) - scipy_real_sh(d, lmax)) / band_norm(lmax)
+    assert err.max() <= 1e-12
+
+
+def test_numba_kernel_matches_numpy_reference():
+    d = random_dirs(500, seed=4)
+    np.testing.assert_allclose(sh_basis(d, 20), sh_basis_numpy(d, 20), rtol=0, atol=1e-14)
+    f = d.astype(np.float32)
+    assert sh_basis(f, 20).dtype == np.float32
+    np.testing.assert_array_equal(sh_basis(f, 20), sh_basis_numpy(f, 20))
+
+
+def test_degree_256_addition_theorem_and_legendre():
+    lmax = 256
+    u = np.concatenate([random_dirs(40, seed=5), [[0, 0, 1], [0, 0, -1], [1, 0, 0]]])
+    v = np.concatenate([random_dirs(40, seed=6), [[0, 0, 1], [0.6, 0, 0.8], [0, 1, 0]]])
+    Yu, Yv = sh_basis(u, lmax), sh_basis(v, lmax)
+    assert np.all(np.isfinite(Yu))
+    deg = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+    l = np.arange(lmax + 1)
+    sq = np.stack([np.bincount(deg, weights=row ** 2) for row in Yu])
+    np.testing.assert_allclose(sq, np.broadcast_to((2 * l + 1) / (4 * np.pi), sq.shape),
+                               rtol=1e-12)
+    dot = np.stack([np.bincount(deg, weights=a * b) for a, b in zip(Yu, Yv, strict=True)])
+    want = (2 * l + 1) / (4 * np.pi) * eval_legendre(l[None, :], np.sum(u * v, 1)[:, None])
+    np.testing.assert_allclose(dot, want, atol=1e-12 * (2 * lmax + 1) / (4 * np.pi))
+
+
+def test_degree_1024_finite_float32():
+    d = random_dirs(3, seed=7, dtype=np.float32)
+    Y = sh_basis(d, 1024)
+    assert Y.dtype == np.float32 and np.all(np.isfinite(Y))
+    deg = np.repeat(np.arange(1025), 2 * np.arange(1025) + 1)
+    sq = np.bincount(deg, weights=Y[0].astype(np.float64) ** 2)
+    np.testing.assert_allclose(sq, (2 * np.arange(1025) + 1) / (4 * np.pi), rtol=1e-4)
+
+
+def test_out_parameter_and_shapes():
+    d = random_dirs(12, seed=8).reshape(3, 4, 3)
+    out = np.full((3, 4, 25), np.nan)
+    r = sh_basis(d, 4, out=out)
+    assert r is out
+    np.testing.assert_allclose(out, sh_basis_numpy(d, 4), atol=1e-15)
+    assert sh_basis(np.zeros((0, 3)), 3).shape == (0, 16)
+    assert sh_basis([0, 0, 1], 2).shape == (9,)
+    with pytest.raises(ShprobeError):
+        sh_basis(d, 4, out=np.empty((3, 4, 25), dtype=np.float32))
+    with pytest.raises(ShprobeError):
+        sh_basis(d, 4, out=np.empty((3, 4, 16)))
+    with pytest.raises(ShprobeError):
+        sh_basis(np.zeros((4, 2)), 2)
+    with pytest.raises(ShprobeError):
+        sh_basis(d, -1)
