@@ -228,3 +228,13 @@ def test_bad_coefficients_and_quaternion():
         from_quaternion([0, 0, 0, 0])
     with pytest.raises(ShprobeError):
         wigner_d(np.eye(3), -1)
+
+
+@pytest.mark.parametrize("lmax", [0, 1, 2])
+def test_closed_form_low_degree_matches_recurrence(lmax):
+    # rotate() takes a closed form for lmax ≤ 2; wigner_d() always runs the recurrence
+    Rs = np.concatenate([random_rotations(20, seed=17), from_euler_zyz(*np.array(EULER_CASES).T)])
+    c = np.random.default_rng(18).normal(size=((lmax + 1) ** 2, 3))
+    np.testing.assert_allclose(rotate(c, Rs), wigner_d(Rs, lmax) @ c, atol=1e-14)
+    for R in Rs[:3]:
+        np.testing.assert_allclose(rotate(c, R), wigner_d(R, lmax) @ c, atol=1e-14)

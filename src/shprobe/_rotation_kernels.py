@@ -259,3 +259,73 @@ def wigner_full(Rs, lmax, P, Q):
                 for b in range(wl):
                     out[i, k0 + a, k0 + b] = blk[a * wl + b]
     return out, err
+
+
+# degree-2 constants: y_2,±2 / y_2,±1 = C1·(xy, yz, xz), y20 = C0 (3z² − 1), y22 = C2 (x² − y²)
+_C1 = np.sqrt(15.0 / (4.0 * np.pi))
+_C0 = np.sqrt(5.0 / (16.0 * np.pi))
+_C2 = np.sqrt(15.0 / (16.0 * np.pi))
+
+
+@nb.njit(cache=True)
+def rotate_low_batch(Rs, coeffs, lmax):
+    """Closed form for lmax ≤ 2 (same contract as :func:`rotate_batch`).
+
+    l = 1: the coefficients of a·u turn like a → R a (rows (y, z, x)). l = 2: the band is the
+    quadratic form uᵀAu with A = Σ a_m S_m symmetric traceless; f∘R⁻¹ has A' = R A Rᵀ, whose
+    entries give a'_m back.
+    """
+    nr = Rs.shape[0]
+    nc = coeffs.shape[0]
+    n = max(nr, nc)
+    K = coeffs.shape[1]
+    C = coeffs.shape[2]
+    out = np.empty((n, K, C))
+    err = 0.0
+    h1 = 0.5 * _C1
+    for i in range(n):
+        R = Rs[i if nr > 1 else 0]
+        if nr > 1 or i == 0:
+            err = max(err, _orth_error(R))
+        c = coeffs[i if nc > 1 else 0]
+        o = out[i]
+        for ch in range(C):
+            o[0, ch] = c[0, ch]
+            if lmax >= 1:
+                ax = c[3, ch]
+                ay = c[1, ch]
+                az = c[2, ch]
+                o[3, ch] = R[0, 0] * ax + R[0, 1] * ay + R[0, 2] * az
+                o[1, ch] = R[1, 0] * ax + R[1, 1] * ay + R[1, 2] * az
+                o[2, ch] = R[2, 0] * ax + R[2, 1] * ay + R[2, 2] * az
+            if lmax >= 2:
+                a0 = c[6, ch]
+                axy = h1 * c[4, ch]
+                ayz = h1 * c[5, ch]
+                axz = h1 * c[7, ch]
+                axx = -_C0 * a0 + _C2 * c[8, ch]
+                ayy = -_C0 * a0 - _C2 * c[8, ch]
+                azz = 2.0 * _C0 * a0
+                # T = R A
+                t00 = R[0, 0] * axx + R[0, 1] * axy + R[0, 2] * axz
+                t01 = R[0, 0] * axy + R[0, 1] * ayy + R[0, 2] * ayz
+                t02 = R[0, 0] * axz + R[0, 1] * ayz + R[0, 2] * azz
+                t10 = R[1, 0] * axx + R[1, 1] * axy + R[1, 2] * axz
+                t11 = R[1, 0] * axy + R[1, 1] * ayy + R[1, 2] * ayz
+                t12 = R[1, 0] * axz + R[1, 1] * ayz + R[1, 2] * azz
+                t20 = R[2, 0] * axx + R[2, 1] * axy + R[2, 2] * axz
+                t21 = R[2, 0] * axy + R[2, 1] * ayy + R[2, 2] * ayz
+                t22 = R[2, 0] * axz + R[2, 1] * ayz + R[2, 2] * azz
+                # B = T Rᵀ (the entries needed)
+                bxx = t00 * R[0, 0] + t01 * R[0, 1] + t02 * R[0, 2]
+                byy = t10 * R[1, 0] + t11 * R[1, 1] + t12 * R[1, 2]
+                bzz = t20 * R[2, 0] + t21 * R[2, 1] + t22 * R[2, 2]
+                bxy = t00 * R[1, 0] + t01 * R[1, 1] + t02 * R[1, 2]
+                byz = t10 * R[2, 0] + t11 * R[2, 1] + t12 * R[2, 2]
+                bxz = t00 * R[2, 0] + t01 * R[2, 1] + t02 * R[2, 2]
+                o[4, ch] = bxy / h1
+                o[5, ch] = byz / h1
+                o[7, ch] = bxz / h1
+                o[6, ch] = bzz / (2.0 * _C0)
+                o[8, ch] = (bxx - byy) / (2.0 * _C2)
+    return out, err

@@ -17,6 +17,8 @@ it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is o
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
 angles are never formed: cos/sin of α, β, γ are read algebraically from R, and α is taken
 from the residual Ry(β)ᵀ Rz(γ)ᵀ R, so that gimbal lock (β ≈ 0 or π) is harmless.
+For lmax ≤ 2, :func:`rotate` uses a closed form instead (l = 1: a → R a; l = 2: the band as a
+traceless quadratic form A → R A Rᵀ), tested against the recurrence.
 """
 
 from __future__ import annotations
@@ -140,6 +142,13 @@ def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     return P, Q
 
 
+def _run_rotate(Rk: NDArray[np.float64], ck: NDArray[np.float64], lmax: int):
+    """Kernel dispatch: closed form for lmax ≤ 2, the J-table path above."""
+    if lmax <= 2:
+        return _kernels().rotate_low_batch(Rk, ck, lmax)
+    return _kernels().rotate_batch(Rk, ck, lmax, *_j_tables(lmax))
+
+
 def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     """Block-diagonal real-basis Wigner matrices D(R), shape (..., K, K), K = (lmax+1)².
 
@@ -171,9 +180,8 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
         # fast path: one (K, C) set, one matrix
         K, C = coeffs.shape
         lmax = _lmax_of(K)
-        out, err = _kernels().rotate_batch(np.ascontiguousarray(rotation).reshape(1, 3, 3),
-                                           np.ascontiguousarray(coeffs).reshape(1, K, C),
-                                           lmax, *_j_tables(lmax))
+        out, err = _run_rotate(np.ascontiguousarray(rotation).reshape(1, 3, 3),
+                               np.ascontiguousarray(coeffs).reshape(1, K, C), lmax)
         _check_err(err)
         return out.reshape(K, C)
     c = np.asarray(coeffs)
@@ -203,7 +211,7 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     if n == 0:
         out = np.empty((0, K, C))
     else:
-        out, err = _kernels().rotate_batch(Rk, ck, lmax, *_j_tables(lmax))
+        out, err = _run_rotate(Rk, ck, lmax)
         _check_err(err)
     out = out.reshape(*shape, K, C)
     if one_d:
