@@ -293,8 +293,8 @@ def test_same_environment_same_coefficients_in_every_layout(tmp_path, layout, si
     """Σ L y dω over the valid pixels of each layout, after a write/read round trip, equals the
     reference to 5e-4 of the largest coefficient: the pixel-centre (midpoint) rule errs by
     O(Δ²) with Δ the pixel's angular size (≈ 0.025 rad here for every layout; measured errors
-    are 3e-5..1e-4, falling 4× per halving of Δ), and .hdr adds RGBE rounding (≤ 2⁻⁸
-    relative, averaging out to ~1e-4)."""
+    are 3e-5..1e-4, falling 4× per halving of Δ). RGBE (.hdr) keeps 8 mantissa bits, a
+    per-pixel error up to 2⁻⁸ that only partly averages out on a smooth map: 1e-3 there."""
     from shprobe.layouts import write_env
 
     lmax = 4
@@ -311,7 +311,7 @@ def test_same_environment_same_coefficients_in_every_layout(tmp_path, layout, si
     assert np.all(diff <= tol * env.radiance.max(-1) + 1e-7)
     coeffs = _project(*back.samples(), lmax)
     err = np.abs(coeffs - ref).max() / np.abs(ref).max()
-    assert err < 5e-4, err
+    assert err < (1e-3 if fname.endswith(".hdr") else 5e-4), err
 
 
 def test_midpoint_error_is_second_order():
