@@ -322,3 +322,29 @@ def test_midpoint_error_is_second_order():
         e1, e2 = (np.abs(_project(*env_from_function(_lobes, layout, m).samples(), 4) - ref).max()
                   for m in (n, 2 * n))
         assert 3.0 < e1 / e2 < 5.0
+
+
+def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
+    import click
+    from click.testing import CliRunner
+
+    from shprobe.cli.common import LAYOUT_CHOICES, clamp_option, layout_option, load_env_cli
+    from shprobe.images import write_image
+    from shprobe.layouts import LAYOUTS
+
+    assert set(LAYOUT_CHOICES) == {"auto", *LAYOUTS}
+
+    @click.command()
+    @click.argument("probe")
+    @layout_option
+    @clamp_option
+    def cmd(probe, layout, clamp):
+        env = load_env_cli(probe, layout, clamp)
+        click.echo(f"{env.layout.name} {env.grid}")
+
+    write_image(tmp_path / "p.png", np.full((8, 8, 3), 0.5, np.float32))
+    res = CliRunner().invoke(cmd, [str(tmp_path / "p.png"), "--layout", "mirrorball"])
+    assert res.exit_code == 0 and "mirrorball (8, 8)" in res.output
+    assert "warning" in res.output and "not radiance" in res.output
+    res = CliRunner().invoke(cmd, [str(tmp_path / "p.png"), "--layout", "bogus"])
+    assert res.exit_code != 0
