@@ -253,7 +253,11 @@ def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
     k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]
     (in place, one compiled pass)."""
     img = np.ascontiguousarray(img, dtype=np.float32)
-    _half_step_kernel()(img.reshape(-1, img.shape[-1]))
+    flat = img.reshape(-1, img.shape[-1])
+    # 2^k from the float32 exponent field E of the largest channel: m_max in [128, 256)
+    # means 2^(E−127) = 2^(k+7), so the half step is 2^(E−135)
+    table = np.ldexp(np.float32(1.0), np.arange(256) - 135).astype(np.float32)
+    _half_step_kernel()(flat, flat.view(np.int32), table)
     return img
 
 
@@ -268,14 +272,19 @@ def _half_step_kernel():
         import numba
 
         @numba.njit(cache=True)
-        def kernel(px):  # pragma: no cover - compiled
+        def kernel(px, bits, table):  # pragma: no cover - compiled
             for i in range(px.shape[0]):
-                v = px[i, 0]
+                best = 0
                 for c in range(1, px.shape[1]):
-                    v = max(v, px[i, c])
+                    if px[i, c] > px[i, best]:
+                        best = c
+                v = px[i, best]
                 if v > 0:
-                    ex = math.frexp(v)[1]  # v = f 2^ex, f in [0.5, 1): 2^k = 2^(ex - 8)
-                    step = np.float32(math.ldexp(0.5, ex - 8))
+                    e = (bits[i, best] >> 23) & 0xFF
+                    if e > 0:
+                        step = table[e]
+                    else:  # subnormal float32
+                        step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
                     for c in range(px.shape[1]):
                         px[i, c] += step
 
