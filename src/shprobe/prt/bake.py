@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -89,6 +90,38 @@ class RayCaster:
         return r["primID"], r["u"], r["v"]
 
 
+@lru_cache(maxsize=1)
+def _kernels():
+    """Numba kernels (compiled once, cached on disk): hemisphere ray set, visibility sum."""
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def hemisphere_rays(p, n, dirs, o, d, cw, vid, did):
+        m = 0
+        for v in range(p.shape[0]):
+            for j in range(dirs.shape[0]):
+                c = n[v, 0] * dirs[j, 0] + n[v, 1] * dirs[j, 1] + n[v, 2] * dirs[j, 2]
+                if c > 0:
+                    for a in range(3):
+                        o[m, a] = p[v, a]
+                        d[m, a] = dirs[j, a]
+                    cw[m] = c
+                    vid[m] = v
+                    did[m] = j
+                    m += 1
+        return m
+
+    @numba.njit(cache=True, nogil=True)
+    def add_visible(free, vid, did, cw, yw, out):
+        for r in range(free.shape[0]):
+            if free[r]:
+                v, j, c = vid[r], did[r], cw[r]
+                for k in range(yw.shape[1]):
+                    out[v, k] += c * yw[j, k]
+
+    return hemisphere_rays, add_visible
+
+
 def _chunks(n_vertices: int, samples: int) -> list[tuple[int, int]]:
     step = max(1, RAYS_PER_CHUNK // max(1, samples // 2))
     return [(i, min(i + step, n_vertices)) for i in range(0, n_vertices, step)]
@@ -156,7 +189,7 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     """Visibility-weighted projection Σ V cos y 4π/N (V, K), and the bounce gather matrix."""
     dirs = sample_directions(samples, seed)
     dirs32 = dirs.astype(np.float32)
-    yw = (sh_basis(dirs, lmax) * (4.0 * np.pi / samples)).astype(np.float32)  # (N, K)
+    yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
     caster = RayCaster(sc)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
@@ -165,29 +198,36 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
+    kernels = _kernels()
+    k = yw.shape[1]
+
     def work(span: tuple[int, int]):
         i0, i1 = span
-        cos = n32[i0:i1] @ dirs32.T  # (B, N)
-        vi, dj = np.nonzero(cos > 0)
-        o, d = p32[i0:i1][vi], dirs32[dj]
-        w = np.zeros_like(cos)
+        cap = (i1 - i0) * samples
+        o = np.empty((cap, 3), np.float32)
+        d = np.empty((cap, 3), np.float32)
+        cw = np.empty(cap, np.float32)
+        vid = np.empty(cap, np.int64)
+        did = np.empty(cap, np.int64)
+        m = kernels[0](p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
+        o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
+        proj = np.zeros((i1 - i0, k))
         if not gather:
             free = ~caster.occluded(o, d)
-            w[vi[free], dj[free]] = cos[vi[free], dj[free]]
-            return w @ yw, None
+            kernels[1](free, vid, did, cw, yw, proj)
+            return proj, None
         prim, u, v = caster.intersect(o, d)
-        free = prim < 0
-        w[vi[free], dj[free]] = cos[vi[free], dj[free]]
-        hit = ~free
+        kernels[1](prim < 0, vid, did, cw, yw, proj)
+        hit = np.flatnonzero(prim >= 0)
         front = np.einsum("ij,ij->i", d[hit], fnormals[prim[hit]]) < 0
-        sel = np.flatnonzero(hit)[front]
+        sel = hit[front]
         ph = prim[sel]
-        cw = cos[vi[sel], dj[sel]] * np.float32(4.0 * np.pi / samples)
+        w = cw[sel] * np.float32(4.0 * np.pi / samples)
         uu, vv = u[sel], v[sel]
-        rows = np.repeat(vi[sel] + i0, 3)
+        rows = np.repeat(vid[sel] + i0, 3)
         cols = faces[ph].ravel()
-        vals = (np.stack([1.0 - uu - vv, uu, vv], axis=1) * cw[:, None]).ravel()
-        return w @ yw, (rows, cols, vals)
+        vals = (np.stack([1.0 - uu - vv, uu, vv], axis=1) * w[:, None]).ravel()
+        return proj, (rows, cols, vals)
 
     spans = _chunks(sc.n_vertices, samples)
     nthreads = max(1, int(threads or os.cpu_count() or 1))

@@ -92,9 +92,9 @@ def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLi
     light = light.astype(tk.dtype if tk.dtype in (np.float32, np.float64) else np.float64)
     if tk.ndim == 2:
         return np.asarray(tk @ light, dtype=np.float32)
-    out = np.empty((t.shape[0], 3), dtype=np.float32)
-    for ch in range(3):
-        out[:, ch] = tk[:, :, ch] @ light[:, ch]
-    return out
+    # one matmul: (V, K·3) @ (K·3, 3) with the lighting on the block diagonal per channel
+    m = np.zeros((k, 3, 3), dtype=light.dtype)
+    m[:, [0, 1, 2], [0, 1, 2]] = light
+    return np.asarray(tk.reshape(t.shape[0], k * 3) @ m.reshape(k * 3, 3), dtype=np.float32)
 
 
