@@ -55,7 +55,7 @@ def main() -> None:
     rows = []
     n_rays = None
     for threads in (1, 2):
-        t, tr = best(lambda th=threads: bake(scene, mode="shadowed", lmax=args.lmax,
+        t, _ = best(lambda th=threads: bake(scene, mode="shadowed", lmax=args.lmax,
                                             samples=args.samples, seed=0, threads=th), 2)
         if n_rays is None:
             o, d = bake_rays(scene, args.samples, 0)

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import console, force_option, parse_floats, parse_size
+from .common import force_option, parse_floats, parse_size
 
 
 def _albedo(text: str | None):
@@ -96,7 +96,7 @@ def register(group: click.Group) -> None:
                  albedo=_albedo(albedo), seed=seed, ground=ground, threads=threads,
                  progress=progress)
         t.save(output, overwrite=force)
-        console(stderr=True).print(
+        click.echo(err=True, message=
             f"{mode} transfer, lmax {lmax}, {t.n_vertices} vertices"
             + (f", {samples} samples" if mode != "unshadowed" else "")
             + (f", {bounces} bounces" if mode == "interreflected" else "")
@@ -131,12 +131,13 @@ def register(group: click.Group) -> None:
         """Relight TRANSFER under PROBE (or --preset / --window) and render it."""
         from ..files import check_output_path
         from ..prt import load_transfer
+
+        t = load_transfer(transfer, scene=scene_check)
         from ..prt.view import axis_angle, render_frame
         from ..prt.view import turntable as turntable_frames
         from ..render import Camera
         from .common import progress
 
-        t = load_transfer(transfer, scene=scene_check)
         use = t.lmax if lmax is None else lmax
         if use > t.lmax:
             raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
@@ -151,7 +152,7 @@ def register(group: click.Group) -> None:
         if turntable is None:
             check_output_path(output, force)
             render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, exposure, force)
-            console(stderr=True).print(f"wrote {output}")
+            click.echo(err=True, message=f"wrote {output}")
             return
         if turntable < 1:
             raise ShprobeError(f"--turntable needs N >= 1, got {turntable}")
@@ -162,4 +163,4 @@ def register(group: click.Group) -> None:
         frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam)
         for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):
             frame.save(p, exposure, force)
-        console(stderr=True).print(f"wrote {len(names)} frames {names[0]} … {names[-1]}")
+        click.echo(err=True, message=f"wrote {len(names)} frames {names[0]} … {names[-1]}")
