@@ -56,7 +56,7 @@ def main() -> None:
     n_rays = None
     for threads in (1, 2):
         t, _ = best(lambda th=threads: bake(scene, mode="shadowed", lmax=args.lmax,
-                                            samples=args.samples, seed=0, threads=th), 2)
+                                            samples=args.samples, seed=0, threads=th), 3)
         if n_rays is None:
             o, d = bake_rays(scene, args.samples, 0)
             n_rays = len(o)

@@ -160,8 +160,8 @@ def test_convex_mesh_all_three_models_agree():
     bound = 3.0 * sigma * FOUR_PI / np.sqrt(n_samples)
     err = np.abs(sh - un).max()
     assert err < bound, (err, bound)
-    # a good direction set beats plain MC comfortably
-    assert err < 0.5 * bound
+    # the randomised Fibonacci set beats plain MC by far (observed err ≈ 7e-5, bound ≈ 0.036)
+    assert err < 0.05 * bound
 
 
 def test_box_over_plane_shadows_exactly_by_geometry():

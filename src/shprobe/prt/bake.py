@@ -132,7 +132,7 @@ def _quiet(items: Iterable[Any], description: str = "", total: int | None = None
 
 
 def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
-         bounces: int = 1, albedo: Any = None, seed: int = 0, ground: bool = False,
+         bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
          threads: int | None = None, progress: ProgressFn | None = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
