@@ -31,6 +31,10 @@ _EXPORTS: dict[str, str] = {
     "rotate": "rotation",
     # errors
     "ShprobeError": "errors",
+    # precomputed radiance transfer
+    "bake": "prt",
+    "relight": "prt",
+    "load_transfer": "prt",
     # probes in, irradiance out
     "load_env": "prefilter",
     "project": "prefilter",
@@ -39,10 +43,6 @@ _EXPORTS: dict[str, str] = {
     "reference_irradiance": "prefilter",
     "read_image": "images",
     "write_image": "images",
-    # precomputed radiance transfer
-    "bake": "prt",
-    "relight": "prt",
-    "load_transfer": "prt",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -65,7 +65,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
     from .images import read_image, write_image
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
-    from .prt import bake, load_transfer, relight
     from .rotation import rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .zonal import circular_window, clamped_cosine_factors, convolve, zonal_coeffs
