@@ -4,47 +4,21 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..sh import lmax_of, num_coeffs, sh_basis
+from ..rotation import as_matrix, rotate
+from ..sh import lmax_of, num_coeffs
 from .transfer import Transfer
 
 
 def _as_matrix(rotation: ArrayLike) -> NDArray[np.float64]:
-    from .. import rotation as rot
-
-    if hasattr(rot, "as_matrix"):
-        return np.asarray(rot.as_matrix(rotation), dtype=np.float64)
-    r = np.asarray(rotation, dtype=np.float64)
-    if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6) or np.linalg.det(
-            r) < 0:
-        raise ShprobeError(f"rotation must be a 3×3 rotation matrix, got shape {r.shape}")
+    """One 3×3 rotation (matrix or (w, x, y, z) quaternion), checked."""
+    r = as_matrix(rotation)
+    if r.shape != (3, 3):
+        raise ShprobeError(f"need one rotation, got shape {r.shape}")
     return r
-
-
-@lru_cache(maxsize=16)
-def _fit_points(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    from .bake import sample_directions
-
-    u = sample_directions(max(2 * num_coeffs(lmax), 32), seed=1)
-    return u, np.linalg.pinv(sh_basis(u, lmax))
-
-
-def _rotate(coeffs: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Coefficients of f∘R⁻¹ (LH eq. 4–5). Uses ``shprobe.rotation.rotate`` where it exists;
-    otherwise fits them exactly from point values: a' = Y(u)⁺ Y(R⁻¹u) a (band-limited f).
-    """
-    from .. import rotation as rot
-
-    if hasattr(rot, "rotate"):
-        return np.asarray(rot.rotate(coeffs, r))
-    lmax = lmax_of(coeffs.shape[0])
-    u, pinv = _fit_points(lmax)
-    return pinv @ (sh_basis(u @ r, lmax) @ coeffs)  # rows of u @ R = R⁻¹ u
 
 
 def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -61,7 +35,7 @@ def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDAr
     lmax_of(c.shape[0])
     if rotation is None:
         return c
-    return _rotate(c, _as_matrix(rotation).T)
+    return np.asarray(rotate(c, _as_matrix(rotation).T), dtype=np.float64)
 
 
 def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLike | None = None,
