@@ -95,3 +95,20 @@ def test_render_window_and_turntable(tmp_path, sphere_obj):
                  "--turntable", "3", "-o", str(tmp_path / "f.png")]) == 0
     frames = [np.asarray(Image.open(tmp_path / f"f_{i:03d}.png")) for i in range(3)]
     assert not np.array_equal(frames[0], frames[1])  # the light moved
+
+
+@needs_renderer
+def test_render_probe_and_preset_need_no_rebake(tmp_path, sphere_obj, grace_path):
+    from shprobe import prefilter, presets
+
+    if not hasattr(prefilter, "project") or not hasattr(presets, "get_preset"):
+        pytest.skip("needs shprobe.prefilter.project and shprobe.presets.get_preset")
+    out = tmp_path / "t.npz"
+    assert main(["prt", "bake", str(sphere_obj), "--mode", "unshadowed", "--lmax", "6",
+                 "-o", str(out)]) == 0
+    before = out.stat().st_mtime_ns
+    for args in ([str(grace_path), "--lmax", "4"], ["--preset", "grace"]):
+        png = tmp_path / f"{len(args)}.png"
+        assert main(["prt", "render", str(out), *args, "--size", "32x32", "-o", str(png)]) == 0
+        assert png.stat().st_size > 0
+    assert out.stat().st_mtime_ns == before

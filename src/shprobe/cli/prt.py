@@ -21,33 +21,45 @@ def _albedo(text: str | None):
     return v[0] if len(v) == 1 else v
 
 
-def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int):
-    """Lighting coefficients (K, 3) or (K,) from exactly one source."""
+def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int,
+             coeffs_file: str | None = None):
+    """Lighting coefficients (K, 3) or (K,) from exactly one source: a probe (projected to
+    ``lmax``), an R&H preset or a coefficient JSON file (their own degree, ≤ 2 for presets), or
+    the LH §3.2 window "x,y,z,aperture_deg" (LH normalisation, total power 4π)."""
     import numpy as np
 
-    given = [s for s in (probe, preset, window) if s is not None]
+    given = [s for s in (probe, preset, window, coeffs_file) if s is not None]
     if len(given) != 1:
-        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME or "
-                           "--window X,Y,Z,APERTURE_DEG")
-    if preset is not None:
-        from ..presets import get_preset
-
-        return np.asarray(get_preset(preset), dtype=np.float64)
+        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
+                           "--coeffs FILE.json or --window X,Y,Z,APERTURE_DEG")
     if window is not None:
         from ..zonal import circular_window
 
         x, y, z, ap = parse_floats(window, 4, "window (x,y,z,aperture in degrees)")
         if not 0 < ap <= 180:
             raise ShprobeError(f"window aperture must be in (0, 180] degrees, got {ap}")
-        return circular_window(np.array([x, y, z]) / max(np.linalg.norm([x, y, z]), 1e-300),
+        if np.linalg.norm([x, y, z]) == 0:
+            raise ShprobeError(f"window axis {window!r} must not be zero")
+        return circular_window(np.array([x, y, z]) / np.linalg.norm([x, y, z]),
                                np.radians(ap), lmax)
+    if probe is not None and not Path(probe).is_file():
+        raise ShprobeError("no such probe file", probe)
+    try:
+        from .sources import resolve_coeffs
+    except ImportError:  # the shared source helper is not merged yet
+        resolve_coeffs = None
+    if resolve_coeffs is not None:
+        src = resolve_coeffs(probe, preset, coeffs_file, lmax=lmax if probe else None)
+        return np.asarray(src.coeffs, dtype=np.float64)
+    if coeffs_file is not None:
+        raise ShprobeError("--coeffs needs shprobe.cli.sources (not in this build)")
+    if preset is not None:
+        from ..presets import get_preset
+
+        return np.asarray(get_preset(preset), dtype=np.float64)
     from .. import prefilter
 
-    if not Path(probe).is_file():
-        raise ShprobeError("no such probe file", probe)
-    env = prefilter.load_env(probe)
-    res = prefilter.project(env, lmax)
-    return np.asarray(getattr(res, "coeffs", res), dtype=np.float64)
+    return np.asarray(prefilter.project(prefilter.load_env(probe), lmax), dtype=np.float64)
 
 
 def register(group: click.Group) -> None:
@@ -106,6 +118,8 @@ def register(group: click.Group) -> None:
     @click.argument("transfer", type=click.Path(dir_okay=False))
     @click.argument("probe", required=False, type=click.Path(dir_okay=False))
     @click.option("--preset", default=None, help="R&H 2001 lighting preset by name.")
+    @click.option("--coeffs", "coeffs_file", default=None, type=click.Path(dir_okay=False),
+                  help="Lighting coefficients from a JSON file (shprobe prefilter --format json).")
     @click.option("--window", default=None, metavar="X,Y,Z,APERTURE",
                   help="LH §3.2 circular light window: axis and aperture (degrees).")
     @click.option("--rotate", default=None, metavar="X,Y,Z,DEG",
@@ -126,9 +140,9 @@ def register(group: click.Group) -> None:
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Image (.png, .jpg, .exr, .hdr, .pfm).")
     @force_option
-    def render_cmd(transfer, probe, preset, window, rotate, lmax, size, azimuth, elevation,
-                   exposure, turntable, scene_check, output, force):
-        """Relight TRANSFER under PROBE (or --preset / --window) and render it."""
+    def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, size, azimuth,
+                   elevation, exposure, turntable, scene_check, output, force):
+        """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
         from ..files import check_output_path
         from ..prt import load_transfer
 
@@ -142,7 +156,7 @@ def register(group: click.Group) -> None:
         if use > t.lmax:
             raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
                                transfer)
-        coeffs = lighting(probe, preset, window, use)
+        coeffs = lighting(probe, preset, window, use, coeffs_file)
         w, h = parse_size(size)
         cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
         rot = None
