@@ -198,6 +198,9 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
+    from scipy.sparse import coo_matrix
+    from scipy.sparse import vstack as sparse_vstack
+
     kernels = _kernels()
     k = yw.shape[1]
 
@@ -224,10 +227,12 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
         ph = prim[sel]
         w = cw[sel] * np.float32(4.0 * np.pi / samples)
         uu, vv = u[sel], v[sel]
-        rows = np.repeat(vid[sel] + i0, 3)
+        rows = np.repeat(vid[sel], 3)
         cols = faces[ph].ravel()
         vals = (np.stack([1.0 - uu - vv, uu, vv], axis=1) * w[:, None]).ravel()
-        return proj, (rows, cols, vals)
+        # this block's rows of the gather matrix; CSR sums the many repeated (row, col) pairs
+        g = coo_matrix((vals.astype(np.float64), (rows, cols)), shape=(i1 - i0, sc.n_vertices))
+        return proj, g.tocsr()
 
     spans = _chunks(sc.n_vertices, samples)
     nthreads = max(1, int(threads or os.cpu_count() or 1))
@@ -240,15 +245,5 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
             t0[i0:i1] = proj
             if g is not None:
                 parts.append(g)
-    gmat = None
-    if gather:
-        from scipy.sparse import coo_matrix
-
-        if parts:
-            rows, cols, vals = (np.concatenate(x) for x in zip(*parts, strict=True))
-        else:
-            rows = cols = np.zeros(0, dtype=np.int64)
-            vals = np.zeros(0)
-        gmat = coo_matrix((vals.astype(np.float64), (rows, cols)),
-                          shape=(sc.n_vertices, sc.n_vertices)).tocsr()
+    gmat = sparse_vstack(parts, format="csr") if gather else None
     return t0, gmat
