@@ -13,7 +13,7 @@ from shprobe.prt import bake, load_transfer
 
 needs_renderer = pytest.mark.skipif(
     not hasattr(render_mod, "render_vertex_colors") or not hasattr(zonal, "circular_window"),
-    reason="needs shprobe.render.render_vertex_colors and zonal.circular_window (other branches)")
+    reason="needs shprobe.render.render_vertex_colors (branch render, not on main yet)")
 
 
 @pytest.fixture
