@@ -39,23 +39,6 @@ def unit_dirs(n, seed=0):
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def scipy_real_sh(d, lmax):
-    from scipy.special import sph_harm_y
-
-    theta = np.arctan2(np.hypot(d[:, 0], d[:, 1]), d[:, 2])
-    phi = np.arctan2(d[:, 1], d[:, 0])
-    out = np.empty((len(d), (lmax + 1) ** 2))
-    for l in range(lmax + 1):
-        m = np.arange(l + 1)
-        Y = sph_harm_y(l, m[:, None], theta[None, :], phi[None, :])
-        k0 = l * (l + 1)
-        out[:, k0] = Y[0].real
-        sign = np.sqrt(2) * (-1.0) ** m[1:, None]
-        out[:, k0 + m[1:]] = (sign * Y[1:].real).T
-        out[:, k0 - m[1:]] = (sign * Y[1:].imag).T
-    return out
-
-
 def machine():
     cpu = platform.processor() or platform.machine()
     try:
@@ -74,7 +57,7 @@ def machine():
 def bench_basis(rows):
     import sphericart
 
-    from shprobe.sh import sh_basis, sh_basis_numpy
+    from shprobe.sh import sh_basis, sh_basis_numpy, sh_basis_scipy
 
     n, lmax = 10**6, 6
     d = unit_dirs(n)
@@ -88,7 +71,7 @@ def bench_basis(rows):
     t_ours = min(t_ours, t_ours2)
     assert np.allclose(np.abs(out), np.abs(o2), atol=1e-12)  # same functions up to sign
     t_np = best(lambda: sh_basis_numpy(d, lmax), repeat=3)
-    t_scipy = best(lambda: scipy_real_sh(d, lmax), repeat=1)
+    t_scipy = best(lambda: sh_basis_scipy(d, lmax), repeat=1)
     f32 = d.astype(np.float32)
     out32 = np.empty(out.shape, np.float32)
     t_32 = best(lambda: sh_basis(f32, lmax, out=out32))

@@ -1,33 +1,17 @@
 """sh_basis against independent evaluations: quadrature orthonormality, scipy's complex SH
-(Condon–Shortley phase removed) to l = 64, the addition theorem and P_l(u·v) to l = 256."""
+(Condon–Shortley phase removed, `sh_basis_scipy`) to l = 64, the addition theorem and
+P_l(u·v) to l = 256."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.special import eval_legendre, sph_harm_y
+from scipy.special import eval_legendre
 
 from shprobe import ShprobeError
-from shprobe.sh import sh_basis, sh_basis_numpy
+from shprobe.sh import sh_basis, sh_basis_numpy, sh_basis_scipy
 
 from .conftest import random_dirs
-
-
-def scipy_real_sh(dirs, lmax):
-    """R&H-signed real SH from scipy.special.sph_harm_y (which carries the CS phase)."""
-    x, y, z = dirs.T
-    theta = np.arctan2(np.hypot(x, y), z)  # accurate near the poles, unlike arccos
-    phi = np.arctan2(y, x)
-    out = np.empty((len(dirs), (lmax + 1) ** 2))
-    for l in range(lmax + 1):
-        m = np.arange(l + 1)
-        Y = sph_harm_y(l, m[:, None], theta[None, :], phi[None, :])  # (l+1, N)
-        k0 = l * (l + 1)
-        out[:, k0] = Y[0].real
-        sign = np.sqrt(2) * (-1.0) ** m[1:, None]
-        out[:, k0 + m[1:]] = (sign * Y[1:].real).T
-        out[:, k0 - m[1:]] = (sign * Y[1:].imag).T
-    return out
 
 
 def band_norm(lmax):
@@ -50,12 +34,21 @@ def test_orthonormal_by_quadrature_l16():
     np.testing.assert_allclose(G, np.eye((lmax + 1) ** 2), atol=1e-13)
 
 
+def test_scipy_reference_is_the_rh_table():
+    d = random_dirs(5, seed=11)
+    x, y, z = d.T
+    want = np.stack([np.full_like(x, 0.282095), 0.488603 * y, 0.488603 * z, 0.488603 * x,
+                     1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
+                     1.092548 * x * z, 0.546274 * (x * x - y * y)], -1)
+    np.testing.assert_allclose(sh_basis_scipy(d, 2), want, atol=2e-6)
+
+
 def test_against_scipy_every_l_to_64():
     lmax = 64
     d = np.concatenate([random_dirs(300, seed=3),
                         [[0, 0, 1], [0, 0, -1], [1, 0, 0], [0.6, 0.8, 0], [0, 1e-9, 1]]])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    err = np.abs(sh_basis(d, lmax) - scipy_real_sh(d, lmax)) / band_norm(lmax)
+    err = np.abs(sh_basis(d, lmax) - sh_basis_scipy(d, lmax)) / band_norm(lmax)
     assert err.max() <= 1e-12
 
 

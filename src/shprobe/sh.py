@@ -139,6 +139,32 @@ def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
     return out.astype(out_dtype, copy=False)
 
 
+def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
+    """Independent (slow) evaluation of :func:`sh_basis` for checks and benchmarks.
+
+    scipy.special.sph_harm_y (complex, with the Condon–Shortley phase) turned real with R&H
+    signs: y_l0 = Y_l0, y_lm = √2 (−1)^m Re Y_lm, y_l,−m = √2 (−1)^m Im Y_lm (m > 0). θ is
+    taken as atan2(√(x²+y²), z), which stays accurate near the poles.
+    """
+    from scipy.special import sph_harm_y
+
+    d = np.asarray(_as_dirs(dirs), dtype=np.float64)
+    lmax = check_lmax(lmax)
+    flat = d.reshape(-1, 3)
+    theta = np.arctan2(np.hypot(flat[:, 0], flat[:, 1]), flat[:, 2])
+    phi = np.arctan2(flat[:, 1], flat[:, 0])
+    out = np.empty((len(flat), num_coeffs(lmax)))
+    for l in range(lmax + 1):
+        m = np.arange(l + 1)
+        Y = sph_harm_y(l, m[:, None], theta[None, :], phi[None, :])  # (l+1, N)
+        k0 = l * (l + 1)
+        out[:, k0] = Y[0].real
+        sign = np.sqrt(2.0) * (-1.0) ** m[1:, None]
+        out[:, k0 + m[1:]] = (sign * Y[1:].real).T
+        out[:, k0 - m[1:]] = (sign * Y[1:].imag).T
+    return out.reshape(*d.shape[:-1], num_coeffs(lmax))
+
+
 def _store(out, l, m, p, c, s, sqrt2):
     k0 = l * (l + 1)
     if m == 0:
