@@ -144,55 +144,91 @@ def _multiples(c, s, lmax, cm, sm):
 
 
 @nb.njit(cache=True)
-def _zrot(l, cm, sm, src, s0, srow, sch, dst, d0, drow, dch, C):
-    """dst = Z(φ) src on one degree-l block. Flat arrays with strides: row m (m = −l..l) and
-    channel ch of src live at ``s0 + (m + l)·srow + ch·sch`` (likewise dst)."""
-    for ch in range(C):
-        dst[d0 + l * drow + ch * dch] = src[s0 + l * srow + ch * sch]
-        for m in range(1, l + 1):
-            c = cm[m]
-            s = sm[m]
-            ap = src[s0 + (l + m) * srow + ch * sch]
-            an = src[s0 + (l - m) * srow + ch * sch]
-            dst[d0 + (l + m) * drow + ch * dch] = c * ap - s * an
-            dst[d0 + (l - m) * drow + ch * dch] = s * ap + c * an
+def _zrot_in(l, cm, sm, src, s0, C, g, t):
+    """t = Z(φ) src for channels g..g+3 of one degree-l block; src row m (m = −l..l),
+    channel ch at ``s0 + (m + l)·C + ch``; t is 4-channel scratch, row m at ``4(m + l)``
+    (channels past C are zero)."""
+    for j in range(4):
+        ch = g + j
+        if ch < C:
+            t[4 * l + j] = src[s0 + l * C + ch]
+            for m in range(1, l + 1):
+                ap = src[s0 + (l + m) * C + ch]
+                an = src[s0 + (l - m) * C + ch]
+                t[4 * (l + m) + j] = cm[m] * ap - sm[m] * an
+                t[4 * (l - m) + j] = sm[m] * ap + cm[m] * an
+        else:
+            for m in range(-l, l + 1):
+                t[4 * (l + m) + j] = 0.0
 
 
 @nb.njit(cache=True)
-def _jmul(l, P, Q, src, dst, C):
-    """dst = J src on one degree-l block; J = d^l(π/2) = P ⊕ Q quadrants. Channel-major
-    scratch: row m of channel ch at ``ch·(2l+1) + l + m``. d^l(π/2) is a checkerboard: P_mn
-    vanishes unless l+m+n is even, Q_mn unless it is odd, so half the terms are skipped."""
+def _jmul_z(l, P, Q, cm, sm, src, dst, d0, drow, nch):
+    """dst = Z(φ) J src on one degree-l block for up to 4 channels at once; J = d^l(π/2) =
+    P ⊕ Q quadrants, Z(φ) from the cos/sin multiples ``cm``, ``sm``. src is 4-channel scratch
+    (row m at ``4(m + l)``); dst row m, channel j at ``d0 + (m + l)·drow + j`` for j < nch.
+    d^l(π/2) is a checkerboard: P_mn vanishes unless l+m+n is even, Q_mn unless it is odd,
+    so half the terms are skipped (while loops: numba's stepped range is markedly slower)."""
     o = pq_offset(l)
     w = l + 1
-    W = 2 * l + 1
-    for ch in range(C):
-        b = ch * W + l
-        for m in range(l + 1):
-            r = o + m * w
-            acc = 0.0
-            for n in range((l + m) & 1, l + 1, 2):
-                acc += P[r + n] * src[b + n]
-            dst[b + m] = acc
-            if m > 0:
-                acc = 0.0
-                n0 = (l + m + 1) & 1
-                for n in range(n0 if n0 else 2, l + 1, 2):
-                    acc += Q[r + n] * src[b - n]
-                dst[b - m] = acc
+    for m in range(l + 1):
+        r = o + m * w
+        u0 = u1 = u2 = u3 = 0.0
+        n = (l + m) & 1
+        while n <= l:
+            p = P[r + n]
+            k = 4 * (l + n)
+            u0 += p * src[k]
+            u1 += p * src[k + 1]
+            u2 += p * src[k + 2]
+            u3 += p * src[k + 3]
+            n += 2
+        e = d0 + (l + m) * drow
+        if m == 0:
+            dst[e] = u0
+            if nch > 1:
+                dst[e + 1] = u1
+            if nch > 2:
+                dst[e + 2] = u2
+            if nch > 3:
+                dst[e + 3] = u3
+            continue
+        v0 = v1 = v2 = v3 = 0.0
+        n = 1 + ((l + m) & 1)
+        while n <= l:
+            q = Q[r + n]
+            k = 4 * (l - n)
+            v0 += q * src[k]
+            v1 += q * src[k + 1]
+            v2 += q * src[k + 2]
+            v3 += q * src[k + 3]
+            n += 2
+        c = cm[m]
+        s = sm[m]
+        f = d0 + (l - m) * drow
+        dst[e] = c * u0 - s * v0
+        dst[f] = s * u0 + c * v0
+        if nch > 1:
+            dst[e + 1] = c * u1 - s * v1
+            dst[f + 1] = s * u1 + c * v1
+        if nch > 2:
+            dst[e + 2] = c * u2 - s * v2
+            dst[f + 2] = s * u2 + c * v2
+        if nch > 3:
+            dst[e + 3] = c * u3 - s * v3
+            dst[f + 3] = s * u3 + c * v3
 
 
 @nb.njit(cache=True)
 def _rotate_block(l, P, Q, ang, src, s0, dst, d0, C, t1, t2):
     """dst = D^l(R) src = Z(γ+π/2) J Z(β+π) J Z(α+π/2) src for a block stored (row, channel)
-    at s0 / d0 (rows of ``ang``: cos/sin multiples of those three angles). From
-    D = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2) with Jᵀ = S J S, S = diag((−1)^m), S Z(φ) = Z(φ + π)."""
-    W = 2 * l + 1
-    _zrot(l, ang[0], ang[1], src, s0, C, 1, t1, 0, 1, W, C)
-    _jmul(l, P, Q, t1, t2, C)
-    _zrot(l, ang[2], ang[3], t2, 0, 1, W, t1, 0, 1, W, C)
-    _jmul(l, P, Q, t1, t2, C)
-    _zrot(l, ang[4], ang[5], t2, 0, 1, W, dst, d0, C, 1, C)
+    at s0 / d0, four channels at a time (rows of ``ang``: cos/sin multiples of the three
+    angles). From D = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2) with Jᵀ = S J S, S = diag((−1)^m) and
+    S Z(φ) = Z(φ + π)."""
+    for g in range(0, C, 4):
+        _zrot_in(l, ang[0], ang[1], src, s0, C, g, t1)
+        _jmul_z(l, P, Q, ang[2], ang[3], t1, t2, 0, 4, 4)
+        _jmul_z(l, P, Q, ang[4], ang[5], t2, dst, d0 + g, C, min(4, C - g))
 
 
 @nb.njit(cache=True)
@@ -219,8 +255,8 @@ def rotate_batch(Rs, coeffs, lmax, P, Q):
     src = coeffs.reshape(-1)
     dst = out.reshape(-1)
     ang = np.empty((6, lmax + 1))
-    t1 = np.empty((2 * lmax + 1) * C)
-    t2 = np.empty((2 * lmax + 1) * C)
+    t1 = np.empty((2 * lmax + 1) * 4)
+    t2 = np.empty((2 * lmax + 1) * 4)
     err = 0.0
     for i in range(n):
         if nr > 1 or i == 0:
@@ -243,8 +279,8 @@ def wigner_full(Rs, lmax, P, Q):
     out = np.zeros((n, K, K))
     ang = np.empty((6, lmax + 1))
     w = 2 * lmax + 1
-    t1 = np.empty(w * w)
-    t2 = np.empty(w * w)
+    t1 = np.empty(w * 4)
+    t2 = np.empty(w * 4)
     blk = np.empty(w * w)
     err = 0.0
     for i in range(n):
