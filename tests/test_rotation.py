@@ -238,3 +238,32 @@ def test_closed_form_low_degree_matches_recurrence(lmax):
     np.testing.assert_allclose(rotate(c, Rs), wigner_d(Rs, lmax) @ c, atol=1e-14)
     for R in Rs[:3]:
         np.testing.assert_allclose(rotate(c, R), wigner_d(R, lmax) @ c, atol=1e-14)
+
+
+@pytest.mark.parametrize("beta", [1e-9, 0.3, 1.2, 2.9, np.pi])
+def test_lh_recurrence_at_any_beta_matches_the_pi_half_construction(beta):
+    # The LH recurrence run directly at β (accurate for small l) equals the d(π/2)-based
+    # D(Ry(β)) that wigner_d builds; its opposite-sign quadrants are zero.
+    from shprobe._rotation_kernels import d_tables
+
+    lmax = 10
+    P, Q = d_tables(np.cos(beta), np.sin(beta), lmax)
+    D = wigner_d(from_euler_zyz(0.0, beta, 0.0), lmax)
+    o = 0
+    for l in range(lmax + 1):
+        w = l + 1
+        p = P[o:o + w * w].reshape(w, w)
+        q = Q[o:o + w * w].reshape(w, w)
+        o += w * w
+        B = D[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2]
+        np.testing.assert_allclose(B[l:, l:], p, atol=1e-12)  # m, n ≥ 0
+        np.testing.assert_allclose(B[:l, :l][::-1, ::-1], q[1:, 1:], atol=1e-12)  # m, n < 0
+        np.testing.assert_allclose(B[l:, :l], 0.0, atol=1e-12)
+        np.testing.assert_allclose(B[:l, l:], 0.0, atol=1e-12)
+
+
+def test_degree_limit():
+    with pytest.raises(ShprobeError):
+        wigner_d(np.eye(3), 257)
+    with pytest.raises(ShprobeError):
+        rotate(np.zeros((258 ** 2, 1)), np.eye(3))

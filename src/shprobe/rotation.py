@@ -23,7 +23,7 @@ traceless quadratic form A → R A Rᵀ), tested against the recurrence.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache, lru_cache
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,9 @@ from .sh import check_lmax, lmax_of, num_coeffs
 
 #: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
 ORTHO_TOL = 1e-6
+
+#: Largest degree :func:`rotate` / :func:`wigner_d` accept (the d(π/2) table grows as lmax³/3).
+ROTATION_LMAX = 256
 
 
 def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
@@ -124,7 +127,7 @@ def _check_err(err: float) -> None:
 
 @lru_cache(maxsize=256)
 def _lmax_of(K: int) -> int:
-    return lmax_of(K)
+    return check_lmax(lmax_of(K), ROTATION_LMAX)
 
 
 def _kernels():
@@ -133,9 +136,20 @@ def _kernels():
     return _rotation_kernels
 
 
-@lru_cache(maxsize=8)
+@cache
 def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """J = d(π/2) for l ≤ lmax by the LH recurrence (P, Q quadrant tables, read-only)."""
+    """J = d(π/2) for l ≤ lmax (P, Q quadrant tables, read-only): prefixes of the tables of
+    the next power-of-two degree, so all degrees share a few arrays."""
+    bucket = 16
+    while bucket < lmax:
+        bucket *= 2
+    P, Q = _j_full(bucket)
+    n = (lmax + 1) * (lmax + 2) * (2 * lmax + 3) // 6
+    return P[:n], Q[:n]
+
+
+@cache
+def _j_full(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     P, Q = _kernels().d_tables(0.0, 1.0, lmax)
     P.flags.writeable = False
     Q.flags.writeable = False
@@ -157,7 +171,7 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
     leading axes.
     """
-    lmax = check_lmax(lmax)
+    lmax = check_lmax(lmax, ROTATION_LMAX)
     R = _matrices(rotation)
     batch = R.shape[:-2]
     out, err = _kernels().wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))
