@@ -1,4 +1,5 @@
-"""Convention converters against pyshtools and the published CS-phase l ≤ 2 table
+"""Convention converters against pyshtools (when installed; it is in the `bench` extra), the
+4π definition by quadrature, and the published CS-phase l ≤ 2 table
 (google/spherical-harmonics HardcodedSH, DirectXMath XMSHEval)."""
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ from shprobe.sh import sh_basis
 
 from .conftest import random_dirs
 
-pysh = pytest.importorskip("pyshtools")
+
+def pyshtools():
+    return pytest.importorskip("pyshtools", reason="pyshtools not installed (bench extra)")
 
 
 def cs_table(d):
@@ -49,6 +52,7 @@ def test_condon_shortley_matches_published_table():
 
 @pytest.mark.parametrize("csphase", [1, -1])
 def test_pyshtools_4pi_functions_are_sqrt4pi_times_ours(csphase):
+    pysh = pyshtools()
     lmax = 12
     d = random_dirs(20, seed=3)
     ours = sh_basis(d, lmax)
@@ -62,6 +66,7 @@ def test_pyshtools_4pi_functions_are_sqrt4pi_times_ours(csphase):
 
 @pytest.mark.parametrize("norm,csphase", [("4pi", 1), ("4pi", -1), ("ortho", 1), ("ortho", -1)])
 def test_to_shtools_expands_to_the_same_function(norm, csphase):
+    pysh = pyshtools()
     lmax = 10
     c = np.random.default_rng(4).normal(size=((lmax + 1) ** 2, 2))
     cilm = to_shtools(c, normalization=norm, csphase=csphase)
@@ -76,6 +81,24 @@ def test_to_shtools_expands_to_the_same_function(norm, csphase):
     np.testing.assert_allclose(from_shtools(cilm, norm, csphase), c, atol=1e-15)
     np.testing.assert_allclose(from_shtools(to_shtools(c[:, 0], norm, csphase), norm, csphase),
                                c[:, 0], atol=1e-15)
+
+
+@pytest.mark.parametrize("csphase", [1, -1])
+def test_4pi_definition_by_quadrature(csphase):
+    # the function with 4π coefficient e_k is Y^4π_k: (1/4π)∫ Y_j Y_k = δ_jk, and
+    # Y^4π_k = s_k √(4π) y_k with s_k = +1 (csphase 1) or (−1)^|m| (csphase −1)
+    lmax = 6
+    K = (lmax + 1) ** 2
+    z, w = np.polynomial.legendre.leggauss(lmax + 2)
+    phi = np.arange(2 * lmax + 2) * np.pi / (lmax + 1)
+    s = np.sqrt(1 - z * z)
+    u = np.stack(np.broadcast_arrays(s[:, None] * np.cos(phi), s[:, None] * np.sin(phi),
+                                     z[:, None]), -1).reshape(-1, 3)
+    wt = np.repeat(w * np.pi / (lmax + 1), 2 * lmax + 2)
+    Y4 = sh_basis(u, lmax) @ from_4pi(np.eye(K), csphase=csphase)  # column k = Y^4π_k(u)
+    np.testing.assert_allclose((Y4 * wt[:, None]).T @ Y4 / (4 * np.pi), np.eye(K), atol=1e-13)
+    sign = to_condon_shortley(np.ones(K)) if csphase == -1 else np.ones(K)
+    np.testing.assert_allclose(Y4, np.sqrt(4 * np.pi) * sign * sh_basis(u, lmax), atol=1e-13)
 
 
 @pytest.mark.parametrize("csphase", [1, -1])
