@@ -225,6 +225,8 @@ def test_bad_coefficients_and_quaternion():
     with pytest.raises(ShprobeError):
         rotate(np.zeros((10, 3)), np.eye(3))  # 10 is not (lmax+1)²
     with pytest.raises(ShprobeError):
+        rotate(np.zeros((3, 9, 1)), random_rotations(2, seed=19))  # batches 3 vs 2
+    with pytest.raises(ShprobeError):
         from_quaternion([0, 0, 0, 0])
     with pytest.raises(ShprobeError):
         wigner_d(np.eye(3), -1)

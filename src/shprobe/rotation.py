@@ -210,7 +210,12 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     K, C = c.shape[-2:]
     R = _matrices(rotation)
     br, bc = R.shape[:-2], c.shape[:-2]
-    shape = np.broadcast_shapes(br, bc)
+    try:
+        shape = np.broadcast_shapes(br, bc)
+    except ValueError:
+        raise ShprobeError(
+            f"batch shapes of coefficients {bc} and rotations {br} do not broadcast"
+        ) from None
     n = int(np.prod(shape)) if shape else 1
     nr = int(np.prod(br)) if br else 1
     ncf = int(np.prod(bc)) if bc else 1
