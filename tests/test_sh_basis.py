@@ -124,3 +124,14 @@ def test_generated_unrolled_module_is_current():
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
     assert (root / "src" / "shprobe" / "_sh_unrolled.py").read_text() == gen.source()
+
+
+def test_import_does_not_load_numba():
+    # `import shprobe` must stay light: numba and the kernels load on first use only
+    import subprocess
+    import sys
+
+    code = ("import sys, shprobe, shprobe.sh, shprobe.rotation, shprobe.zonal, "
+            "shprobe.conventions, shprobe.cli.main; print('numba' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "False"
