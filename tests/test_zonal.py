@@ -159,3 +159,12 @@ def test_bad_inputs():
         legendre_moments(lambda z: np.ones(3), 4)
     with pytest.raises(ShprobeError):
         zonal_from_moments(np.ones((2, 2)), [0, 0, 1])
+
+
+def test_window_recurrence_equals_prop32_quadrature():
+    # LH eq. 11 recurrence vs Gauss–Legendre of the cap indicator on [cos ζ, 1] (Prop. 3.2)
+    n = random_dirs(3, seed=8)
+    for zeta in (0.2, 1.0, 2.0):
+        want = zonal_coeffs(lambda z: np.ones_like(z), n, 20, interval=(np.cos(zeta), 1.0))
+        np.testing.assert_allclose(circular_window(n, zeta, 20, radiance=1.0), want,
+                                   atol=1e-12)
