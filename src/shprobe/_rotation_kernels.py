@@ -254,9 +254,11 @@ def rotate_batch(Rs, coeffs, lmax, P, Q):
     out = np.empty((n, K, C))
     src = coeffs.reshape(-1)
     dst = out.reshape(-1)
-    ang = np.empty((6, lmax + 1))
-    t1 = np.empty((2 * lmax + 1) * 4)
-    t2 = np.empty((2 * lmax + 1) * 4)
+    w4 = (2 * lmax + 1) * 4
+    scratch = np.empty(6 * (lmax + 1) + 2 * w4)  # one allocation for all scratch
+    ang = scratch[: 6 * (lmax + 1)].reshape(6, lmax + 1)
+    t1 = scratch[6 * (lmax + 1): 6 * (lmax + 1) + w4]
+    t2 = scratch[6 * (lmax + 1) + w4:]
     err = 0.0
     for i in range(n):
         if nr > 1 or i == 0:

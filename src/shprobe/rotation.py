@@ -35,6 +35,8 @@ from .sh import check_lmax, lmax_of, num_coeffs
 #: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
 ORTHO_TOL = 1e-6
 
+_F64 = np.dtype(np.float64)
+
 #: Largest degree :func:`rotate` / :func:`wigner_d` accept (the d(π/2) table grows as lmax³/3).
 ROTATION_LMAX = 256
 
@@ -130,7 +132,9 @@ def _lmax_of(K: int) -> int:
     return check_lmax(lmax_of(K), ROTATION_LMAX)
 
 
+@cache
 def _kernels():
+    """The numba kernel module, imported on first use (an import statement costs ~1 µs)."""
     from . import _rotation_kernels
 
     return _rotation_kernels
@@ -188,9 +192,9 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     batch (..., 3, 3) / (..., 4); the leading axes of both broadcast. float32 coefficients
     stay float32 (the arithmetic is float64).
     """
-    if (type(coeffs) is np.ndarray and coeffs.ndim == 2 and coeffs.dtype == np.float64
+    if (type(coeffs) is np.ndarray and coeffs.ndim == 2 and coeffs.dtype is _F64
             and type(rotation) is np.ndarray and rotation.shape == (3, 3)
-            and rotation.dtype == np.float64):
+            and rotation.dtype is _F64):
         # fast path: one (K, C) set, one matrix
         K, C = coeffs.shape
         lmax = _lmax_of(K)
