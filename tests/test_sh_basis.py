@@ -135,3 +135,19 @@ def test_import_does_not_load_numba():
             "shprobe.conventions, shprobe.cli.main; print('numba' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
+
+
+def test_degree_1024_near_the_poles():
+    # the (x+iy)^m factor goes to 0 while the z-polynomials grow near the poles: no overflow,
+    # and the addition theorem Σ_m y_lm² = (2l+1)/4π still holds
+    lmax = 1024
+    eps = np.array([0.0, 1e-12, 1e-6, 1e-3])
+    z = 1 - eps
+    d = np.stack([np.sqrt(1 - z * z), np.zeros_like(z), z], -1)
+    d = np.concatenate([d, -d])
+    Y = sh_basis(d, lmax)
+    assert np.all(np.isfinite(Y))
+    deg = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+    want = (2 * np.arange(lmax + 1) + 1) / (4 * np.pi)
+    for row in Y:
+        np.testing.assert_allclose(np.bincount(deg, weights=row ** 2), want, rtol=1e-10)
