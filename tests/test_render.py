@@ -192,11 +192,26 @@ def test_albedo_constant_vertex_and_texture():
 
 
 def test_background_is_environment_lookup():
-    env = np.zeros((8, 16, 3), np.float32)
-    env[:, 8, :] = [1, 2, 3]  # column at u just above 0.5: the −Z direction
-    res = render(None, lighting(), Camera(9, 9, fov=20), background=env)
-    # the ray through the image centre misses nothing; the sphere covers it. Corners see −Z-ish
-    assert np.allclose(res.image[~res.mask].max(axis=0), [1, 2, 3])
+    """Env radiance = direction + 1 on a lat-long grid: an orthographic camera sees one
+    direction, its view direction, in every background pixel."""
+    from shprobe.layouts import Env, get_layout
+
+    d = get_layout("latlong").pixel_directions((64, 128))
+    env = Env((d + 1).astype(np.float32), "latlong")
+    for az, view in [(0, [0, 0, -1]), (90, [-1, 0, 0]), (180, [0, 0, 1])]:
+        cam = Camera(12, 10, projection="orthographic", azimuth=az)
+        res = render(None, lighting(), cam, background=env)
+        bg = res.image[~res.mask]
+        assert len(bg) > 0
+        np.testing.assert_allclose(bg, np.tile(np.add(view, 1), (len(bg), 1)), atol=0.02)
+    # perspective: each background pixel shows the env in its own ray direction
+    cam = Camera(12, 10, fov=60)
+    res = render(None, lighting(), cam, background=env.radiance)
+    _, dirs = cam.rays(np.zeros(3), 1.0)
+    miss = ~res.mask.reshape(-1)
+    np.testing.assert_allclose(res.image.reshape(-1, 3)[miss], env.sample(dirs[miss]),
+                               rtol=1e-6)
+    np.testing.assert_allclose(res.image.reshape(-1, 3)[miss], dirs[miss] + 1, atol=0.02)
     res2 = render(None, lighting(), Camera(9, 9), background=[0.1, 0.2, 0.3])
     np.testing.assert_allclose(res2.image[~res2.mask], np.tile([0.1, 0.2, 0.3], (
         (~res2.mask).sum(), 1)), rtol=1e-6)

@@ -168,33 +168,15 @@ def directional_light(direction: ArrayLike, intensity: Any = 1.0,
     return y[:, None] * _rgb(intensity)[None, :]
 
 
-def cone_moments(aperture: float, lmax: int) -> NDArray[np.float64]:
-    """2π ∫ h(t) P_l(t) dt of the cone indicator h(t) = [t ≥ cos ζ] (Funk–Hecke), l = 0..lmax.
-
-    Closed form: 2π(1 − cos ζ) for l = 0, and 2π (P_{l−1}(cos ζ) − P_{l+1}(cos ζ)) / (2l + 1)
-    for l ≥ 1 (from (2l+1) P_l = P'_{l+1} − P'_{l−1}).
-    """
-    from numpy.polynomial import legendre
-
-    if not 0.0 <= aperture <= np.pi:
-        raise ShprobeError(f"cone aperture must be in [0, π] radians, got {aperture}")
-    t = np.cos(aperture)
-    P = np.array([legendre.legval(t, np.eye(lmax + 2)[l]) for l in range(lmax + 2)])
-    out = np.empty(lmax + 1)
-    out[0] = 2 * np.pi * (1 - t)
-    for l in range(1, lmax + 1):
-        out[l] = 2 * np.pi * (P[l - 1] - P[l + 1]) / (2 * l + 1)
-    return out
-
-
 def cone_light(axis: ArrayLike, aperture: float, radiance: Any = 1.0,
                lmax: int = 2) -> NDArray[np.float64]:
     """A circular window (disc light) of constant ``radiance`` and half-angle ``aperture`` ζ
-    (radians) around ``axis``: L_lm = radiance · (2π ∫ h P_l) · y_lm(axis) (Funk–Hecke)."""
-    lmax = check_lmax(lmax)
-    mom = cone_moments(float(aperture), lmax)
-    y = sh_basis(_unit(axis), lmax)
-    return (mom[degrees(lmax)] * y)[:, None] * _rgb(radiance)[None, :]
+    (radians, 0 < ζ ≤ π) around ``axis``: L_lm = radiance · (2π ∫ h P_l) · y_lm(axis)
+    (Funk–Hecke), by the foundation's ``shprobe.zonal.circular_window`` (LH eq. 11)."""
+    from .zonal import circular_window
+
+    return np.asarray(circular_window(_unit(axis), float(aperture), check_lmax(lmax),
+                                      radiance=_rgb(radiance)), dtype=np.float64)
 
 
 def sky_light(up: ArrayLike = (0.0, 1.0, 0.0), sky: Any = 1.0, ground: Any = 0.0,

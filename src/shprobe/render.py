@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ShprobeError
+from .images import srgb_to_linear, tonemap
 from .sh import lmax_of, sh_basis
 from .zonal import clamped_cosine_factors, convolve
 
@@ -39,15 +40,16 @@ __all__ = [
     "Camera",
     "Hits",
     "RenderResult",
+    "basis_images",
+    "basis_visual",
     "load_mesh",
     "quadratic_form",
+    "relight",
     "render",
     "render_vertex_colors",
     "save_image",
     "shade_irradiance",
     "sphere_mesh",
-    "srgb_decode",
-    "srgb_encode",
     "tonemap",
     "trace",
 ]
@@ -372,19 +374,6 @@ def _trace_sphere(origins: NDArray, dirs: NDArray) -> Hits:
 # ----------------------------------------------------------------------------- albedo
 
 
-def srgb_decode(v: ArrayLike) -> NDArray[np.float32]:
-    """sRGB-encoded values in [0, 1] → linear."""
-    v = np.asarray(v, dtype=np.float32)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
-def srgb_encode(v: ArrayLike) -> NDArray[np.float32]:
-    """Linear values (clamped to [0, 1]) → sRGB-encoded."""
-    v = np.clip(np.asarray(v, dtype=np.float32), 0.0, 1.0)
-    return np.where(v <= 0.0031308, 12.92 * v,
-                    1.055 * np.power(v, 1.0 / 2.4) - 0.055).astype(np.float32)
-
-
 def _mesh_texture(mesh: trimesh.Trimesh) -> tuple[NDArray, NDArray] | None:
     """(uv (V, 2), linear texture (h, w, 3)) of a textured mesh, else None."""
     vis = getattr(mesh, "visual", None)
@@ -400,14 +389,14 @@ def _mesh_texture(mesh: trimesh.Trimesh) -> tuple[NDArray, NDArray] | None:
     if uv is None or img is None:
         return None
     tex = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
-    return np.asarray(uv, dtype=np.float64), srgb_decode(tex)
+    return np.asarray(uv, dtype=np.float64), srgb_to_linear(tex)
 
 
 def _mesh_vertex_colors(mesh: trimesh.Trimesh) -> NDArray | None:
     vis = getattr(mesh, "visual", None)
     if vis is None or getattr(vis, "kind", None) != "vertex":
         return None
-    return srgb_decode(np.asarray(vis.vertex_colors)[:, :3] / 255.0)
+    return srgb_to_linear(np.asarray(vis.vertex_colors)[:, :3] / 255.0)
 
 
 def sample_texture(tex: NDArray, uv: NDArray) -> NDArray[np.float32]:
@@ -499,20 +488,10 @@ def _background(background: Any, dirs: NDArray, C: int) -> NDArray[np.float32]:
         return np.asarray(background(dirs), dtype=np.float32).reshape(-1, C)
     b = np.asarray(background, dtype=np.float32)
     if b.ndim == 3:
-        return latlong_lookup(b, dirs)[:, :C]
+        from .layouts import Env
+
+        return Env(b, "latlong").sample(dirs)[:, :C]
     return np.broadcast_to(b.reshape(1, -1), (dirs.shape[0], C)).astype(np.float32)
-
-
-def latlong_lookup(img: NDArray, dirs: NDArray) -> NDArray[np.float32]:
-    """Nearest-pixel lookup in a lat-long map (row 0 = +Y, u = 0.5 looks along −Z, u = 0.75
-    along +X)."""
-    h, w = img.shape[:2]
-    d = np.asarray(dirs, dtype=np.float64)
-    u = 0.5 + np.arctan2(d[:, 0], -d[:, 2]) / (2.0 * np.pi)
-    v = np.arccos(np.clip(d[:, 1], -1.0, 1.0)) / np.pi
-    i = np.clip((v * h).astype(np.int64), 0, h - 1)
-    j = np.floor(u * w).astype(np.int64) % w
-    return np.asarray(img[i, j], dtype=np.float32)
 
 
 def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | None = None,
@@ -587,49 +566,51 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
         mode="vertex-colors")
 
 
+# ----------------------------------------------------------------------------- basis images
+
+
+def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lmax: int = 2,
+                 mode: str = "pixel", albedo: Any = None) -> RenderResult:
+    """The irradiance basis images of R&H §3.3 / Fig. 4: channel k of ``image`` is the object
+    rendered under the lighting L = e_k, i.e. ρ Â_l y_lm(n) / π (background 0).
+
+    Rendering is linear in L, so for any lighting (K, C) the relighting identity
+    image_c = Σ_k L_kc · basis_k holds (to float32 rounding) in both shading modes.
+    """
+    from .sh import num_coeffs
+
+    K = num_coeffs(lmax)
+    return render(mesh, np.eye(K), camera, mode=mode, albedo=albedo, background=None)
+
+
+def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
+    """Σ_k L_kc · basis_k: an image (H, W, C) from basis images (H, W, K) and lighting
+    (K, C)."""
+    b = np.asarray(basis, dtype=np.float32)
+    c = np.asarray(coeffs, dtype=np.float32)
+    if c.ndim == 1:
+        c = c[:, None]
+    if b.shape[-1] != c.shape[0]:
+        raise ShprobeError(f"{b.shape[-1]} basis images but {c.shape[0]} coefficients")
+    return b @ c
+
+
+def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.float32]:
+    """R&H Fig. 4 colouring of a signed image (H, W): positive green, negative blue, linear,
+    divided by ``scale`` (default: its own max |value|)."""
+    v = np.asarray(values, dtype=np.float32)
+    s = float(np.abs(v).max()) if scale is None else float(scale)
+    v = v / (s if s > 0 else 1.0)
+    return np.stack([np.zeros_like(v), np.maximum(v, 0), np.maximum(-v, 0)], -1)
+
+
 # ----------------------------------------------------------------------------- output
-
-
-def tonemap(image: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
-    """The one tone map of shprobe's renders: multiply by 2^exposure, clamp to [0, 1], apply
-    the sRGB transfer curve, quantise to 8 bits (round to nearest). NaN → 0."""
-    v = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0) * np.float32(2.0 ** exposure)
-    return np.round(srgb_encode(v) * 255.0).astype(np.uint8)
 
 
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
-    """Write a render: ``.png``/``.jpg`` tone-mapped 8-bit sRGB, ``.exr``/``.hdr``/``.pfm``
-    linear float (through OpenImageIO), atomically."""
-    from .files import atomic_output
+    """Write a render with :func:`shprobe.images.write_image`: ``.png`` tone-mapped by
+    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear."""
+    from .images import write_image
 
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim == 2:
-        img = img[:, :, None]
-    if img.shape[2] == 1:
-        img = np.repeat(img, 3, axis=2)
-    ext = os.path.splitext(os.fspath(path))[1].lower()
-    if ext in (".png", ".jpg", ".jpeg"):
-        data = tonemap(img, exposure)
-    elif ext in (".exr", ".hdr", ".pfm", ".tif", ".tiff"):
-        data = np.ascontiguousarray(img[:, :, :3])
-    else:
-        raise ShprobeError("unknown image type (use .png, .jpg, .exr, .hdr or .pfm)", path)
-    with atomic_output(path, overwrite) as tmp:
-        if ext in (".png", ".jpg", ".jpeg"):
-            from PIL import Image
-
-            Image.fromarray(np.ascontiguousarray(data[:, :, :3])).save(tmp)
-        else:
-            import OpenImageIO as oiio
-
-            out = oiio.ImageOutput.create(str(tmp))
-            if out is None:
-                raise ShprobeError(f"cannot write image: {oiio.geterror()}", path)
-            spec = oiio.ImageSpec(data.shape[1], data.shape[0], 3, oiio.FLOAT)
-            if ext == ".exr":
-                spec.attribute("compression", "zip")
-            ok = out.open(str(tmp), spec) and out.write_image(data)
-            out.close()
-            if not ok:
-                raise ShprobeError(f"cannot write image: {oiio.geterror()}", path)
+    write_image(path, image, overwrite=overwrite, exposure=exposure)
