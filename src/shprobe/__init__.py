@@ -44,6 +44,15 @@ _EXPORTS: dict[str, str] = {
     "reference_irradiance": "prefilter",
     "read_image": "images",
     "write_image": "images",
+    # rendering, lighting design, export
+    "Camera": "render",
+    "render_vertex_colors": "render",
+    "load_mesh": "render",
+    "min_irradiance": "design",
+    "auto_window": "design",
+    "window_factors": "design",
+    "export_coeffs": "export",
+    "import_coeffs": "export",
 }
 
 __all__ = ["__version__", *_EXPORTS]
