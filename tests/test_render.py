@@ -13,6 +13,7 @@ from shprobe.render import (
     quadratic_form,
     render,
     render_vertex_colors,
+    rh_constants,
     save_image,
     shade_irradiance,
     sphere_mesh,
@@ -55,15 +56,14 @@ def ortho_sphere_normals(w, h):
 def test_quadratic_form_constants_and_values():
     L = lighting()
     M = quadratic_form(L)
-    # c1..c5 of R&H eq. 12 recovered from M for unit lighting coefficients
-    e = np.eye(9)
-    c1 = quadratic_form(e[8])[0, 0, 0]
-    c2 = quadratic_form(e[3])[0, 0, 3]
-    c3 = quadratic_form(e[6])[0, 2, 2]
-    c4 = quadratic_form(e[0])[0, 3, 3]
-    c5 = -quadratic_form(e[6])[0, 3, 3]
     # the paper prints 6 digits of products of rounded constants (c3 = 0.743124 exactly)
-    np.testing.assert_allclose([c1, c2, c3, c4, c5], RH_CONSTANTS, atol=1.5e-6)
+    np.testing.assert_allclose(rh_constants(), RH_CONSTANTS, atol=1.5e-6)
+    # M has the layout of eq. 12: spot checks of single-coefficient lightings
+    c1, c2, c3, c4, c5 = rh_constants()
+    e = np.eye(9)
+    assert quadratic_form(e[8])[0, 1, 1] == -c1 and quadratic_form(e[1])[0, 1, 3] == c2
+    assert quadratic_form(e[6])[0, 3, 3] == -c5 and quadratic_form(e[0])[0, 3, 3] == c4
+    assert quadratic_form(e[6])[0, 2, 2] == c3
     n = random_dirs(500, seed=3)
     nh = np.concatenate([n, np.ones((500, 1))], 1)
     quad = np.einsum("pi,cij,pj->pc", nh, M, nh)

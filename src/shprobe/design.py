@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ShprobeError
+from .render import as_coeffs
 from .sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis, sh_index
 from .zonal import clamped_cosine_factors, convolve
 
@@ -65,17 +66,6 @@ __all__ = [
 
 
 # ----------------------------------------------------------------------------- editing
-
-
-def as_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """A float64 (K, C) copy; (K,) becomes (K, 1)."""
-    c = np.array(coeffs, dtype=np.float64)
-    if c.ndim == 1:
-        c = c[:, None]
-    if c.ndim != 2:
-        raise ShprobeError(f"coefficients must be (K, C) or (K,), got shape {c.shape}")
-    lmax_of(c.shape[0])
-    return c
 
 
 def pad_coeffs(coeffs: ArrayLike, lmax: int) -> NDArray[np.float64]:

@@ -89,12 +89,9 @@ def _ahat(lmax: int) -> NDArray[np.float64]:
 
 
 def _as_kc(coeffs: ArrayLike) -> NDArray[np.float64]:
-    c = np.asarray(coeffs, dtype=np.float64)
-    if c.ndim == 1:
-        c = c[:, None]
-    if c.ndim != 2:
-        raise ShprobeError(f"coefficients must be (K, C) or (K,), got shape {c.shape}")
-    lmax_of(c.shape[0])
+    from .render import as_coeffs
+
+    c = as_coeffs(coeffs)
     if not np.all(np.isfinite(c)):
         raise ShprobeError("coefficients contain NaN or infinity")
     return c
@@ -133,16 +130,10 @@ def _shader_header(fmt: str, source: str | None) -> list[str]:
     ]
 
 
-def _poly_consts() -> list[float]:
-    from .render import quadratic_form
+def _poly_consts() -> tuple[float, float, float, float, float]:
+    from .render import rh_constants
 
-    e = np.eye(9)
-    c1 = quadratic_form(e[8])[0, 0, 0]
-    c2 = quadratic_form(e[3])[0, 0, 3]
-    c3 = quadratic_form(e[6])[0, 2, 2]
-    c4 = quadratic_form(e[0])[0, 3, 3]
-    c5 = -quadratic_form(e[6])[0, 3, 3]
-    return [c1, c2, c3, c4, c5]
+    return rh_constants()
 
 
 def _shader(L9: NDArray, fmt: str, source: str | None) -> str:

@@ -40,6 +40,7 @@ __all__ = [
     "Camera",
     "Hits",
     "RenderResult",
+    "as_coeffs",
     "basis_images",
     "basis_visual",
     "load_mesh",
@@ -47,6 +48,7 @@ __all__ = [
     "relight",
     "render",
     "render_vertex_colors",
+    "rh_constants",
     "save_image",
     "shade_irradiance",
     "sphere_mesh",
@@ -202,22 +204,27 @@ def _bounding_sphere(mesh: trimesh.Trimesh | None) -> tuple[NDArray, float]:
 # ----------------------------------------------------------------------------- irradiance
 
 
+RH_CONSTANTS = (0.429043, 0.511664, 0.743125, 0.886227, 0.247708)
+
+
+def rh_constants() -> tuple[float, float, float, float, float]:
+    """c1…c5 of R&H eq. 12, exact (the paper prints them rounded, :data:`RH_CONSTANTS`):
+    c1 = Â₂ K₂₂, c2 = Â₁ K₁/2, c3 = 3 Â₂ K₂₀, c4 = Â₀ K₀₀, c5 = Â₂ K₂₀ with the basis
+    constants K (y22 = K₂₂(x² − y²), y1m = K₁·(y, z, x), y20 = K₂₀(3z² − 1), y00 = K₀₀)."""
+    a = clamped_cosine_factors(2)
+    k1 = np.sqrt(3.0 / (4.0 * np.pi))  # 0.488603
+    k20 = np.sqrt(5.0 / (16.0 * np.pi))  # 0.315392
+    k22 = np.sqrt(15.0 / (16.0 * np.pi))  # 0.546274
+    return (float(a[2] * k22), float(a[1] * k1 / 2.0), float(3.0 * a[2] * k20),
+            float(a[0] / (2.0 * np.sqrt(np.pi))), float(a[2] * k20))
+
+
 def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     """The 4×4 matrices M of R&H eq. 11–12 per channel, (C, 4, 4), with E(n) = nᵀ M n for
     n = (x, y, z, 1). ``coeffs`` are lighting coefficients L_lm, (K, C) or (K,) with K ≤ 9
     (missing bands are zero); the constants c1…c5 are computed exactly, not rounded."""
     L = _pad9(coeffs)
-    a = clamped_cosine_factors(2)
-    k1 = np.sqrt(3.0 / (4.0 * np.pi))  # 0.488603
-    k2 = np.sqrt(15.0 / (4.0 * np.pi))  # 1.092548
-    k20 = np.sqrt(5.0 / (16.0 * np.pi))  # 0.315392
-    k22 = np.sqrt(15.0 / (16.0 * np.pi))  # 0.546274
-    c1 = a[2] * k22  # 0.429043
-    c2 = a[1] * k1 / 2.0  # 0.511664
-    c3 = 3.0 * a[2] * k20  # 0.743125
-    c4 = a[0] / (2.0 * np.sqrt(np.pi))  # 0.886227
-    c5 = a[2] * k20  # 0.247708
-    assert abs(c1 - a[2] * k2 / 2.0) < 1e-15
+    c1, c2, c3, c4, c5 = rh_constants()
     M = np.empty((L.shape[1], 4, 4))
     L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = L
     M[:, 0] = np.stack([c1 * L22, c1 * L2m2, c1 * L21, c2 * L11], -1)
@@ -227,18 +234,21 @@ def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     return M
 
 
-RH_CONSTANTS = (0.429043, 0.511664, 0.743125, 0.886227, 0.247708)
-
-
-def _pad9(coeffs: ArrayLike) -> NDArray[np.float64]:
-    c = np.asarray(coeffs, dtype=np.float64)
+def as_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
+    """A float64 (K, C) copy of coefficients; (K,) becomes (K, 1); K must be (lmax+1)²."""
+    c = np.array(coeffs, dtype=np.float64)
     if c.ndim == 1:
         c = c[:, None]
     if c.ndim != 2:
         raise ShprobeError(f"coefficients must be (K, C) or (K,), got shape {c.shape}")
-    lmax = lmax_of(c.shape[0])
-    if lmax > 2:
-        raise ShprobeError(f"the quadratic form needs lmax <= 2, got lmax={lmax}")
+    lmax_of(c.shape[0])
+    return c
+
+
+def _pad9(coeffs: ArrayLike) -> NDArray[np.float64]:
+    c = as_coeffs(coeffs)
+    if c.shape[0] > 9:
+        raise ShprobeError(f"the quadratic form needs lmax <= 2, got lmax={lmax_of(c.shape[0])}")
     out = np.zeros((9, c.shape[1]))
     out[: c.shape[0]] = c
     return out
@@ -526,10 +536,16 @@ def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | Non
     rad = np.zeros((P, C), np.float32)
     alb = _albedo_per_pixel(mesh, albedo, hits, hit, C)
     rad[hit] = E[hit] / np.float32(np.pi) if alb is None else alb * E[hit] / np.float32(np.pi)
+    return _result(hits, rad, E, background, camera, mode)
+
+
+def _result(hits: Hits, rad: NDArray, E: NDArray, background: Any, camera: Camera,
+            mode: str) -> RenderResult:
+    hit = hits.face >= 0
     img = rad.copy()
     if background is not None:
-        img[~hit] = _background(background, hits.directions[~hit], C)
-    H, W = camera.height, camera.width
+        img[~hit] = _background(background, hits.directions[~hit], rad.shape[1])
+    H, W, C = camera.height, camera.width, rad.shape[1]
     return RenderResult(
         image=img.reshape(H, W, C), radiance=rad.reshape(H, W, C), mask=hit.reshape(H, W),
         normals=hits.normal.reshape(H, W, 3), irradiance=E.reshape(H, W, C),
@@ -555,15 +571,7 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
     hit = hits.face >= 0
     rad = np.zeros((hit.size, C), np.float32)
     rad[hit] = _interp(vr, mesh, hits, hit)
-    img = rad.copy()
-    if background is not None:
-        img[~hit] = _background(background, hits.directions[~hit], C)
-    H, W = camera.height, camera.width
-    return RenderResult(
-        image=img.reshape(H, W, C), radiance=rad.reshape(H, W, C), mask=hit.reshape(H, W),
-        normals=hits.normal.reshape(H, W, 3), irradiance=np.zeros((H, W, C), np.float32),
-        face=hits.face.reshape(H, W), bary=hits.bary.reshape(H, W, 3), camera=camera,
-        mode="vertex-colors")
+    return _result(hits, rad, np.zeros_like(rad), background, camera, "vertex-colors")
 
 
 # ----------------------------------------------------------------------------- basis images
