@@ -284,3 +284,32 @@ def test_rotation_equivalence():
     # E of the original lighting at R⁻¹ n: rotate normals the inverse way
     expect = shade_irradiance(L, n @ R, dtype=np.float64) / np.pi
     np.testing.assert_allclose(res.image[res.mask], expect, rtol=1e-4, atol=1e-5)
+
+
+def test_textured_obj_and_coloured_ply_from_disk(tmp_path):
+    """Albedo taken from the file: an OBJ + MTL + PNG texture, a PLY with vertex colours."""
+    import trimesh
+    from PIL import Image
+
+    img = np.zeros((4, 4, 3), np.uint8)
+    img[:, :2] = [255, 0, 0]  # left half red
+    img[:, 2:] = [0, 0, 255]  # right half blue
+    Image.fromarray(img).save(tmp_path / "tex.png")
+    (tmp_path / "q.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd tex.png\n")
+    (tmp_path / "q.obj").write_text(
+        "mtllib q.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    L = lighting()
+    cam = Camera(16, 16, projection="orthographic", ortho_height=1.0)
+    res = render(load_mesh(tmp_path / "q.obj"), L, cam)
+    white = render(_quad(), L, cam)
+    np.testing.assert_allclose(res.image[:, :4, 0], white.image[:, :4, 0], rtol=1e-4)
+    assert np.all(res.image[:, :4, 1:] < 1e-6) and np.all(res.image[:, -4:, :2] < 1e-6)
+    # PLY with per-vertex colours: uniform mid grey (sRGB 128 → linear 0.2158)
+    m = trimesh.creation.icosphere(2)
+    m.visual.vertex_colors = np.tile([128, 128, 128, 255], (len(m.vertices), 1))
+    m.export(tmp_path / "c.ply")
+    res = render(load_mesh(tmp_path / "c.ply"), L, Camera(20, 20))
+    plain = render(load_mesh(tmp_path / "c.ply"), L, Camera(20, 20), albedo=1.0)
+    lin = ((128 / 255 + 0.055) / 1.055) ** 2.4
+    np.testing.assert_allclose(res.image[res.mask], lin * plain.image[res.mask], rtol=1e-4)

@@ -198,7 +198,10 @@ def _bounding_sphere(mesh: trimesh.Trimesh | None) -> tuple[NDArray, float]:
         return np.zeros(3), 1.0
     v = np.asarray(mesh.vertices, dtype=np.float64)
     c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-    return c, float(np.sqrt(((v - c) ** 2).sum(axis=1).max()))
+    r = float(np.sqrt(((v - c) ** 2).sum(axis=1).max()))
+    if not r > 0:
+        raise ShprobeError("mesh has zero extent (all vertices coincide)")
+    return c, r
 
 
 # ----------------------------------------------------------------------------- irradiance
