@@ -1,0 +1,83 @@
+"""numba kernels of :mod:`shprobe.prefilter` (imported lazily: numba is slow to import)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, inline="always")
+def sh_into(x, y, z, lmax, a, b, out):
+    # the normalised LH recurrence of shprobe.sh, for one direction
+    sqrt2 = math.sqrt(2.0)
+    c = 1.0
+    s = 0.0
+    pmm = 0.5 / math.sqrt(math.pi)
+    for m in range(lmax + 1):
+        if m > 0:
+            c, s = x * c - y * s, x * s + y * c
+            pmm = pmm * math.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        k0 = m * (m + 1)
+        if m == 0:
+            out[k0] = pmm
+        else:
+            out[k0 + m] = sqrt2 * pmm * c
+            out[k0 - m] = sqrt2 * pmm * s
+        p2 = pmm
+        p1 = math.sqrt(2.0 * m + 3.0) * z * pmm
+        for l in range(m + 1, lmax + 1):
+            if l == m + 1:
+                p = p1
+            else:
+                p = a[l, m] * (z * p1 - b[l, m] * p2)
+                p2 = p1
+                p1 = p
+            k0 = l * (l + 1)
+            if m == 0:
+                out[k0] = p
+            else:
+                out[k0 + m] = sqrt2 * p * c
+                out[k0 - m] = sqrt2 * p * s
+
+
+@numba.njit(cache=True, parallel=True)
+def project_kernel(d, v, w, lmax, a, b, nblk):
+    ns = d.shape[0]
+    nc = v.shape[1]
+    k = (lmax + 1) * (lmax + 1)
+    out = np.zeros((nblk, k, nc))
+    step = (ns + nblk - 1) // nblk
+    for blk in numba.prange(nblk):
+        y = np.empty(k)
+        acc = np.zeros((k, nc))
+        for s in range(blk * step, min(ns, (blk + 1) * step)):
+            sh_into(d[s, 0], d[s, 1], d[s, 2], lmax, a, b, y)
+            for c in range(nc):
+                vw = v[s, c] * w[s]
+                if vw != 0.0:
+                    for i in range(k):
+                        acc[i, c] += y[i] * vw
+        out[blk] = acc
+    return out
+
+
+@numba.njit(cache=True, parallel=True, fastmath=True)
+def brute_kernel(nrm, dT, lwT, out):
+    t = nrm.shape[0]
+    s = dT.shape[1]
+    for i in numba.prange(t):
+        nx, ny, nz = nrm[i, 0], nrm[i, 1], nrm[i, 2]
+        r = 0.0
+        g = 0.0
+        bb = 0.0
+        for j in range(s):
+            c = nx * dT[0, j] + ny * dT[1, j] + nz * dT[2, j]
+            c = max(c, 0.0)
+            r += c * lwT[0, j]
+            g += c * lwT[1, j]
+            bb += c * lwT[2, j]
+        out[i, 0] += r
+        out[i, 1] += g
+        out[i, 2] += bb
