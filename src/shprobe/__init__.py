@@ -39,6 +39,12 @@ _EXPORTS: dict[str, str] = {
     "reference_irradiance": "prefilter",
     "read_image": "images",
     "write_image": "images",
+    # layouts (issue 3, part A)
+    "Env": "layouts",
+    "env_from_function": "layouts",
+    "get_layout": "layouts",
+    "detect_layout": "layouts",
+    "write_env": "layouts",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -60,6 +66,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
     from .images import read_image, write_image
+    from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
     from .rotation import rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm

@@ -81,10 +81,13 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     if ext == ".pfm":
         img = _read_pfm(p)
     else:
+        rgbe = ext in (".hdr", ".rgbe", ".pic")
         try:
             img, ldr = _read_oiio(p)
+            if rgbe:
+                img = _rgbe_half_step(img)
         except ShprobeError:
-            if ext not in (".hdr", ".rgbe", ".pic"):
+            if not rgbe:
                 raise
             img = read_rgbe(p)  # old-style RLE and other cases OIIO refuses
     img = _to_rgb(img, p)
@@ -232,11 +235,21 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
 
 
 def rgbe_to_float(rgbe: NDArray[np.uint8]) -> NDArray[np.float32]:
-    """RGBE bytes (..., 4) → float RGB: m · 2^(e − 136), as OpenImageIO (and Walter's rgbe.c)
-    decode it, so both read paths agree bit for bit (Radiance's colr_color adds 0.5 to m)."""
+    """RGBE bytes (..., 4) → float RGB: (m + 0.5) · 2^(e − 136), as Radiance's colr_color
+    (writers truncate, so the half step makes the round trip unbiased)."""
     e = rgbe[..., 3].astype(np.int32)
     f = np.where(e > 0, np.ldexp(np.float32(1.0), e - (128 + 8)), 0.0).astype(np.float32)
-    return (rgbe[..., :3].astype(np.float32) * f[..., None]).astype(np.float32)
+    return ((rgbe[..., :3].astype(np.float32) + 0.5) * f[..., None]).astype(np.float32)
+
+
+def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
+    """OpenImageIO decodes RGBE as m · 2^k (k = e − 136); add Radiance's half step 0.5 · 2^k.
+
+    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]."""
+    vmax = img.max(axis=-1, keepdims=True)
+    _, ex = np.frexp(np.where(vmax > 0, vmax, 1.0))  # vmax = f · 2^ex, f in [0.5, 1)
+    step = np.ldexp(np.float32(0.5), (ex - 8).astype(np.int32))
+    return np.where(vmax > 0, img + step, 0.0).astype(np.float32)
 
 
 def float_to_rgbe(rgb: NDArray[np.float32]) -> NDArray[np.uint8]:

@@ -59,6 +59,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -244,10 +245,362 @@ class LatLong(Layout):
         return _bilinear(img, xy[..., 0], xy[..., 1], wrap_x=True)
 
 
+# ----------------------------------------------------------------------------- disc maps
+
+
+def _gauss(n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gauss–Legendre nodes and weights on [0, 1]."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+class _Disc(Layout):
+    """Square N × N image of a disc: a = 2u − 1, b = 1 − 2v, r = √(a²+b²), φ = atan2(b, a);
+    direction ω = (sin θ cos φ, sin θ sin φ, cos θ) with θ = theta(r); dω = jac(r) da db."""
+
+    def grid_shape(self, size):
+        n = int(size[0]) if isinstance(size, tuple | list) else int(size)
+        return self.check_grid((n, n))
+
+    def check_grid(self, grid_shape, path=None):
+        h, w = _grid2(grid_shape)
+        if h != w:
+            raise ShprobeError(f"{self.label} must be square, got {w}x{h}", path)
+        return h, w
+
+    label = "a disc map"
+
+    # the radial map, vectorised over r in [0, 1]
+    def theta(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        raise NotImplementedError
+
+    def radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        raise NotImplementedError
+
+    def jac(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        """dω / (da db) at radius r (r < 1)."""
+        raise NotImplementedError
+
+    def _dirs_ab(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+        r = np.hypot(a, b)
+        th = self.theta(np.minimum(r, 1.0))
+        s = np.sin(th)
+        safe = np.where(r > 0, r, 1.0)
+        return np.stack([np.where(r > 0, s * a / safe, 0.0), np.where(r > 0, s * b / safe, 0.0),
+                         np.cos(th)], axis=-1)
+
+    def pixel_directions(self, grid_shape):
+        n, _ = self.check_grid(grid_shape)
+        return _disc_tables(self, n)[1]
+
+    def solid_angles(self, grid_shape):
+        n, _ = self.check_grid(grid_shape)
+        return _disc_tables(self, n)[0]
+
+    def direction_to_pixel(self, dirs, grid_shape):
+        n, _ = self.check_grid(grid_shape)
+        d = _unit(dirs)
+        th = np.arccos(np.clip(d[..., 2], -1.0, 1.0))
+        r = self.radius(th)
+        phi = np.arctan2(d[..., 1], d[..., 0])
+        a, b = r * np.cos(phi), r * np.sin(phi)
+        return np.stack([(a + 1.0) * 0.5 * n, (1.0 - b) * 0.5 * n], axis=-1)
+
+    def sample(self, radiance, dirs):
+        img = np.asarray(radiance)
+        xy = self.direction_to_pixel(dirs, img.shape[:2])
+        return _bilinear(img, xy[..., 0], xy[..., 1], wrap_x=False)
+
+    # exact solid angles ------------------------------------------------------
+    def _interior_order(self, n: int) -> int:
+        return 8 if n <= 16 else 6 if n <= 64 else 4 if n <= 512 else 3
+
+    def _rim_quadrature(self, a0, a1, b0, b1, nq: int = 16, with_dirs: bool = False):
+        """∫∫ over pixel ∩ disc of jac (solid angle) and of jac·ω, for pixels (P,) given by
+        their edges a0 < a1, b0 < b1. Outer x split where the clipped inner limits change,
+        x = end ∓ (len)·t² substitutions take the √(1−x²) branch point out."""
+        lo_x = np.maximum(a0, -1.0)
+        hi_x = np.minimum(a1, 1.0)
+        cand = [a0, a1]
+        for bb in (b0, b1):
+            s = np.sqrt(np.clip(1.0 - bb * bb, 0.0, None))
+            cand += [s, -s]
+        brk = np.sort(np.clip(np.stack(cand, -1), lo_x[:, None], hi_x[:, None]), axis=-1)
+        t, wt = _gauss(nq)
+        omega = np.zeros(a0.shape)
+        vec = np.zeros((*a0.shape, 3))
+        for k in range(brk.shape[1] - 1):
+            lo, hi = brk[:, k][:, None], brk[:, k + 1][:, None]
+            ln = hi - lo
+            at_right = hi >= 1.0
+            x = np.where(at_right, hi - ln * t * t, lo + ln * t * t)  # (P, nq)
+            wx = 2.0 * ln * t * wt
+            s = np.sqrt(np.clip(1.0 - x * x, 0.0, None))
+            ylo = np.maximum(b0[:, None], -s)
+            yhi = np.minimum(b1[:, None], s)
+            ly = np.clip(yhi - ylo, 0.0, None)
+            y = ylo[..., None] + ly[..., None] * t  # (P, nq, nq)
+            w = (wx * ly)[..., None] * wt
+            xx = np.broadcast_to(x[..., None], y.shape)
+            r = np.hypot(xx, y)
+            jw = self.jac(np.minimum(r, 1.0)) * w
+            omega += jw.sum(axis=(1, 2))
+            if with_dirs:
+                vec += np.einsum("pij,pijc->pc", jw, self._dirs_ab(xx, y))
+        return omega, vec
+
+
+@lru_cache(maxsize=8)
+def _disc_tables(layout: _Disc, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(solid angles (N, N), directions (N, N, 3)) of a disc layout, read-only, cached."""
+    edges = -1.0 + 2.0 * np.arange(n + 1) / n  # a edges, left to right
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    a = centres[None, :]
+    b = -centres[:, None]  # row j: b = 1 − 2(j+0.5)/n
+    dirs = layout._dirs_ab(np.broadcast_to(a, (n, n)), np.broadcast_to(b, (n, n)))
+    # nearest and farthest distance of each pixel square to the centre
+    lo1 = np.minimum(np.abs(edges[:-1]), np.abs(edges[1:]))
+    lo1 = np.where(edges[:-1] * edges[1:] < 0, 0.0, lo1)
+    hi1 = np.maximum(np.abs(edges[:-1]), np.abs(edges[1:]))
+    rmin = np.hypot(lo1[::-1][:, None], lo1[None, :])
+    rmax = np.hypot(hi1[::-1][:, None], hi1[None, :])
+    inside = rmax <= 1.0
+    rim = (rmin < 1.0) & ~inside
+    omega = layout._exact_solid_angles(n, edges)
+    h = 2.0 / n
+    if omega is None:
+        omega = np.zeros((n, n))
+        # interior pixels: tensor Gauss on the (analytic) Jacobian, one pixel row at a time,
+        # over the left half only (the table is mirror symmetric in a and in b)
+        q = layout._interior_order(n)
+        t, wt = _gauss(q)
+        half = (n + 1) // 2
+        xs = (edges[:half, None] + h * t[None, :]).ravel()  # (half q,)
+        wq = np.outer(wt, wt) * h * h
+        for j in range(half):
+            if not inside[j, :half].any():
+                continue
+            ys = 1.0 - 2.0 * j / n - h * t  # (q,)
+            r = np.hypot(xs[None, :], ys[:, None])  # (q, half q)
+            f = layout.jac(np.minimum(r, 1.0)).reshape(q, half, q)
+            omega[j, :half] = np.einsum("inj,ij->n", f, wq)
+        omega[:, n - half:] = omega[:, :half][:, ::-1]
+        omega[n - half:, :] = omega[:half, :][::-1, :]
+        omega[~inside] = 0.0
+        # rim pixels: quadrature clipped to the disc
+        jr, ir = np.nonzero(rim)
+        if jr.size:
+            b1 = 1.0 - 2.0 * jr / n
+            omega[jr, ir] = layout._rim_quadrature(edges[ir], edges[ir + 1], b1 - h, b1)[0]
+    # rim pixels whose centre lies outside the disc look along their mean direction
+    rc = np.hypot(centres[None, :], centres[:, None])
+    jr, ir = np.nonzero(rim & (rc >= 1.0))
+    if jr.size:
+        b1 = 1.0 - 2.0 * jr / n
+        vec = layout._rim_quadrature(edges[ir], edges[ir + 1], b1 - h, b1, nq=6,
+                                     with_dirs=True)[1]
+        vn = np.linalg.norm(vec, axis=-1, keepdims=True)
+        dirs[jr, ir] = vec / np.where(vn > 0, vn, 1.0)
+    dirs[omega <= 0] = 0.0
+    omega.flags.writeable = False
+    dirs.flags.writeable = False
+    return omega, dirs
+
+
+class Angular(_Disc):
+    """Angular map (Debevec light probe, R&H Fig. 3): θ = π r, centre +Z, rim −Z."""
+
+    name = "angular"
+    label = "an angular map"
+
+    def theta(self, r):
+        return np.pi * r
+
+    def radius(self, theta):
+        return theta / np.pi
+
+    def jac(self, r):
+        # dω = sin θ dθ dφ = π sin(πr)/r · r dr dφ ; sin(πr)/r = π sinc(r)
+        return np.pi * np.pi * np.sinc(r) * (r < 1.0)
+
+    def _exact_solid_angles(self, n, edges):
+        return None
+
+
+class MirrorBall(_Disc):
+    """Chrome-ball photo (orthographic, looking along −Z): θ = 2 arcsin r, dω = 4 da db."""
+
+    name = "mirrorball"
+    label = "a mirror-ball image"
+
+    def theta(self, r):
+        return 2.0 * np.arcsin(np.clip(r, 0.0, 1.0))
+
+    def radius(self, theta):
+        return np.sin(0.5 * theta)
+
+    def jac(self, r):
+        return np.where(r < 1.0, 4.0, 0.0)
+
+    def _exact_solid_angles(self, n, edges):
+        # 4 × area(pixel ∩ unit disc), by inclusion–exclusion of quarter-plane areas
+        s = _disc_corner_area(edges[None, :], edges[::-1][:, None])  # S(a_i, b_j), b top→bottom
+        area = s[1:, 1:] - s[1:, :-1] - s[:-1, 1:] + s[:-1, :-1]
+        return 4.0 * np.abs(area)
+
+
+def _disc_corner_area(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Signed area of the rectangle [0, x] × [0, y] ∩ unit disc (closed form)."""
+    ax = np.minimum(np.abs(x), 1.0)
+    ay = np.minimum(np.abs(y), 1.0)
+    ax, ay = np.broadcast_arrays(ax, ay)
+
+    def prim(t):  # ∫_0^t √(1 − s²) ds
+        return 0.5 * (t * np.sqrt(np.clip(1.0 - t * t, 0.0, None)) + np.arcsin(t))
+
+    xc = np.sqrt(np.clip(1.0 - ay * ay, 0.0, None))  # where the circle is at height ay
+    out = np.where(ax * ax + ay * ay <= 1.0, ax * ay,
+                   ay * np.minimum(xc, ax) + prim(ax) - prim(np.minimum(xc, ax)))
+    return np.sign(x) * np.sign(y) * out
+
+
+# ----------------------------------------------------------------------------- cube maps
+
+#: Face order and, per face, how (major axis, image right sc, image down tc) map to xyz:
+#: ω ∝ ma·e_major + sc·e_right + tc·e_down (see the module docstring table).
+CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+_CUBE_AXES = np.array([
+    # major         right (sc)      down (tc)
+    [[1, 0, 0], [0, 0, -1], [0, -1, 0]],   # +X
+    [[-1, 0, 0], [0, 0, 1], [0, -1, 0]],   # -X
+    [[0, 1, 0], [1, 0, 0], [0, 0, 1]],     # +Y
+    [[0, -1, 0], [1, 0, 0], [0, 0, -1]],   # -Y
+    [[0, 0, 1], [1, 0, 0], [0, -1, 0]],    # +Z
+    [[0, 0, -1], [-1, 0, 0], [0, -1, 0]],  # -Z
+], dtype=np.float64)
+
+#: Face positions (column, row) in units of the face size, and whether the face is turned 180°.
+CUBE_ARRANGEMENTS: dict[str, tuple[tuple[int, int], tuple[tuple[int, int, bool], ...]]] = {
+    # name: ((width, height) in faces, per face (col, row, rotated))
+    "hcross": ((4, 3), ((2, 1, False), (0, 1, False), (1, 0, False), (1, 2, False),
+                        (1, 1, False), (3, 1, False))),
+    "vcross": ((3, 4), ((2, 1, False), (0, 1, False), (1, 0, False), (1, 2, False),
+                        (1, 1, False), (1, 3, True))),
+    "hstrip": ((6, 1), tuple((k, 0, False) for k in range(6))),
+    "vstrip": ((1, 6), tuple((0, k, False) for k in range(6))),
+}
+
+
+def cube_arrangement(image_shape: Sequence[int], path=None) -> str:
+    """Which cube arrangement an (H, W) image is: hcross 4:3, vcross 3:4, hstrip 6:1,
+    vstrip 1:6."""
+    h, w = int(image_shape[0]), int(image_shape[1])
+    if h <= 0 or w <= 0:
+        raise ShprobeError("image has zero size", path)
+    for name, ((fw, fh), _) in CUBE_ARRANGEMENTS.items():
+        if w * fh == h * fw and w % fw == 0:
+            return name
+    raise ShprobeError(
+        f"a cube map must be a 4:3 or 3:4 cross or a 6:1 or 1:6 strip, got {w}x{h}", path)
+
+
+class Cube(Layout):
+    """Cube map, grid (6, N, N), faces +X −X +Y −Y +Z −Z (OpenGL / DirectX orientation)."""
+
+    name = "cube"
+
+    def grid_shape(self, size):
+        n = int(size[0]) if isinstance(size, tuple | list) else int(size)
+        return self.check_grid((6, n, n))
+
+    def check_grid(self, grid_shape, path=None):
+        g = tuple(int(v) for v in grid_shape)
+        if len(g) != 3 or g[0] != 6 or g[1] != g[2]:
+            raise ShprobeError(f"a cube map grid must be (6, N, N), got {g}", path)
+        if g[1] <= 0:
+            raise ShprobeError("image has zero size", path)
+        return g
+
+    @staticmethod
+    def _face_coords(n: int) -> NDArray[np.float64]:
+        return -1.0 + 2.0 * (np.arange(n) + 0.5) / n
+
+    def pixel_directions(self, grid_shape):
+        _, n, _ = self.check_grid(grid_shape)
+        c = self._face_coords(n)
+        sc = c[None, None, :, None]
+        tc = c[None, :, None, None]
+        ax = _CUBE_AXES
+        d = ax[:, None, None, 0] + sc * ax[:, None, None, 1] + tc * ax[:, None, None, 2]
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+    def solid_angles(self, grid_shape):
+        _, n, _ = self.check_grid(grid_shape)
+        e = -1.0 + 2.0 * np.arange(n + 1) / n
+        a = np.arctan2(e[:, None] * e[None, :], np.sqrt(e[:, None] ** 2 + e[None, :] ** 2 + 1))
+        texel = a[1:, 1:] - a[1:, :-1] - a[:-1, 1:] + a[:-1, :-1]
+        return np.broadcast_to(texel, (6, n, n)).copy()
+
+    def direction_to_pixel(self, dirs, grid_shape):
+        _, n, _ = self.check_grid(grid_shape)
+        d = _unit(dirs)
+        ad = np.abs(d)
+        axis = np.argmax(ad, axis=-1)  # 0, 1, 2
+        comp = np.take_along_axis(d, axis[..., None], -1)[..., 0]
+        face = 2 * axis + (comp < 0)
+        ax = _CUBE_AXES[face]  # (..., 3, 3)
+        ma = np.einsum("...c,...c->...", d, ax[..., 0, :])
+        sc = np.einsum("...c,...c->...", d, ax[..., 1, :]) / ma
+        tc = np.einsum("...c,...c->...", d, ax[..., 2, :]) / ma
+        return np.stack([face.astype(np.float64), (sc + 1) * 0.5 * n, (tc + 1) * 0.5 * n], -1)
+
+    def sample(self, radiance, dirs):
+        img = np.asarray(radiance)
+        n = img.shape[1]
+        fxy = self.direction_to_pixel(dirs, img.shape[:3])
+        f = fxy[..., 0].astype(np.int64)
+        fx = np.clip(fxy[..., 1] - 0.5, 0.0, n - 1.0)
+        fy = np.clip(fxy[..., 2] - 0.5, 0.0, n - 1.0)
+        x0 = np.floor(fx).astype(np.int64)
+        y0 = np.floor(fy).astype(np.int64)
+        x1, y1 = np.minimum(x0 + 1, n - 1), np.minimum(y0 + 1, n - 1)
+        tx, ty = (fx - x0)[..., None], (fy - y0)[..., None]
+        top = img[f, y0, x0] * (1 - tx) + img[f, y0, x1] * tx
+        bot = img[f, y1, x0] * (1 - tx) + img[f, y1, x1] * tx
+        return (top * (1 - ty) + bot * ty).astype(np.float32)
+
+    # files ------------------------------------------------------------------
+    def image_to_grid(self, img: NDArray[np.float32], path=None) -> NDArray[np.float32]:
+        """Cut a cross or strip image (H, W, C) into faces (6, N, N, C)."""
+        name = cube_arrangement(img.shape, path)
+        (fw, _), pos = CUBE_ARRANGEMENTS[name]
+        n = img.shape[1] // fw
+        faces = np.empty((6, n, n, img.shape[2]), dtype=np.float32)
+        for k, (col, row, rot) in enumerate(pos):
+            f = img[row * n:(row + 1) * n, col * n:(col + 1) * n]
+            faces[k] = f[::-1, ::-1] if rot else f
+        return faces
+
+    def grid_to_image(self, faces: ArrayLike, arrangement: str = "hcross") -> NDArray[np.float32]:
+        """Lay faces (6, N, N, C) out as ``arrangement`` (unused areas black)."""
+        faces = np.asarray(faces, dtype=np.float32)
+        if arrangement not in CUBE_ARRANGEMENTS:
+            raise ShprobeError(f"unknown cube arrangement {arrangement!r}; choose one of "
+                               + ", ".join(CUBE_ARRANGEMENTS))
+        (fw, fh), pos = CUBE_ARRANGEMENTS[arrangement]
+        n = faces.shape[1]
+        img = np.zeros((fh * n, fw * n, faces.shape[-1]), dtype=np.float32)
+        for k, (col, row, rot) in enumerate(pos):
+            img[row * n:(row + 1) * n, col * n:(col + 1) * n] = (
+                faces[k][::-1, ::-1] if rot else faces[k])
+        return img
+
+
 # ----------------------------------------------------------------------------- registry
 
 
-LAYOUTS: dict[str, Layout] = {"latlong": LatLong()}
+LAYOUTS: dict[str, Layout] = {
+    "latlong": LatLong(), "angular": Angular(), "mirrorball": MirrorBall(), "cube": Cube()}
 
 
 def get_layout(name: str | Layout) -> Layout:
@@ -397,11 +750,17 @@ def write_env(path: str | os.PathLike[str], env_or_radiance: Env | ArrayLike,
 
 
 __all__ = [
+    "CUBE_ARRANGEMENTS",
+    "CUBE_FACES",
     "LAYOUTS",
     "LAYOUT_NAMES",
+    "Angular",
+    "Cube",
     "Env",
     "LatLong",
     "Layout",
+    "MirrorBall",
+    "cube_arrangement",
     "detect_layout",
     "env_from_function",
     "env_from_image",
