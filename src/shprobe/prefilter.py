@@ -181,7 +181,8 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
 def total_intensity(env: Env) -> NDArray[np.float64]:
     """∫ L dω per channel, (3,)."""
     dw = env.solid_angles()
-    return np.einsum("...c,...->c", env.radiance.astype(np.float64), dw)
+    rad = env.radiance.reshape(-1, env.radiance.shape[-1]).astype(np.float64)
+    return dw.reshape(-1) @ rad
 
 
 # ----------------------------------------------------------------------------- irradiance
@@ -399,14 +400,15 @@ def _normal_grid(h: int = 32) -> tuple[NDArray[np.float64], NDArray[np.float64]]
 
 def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
                  normals: ArrayLike | None = None, reference: ArrayLike | None = None,
-                 progress=None) -> ErrorReport:
+                 progress=None, normal_grid: int = 32) -> ErrorReport:
     """R&H's error metric (§3.1) for each lmax: SH irradiance vs :func:`reference_irradiance`.
 
-    ``normals`` default: the pixel centres of a 64×32 lat-long grid, weighted by their solid
-    angles (given normals are weighted equally). ``reference`` may pass a precomputed E_ref.
+    ``normals`` default: the pixel centres of a (2N)×N lat-long grid, N = ``normal_grid``,
+    weighted by their solid angles (given normals are weighted equally). ``reference`` may
+    pass a precomputed E_ref.
     """
     if normals is None:
-        nrm, wts = _normal_grid()
+        nrm, wts = _normal_grid(normal_grid)
     else:
         nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         wts = np.ones(nrm.shape[0])
