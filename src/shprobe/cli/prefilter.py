@@ -39,7 +39,7 @@ def coeff_table(coeffs, title: str | None = None):
 
     from ..sh import lmax_of
 
-    t = Table(title=title, title_justify="left", min_width=len(title or "") + 4)
+    t = Table()
     t.add_column("", style="bold")
     for ch in ("R", "G", "B"):
         t.add_column(ch, justify="right")
@@ -49,7 +49,7 @@ def coeff_table(coeffs, title: str | None = None):
         for m in range(-l, l + 1):
             t.add_row(f"L{l}{m}", *(f"{v:+.4f}" for v in coeffs[k]))
             k += 1
-    return t
+    return _titled(t, title)
 
 
 def coeff_text(coeffs) -> str:
@@ -69,13 +69,20 @@ def error_table(report, title: str | None = None):
     """A rich table of an :class:`~shprobe.prefilter.ErrorReport`."""
     from rich.table import Table
 
-    t = Table(title=title, title_justify="left", min_width=len(title or "") + 4)
+    t = Table()
     for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE"):
         t.add_column(name, justify="right")
     for r in report.rows:
         t.add_row(str(r.lmax), f"{100 * r.mean_frac:.3f} %", f"{100 * r.max_frac:.3f} %",
                   f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %")
-    return t
+    return _titled(t, title)
+
+
+def _titled(table, title: str | None):
+    from rich.console import Group
+    from rich.text import Text
+
+    return table if not title else Group(Text(title, style="bold"), table)
 
 
 def error_document(report, source: str | None) -> dict:
