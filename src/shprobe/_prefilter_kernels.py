@@ -81,3 +81,48 @@ def brute_kernel(nrm, dT, lwT, out):
         out[i, 0] += r
         out[i, 1] += g
         out[i, 2] += bb
+
+
+@numba.njit(cache=True, parallel=True, fastmath=True)
+def project_rgb_kernel(d, v, w, lmax, a, b, nblk):
+    """As project_kernel for 3 channels, unrolled; l ≤ 2 uses the closed forms of R&H eq. 3."""
+    ns = d.shape[0]
+    k = (lmax + 1) * (lmax + 1)
+    out = np.zeros((nblk, k, 3))
+    step = (ns + nblk - 1) // nblk
+    c0 = 0.5 / math.sqrt(math.pi)
+    c1 = math.sqrt(3.0 / (4.0 * math.pi))
+    c2 = 0.5 * math.sqrt(15.0 / math.pi)
+    c20 = 0.25 * math.sqrt(5.0 / math.pi)
+    c22 = 0.25 * math.sqrt(15.0 / math.pi)
+    for blk in numba.prange(nblk):
+        y = np.empty(k)
+        acc = np.zeros((k, 3))
+        for s in range(blk * step, min(ns, (blk + 1) * step)):
+            ws = w[s]
+            if ws == 0.0:
+                continue
+            x, yy, z = d[s, 0], d[s, 1], d[s, 2]
+            if lmax <= 2:
+                y[0] = c0
+                if lmax >= 1:
+                    y[1] = c1 * yy
+                    y[2] = c1 * z
+                    y[3] = c1 * x
+                if lmax == 2:
+                    y[4] = c2 * x * yy
+                    y[5] = c2 * yy * z
+                    y[6] = c20 * (3.0 * z * z - 1.0)
+                    y[7] = c2 * x * z
+                    y[8] = c22 * (x * x - yy * yy)
+            else:
+                sh_into(x, yy, z, lmax, a, b, y)
+            r = v[s, 0] * ws
+            g = v[s, 1] * ws
+            bb = v[s, 2] * ws
+            for i in range(k):
+                acc[i, 0] += y[i] * r
+                acc[i, 1] += y[i] * g
+                acc[i, 2] += y[i] * bb
+        out[blk] = acc
+    return out

@@ -156,26 +156,34 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
         raise ShprobeError(f"{d.shape[0]} directions, {v.shape[0]} values, {wt.shape[0]} weights")
     if not (np.all(np.isfinite(v)) and np.all(np.isfinite(wt))):
         raise ShprobeError("values or weights contain NaN or Inf")
+    out = _project_kernel(d, v, wt, lmax)
+    return out[:, 0] if one else out
+
+
+def _project_kernel(d: NDArray, v: NDArray, wt: NDArray, lmax: int) -> NDArray[np.float64]:
     a, b = recurrence_tables(lmax)
     nblk = max(1, min(64, d.shape[0] // 4096))
-    out = _kernels()["project"](d, v, wt, lmax, np.ascontiguousarray(a),
-                                np.ascontiguousarray(b), nblk).sum(axis=0)
-    return out[:, 0] if one else out
+    kern = _kernels()["project_rgb" if v.shape[1] == 3 else "project"]
+    return kern(d, v, wt, lmax, np.ascontiguousarray(a), np.ascontiguousarray(b),
+                nblk).sum(axis=0)
 
 
 def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
     """Lighting coefficients L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10) → (K, 3) float64.
 
     Lat-long maps take the separable path (cos/sin matrix product per row, then the normalised
-    Legendre functions in θ); other layouts sum over ``env.samples()``.
+    Legendre functions in θ); other layouts run one numba pass over the pixels with the
+    layout's (cached) direction and solid-angle tables, skipping pixels with dω = 0.
     """
     lmax = check_lmax(lmax)
     if not isinstance(env, Env):
         raise ShprobeError("project() needs an Env (see shprobe.load_env)")
     if env.layout.name == "latlong":
         return _project_latlong(env.radiance, lmax)
-    dirs, rad, dw = env.samples()
-    return project_samples(dirs, rad, dw, lmax)
+    d = np.ascontiguousarray(env.directions(), dtype=np.float64).reshape(-1, 3)
+    dw = np.ascontiguousarray(env.solid_angles(), dtype=np.float64).reshape(-1)
+    rad = env.radiance.reshape(-1, env.radiance.shape[-1])
+    return _project_kernel(d, rad, dw, lmax)
 
 
 def total_intensity(env: Env) -> NDArray[np.float64]:
@@ -503,4 +511,5 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 def _kernels() -> dict[str, Any]:
     from . import _prefilter_kernels as k  # numba, imported lazily
 
-    return {"project": k.project_kernel, "brute": k.brute_kernel}
+    return {"project": k.project_kernel, "project_rgb": k.project_rgb_kernel,
+            "brute": k.brute_kernel}
