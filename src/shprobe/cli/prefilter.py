@@ -23,8 +23,10 @@ def _progress_bar(description: str):
 
     from .common import console
 
+    con = console(stderr=True)
     with Progress(TextColumn(description), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeRemainingColumn(), console=console(stderr=True), transient=True) as bar:
+                  TimeRemainingColumn(), console=con, transient=True,
+                  disable=not con.is_terminal) as bar:
         task = bar.add_task(description, total=None)
 
         def update(done: int, total: int) -> None:
