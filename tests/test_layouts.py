@@ -348,3 +348,36 @@ def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
     assert "warning" in res.output and "not radiance" in res.output
     res = CliRunner().invoke(cmd, [str(tmp_path / "p.png"), "--layout", "bogus"])
     assert res.exit_code != 0
+
+
+def test_six_face_images(tmp_path):
+    from shprobe.images import write_image
+
+    env = env_from_function(_lobes, "cube", 16)
+    paths = []
+    for k, name in enumerate(("px", "nx", "py", "ny", "pz", "nz")):
+        paths.append(tmp_path / f"{name}.pfm")
+        write_image(paths[-1], env.radiance[k])
+    back = load_env(paths)
+    assert back.layout.name == "cube"
+    np.testing.assert_array_equal(back.radiance, env.radiance)
+    with pytest.raises(ShprobeError, match="6 face images"):
+        load_env(paths[:5])
+    write_image(tmp_path / "odd.pfm", np.zeros((16, 8, 3), np.float32))
+    with pytest.raises(ShprobeError, match=r"odd\.pfm.*square"):
+        load_env([*paths[:5], tmp_path / "odd.pfm"])
+
+
+def test_bad_aspect_and_zero_size(tmp_path):
+    from shprobe.images import write_image
+
+    write_image(tmp_path / "wide.exr", np.ones((10, 20, 3), np.float32))
+    for lay, what in (("angular", "square"), ("mirrorball", "square"), ("cube", "cross")):
+        with pytest.raises(ShprobeError, match=what) as e:
+            load_env(tmp_path / "wide.exr", layout=lay)
+        assert "wide.exr" in str(e.value) and "\n" not in str(e.value)
+    write_image(tmp_path / "odd.exr", np.ones((10, 17, 3), np.float32))
+    with pytest.raises(ShprobeError, match=r"odd\.exr: cannot tell the layout"):
+        load_env(tmp_path / "odd.exr")
+    with pytest.raises(ShprobeError, match="zero size"):
+        Env(np.zeros((0, 0, 3), np.float32), "latlong")

@@ -142,6 +142,11 @@ def _to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
                  clamp: bool = False) -> NDArray[np.float32]:
     """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+    if img.size == 0:
+        return img
+    lo, hi = img.min(), img.max()  # fast path: two reductions, no temporaries
+    if lo >= 0 and np.isfinite(hi):
+        return img
     bad_nan = np.isnan(img)
     bad_inf = np.isinf(img)
     bad_neg = img < 0
@@ -245,11 +250,46 @@ def rgbe_to_float(rgbe: NDArray[np.uint8]) -> NDArray[np.float32]:
 def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
     """OpenImageIO decodes RGBE as m · 2^k (k = e − 136); add Radiance's half step 0.5 · 2^k.
 
-    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]."""
-    vmax = img.max(axis=-1, keepdims=True)
-    _, ex = np.frexp(np.where(vmax > 0, vmax, 1.0))  # vmax = f · 2^ex, f in [0.5, 1)
-    step = np.ldexp(np.float32(0.5), (ex - 8).astype(np.int32))
-    return np.where(vmax > 0, img + step, 0.0).astype(np.float32)
+    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]
+    (in place, one compiled pass)."""
+    img = np.ascontiguousarray(img, dtype=np.float32)
+    flat = img.reshape(-1, img.shape[-1])
+    # 2^k from the float32 exponent field E of the largest channel: m_max in [128, 256)
+    # means 2^(E−127) = 2^(k+7), so the half step is 2^(E−135)
+    table = np.ldexp(np.float32(1.0), np.arange(256) - 135).astype(np.float32)
+    _half_step_kernel()(flat, flat.view(np.int32), table)
+    return img
+
+
+_HALF_STEP = None
+
+
+def _half_step_kernel():
+    global _HALF_STEP
+    if _HALF_STEP is None:
+        import math
+
+        import numba
+
+        @numba.njit(cache=True)
+        def kernel(px, bits, table):  # pragma: no cover - compiled
+            for i in range(px.shape[0]):
+                best = 0
+                for c in range(1, px.shape[1]):
+                    if px[i, c] > px[i, best]:
+                        best = c
+                v = px[i, best]
+                if v > 0:
+                    e = (bits[i, best] >> 23) & 0xFF
+                    if e > 0:
+                        step = table[e]
+                    else:  # subnormal float32
+                        step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
+                    for c in range(px.shape[1]):
+                        px[i, c] += step
+
+        _HALF_STEP = kernel
+    return _HALF_STEP
 
 
 def float_to_rgbe(rgb: NDArray[np.float32]) -> NDArray[np.uint8]:
