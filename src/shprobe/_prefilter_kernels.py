@@ -19,48 +19,23 @@ def sh_into(x, y, z, lmax, a, b, out):
         if m > 0:
             c, s = x * c - y * s, x * s + y * c
             pmm = pmm * math.sqrt((2.0 * m + 1.0) / (2.0 * m))
-        k0 = m * (m + 1)
-        if m == 0:
-            out[k0] = pmm
-        else:
-            out[k0 + m] = sqrt2 * pmm * c
-            out[k0 - m] = sqrt2 * pmm * s
-        p2 = pmm
-        p1 = math.sqrt(2.0 * m + 3.0) * z * pmm
-        for l in range(m + 1, lmax + 1):
-            if l == m + 1:
-                p = p1
+        p1 = pmm
+        p2 = 0.0
+        for l in range(m, lmax + 1):
+            if l == m:
+                p = pmm
+            elif l == m + 1:
+                p = math.sqrt(2.0 * m + 3.0) * z * pmm
             else:
                 p = a[l, m] * (z * p1 - b[l, m] * p2)
-                p2 = p1
-                p1 = p
+            p2 = p1
+            p1 = p
             k0 = l * (l + 1)
             if m == 0:
                 out[k0] = p
             else:
                 out[k0 + m] = sqrt2 * p * c
                 out[k0 - m] = sqrt2 * p * s
-
-
-@numba.njit(cache=True, parallel=True)
-def project_kernel(d, v, w, lmax, a, b, nblk):
-    ns = d.shape[0]
-    nc = v.shape[1]
-    k = (lmax + 1) * (lmax + 1)
-    out = np.zeros((nblk, k, nc))
-    step = (ns + nblk - 1) // nblk
-    for blk in numba.prange(nblk):
-        y = np.empty(k)
-        acc = np.zeros((k, nc))
-        for s in range(blk * step, min(ns, (blk + 1) * step)):
-            sh_into(d[s, 0], d[s, 1], d[s, 2], lmax, a, b, y)
-            for c in range(nc):
-                vw = v[s, c] * w[s]
-                if vw != 0.0:
-                    for i in range(k):
-                        acc[i, c] += y[i] * vw
-        out[blk] = acc
-    return out
 
 
 @numba.njit(cache=True, parallel=True, fastmath=True)
@@ -85,7 +60,8 @@ def brute_kernel(nrm, dT, lwT, out):
 
 @numba.njit(cache=True, parallel=True, fastmath=True)
 def project_rgb_kernel(d, v, w, lmax, a, b, nblk):
-    """As project_kernel for 3 channels, unrolled; l ≤ 2 uses the closed forms of R&H eq. 3."""
+    """Σ_s v_s y(d_s) w_s for 3 channels in ``nblk`` blocks → (nblk, K, 3); pixels with
+    w = 0 are skipped; l ≤ 2 uses the closed forms of R&H eq. 3, higher l the recurrence."""
     ns = d.shape[0]
     k = (lmax + 1) * (lmax + 1)
     out = np.zeros((nblk, k, 3))

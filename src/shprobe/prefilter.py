@@ -161,11 +161,20 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
 
 
 def _project_kernel(d: NDArray, v: NDArray, wt: NDArray, lmax: int) -> NDArray[np.float64]:
+    """Σ_s v_s y(d_s) w_s by the 3-channel numba kernel (other channel counts in groups of 3)."""
     a, b = recurrence_tables(lmax)
+    a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
     nblk = max(1, min(64, d.shape[0] // 4096))
-    kern = _kernels()["project_rgb" if v.shape[1] == 3 else "project"]
-    return kern(d, v, wt, lmax, np.ascontiguousarray(a), np.ascontiguousarray(b),
-                nblk).sum(axis=0)
+    kern = _kernels()["project_rgb"]
+    nc = v.shape[1]
+    if nc == 3:
+        return kern(d, v, wt, lmax, a, b, nblk).sum(axis=0)
+    groups = -(-nc // 3)
+    vp = np.zeros((v.shape[0], 3 * groups), dtype=v.dtype)
+    vp[:, :nc] = v
+    out = [kern(d, np.ascontiguousarray(vp[:, 3 * g: 3 * g + 3]), wt, lmax, a, b,
+                nblk).sum(axis=0) for g in range(groups)]
+    return np.concatenate(out, axis=1)[:, :nc]
 
 
 def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
@@ -511,5 +520,4 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 def _kernels() -> dict[str, Any]:
     from . import _prefilter_kernels as k  # numba, imported lazily
 
-    return {"project": k.project_kernel, "project_rgb": k.project_rgb_kernel,
-            "brute": k.brute_kernel}
+    return {"project_rgb": k.project_rgb_kernel, "brute": k.brute_kernel}
