@@ -325,6 +325,17 @@ def test_reference_chunking_and_generic_path_agree():
     direct = np.maximum(n @ d.T, 0.0) @ (L * dw[:, None])
     np.testing.assert_allclose(reference_irradiance(env, n, chunk=7), direct, rtol=1e-10)
     np.testing.assert_allclose(reference_irradiance(env, n), direct, rtol=1e-10)
+    # the generic (sample) path of the other layouts, with subdivision
+    from shprobe.layouts import env_from_function
+
+    for name, size in (("angular", 24), ("cube", 8)):
+        genv = env_from_function(lambda d: 1.0 + d * [0.5, 0.2, -0.3], name, size)
+        d, L, dw = genv.samples()
+        direct = np.maximum(n @ d.T, 0.0) @ (L * dw[:, None])
+        np.testing.assert_allclose(reference_irradiance(genv, n, chunk=100), direct,
+                                   rtol=1e-10)
+        sub = reference_irradiance(genv, n, subdivide=2)
+        np.testing.assert_allclose(sub, direct, rtol=2e-2)
 
 
 # ----------------------------------------------------------------------------- JSON
