@@ -96,7 +96,7 @@ def disc_sh_irradiance(alpha: float, radiance: float, cos_beta: np.ndarray,
 # ----------------------------------------------------------------------------- projection
 
 
-@pytest.mark.parametrize("lmax", [0, 2, 6])
+@pytest.mark.parametrize("lmax", [0, 2, 6, 16])
 def test_latlong_separable_projection_equals_direct_sum(lmax):
     rad = np.random.default_rng(1).random((24, 48, 3)).astype(np.float32)
     env = Env(rad, "latlong")

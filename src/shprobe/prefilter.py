@@ -92,8 +92,17 @@ def _frame_blocks(lmax: int) -> tuple[NDArray[np.float64], ...]:
 
 
 def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Coefficients in the world frame from those in the frame ω' = Qω: c = Dᵀ c'."""
+    """Coefficients in the world frame from those in the frame ω' = Qω: c = Dᵀ c'.
+
+    c' are the coefficients of f∘Q⁻¹, so c = rotate(c', Q⁻¹). Up to lmax 12 the per-band D is
+    built here by exact quadrature (independent of shprobe.rotation); above, by the Wigner
+    recurrence of :func:`shprobe.rotation.rotate`, which needs no (nodes × K) table.
+    """
     lmax = lmax_of(cp.shape[0])
+    if lmax > 12:
+        from .rotation import rotate
+
+        return np.asarray(rotate(cp, _Q.T), dtype=np.float64)
     out = np.empty_like(cp)
     for l, d in enumerate(_frame_blocks(lmax)):
         sl = slice(l * l, (l + 1) ** 2)
