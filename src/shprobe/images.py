@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -261,124 +262,102 @@ def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
     return img
 
 
-_HALF_STEP = None
-
-
+@lru_cache(maxsize=1)
 def _half_step_kernel():
-    global _HALF_STEP
-    if _HALF_STEP is None:
-        import math
+    import math
 
-        import numba
+    import numba
 
-        @numba.njit(cache=True)
-        def kernel(px, bits, table):  # pragma: no cover - compiled
-            for i in range(px.shape[0]):
-                best = 0
-                for c in range(1, px.shape[1]):
-                    if px[i, c] > px[i, best]:
-                        best = c
-                v = px[i, best]
-                if v > 0:
-                    e = (bits[i, best] >> 23) & 0xFF
-                    if e > 0:
-                        step = table[e]
-                    else:  # subnormal float32
-                        step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
-                    for c in range(px.shape[1]):
-                        px[i, c] += step
+    @numba.njit(cache=True)
+    def kernel(px, bits, table):  # pragma: no cover - compiled
+        for i in range(px.shape[0]):
+            best = 0
+            for c in range(1, px.shape[1]):
+                if px[i, c] > px[i, best]:
+                    best = c
+            v = px[i, best]
+            if v > 0:
+                e = (bits[i, best] >> 23) & 0xFF
+                if e > 0:
+                    step = table[e]
+                else:  # subnormal float32
+                    step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
+                for c in range(px.shape[1]):
+                    px[i, c] += step
 
-        _HALF_STEP = kernel
-    return _HALF_STEP
+    return kernel
 
 
-def float_to_rgbe(rgb: NDArray[np.float32]) -> NDArray[np.uint8]:
-    """Float RGB (..., 3) → RGBE bytes (..., 4), rounding as Radiance's setcolr."""
-    v = np.max(rgb, axis=-1).astype(np.float64)
-    ok = v > 1e-32
-    mant, ex = np.frexp(np.where(ok, v, 1.0))
-    scale = np.where(ok, mant * 256.0 / np.where(ok, v, 1.0), 0.0)
-    out = np.zeros((*rgb.shape[:-1], 4), dtype=np.uint8)
-    out[..., :3] = np.clip(np.floor(rgb * scale[..., None]), 0, 255).astype(np.uint8)
-    out[..., 3] = np.where(ok, np.clip(ex + 128, 0, 255), 0).astype(np.uint8)
-    return out
-
-
-_DECODER = None
-
-
+@lru_cache(maxsize=1)
 def _rgbe_decode():
-    global _DECODER
-    if _DECODER is None:
-        import numba
+    import numba
 
-        @numba.njit(cache=True)
-        def decode(buf, out):  # pragma: no cover - compiled
-            h, w = out.shape[0], out.shape[1]
-            pos = 0
-            n = buf.shape[0]
-            for y in range(h):
-                if pos + 4 > n:
-                    return 1
-                if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
-                        and buf[pos + 2] < 128):
-                    # new-style RLE: four channel planes
-                    if buf[pos + 2] * 256 + buf[pos + 3] != w:
-                        return 2
-                    pos += 4
-                    for c in range(4):
-                        x = 0
-                        while x < w:
-                            if pos >= n:
-                                return 1
-                            cnt = int(buf[pos])
-                            pos += 1
-                            if cnt > 128:
-                                cnt -= 128
-                                if x + cnt > w or pos >= n:
-                                    return 2
-                                v = buf[pos]
-                                pos += 1
-                                for k in range(cnt):
-                                    out[y, x + k, c] = v
-                            else:
-                                if cnt == 0 or x + cnt > w or pos + cnt > n:
-                                    return 2
-                                for k in range(cnt):
-                                    out[y, x + k, c] = buf[pos + k]
-                                pos += cnt
-                            x += cnt
-                else:
-                    # flat pixels, with old-style repeat markers (1, 1, 1, n)
+    @numba.njit(cache=True)
+    def decode(buf, out):  # pragma: no cover - compiled
+        h, w = out.shape[0], out.shape[1]
+        pos = 0
+        n = buf.shape[0]
+        for y in range(h):
+            if pos + 4 > n:
+                return 1
+            if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
+                    and buf[pos + 2] < 128):
+                # new-style RLE: four channel planes
+                if buf[pos + 2] * 256 + buf[pos + 3] != w:
+                    return 2
+                pos += 4
+                for c in range(4):
                     x = 0
-                    shift = 0
                     while x < w:
-                        if pos + 4 > n:
+                        if pos >= n:
                             return 1
-                        r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
-                        pos += 4
-                        if r == 1 and g == 1 and b == 1:
-                            if x == 0:
+                        cnt = int(buf[pos])
+                        pos += 1
+                        if cnt > 128:
+                            cnt -= 128
+                            if x + cnt > w or pos >= n:
                                 return 2
-                            cnt = int(e) << shift
-                            if x + cnt > w:
+                            v = buf[pos]
+                            pos += 1
+                            for k in range(cnt):
+                                out[y, x + k, c] = v
+                        else:
+                            if cnt == 0 or x + cnt > w or pos + cnt > n:
                                 return 2
                             for k in range(cnt):
-                                for c in range(4):
-                                    out[y, x + k, c] = out[y, x - 1, c]
-                            x += cnt
-                            shift += 8
-                        else:
-                            out[y, x, 0] = r
-                            out[y, x, 1] = g
-                            out[y, x, 2] = b
-                            out[y, x, 3] = e
-                            x += 1
-                            shift = 0
-            return 0
+                                out[y, x + k, c] = buf[pos + k]
+                            pos += cnt
+                        x += cnt
+            else:
+                # flat pixels, with old-style repeat markers (1, 1, 1, n)
+                x = 0
+                shift = 0
+                while x < w:
+                    if pos + 4 > n:
+                        return 1
+                    r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
+                    pos += 4
+                    if r == 1 and g == 1 and b == 1:
+                        if x == 0:
+                            return 2
+                        cnt = int(e) << shift
+                        if x + cnt > w:
+                            return 2
+                        for k in range(cnt):
+                            for c in range(4):
+                                out[y, x + k, c] = out[y, x - 1, c]
+                        x += cnt
+                        shift += 8
+                    else:
+                        out[y, x, 0] = r
+                        out[y, x, 1] = g
+                        out[y, x, 2] = b
+                        out[y, x, 3] = e
+                        x += 1
+                        shift = 0
+        return 0
 
-        _DECODER = decode
-    return _DECODER
+    return decode
 
 
 # ----------------------------------------------------------------------------- writing

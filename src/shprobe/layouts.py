@@ -92,11 +92,13 @@ class Layout:
         raise NotImplementedError
 
     def pixel_directions(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
-        """Unit vectors of the pixel centres, ``(*grid, 3)`` (zero vectors where invalid)."""
+        """Unit vectors of the pixel centres, ``(*grid, 3)`` (zero vectors where invalid).
+        Disc layouts return a cached read-only array: copy before writing."""
         raise NotImplementedError
 
     def solid_angles(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
-        """Exact solid angle of each pixel, ``(*grid,)``; 0 where invalid; sums to 4π."""
+        """Exact solid angle of each pixel, ``(*grid,)``; 0 where invalid; sums to 4π.
+        Disc layouts return a cached read-only array: copy before writing."""
         raise NotImplementedError
 
     def valid_mask(self, grid_shape: Sequence[int]) -> NDArray[np.bool_]:
