@@ -36,14 +36,33 @@ _EXPORTS: dict[str, str] = {
     "from_euler_zyz": "rotation",
     # errors
     "ShprobeError": "errors",
+    # precomputed radiance transfer
+    "bake": "prt",
+    "relight": "prt",
+    "load_transfer": "prt",
     # probes in, irradiance out
     "load_env": "prefilter",
     "project": "prefilter",
     "irradiance": "prefilter",
     "irradiance_matrix": "prefilter",
     "reference_irradiance": "prefilter",
+    "project_samples": "prefilter",
+    "irradiance_quadratic": "prefilter",
+    "irradiance_from_matrix": "prefilter",
+    "irradiance_map": "prefilter",
+    "error_report": "prefilter",
+    "read_coeffs_json": "prefilter",
+    "get_preset": "presets",
+    "PRESETS": "presets",
+    "procedural_env": "environments",
     "read_image": "images",
     "write_image": "images",
+    # layouts (issue 3, part A)
+    "Env": "layouts",
+    "env_from_function": "layouts",
+    "get_layout": "layouts",
+    "detect_layout": "layouts",
+    "write_env": "layouts",
     # rendering, lighting design, export
     "Camera": "render",
     "render_vertex_colors": "render",
@@ -72,9 +91,13 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .design import auto_window, min_irradiance, window_factors
     from .errors import ShprobeError
+    from .export import export_coeffs, import_coeffs
     from .images import read_image, write_image
+    from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
+    from .render import Camera, load_mesh, render_vertex_colors
     from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .zonal import (
