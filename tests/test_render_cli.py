@@ -137,3 +137,18 @@ def test_cli_bad_mesh_is_one_line(tmp_path, capsys):
 def test_bunny_loads(bunny_path):
     m = load_mesh(bunny_path)
     assert len(m.faces) > 1000
+
+
+def test_cli_prefilter_export_feeds_render(tmp_path, grace_path):
+    """`shprobe prefilter --format gltf` → `render --coeffs` uses the same lighting as the probe."""
+    from shprobe.layouts import load_env
+    from shprobe.prefilter import project
+
+    out = tmp_path / "g.gltf.json"
+    assert run("prefilter", grace_path, "--format", "gltf", "-o", out) == 0
+    np.testing.assert_allclose(import_coeffs(out), project(load_env(grace_path), 2),
+                               rtol=1e-9, atol=1e-12)
+    assert run("render", "--coeffs", out, "--sphere", "--size", "16x16", "-o",
+               tmp_path / "g.png") == 0
+    assert run("render", "--preset", "grace", "--sphere", "--size", "16x16", "-o",
+               tmp_path / "p.png") == 0

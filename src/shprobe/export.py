@@ -11,7 +11,9 @@ format     content
 glsl/hlsl  functions of the world-space normal returning irradiance E(n) (not /π): eq. 11,
 /wgsl      E = nᵀMn with the three 4×4 matrices M baked in (``shprobe_irradiance``), and the
            eq. 13 polynomial in the 9 L_lm (``shprobe_irradiance_poly``). l ≤ 2 only.
-json       shprobe's own coefficient file: L_lm (K, C), R&H signs, any lmax.
+json       the ``shprobe prefilter --format json`` document (``prefilter.coeffs_document``):
+           ``coefficients`` L_lm [k][rgb], ``irradiance_coefficients`` E_lm = Â_l L_lm,
+           ``M`` (eq. 11–12), R&H signs, any lmax.
 three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array of
            ``toArray()`` (9 RGB triples, index k = l(l+1)+m). three.js stores radiance L_lm
            with the R&H basis constants and signs (``getAt``: 0.488603·y for k = 1) and
@@ -131,9 +133,9 @@ def _shader_header(fmt: str, source: str | None) -> list[str]:
 
 
 def _poly_consts() -> tuple[float, float, float, float, float]:
-    from .render import rh_constants
+    from .prefilter import RH_CONSTANTS
 
-    return rh_constants()
+    return RH_CONSTANTS
 
 
 def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
@@ -197,16 +199,12 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
     lmax = lmax_of(c.shape[0])
     if fmt in ("glsl", "hlsl", "wgsl"):
         return _shader(_nine_rgb(c, fmt), fmt, source)
-    if fmt == "json":
-        doc = {
-            "format": "shprobe-coeffs",
-            "convention": "real SH, R&H 2001 signs (no Condon-Shortley phase), index "
-                          "k = l(l+1)+m, world frame +Y up",
-            "quantity": "L_lm: lighting (radiance) coefficients; irradiance is "
-                        "E_lm = A_l L_lm (R&H eq. 7), diffuse radiance albedo*E/pi",
-            "lmax": lmax, "channels": c.shape[1], "coefficients": c.tolist()}
-        if source:
-            doc["source"] = source
+    if fmt == "json":  # the document of `shprobe prefilter --format json`
+        from .prefilter import coeffs_document
+
+        doc = coeffs_document(c, source=source)
+        doc["quantity"] = ("coefficients: lighting (radiance) L_lm; irradiance_coefficients: "
+                           "E_lm = A_l L_lm (E, not divided by pi); M: eq. 11-12 for E")
         return json.dumps(doc, indent=2) + "\n"
     if fmt == "three":
         L9 = _nine_rgb(c, fmt)

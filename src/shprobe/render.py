@@ -30,8 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import ShprobeError
 from .images import srgb_to_linear, tonemap
-from .sh import lmax_of, sh_basis
-from .zonal import clamped_cosine_factors, convolve
+from .sh import lmax_of
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -48,7 +47,6 @@ __all__ = [
     "relight",
     "render",
     "render_vertex_colors",
-    "rh_constants",
     "save_image",
     "shade_irradiance",
     "sphere_mesh",
@@ -207,34 +205,13 @@ def _bounding_sphere(mesh: trimesh.Trimesh | None) -> tuple[NDArray, float]:
 # ----------------------------------------------------------------------------- irradiance
 
 
-RH_CONSTANTS = (0.429043, 0.511664, 0.743125, 0.886227, 0.247708)
-
-
-def rh_constants() -> tuple[float, float, float, float, float]:
-    """c1…c5 of R&H eq. 12, exact (the paper prints them rounded, :data:`RH_CONSTANTS`):
-    c1 = Â₂ K₂₂, c2 = Â₁ K₁/2, c3 = 3 Â₂ K₂₀, c4 = Â₀ K₀₀, c5 = Â₂ K₂₀ with the basis
-    constants K (y22 = K₂₂(x² − y²), y1m = K₁·(y, z, x), y20 = K₂₀(3z² − 1), y00 = K₀₀)."""
-    a = clamped_cosine_factors(2)
-    k1 = np.sqrt(3.0 / (4.0 * np.pi))  # 0.488603
-    k20 = np.sqrt(5.0 / (16.0 * np.pi))  # 0.315392
-    k22 = np.sqrt(15.0 / (16.0 * np.pi))  # 0.546274
-    return (float(a[2] * k22), float(a[1] * k1 / 2.0), float(3.0 * a[2] * k20),
-            float(a[0] / (2.0 * np.sqrt(np.pi))), float(a[2] * k20))
-
-
 def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """The 4×4 matrices M of R&H eq. 11–12 per channel, (C, 4, 4), with E(n) = nᵀ M n for
-    n = (x, y, z, 1). ``coeffs`` are lighting coefficients L_lm, (K, C) or (K,) with K ≤ 9
-    (missing bands are zero); the constants c1…c5 are computed exactly, not rounded."""
-    L = _pad9(coeffs)
-    c1, c2, c3, c4, c5 = rh_constants()
-    M = np.empty((L.shape[1], 4, 4))
-    L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = L
-    M[:, 0] = np.stack([c1 * L22, c1 * L2m2, c1 * L21, c2 * L11], -1)
-    M[:, 1] = np.stack([c1 * L2m2, -c1 * L22, c1 * L2m1, c2 * L1m1], -1)
-    M[:, 2] = np.stack([c1 * L21, c1 * L2m1, c3 * L20, c2 * L10], -1)
-    M[:, 3] = np.stack([c2 * L11, c2 * L1m1, c2 * L10, c4 * L00 - c5 * L20], -1)
-    return M
+    """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
+    :func:`shprobe.prefilter.irradiance_matrix` of the coefficients zero-padded to lmax 2
+    (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated)."""
+    from .prefilter import irradiance_matrix
+
+    return irradiance_matrix(_pad9(coeffs))
 
 
 def as_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
@@ -309,8 +286,9 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
         out = np.empty((flat.shape[0], c.shape[1]), dtype=dtype)
         _QUAD_EVAL[0](flat, np.ascontiguousarray(q), out)
     else:
-        E_lm = convolve(c, clamped_cosine_factors(lmax))
-        out = (sh_basis(flat.astype(np.float64), lmax) @ E_lm).astype(dtype)
+        from .prefilter import irradiance
+
+        out = irradiance(c, flat).astype(dtype)
     out = out.reshape(*lead, c.shape[1])
     return out[..., 0] if one else out
 

@@ -12,12 +12,7 @@ import click
 
 from ..errors import ShprobeError
 from .common import force_option, parse_floats, parse_size
-
-try:  # the shared PROBE | --preset | --coeffs helper (branch prefilter)
-    from .sources import coeff_source_options, resolve_coeffs
-except ImportError:  # pragma: no cover - until cli/sources.py is on this branch
-    coeff_source_options = None
-    resolve_coeffs = None
+from .sources import coeff_source_options, resolve_coeffs
 
 FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
 WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
@@ -27,57 +22,26 @@ WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or K
 # ----------------------------------------------------------------------------- helpers
 
 
-def _fallback_source_options(fn):
-    fn = click.option("--coeffs", "coeffs_file", type=click.Path(dir_okay=False),
-                      help="Read lighting coefficients from a file (any `shprobe export` "
-                           "format).")(fn)
-    fn = click.option("--preset", help="An R&H 2001 Fig. 2 table (grace, eucalyptus, "
-                                       "stpeters).")(fn)
-    fn = click.option("--clamp", is_flag=True, hidden=True)(fn)
-    fn = click.option("--layout", default="auto", show_default=True,
-                      help="Probe layout (latlong, angular, mirrorball, cube, auto).")(fn)
-    return click.argument("probe", required=False, type=click.Path(dir_okay=False))(fn)
-
-
 def source_options(fn):
-    """[PROBE] | --preset NAME | --coeffs FILE (+ --layout, --clamp)."""
-    return (coeff_source_options or _fallback_source_options)(fn)
+    """[PROBE] | --preset NAME | --coeffs FILE (+ --layout, --clamp): cli.sources."""
+    return coeff_source_options(fn)
 
 
 def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
                 required=True) -> tuple[Any, str, Any]:
-    """(coefficients (K, C), name, Env or None) from the source options."""
+    """(coefficients (K, C), name, Env or None) from the source options. ``--coeffs`` reads
+    every `shprobe export` format (:func:`shprobe.export.import_coeffs`)."""
     import numpy as np
 
     given = [v for v in (probe, preset, coeffs_file) if v]
     if not given and not required:
         return None, "", None
     if coeffs_file and len(given) == 1:
-        from ..export import import_coeffs  # every `shprobe export` format
+        from ..export import import_coeffs
 
-        try:
-            c = import_coeffs(coeffs_file)
-        except ShprobeError:
-            if resolve_coeffs is None:
-                raise
-        else:
-            return _cut(c, lmax, coeffs_file), coeffs_file, None
-    if resolve_coeffs is not None:
-        src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
-        return np.asarray(src.coeffs), src.source, src.env
-    if len(given) != 1:  # pragma: no cover - fallback
-        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME or "
-                           "--coeffs FILE")
-    if preset:  # pragma: no cover - fallback
-        from ..presets import get_preset
-
-        return np.asarray(get_preset(preset)), f"preset:{preset}", None
-    from ..layouts import load_env  # pragma: no cover - fallback
-    from ..sh import sh_basis
-
-    env = load_env(probe, None if layout == "auto" else layout, clamp=clamp)
-    d, rad, dw = env.samples()
-    return (sh_basis(d, lmax) * dw[:, None]).T @ rad.astype(np.float64), probe, env
+        return _cut(import_coeffs(coeffs_file), lmax, coeffs_file), coeffs_file, None
+    src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
+    return np.asarray(src.coeffs), src.source, src.env
 
 
 def _cut(c, lmax, name):
