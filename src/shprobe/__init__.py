@@ -26,9 +26,14 @@ _EXPORTS: dict[str, str] = {
     "zonal_coeffs": "zonal",
     "circular_window": "zonal",
     "convolve": "zonal",
+    "clamped_cosine_H": "zonal",
+    "legendre_moments": "zonal",
+    "zonal_from_moments": "zonal",
     # rotation
     "wigner_d": "rotation",
     "rotate": "rotation",
+    "from_quaternion": "rotation",
+    "from_euler_zyz": "rotation",
     # errors
     "ShprobeError": "errors",
     # probes in, irradiance out
@@ -61,6 +66,14 @@ if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
     from .images import read_image, write_image
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
-    from .rotation import rotate, wigner_d
+    from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
-    from .zonal import circular_window, clamped_cosine_factors, convolve, zonal_coeffs
+    from .zonal import (
+        circular_window,
+        clamped_cosine_factors,
+        clamped_cosine_H,
+        convolve,
+        legendre_moments,
+        zonal_coeffs,
+        zonal_from_moments,
+    )

@@ -1,3 +1,402 @@
-"""Image I/O through OpenImageIO: HDR/EXR/PFM/TIFF/PNG/JPEG in, EXR/HDR/PFM/PNG out."""
+"""Image I/O: HDR/EXR/PFM/TIFF/PNG/JPEG in, EXR/HDR/PFM/PNG/TIFF out.
+
+Everything goes through OpenImageIO except two small formats it gets wrong or only half right:
+
+- Radiance ``.hdr``: OpenImageIO reads flat and new-style (per-channel) RLE scanlines but not the
+  old-style RLE (repeat-pixel markers ``1 1 1 n``); when it fails, shprobe's own RGBE decoder
+  (flat, old and new RLE, ``±Y H ±X W`` orientations) takes over.
+- ``.pfm``: rows are stored bottom-up; OpenImageIO 3.0 writes them bottom-up but reads them back
+  unflipped, so shprobe reads and writes PFM itself (``PF`` RGB / ``Pf`` grey, either
+  endianness from the sign of the scale, rows flipped to top-down).
+
+``read_image`` returns linear RGB ``(H, W, 3) float32`` with row 0 at the top. 8/16-bit images
+(PNG, JPEG, integer TIFF) are decoded from sRGB to linear and an :class:`LDRWarning` is issued:
+display-referred pixels are not radiance. NaN, Inf or negative pixels are an error naming the
+file, unless ``clamp=True`` (NaN → 0, −∞/negatives → 0, +∞ → the largest finite value).
+"""
 
 from __future__ import annotations
+
+import os
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import ShprobeError
+from .files import atomic_output
+
+#: Extensions read_image accepts.
+READ_EXTENSIONS = (".hdr", ".rgbe", ".pic", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg",
+                   ".jpeg")
+#: Extensions write_image accepts.
+WRITE_EXTENSIONS = (".exr", ".hdr", ".pfm", ".png", ".tif", ".tiff")
+_LDR_OUT = (".png",)
+
+
+class LDRWarning(UserWarning):
+    """An 8/16-bit image was read: its pixels are display values, not radiance."""
+
+
+# ----------------------------------------------------------------------------- colour
+
+
+def srgb_to_linear(v: ArrayLike) -> NDArray[np.float32]:
+    """sRGB EOTF (IEC 61966-2-1), values in [0, 1]."""
+    v = np.asarray(v, dtype=np.float32)
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(v: ArrayLike) -> NDArray[np.float32]:
+    """sRGB OETF (inverse of :func:`srgb_to_linear`), input clamped to [0, 1]."""
+    v = np.clip(np.asarray(v, dtype=np.float32), 0.0, 1.0)
+    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.float32]:
+    """Read an image as linear RGB ``(H, W, 3) float32``, row 0 at the top.
+
+    Grey images are repeated to 3 channels; a 4th (alpha) channel and any beyond are dropped.
+    Raises :class:`ShprobeError` naming the file for a missing, empty, truncated, corrupt or
+    unknown file, and for NaN/Inf/negative pixels unless ``clamp``.
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in READ_EXTENSIONS:
+        raise ShprobeError(
+            f"unknown image extension {ext or '(none)'!r}; expected one of "
+            + " ".join(READ_EXTENSIONS), p)
+    if not p.exists():
+        raise ShprobeError("no such file", p)
+    if p.is_dir():
+        raise ShprobeError("is a directory, not an image", p)
+    if p.stat().st_size == 0:
+        raise ShprobeError("file is empty", p)
+    ldr = False
+    if ext == ".pfm":
+        img = _read_pfm(p)
+    else:
+        rgbe = ext in (".hdr", ".rgbe", ".pic")
+        try:
+            img, ldr = _read_oiio(p)
+            if rgbe:
+                img = _rgbe_half_step(img)
+        except ShprobeError:
+            if not rgbe:
+                raise
+            img = read_rgbe(p)  # old-style RLE and other cases OIIO refuses
+    img = _to_rgb(img, p)
+    if ldr:
+        warnings.warn(f"{p}: 8/16-bit image decoded from sRGB to linear — display values are "
+                      "not radiance", LDRWarning, stacklevel=2)
+    return check_pixels(img, p, clamp)
+
+
+def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(p))
+    if inp is None:
+        raise ShprobeError(f"cannot read image: {_oneline(oiio.geterror()) or 'corrupt'}", p)
+    try:
+        spec = inp.spec()
+        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+            raise ShprobeError("image has zero size", p)
+        fmt = str(spec.format)
+        data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if data is None or inp.has_error:
+            raise ShprobeError(
+                f"cannot read image (truncated or corrupt): {_oneline(inp.geterror())}", p)
+        cs = str(spec.getattribute("oiio:ColorSpace") or "").lower()
+    finally:
+        inp.close()
+    data = np.asarray(data, dtype=np.float32)
+    if data.ndim == 2:
+        data = data[:, :, None]
+    ldr = fmt in ("uint8", "uint16", "int8", "int16", "uint32", "int32")
+    if ldr and not ("lin" in cs and "srgb" not in cs):
+        data = srgb_to_linear(data)
+    return data, ldr
+
+
+def _oneline(msg: str | None) -> str:
+    return " ".join((msg or "").split())[:200]
+
+
+def _to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
+    if img.ndim != 3 or img.shape[0] == 0 or img.shape[1] == 0:
+        raise ShprobeError("image has zero size", p)
+    c = img.shape[2]
+    if c in (1, 2):  # grey (+ alpha)
+        img = np.repeat(img[:, :, :1], 3, axis=2)
+    elif c >= 3:
+        img = img[:, :, :3]
+    return np.ascontiguousarray(img, dtype=np.float32)
+
+
+def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
+                 clamp: bool = False) -> NDArray[np.float32]:
+    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+    bad_nan = np.isnan(img)
+    bad_inf = np.isinf(img)
+    bad_neg = img < 0
+    n_nan, n_inf, n_neg = int(bad_nan.sum()), int(bad_inf.sum()), int((bad_neg & ~bad_inf).sum())
+    if n_nan + n_inf + n_neg == 0:
+        return img
+    if not clamp:
+        parts = [f"{n} {what}" for n, what in ((n_nan, "NaN"), (n_inf, "infinite"),
+                                               (n_neg, "negative")) if n]
+        raise ShprobeError(
+            "image has " + ", ".join(parts) + " pixel values (use clamp / --clamp to zero them)",
+            path)
+    finite = img[np.isfinite(img)]
+    big = float(finite.max()) if finite.size else 0.0
+    out = np.nan_to_num(img, nan=0.0, posinf=max(big, 0.0), neginf=0.0)
+    return np.maximum(out, 0.0).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- PFM
+
+
+_PFM_HEADER = re.compile(rb"\A(P[Ff])\s+(\d+)\s+(\d+)\s+([-+0-9.eE]+)\s")
+
+
+def _read_pfm(p: Path) -> NDArray[np.float32]:
+    raw = p.read_bytes()
+    m = _PFM_HEADER.match(raw[:256])
+    if m is None:
+        raise ShprobeError("not a PFM file (bad header)", p)
+    kind, w, h, scale = m.group(1), int(m.group(2)), int(m.group(3)), float(m.group(4))
+    if w == 0 or h == 0:
+        raise ShprobeError("image has zero size", p)
+    c = 3 if kind == b"PF" else 1
+    dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
+    n = w * h * c
+    body = raw[m.end():]
+    if len(body) < 4 * n:
+        raise ShprobeError(f"truncated PFM: {len(body)} of {4 * n} data bytes", p)
+    data = np.frombuffer(body, dtype=dt, count=n).reshape(h, w, c)
+    return np.ascontiguousarray(data[::-1], dtype=np.float32)  # bottom-up -> top-down
+
+
+def _write_pfm(path: Path, rgb: NDArray[np.float32]) -> None:
+    h, w, _ = rgb.shape
+    with open(path, "wb") as f:
+        f.write(f"PF\n{w} {h}\n-1.0\n".encode("ascii"))
+        f.write(np.ascontiguousarray(rgb[::-1], dtype="<f4").tobytes())
+
+
+# ----------------------------------------------------------------------------- RGBE
+
+
+_RGBE_SIZE = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
+
+
+def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+    """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``."""
+    p = Path(path)
+    raw = p.read_bytes()
+    if not (raw.startswith(b"#?") or raw.startswith(b"FORMAT")):
+        raise ShprobeError("not a Radiance .hdr file (no '#?' signature)", p)
+    end = raw.find(b"\n\n")
+    if end < 0:
+        raise ShprobeError("corrupt .hdr header (no blank line)", p)
+    header = raw[:end]
+    if b"FORMAT=" in header and b"32-bit_rle_rgbe" not in header:
+        raise ShprobeError("unsupported .hdr FORMAT (only 32-bit_rle_rgbe)", p)
+    nl = raw.find(b"\n", end + 2)
+    m = _RGBE_SIZE.match(raw[end + 2: nl if nl >= 0 else len(raw)].strip())
+    if m is None or nl < 0:
+        raise ShprobeError("corrupt .hdr resolution line", p)
+    s1, a1, n1, s2, _a2, n2 = m.groups()
+    n1, n2 = int(n1), int(n2)
+    if n1 == 0 or n2 == 0:
+        raise ShprobeError("image has zero size", p)
+    body = np.frombuffer(raw, dtype=np.uint8, offset=nl + 1)
+    rgbe = np.zeros((n1, n2, 4), dtype=np.uint8)
+    status = _rgbe_decode()(body, rgbe)
+    if status != 0:
+        raise ShprobeError("truncated or corrupt .hdr pixel data", p)
+    img = rgbe_to_float(rgbe)
+    # scanline order: first axis is the slow one
+    if a1 == b"X":
+        img = img.transpose(1, 0, 2)
+        s1, s2 = s2, s1
+    if s1 == b"+":  # +Y: bottom-to-top
+        img = img[::-1]
+    if s2 == b"-":
+        img = img[:, ::-1]
+    return np.ascontiguousarray(img)
+
+
+def rgbe_to_float(rgbe: NDArray[np.uint8]) -> NDArray[np.float32]:
+    """RGBE bytes (..., 4) → float RGB: (m + 0.5) · 2^(e − 136), as Radiance's colr_color
+    (writers truncate, so the half step makes the round trip unbiased)."""
+    e = rgbe[..., 3].astype(np.int32)
+    f = np.where(e > 0, np.ldexp(np.float32(1.0), e - (128 + 8)), 0.0).astype(np.float32)
+    return ((rgbe[..., :3].astype(np.float32) + 0.5) * f[..., None]).astype(np.float32)
+
+
+def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
+    """OpenImageIO decodes RGBE as m · 2^k (k = e − 136); add Radiance's half step 0.5 · 2^k.
+
+    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]."""
+    vmax = img.max(axis=-1, keepdims=True)
+    _, ex = np.frexp(np.where(vmax > 0, vmax, 1.0))  # vmax = f · 2^ex, f in [0.5, 1)
+    step = np.ldexp(np.float32(0.5), (ex - 8).astype(np.int32))
+    return np.where(vmax > 0, img + step, 0.0).astype(np.float32)
+
+
+def float_to_rgbe(rgb: NDArray[np.float32]) -> NDArray[np.uint8]:
+    """Float RGB (..., 3) → RGBE bytes (..., 4), rounding as Radiance's setcolr."""
+    v = np.max(rgb, axis=-1).astype(np.float64)
+    ok = v > 1e-32
+    mant, ex = np.frexp(np.where(ok, v, 1.0))
+    scale = np.where(ok, mant * 256.0 / np.where(ok, v, 1.0), 0.0)
+    out = np.zeros((*rgb.shape[:-1], 4), dtype=np.uint8)
+    out[..., :3] = np.clip(np.floor(rgb * scale[..., None]), 0, 255).astype(np.uint8)
+    out[..., 3] = np.where(ok, np.clip(ex + 128, 0, 255), 0).astype(np.uint8)
+    return out
+
+
+_DECODER = None
+
+
+def _rgbe_decode():
+    global _DECODER
+    if _DECODER is None:
+        import numba
+
+        @numba.njit(cache=True)
+        def decode(buf, out):  # pragma: no cover - compiled
+            h, w = out.shape[0], out.shape[1]
+            pos = 0
+            n = buf.shape[0]
+            for y in range(h):
+                if pos + 4 > n:
+                    return 1
+                if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
+                        and buf[pos + 2] < 128):
+                    # new-style RLE: four channel planes
+                    if buf[pos + 2] * 256 + buf[pos + 3] != w:
+                        return 2
+                    pos += 4
+                    for c in range(4):
+                        x = 0
+                        while x < w:
+                            if pos >= n:
+                                return 1
+                            cnt = int(buf[pos])
+                            pos += 1
+                            if cnt > 128:
+                                cnt -= 128
+                                if x + cnt > w or pos >= n:
+                                    return 2
+                                v = buf[pos]
+                                pos += 1
+                                for k in range(cnt):
+                                    out[y, x + k, c] = v
+                            else:
+                                if cnt == 0 or x + cnt > w or pos + cnt > n:
+                                    return 2
+                                for k in range(cnt):
+                                    out[y, x + k, c] = buf[pos + k]
+                                pos += cnt
+                            x += cnt
+                else:
+                    # flat pixels, with old-style repeat markers (1, 1, 1, n)
+                    x = 0
+                    shift = 0
+                    while x < w:
+                        if pos + 4 > n:
+                            return 1
+                        r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
+                        pos += 4
+                        if r == 1 and g == 1 and b == 1:
+                            if x == 0:
+                                return 2
+                            cnt = int(e) << shift
+                            if x + cnt > w:
+                                return 2
+                            for k in range(cnt):
+                                for c in range(4):
+                                    out[y, x + k, c] = out[y, x - 1, c]
+                            x += cnt
+                            shift += 8
+                        else:
+                            out[y, x, 0] = r
+                            out[y, x, 1] = g
+                            out[y, x, 2] = b
+                            out[y, x, 3] = e
+                            x += 1
+                            shift = 0
+            return 0
+
+        _DECODER = decode
+    return _DECODER
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def tonemap(rgb: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
+    """Linear RGB → 8-bit sRGB: scale by 2**exposure, clamp to [0, 1], sRGB OETF, round."""
+    v = np.asarray(rgb, dtype=np.float32) * np.float32(2.0 ** exposure)
+    v = np.nan_to_num(v, nan=0.0, posinf=1.0, neginf=0.0)
+    return np.round(linear_to_srgb(v) * 255.0).astype(np.uint8)
+
+
+def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = False,
+                exposure: float = 0.0, half: bool = False) -> Path:
+    """Write linear RGB ``(H, W, 3)`` (or ``(H, W)`` grey) atomically.
+
+    ``.exr`` (float, or half with ``half=True``), ``.hdr`` (RGBE), ``.pfm`` and ``.tif`` are
+    linear and ignore ``exposure``; ``.png`` is tone-mapped with :func:`tonemap` (exposure in
+    stops). An existing file is replaced only with ``overwrite=True``.
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in WRITE_EXTENSIONS:
+        raise ShprobeError(
+            f"cannot write extension {ext or '(none)'!r}; expected one of "
+            + " ".join(WRITE_EXTENSIONS), p)
+    a = np.asarray(rgb, dtype=np.float32)
+    if a.ndim == 2:
+        a = np.repeat(a[:, :, None], 3, axis=2)
+    if a.ndim != 3 or a.shape[2] not in (1, 3, 4) or a.shape[0] == 0 or a.shape[1] == 0:
+        raise ShprobeError(f"image to write must be (H, W, 3), got {a.shape}", p)
+    if a.shape[2] == 1:
+        a = np.repeat(a, 3, axis=2)
+    a = np.ascontiguousarray(a[:, :, :3])
+    with atomic_output(p, overwrite) as tmp:
+        if ext == ".pfm":
+            _write_pfm(tmp, a)
+        elif ext in _LDR_OUT:
+            _write_oiio(tmp, tonemap(a, exposure), "uint8")
+        else:
+            fmt = "half" if (half and ext == ".exr") else "float"
+            _write_oiio(tmp, a, fmt)
+    return p
+
+
+def _write_oiio(path: Path, data: NDArray, fmt: str) -> None:
+    import OpenImageIO as oiio
+
+    h, w, c = data.shape
+    out = oiio.ImageOutput.create(str(path))
+    if out is None:
+        raise ShprobeError(f"cannot write image: {_oneline(oiio.geterror())}", path)
+    spec = oiio.ImageSpec(w, h, c, {"uint8": oiio.UINT8, "half": oiio.HALF,
+                                    "float": oiio.FLOAT}[fmt])
+    if path.suffix.lower() in (".tif", ".tiff"):
+        spec.attribute("compression", "zip")
+    ok = out.open(str(path), spec) and out.write_image(data)
+    err = out.geterror()
+    out.close()
+    if not ok:
+        raise ShprobeError(f"cannot write image: {_oneline(err)}", path)

@@ -1,3 +1,195 @@
-"""Rotation of SH coefficients by real-basis Wigner matrices (Lisle & Huang 2007 §2.2)."""
+"""Rotation of SH coefficients by real-basis Wigner matrices (Lisle & Huang 2007 §2.2).
+
+Semantics (LH eq. 4–5): ``rotate(coeffs, R)`` turns the *function*. If ``coeffs`` are the
+coefficients a_lm of f, the result holds the coefficients a'_lm = Σ_n D^l_mn(R) a_ln of
+(R·f)(u) = f(R⁻¹u): a lobe pointing along axis v points along R v afterwards. To turn the
+frame instead (express a fixed function in rotated coordinates), pass Rᵀ.
+
+Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quaternions in
+(w, x, y, z) order (scalar first), or anything with an ``.as_matrix()`` method (e.g.
+``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through :func:`from_euler_zyz`.
+
+The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
+z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
+(``shprobe._rotation_kernels``, compiled once and cached on disk). Run forward in l at a
+general β the recurrence loses accuracy (orthogonality error ~1e-3 by l = 40 at β = 0.5), so
+it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is obtained as
+Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
+angles are never formed: cos/sin of α, β, γ are read algebraically from R, and α is taken
+from the residual Ry(β)ᵀ Rz(γ)ᵀ R, so that gimbal lock (β ≈ 0 or π) is harmless.
+"""
 
 from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import ShprobeError
+from .sh import check_lmax, lmax_of, num_coeffs
+
+#: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
+ORTHO_TOL = 1e-6
+
+
+def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrices (..., 3, 3) from quaternions (..., 4) in (w, x, y, z) order.
+
+    The quaternion is normalised first; q and −q give the same rotation.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim < 1 or q.shape[-1] != 4:
+        raise ShprobeError(f"quaternions must have shape (..., 4) as (w, x, y, z), got {q.shape}")
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(q)) or np.any(n == 0.0):
+        raise ShprobeError("quaternion must be finite and non-zero")
+    w, x, y, z = np.moveaxis(q / n, -1, 0)
+    R = np.empty((*q.shape[:-1], 3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def _rz(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((*t.shape, 3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+def _ry(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((*t.shape, 3, 3))
+    R[..., 0, 0], R[..., 0, 2], R[..., 2, 0], R[..., 2, 2], R[..., 1, 1] = c, s, -s, c, 1.0
+    return R
+
+
+def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArray[np.float64]:
+    """R = Rz(γ) Ry(β) Rz(α) (LH eq. 6; α is applied first), angles in radians, broadcast.
+
+    Rz(t) = [[c, −s, 0], [s, c, 0], [0, 0, 1]] and Ry(t) = [[c, 0, s], [0, 1, 0], [−s, 0, c]]
+    (right-handed, counter-clockwise looking down the axis).
+    """
+    a, b, g = np.broadcast_arrays(*(np.asarray(t, dtype=np.float64) for t in (alpha, beta, gamma)))
+    return _rz(g) @ _ry(b) @ _rz(a)
+
+
+def as_matrix(rotation: Any) -> NDArray[np.float64]:
+    """Rotation matrices (..., 3, 3) float64 from matrices, (w, x, y, z) quaternions (..., 4) or
+    objects with ``.as_matrix()``. Raises :class:`ShprobeError` for anything that is not a
+    proper rotation (orthogonal to :data:`ORTHO_TOL`, det +1).
+    """
+    R = _matrices(rotation)
+    if not np.all(np.isfinite(R)):
+        raise ShprobeError("rotation matrix has non-finite entries")
+    if R.size:
+        err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max()
+        det = np.abs(np.linalg.det(R) - 1.0).max()
+        _check_err(max(err, det))
+    return R
+
+
+def _matrices(rotation: Any) -> NDArray[np.float64]:
+    """Unchecked (..., 3, 3) C-contiguous float64 matrices."""
+    if hasattr(rotation, "as_matrix") and not isinstance(rotation, np.ndarray):
+        rotation = rotation.as_matrix()
+    r = np.asarray(rotation, dtype=np.float64)
+    if r.ndim >= 2 and r.shape[-2:] == (3, 3):
+        return np.ascontiguousarray(r)
+    if r.ndim >= 1 and r.shape[-1] == 4:
+        return from_quaternion(r)
+    raise ShprobeError(
+        f"rotation must be (..., 3, 3) matrices or (..., 4) quaternions (w, x, y, z), "
+        f"got shape {r.shape}"
+    )
+
+
+def _check_err(err: float) -> None:
+    if not err <= ORTHO_TOL:  # also catches NaN
+        raise ShprobeError(
+            f"not a proper rotation matrix (RᵀR − I or det − 1 off by {err:.3g} > {ORTHO_TOL})"
+        )
+
+
+def _kernels():
+    from . import _rotation_kernels
+
+    return _rotation_kernels
+
+
+@lru_cache(maxsize=8)
+def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """J = d(π/2) for l ≤ lmax by the LH recurrence (P, Q quadrant tables, read-only)."""
+    P, Q = _kernels().d_tables(0.0, 1.0, lmax)
+    P.flags.writeable = False
+    Q.flags.writeable = False
+    return P, Q
+
+
+def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
+    """Block-diagonal real-basis Wigner matrices D(R), shape (..., K, K), K = (lmax+1)².
+
+    Entry [k(l,m), k(l,n)] is D^l_mn(R) of LH eq. 4–5 in shprobe's basis (R&H signs), so that
+    ``D @ a`` are the coefficients of f∘R⁻¹ when ``a`` are those of f. Each block is
+    orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
+    leading axes.
+    """
+    lmax = check_lmax(lmax)
+    R = _matrices(rotation)
+    batch = R.shape[:-2]
+    out, err = _kernels().wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))
+    if R.size:
+        _check_err(err)
+    K = num_coeffs(lmax)
+    return out.reshape(*batch, K, K)
+
+
+def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
+    """Coefficients of the turned function f∘R⁻¹ (LH eq. 5): a'_lm = Σ_n D^l_mn(R) a_ln.
+
+    ``coeffs`` is (..., K, C) (or (K,) for one channel) and ``rotation`` is one rotation or a
+    batch (..., 3, 3) / (..., 4); the leading axes of both broadcast. float32 coefficients
+    stay float32 (the arithmetic is float64).
+    """
+    c = np.asarray(coeffs)
+    if c.dtype not in (np.float32, np.float64):
+        c = c.astype(np.float64)
+    if c.ndim == 0:
+        raise ShprobeError("coefficients must have shape (..., K, C) or (K,)")
+    one_d = c.ndim == 1
+    if one_d:
+        c = c[:, None]
+    lmax = lmax_of(c.shape[-2])
+    K, C = c.shape[-2:]
+    R = _matrices(rotation)
+    br, bc = R.shape[:-2], c.shape[:-2]
+    shape = np.broadcast_shapes(br, bc)
+    n = int(np.prod(shape)) if shape else 1
+    nr = int(np.prod(br)) if br else 1
+    ncf = int(np.prod(bc)) if bc else 1
+    if nr not in (1, n):
+        R = np.broadcast_to(R, (*shape, 3, 3))
+        nr = n
+    if ncf not in (1, n):
+        c = np.broadcast_to(c, (*shape, K, C))
+        ncf = n
+    Rk = np.ascontiguousarray(R.reshape(nr, 3, 3))
+    ck = np.ascontiguousarray(c.reshape(ncf, K, C), dtype=np.float64)
+    if n == 0:
+        out = np.empty((0, K, C))
+    else:
+        out, err = _kernels().rotate_batch(Rk, ck, lmax, *_j_tables(lmax))
+        _check_err(err)
+    out = out.reshape(*shape, K, C)
+    if one_d:
+        out = out[..., 0]
+    return out.astype(c.dtype, copy=False)

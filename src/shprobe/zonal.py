@@ -4,9 +4,12 @@ Funk–Hecke convolution (LH 2007 §3; R&H 2001 eq. 5–9).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import ShprobeError
 from .sh import check_lmax, degrees, lmax_of
 
 
@@ -45,8 +48,151 @@ def convolve(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.floating]:
     kaxis = -1 if c.ndim == 1 else -2
     lmax = lmax_of(c.shape[kaxis])
     if f.shape[-1] < lmax + 1:
-        from .errors import ShprobeError
-
         raise ShprobeError(f"need {lmax + 1} band factors, got {f.shape[-1]}")
     per_k = f[..., degrees(lmax)].astype(c.dtype)
     return c * (per_k if c.ndim == 1 else per_k[..., None])
+
+
+def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
+    """H_l = 2∫₀¹ z P_l(z) dz for l = 0..lmax by the LH eq. 10 recurrence.
+
+    H_0 = 1, H_1 = 2/3, H_l = 0 for odd l ≥ 3, H_{2n+2} = (½ − n)/(2 + n) H_{2n}. By LH eq. 9
+    the clamped cosine about n has coefficients π H_l y_lm(n); comparing with R&H eq. 7–8
+    (Â_l = √(4π/(2l+1)) A_l, A_l its zonal coefficient) gives Â_l = π H_l.
+    """
+    lmax = check_lmax(lmax)
+    h = np.zeros(lmax + 1)
+    h[0] = 1.0
+    if lmax >= 1:
+        h[1] = 2.0 / 3.0
+    for n in range(0, (lmax - 2) // 2 + 1):
+        h[2 * n + 2] = (0.5 - n) / (2.0 + n) * h[2 * n]
+    return h
+
+
+def legendre_polynomials(z: ArrayLike, lmax: int) -> NDArray[np.float64]:
+    """P_l(z) for l = 0..lmax, shape (*z.shape, lmax+1), by Bonnet's recurrence."""
+    z = np.asarray(z, dtype=np.float64)
+    p = np.empty((*z.shape, lmax + 1))
+    p[..., 0] = 1.0
+    if lmax >= 1:
+        p[..., 1] = z
+    for l in range(1, lmax):
+        p[..., l + 1] = ((2 * l + 1) * z * p[..., l] - l * p[..., l - 1]) / (l + 1)
+    return p
+
+
+def legendre_moments(
+    h: Callable[[NDArray[np.float64]], ArrayLike],
+    lmax: int,
+    n_quad: int | None = None,
+    interval: tuple[float, float] = (-1.0, 1.0),
+) -> NDArray[np.float64]:
+    """2π ∫ h(z) P_l(z) dz for l = 0..lmax (LH Prop. 3.2), by Gauss–Legendre quadrature.
+
+    ``h`` maps an array of z in [−1, 1] to values of the same shape (it is called once, on
+    all nodes). ``interval`` restricts the integral to [a, b] ⊂ [−1, 1] where h vanishes
+    outside: put the ends at h's discontinuities so the quadrature converges spectrally.
+    ``n_quad`` nodes (default max(2·lmax + 16, 64)); exact when h is a polynomial of degree
+    < 2·n_quad − lmax.
+    """
+    lmax = check_lmax(lmax)
+    a, b = (float(t) for t in interval)
+    if not -1.0 <= a < b <= 1.0:
+        raise ShprobeError(f"interval {interval} must satisfy -1 <= a < b <= 1")
+    n = max(2 * lmax + 16, 64) if n_quad is None else int(n_quad)
+    if n < 1:
+        raise ShprobeError(f"n_quad must be positive, got {n_quad}")
+    x, w = np.polynomial.legendre.leggauss(n)
+    z = 0.5 * (b - a) * x + 0.5 * (b + a)
+    w = 0.5 * (b - a) * w
+    vals = np.asarray(h(z), dtype=np.float64)
+    if vals.shape != z.shape:
+        vals = np.broadcast_to(vals, z.shape) if vals.ndim == 0 else vals
+        if vals.shape != z.shape:
+            raise ShprobeError(f"h must return one value per node, got shape {vals.shape}")
+    return 2.0 * np.pi * (w * vals) @ legendre_polynomials(z, lmax)
+
+
+def _unit_axis(axis: ArrayLike) -> NDArray[np.float64]:
+    n = np.asarray(axis, dtype=np.float64)
+    if n.ndim < 1 or n.shape[-1] != 3:
+        raise ShprobeError(f"axis must have shape (..., 3), got {n.shape}")
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(n)) or np.any(norm == 0.0):
+        raise ShprobeError("axis must be a finite, non-zero vector")
+    return n / norm
+
+
+def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.float64]:
+    """b_lm = moments_l · y_lm(axis) (LH eq. 7), shape (..., K) for axes (..., 3).
+
+    ``moments`` (lmax+1,) are 2π∫h P_l (see :func:`legendre_moments`); the axis is normalised.
+    Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting.
+    """
+    from .sh import sh_basis
+
+    mom = np.asarray(moments, dtype=np.float64)
+    if mom.ndim != 1 or mom.size == 0:
+        raise ShprobeError(f"moments must be a 1-D array of lmax+1 values, got {mom.shape}")
+    lmax = mom.size - 1
+    return mom[degrees(lmax)] * sh_basis(_unit_axis(axis), lmax)
+
+
+def zonal_coeffs(
+    h: Callable[[NDArray[np.float64]], ArrayLike],
+    axis: ArrayLike,
+    lmax: int,
+    n_quad: int | None = None,
+    interval: tuple[float, float] = (-1.0, 1.0),
+) -> NDArray[np.float64]:
+    """SH coefficients (..., K) of f(u) = h(u·n) about axis n (LH Prop. 3.2)."""
+    return zonal_from_moments(legendre_moments(h, lmax, n_quad, interval), axis)
+
+
+def window_moments(aperture: float, lmax: int) -> NDArray[np.float64]:
+    """4π f_l(cos ζ), f_l(z) = (1/(1−z)) ∫_z^1 P_l, by the LH eq. 11 recurrence.
+
+    These are the moments 2π∫h P_l of LH's circular window h = 2/(1−cos ζ) on the cap
+    z > cos ζ (total power ∫ L_f = 4π for every aperture ζ, in radians, 0 < ζ ≤ π).
+    """
+    lmax = check_lmax(lmax)
+    zeta = float(aperture)
+    if not 0.0 < zeta <= np.pi:
+        raise ShprobeError(f"window aperture must be in (0, π] radians, got {aperture}")
+    z = np.cos(zeta)
+    f = np.empty(lmax + 1)
+    f[0] = 1.0
+    if lmax >= 1:
+        f[1] = 0.5 * (1.0 + z)
+    for l in range(1, lmax):
+        f[l + 1] = ((2 * l + 1) * z * f[l] - (l - 1) * f[l - 1]) / (l + 2)
+    return 4.0 * np.pi * f
+
+
+def circular_window(
+    axis: ArrayLike,
+    aperture: float,
+    lmax: int,
+    power: float = 4.0 * np.pi,
+    radiance: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """SH coefficients of a circular light window of angular radius ``aperture`` (radians)
+    about ``axis`` (LH §3.2, eq. 11).
+
+    By default the window has LH's normalisation scaled to total power ``power``:
+    L = power / (2π(1 − cos ζ)) inside the cap (= 2/(1 − cos ζ) for power 4π), so
+    ∫ L dω = power. With ``radiance`` (a number or a colour (C,)) the window instead has
+    that constant radiance inside the cap. Returns (..., K), or (..., K, C) for a colour.
+    """
+    mom = window_moments(aperture, lmax)
+    if radiance is None:
+        return zonal_from_moments(mom * (float(power) / (4.0 * np.pi)), axis)
+    solid = 2.0 * np.pi * (1.0 - np.cos(float(aperture)))
+    b = zonal_from_moments(mom * (solid / (4.0 * np.pi)), axis)
+    rad = np.asarray(radiance, dtype=np.float64)
+    if rad.ndim == 0:
+        return b * rad
+    if rad.ndim != 1:
+        raise ShprobeError(f"radiance must be a number or a colour (C,), got {rad.shape}")
+    return b[..., None] * rad
