@@ -168,7 +168,7 @@ def test_imse_quadratic_form_matches_direct_integration():
     E = np.einsum("nk,skc->snc", sh_basis(d, 16), e)
     for name in ("H6", "HL2", "Zernike6", "HSH3", "SH9", "Makhotkin2"):
         b = get_basis(name)
-        approx = np.einsum("ni,ik,skc->snc", b.evaluate(d), b.sh_matrix(16), e)
+        approx = np.einsum("ni,sic->snc", b.evaluate(d), b.sh_matrix(16) @ e)
         direct = np.einsum("n,snc->sc", w, (approx - E) ** 2)
         np.testing.assert_allclose(imse(b, e), direct, rtol=1e-6, err_msg=name)
 

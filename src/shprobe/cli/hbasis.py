@@ -77,8 +77,8 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     fr = tangent_frames(m.vertices, m.faces, np.asarray(m.vertex_normals), mesh_uvs(m))
     n = 6 if basis == "h6" else 4
     bk = bake(e, fr.matrix, n=n, lmax=bands)
-    save_npz(output, overwrite=force, h=bk.h.astype(np.float32), sh9=bk.sh.astype(np.float32),
-             frames=fr.matrix.astype(np.float32), handedness=fr.handedness.astype(np.int8),
+    save_npz(output, overwrite=force, h=bk.h, sh9=bk.sh, frames=fr.matrix,
+             handedness=fr.handedness.astype(np.int8),
              t_h=sh_to_h_matrix(min(bands, lm), n), basis=np.array(basis.upper()))
     console(stderr=True).print(f"wrote {output}: {len(m.vertices)} vertices × {n} × 3")
 

@@ -101,19 +101,6 @@ def tangent_frames(vertices: ArrayLike, faces: ArrayLike, normals: ArrayLike | N
     return Frames(frames, hand)
 
 
-def _rotate_fallback(coeffs: NDArray, rot: NDArray) -> NDArray:
-    """Coefficients of f∘R⁻¹ by an exact least-squares fit on fixed directions (used only
-    until ``shprobe.rotation.rotate`` is available)."""
-    lmax = lmax_of(coeffs.shape[-2])
-    k = num_coeffs(lmax)
-    d = np.random.default_rng(7).normal(size=(2 * k + 8, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    pinv = np.linalg.pinv(sh_basis(d, lmax))  # (K, S)
-    rd = np.einsum("...ji,sj->...si", rot, d)  # R⁻¹ d = Rᵀ d
-    dmat = pinv @ sh_basis(rd, lmax)  # (..., K, K): Y(V) D = Y(Rᵀ V)
-    return dmat @ coeffs
-
-
 def to_tangent_sh(sh_coeffs: ArrayLike, frames: ArrayLike) -> NDArray[np.float64]:
     """SH coefficients (..., K, C) of v ↦ E(F v) for world SH coefficients (K, C) and frames
     (..., 3, 3): ``rotate(e, Fᵀ)``."""
@@ -121,14 +108,9 @@ def to_tangent_sh(sh_coeffs: ArrayLike, frames: ArrayLike) -> NDArray[np.float64
     if e.ndim == 1:
         e = e[:, None]
     fr = np.asarray(frames, dtype=np.float64)
-    ft = np.swapaxes(fr, -1, -2)
-    try:
-        from ..rotation import rotate
-    except ImportError:  # rotation not merged yet
-        rotate = None
-    if rotate is None:
-        return _rotate_fallback(e, ft)
-    return rotate(e, ft)
+    from ..rotation import rotate
+
+    return rotate(e, np.swapaxes(fr, -1, -2))
 
 
 @dataclass

@@ -120,8 +120,7 @@ class HemiBasis:
             m = np.zeros((self.n_coeffs, num_coeffs(lmax)))
             m[:k, :k] = np.eye(k)
             return m
-        nodes, _ = hemisphere_quadrature(*quad)
-        return self.projection_matrix(quad) @ sh_basis(nodes, lmax)
+        return self.projection_matrix(quad) @ sh_at_nodes(lmax, quad)
 
 
 @lru_cache(maxsize=64)
@@ -132,6 +131,15 @@ def _projection_matrix(basis: HemiBasis, quad: tuple[int, int]) -> NDArray[np.fl
     p = bw if basis.orthonormal else np.linalg.solve(bw @ b, bw)
     p.flags.writeable = False
     return p
+
+
+@lru_cache(maxsize=8)
+def sh_at_nodes(lmax: int, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
+    """sh_basis at the nodes of ``hemisphere_quadrature(*quad)`` (cached, read-only)."""
+    nodes, _ = hemisphere_quadrature(*quad)
+    y = sh_basis(nodes, lmax)
+    y.flags.writeable = False
+    return y
 
 
 @lru_cache(maxsize=4)

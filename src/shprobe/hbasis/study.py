@@ -26,7 +26,6 @@ from __future__ import annotations
 import csv
 import io
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +33,7 @@ from numpy.typing import NDArray
 from ..sh import num_coeffs, sh_basis
 from ..zonal import clamped_cosine_factors, convolve
 from .basis import hemisphere_quadrature
-from .rivals import QUAD, HemiBasis, all_bases
+from .rivals import QUAD, HemiBasis, all_bases, sh_at_nodes
 
 LMAX_SIGNAL = 16
 
@@ -93,26 +92,18 @@ def random_irradiance(n_signals: int, seed: int = 0, lmax: int = LMAX_SIGNAL) ->
     return convolve(random_lighting(n_signals, seed, lmax), clamped_cosine_factors(lmax))
 
 
-@lru_cache(maxsize=8)
-def _sh_nodes(lmax: int, quad: tuple[int, int]) -> NDArray:
-    nodes, _ = hemisphere_quadrature(*quad)
-    y = sh_basis(nodes, lmax)
-    y.flags.writeable = False
-    return y
-
-
 def _terms(basis: HemiBasis, lmax: int, quad: tuple[int, int]) -> tuple[NDArray, ...]:
     """M (n, K), G = ∫ B Bᵀ (n, n) and C = ∫ B yᵀ (n, K) over Ω+."""
     nodes, w = hemisphere_quadrature(*quad)
     bw = (basis.evaluate(nodes) * w[:, None]).T
-    return basis.sh_matrix(lmax, quad), bw @ basis.evaluate(nodes), bw @ _sh_nodes(lmax, quad)
+    return basis.sh_matrix(lmax, quad), bw @ basis.evaluate(nodes), bw @ sh_at_nodes(lmax, quad)
 
 
 def imse_matrix(basis: HemiBasis | None, lmax: int, quad: tuple[int, int] = QUAD) -> NDArray:
     """Q (K, K) with IMSE = eᵀ Q e for a signal of SH coefficients e; ``None``: Q = ∫_Ω+ y yᵀ
     (so eᵀ Q e = ∫_Ω+ E²). Q = Q0 − MᵀC − CᵀM + MᵀGM (expanding ∫ (B M e − yᵀe)²)."""
     _, w = hemisphere_quadrature(*quad)
-    y = _sh_nodes(lmax, quad)
+    y = sh_at_nodes(lmax, quad)
     q0 = (y * w[:, None]).T @ y
     if basis is None:
         return q0
