@@ -1,12 +1,7 @@
-"""Lighting input for the normal-mapping bake/render: a lat-long probe or SH coefficients.
+"""Lighting input for the normal-mapping bake/render: an environment map (any layout of
+``shprobe.layouts.load_env``: lat-long, angular, cube) or SH radiance coefficients.
 
-Until ``shprobe.layouts`` / ``shprobe.prefilter`` are on main this module reads a lat-long
-image itself (OpenImageIO) with the project convention (world +Y up, row 0 = +Y, pixel centres
-u = (i+0.5)/W, v = (j+0.5)/H, u = 0.5 looks along −Z, u = 0.75 along +X):
-
-    d(u, v) = (−sin 2πu · sin πv,  cos πv,  cos 2πu · sin πv),
-
-with exact pixel solid angles (2π/W)(cos θ_top − cos θ_bottom).
+L_lm = Σ_pixels L(ω) y_lm(ω) dω over the exact pixel solid angles (R&H eq. 10 as a sum).
 """
 
 from __future__ import annotations
@@ -31,43 +26,10 @@ class Lighting:
     sh: NDArray  # (K, 3) radiance coefficients L_lm
 
 
-def latlong_directions(width: int, height: int) -> tuple[NDArray, NDArray]:
-    """Pixel-centre directions (H, W, 3) and solid angles (H, W) of a lat-long map."""
-    u = (np.arange(width) + 0.5) / width
-    v = (np.arange(height) + 0.5) / height
-    st, ct = np.sin(np.pi * v), np.cos(np.pi * v)
-    d = np.stack(np.broadcast_arrays(-np.sin(2 * np.pi * u)[None, :] * st[:, None],
-                                     ct[:, None] + 0 * u[None, :],
-                                     np.cos(2 * np.pi * u)[None, :] * st[:, None]), axis=-1)
-    edges = np.cos(np.pi * np.arange(height + 1) / height)
-    sa = (2 * np.pi / width) * (edges[:-1] - edges[1:])
-    return d, np.broadcast_to(sa[:, None], (height, width)).copy()
-
-
-def _read_image(path: Path) -> NDArray:
-    try:
-        from ..images import read_image  # when the layouts branch has landed
-    except ImportError:
-        read_image = None
-    if read_image is not None:
-        return np.asarray(read_image(path), dtype=np.float64)[..., :3]
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise ShprobeError("cannot read image (not a supported HDR/LDR image)", path)
-    try:
-        px = inp.read_image(format=oiio.FLOAT)
-    finally:
-        inp.close()
-    if px is None or px.ndim != 3 or px.shape[2] < 3:
-        raise ShprobeError("cannot read image as RGB", path)
-    return np.asarray(px[..., :3], dtype=np.float64)
-
-
 def load_lighting(path, lmax: int = 16) -> Lighting:
-    """Lighting from a lat-long probe image (2:1) or an .npy/.npz of SH radiance coefficients
-    (K, 3) (npz: array ``L`` or ``coeffs`` or the first array)."""
+    """Lighting from an environment map (layout detected by ``shprobe.layouts.load_env``) or an
+    .npy/.npz of SH radiance coefficients (K, 3) (npz: array ``L`` or ``coeffs`` or the first
+    array)."""
     p = Path(path)
     if not p.is_file():
         raise ShprobeError("no such file", p)
@@ -89,14 +51,12 @@ def load_lighting(path, lmax: int = 16) -> Lighting:
         if c.ndim != 2 or c.shape[1] != 3:
             raise ShprobeError(f"SH coefficients must be (K, 3), got {c.shape}", p)
         return Lighting(None, None, None, c)
-    img = _read_image(p)
-    h, w = img.shape[:2]
-    if w != 2 * h:
-        raise ShprobeError(f"expected a 2:1 lat-long probe, got {w}x{h}", p)
-    d, sa = latlong_directions(w, h)
-    d, sa, rad = d.reshape(-1, 3), sa.reshape(-1), img.reshape(-1, 3)
+    from ..layouts import load_env
+
+    d, rad, sa = load_env(p).samples()
+    rad = np.asarray(rad, dtype=np.float64)
     if not np.all(np.isfinite(rad)):
-        raise ShprobeError("probe contains non-finite pixels", p)
+        raise ShprobeError("environment map contains non-finite pixels", p)
     sh = (sh_basis(d, lmax) * sa[:, None]).T @ rad
     return Lighting(d, sa, rad, sh)
 
