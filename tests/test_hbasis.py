@@ -135,6 +135,14 @@ def test_lsq_linear_sh_equals_h4_and_sh_matrix_is_projection():
     e = random_irradiance(40, seed=5)
     a, b = imse(get_basis("H4"), e), imse(get_basis("SH4 (LSQ)"), e)
     np.testing.assert_allclose(a, b, rtol=1e-9)
+    # Makhotkin spans HSH's space: fitted by least squares it has HSH's IMSE exactly, with its
+    # own (cosine-weighted) projection more
+    import dataclasses
+
+    mk = get_basis("Makhotkin3")
+    mk_lsq = dataclasses.replace(mk, name="Makhotkin3 (LSQ)", fit="hemisphere")
+    np.testing.assert_allclose(imse(mk_lsq, e), imse(get_basis("HSH3"), e), rtol=1e-7)
+    assert np.all(imse(mk, e) >= imse(mk_lsq, e) * (1 - 1e-9))
     # SH → H6 through the rival interface equals T_h on the l ≤ 16 signal
     np.testing.assert_allclose(get_basis("H6").sh_matrix(16), sh_to_h_matrix(16), atol=1e-12)
 

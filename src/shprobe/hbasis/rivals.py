@@ -21,9 +21,11 @@ Definitions (φ from +x towards +y, θ from +z, z = cos θ):
 * **Makhotkin2, Makhotkin3** — shifted Jacobi polynomials (Makhotkin 1996), SH band
   structure: for band n, m = −n..n, N · trig(mφ) · (sin θ')^|m| · P^(|m|, |m|+1)_{n−|m|}(2z − 1).
   These are orthonormal for the *cosine-weighted* measure z dω used in radiative transfer (the
-  paper does not print them; this is our reconstruction, see docs/hbasis.md). They are zero
-  (m ≠ 0) or constant (m = 0) on the border like HSH, and span the same space as HSH with the
-  same bands, so their least-squares IMSE equals HSH's. Gram matrix in dω: not identity.
+  paper does not print them; this is our reconstruction, see docs/hbasis.md), and are
+  projected with that inner product, c_i = ∫ f B_i z dω (``fit="cosine"``). They are zero
+  (m ≠ 0) or constant (m = 0) on the border like HSH and span the same space as HSH with the
+  same bands, so a least-squares fit in their span would give exactly HSH's IMSE. Gram matrix
+  in dω: not identity.
 * **Zernike3, Zernike6** — Zernike polynomials on the hemisphere (Koenderink et al. 1996) with
   ρ = √2 sin(θ/2) = √(1 − z) (area-preserving map, dω = 2ρ dρ dφ): N R_n^|m|(ρ) trig(mφ) for
   n ≤ 1 (3) and n ≤ 2 (6); N = √((n+1)/π), or √((n+1)/2π) for m = 0. Z_2^0 = −H³.
@@ -76,7 +78,8 @@ class HemiBasis:
     name: str
     n_coeffs: int
     _eval: Callable[[NDArray], NDArray] = field(repr=False)
-    #: "hemisphere": L2(Ω+) least squares; "sphere": keep full-sphere SH coefficients (SH9)
+    #: "hemisphere": L2(Ω+) least squares; "sphere": keep full-sphere SH coefficients (SH9);
+    #: "cosine": the inner product ∫ f B z dω the basis is orthonormal for (Makhotkin)
     fit: str = "hemisphere"
     orthonormal: bool = True
     description: str = ""
@@ -128,6 +131,8 @@ def _projection_matrix(basis: HemiBasis, quad: tuple[int, int]) -> NDArray[np.fl
     nodes, w = hemisphere_quadrature(*quad)
     b = basis.evaluate(nodes)
     bw = (b * w[:, None]).T
+    if basis.fit == "cosine":
+        return np.ascontiguousarray((b * (w * nodes[:, 2])[:, None]).T)
     p = bw if basis.orthonormal else np.linalg.solve(bw @ b, bw)
     p.flags.writeable = False
     return p
@@ -251,8 +256,8 @@ def all_bases() -> dict[str, HemiBasis]:
         HemiBasis("SH4 (LSQ)", 4, lambda d: sh_basis(d, 1), orthonormal=False,
                   description="linear SH, least squares on the hemisphere"),
         HemiBasis("HSH2", 4, _hsh(1), description="hemispherical harmonics l<=1 (Gautron 2004)"),
-        HemiBasis("Makhotkin2", 4, _makhotkin(1), orthonormal=False,
-                  description="shifted Jacobi (Makhotkin 1996) n<=1"),
+        HemiBasis("Makhotkin2", 4, _makhotkin(1), fit="cosine", orthonormal=False,
+                  description="shifted Jacobi (Makhotkin 1996) n<=1, cosine-weighted projection"),
         HemiBasis("H6", 6, lambda d: h_basis(d, 6), description="H-basis, H1..H6"),
         HemiBasis("Zernike6", 6, _zernike(2), description="Zernike n<=2 (Koenderink 1996)"),
         HemiBasis("SH9", 9, lambda d: sh_basis(d, 2), fit="sphere", orthonormal=False,
@@ -260,8 +265,8 @@ def all_bases() -> dict[str, HemiBasis]:
         HemiBasis("SH9 (LSQ)", 9, lambda d: sh_basis(d, 2), orthonormal=False,
                   description="quadratic SH, least squares on the hemisphere"),
         HemiBasis("HSH3", 9, _hsh(2), description="hemispherical harmonics l<=2 (Gautron 2004)"),
-        HemiBasis("Makhotkin3", 9, _makhotkin(2), orthonormal=False,
-                  description="shifted Jacobi (Makhotkin 1996) n<=2"),
+        HemiBasis("Makhotkin3", 9, _makhotkin(2), fit="cosine", orthonormal=False,
+                  description="shifted Jacobi (Makhotkin 1996) n<=2, cosine-weighted projection"),
     ]
     return {b.name: b for b in bases}
 
