@@ -42,6 +42,9 @@ _EXPORTS: dict[str, str] = {
     "irradiance": "prefilter",
     "irradiance_matrix": "prefilter",
     "reference_irradiance": "prefilter",
+    # H-basis (Habel & Wimmer 2010)
+    "h_basis": "hbasis",
+    "sh_to_h_matrix": "hbasis",
     "read_image": "images",
     "write_image": "images",
 }
@@ -64,6 +67,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
+    from .hbasis import h_basis, sh_to_h_matrix
     from .images import read_image, write_image
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
     from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d

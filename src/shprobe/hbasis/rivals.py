@@ -41,7 +41,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import eval_jacobi
 
 from ..errors import ShprobeError
 from ..sh import num_coeffs, sh_basis
@@ -189,6 +188,8 @@ def _band_lm(nmax: int) -> list[tuple[int, int]]:
 
 
 def _makhotkin(nmax: int) -> Callable[[NDArray], NDArray]:
+    from scipy.special import eval_jacobi
+
     # N² · ∫_0^1 z (1−t²)^|m| P^(|m|,|m|+1)_k(t)² dz · ∫ trig² dφ = 1, t = 2z − 1, computed by
     # Gauss–Legendre (exact: polynomial integrand)
     tz, wz = np.polynomial.legendre.leggauss(2 * nmax + 8)
