@@ -168,3 +168,56 @@ def test_cli_study_and_errors(tmp_path, capsys):
     rc = main(["hbasis", "render", str(bad), str(bad), "-o", str(tmp_path / "x.png")])
     err = capsys.readouterr().err
     assert rc == 1 and err.count("\n") == 1 and "bad.hdr" in err
+
+
+@pytest.mark.parametrize("mirror", [False, True])
+def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
+    """A constant normal-map tilt along the map's +v (green) on a plane facing +Z must shade
+    with the world normal tilted along the direction in which v grows (−y when mirrored)."""
+    import trimesh
+    from PIL import Image
+
+    from shprobe.hbasis._env import load_lighting
+    from shprobe.hbasis.normalmap import read_normal_map, render_normal_mapped
+    from shprobe.zonal import clamped_cosine_factors, convolve
+
+    g = np.linspace(-1, 1, 5)
+    X, Y = np.meshgrid(g, g)
+    verts = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], -1)
+    faces = []
+    for j in range(4):
+        for i in range(4):
+            a = j * 5 + i
+            faces += [[a, a + 1, a + 6], [a, a + 6, a + 5]]
+    uv = 0.5 * (verts[:, :2] + 1)
+    if mirror:
+        uv[:, 1] = 1 - uv[:, 1]
+    mesh = trimesh.Trimesh(verts, np.array(faces), process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=uv))
+    tilt = np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0])
+    img = np.broadcast_to(np.round(255 * (tilt + 1) / 2), (8, 8, 3)).astype(np.uint8)
+    Image.fromarray(img).save(tmp_path / "n.png")
+    nmap = read_normal_map(tmp_path / "n.png")
+    rng = np.random.default_rng(2)
+    L = rng.normal(size=(9, 3))
+    L[0] += 6
+    np.save(tmp_path / "L.npy", L)
+    light = load_lighting(tmp_path / "L.npy")
+    res = render_normal_mapped(mesh, light, size=16, normal_map=nmap)
+    t = nmap[0, 0]
+    world = np.array([t[0], -t[1] if mirror else t[1], t[2]])
+    e = convolve(L, clamped_cosine_factors(2))
+    expect = sh_basis(world, 2) @ e
+    ref = res.images["reference"][res.mask]
+    assert res.mask.mean() > 0.5
+    np.testing.assert_allclose(ref, np.broadcast_to(expect, ref.shape), rtol=1e-10)
+    # l ≤ 2 lighting: SH9 is exact, and H6 is its hemispherical projection
+    np.testing.assert_allclose(res.images["SH9"][res.mask], ref, rtol=1e-10)
+    assert res.rel_rms["SH9"] < 1e-10
+    # H6 at the looked-up tangent normal (green flipped on the mirrored chart), one flat frame
+    fr = tangent_frames(verts, np.array(faces), uvs=uv)
+    np.testing.assert_allclose(fr.handedness, -1 if mirror else 1)
+    vt = np.array([t[0], -t[1] if mirror else t[1], t[2]])
+    h6 = shade_h(bake(e, fr.matrix[:1]).h[0], vt)
+    np.testing.assert_allclose(res.images["H6"][res.mask], np.broadcast_to(h6, ref.shape),
+                               rtol=1e-10)

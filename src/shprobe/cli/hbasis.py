@@ -93,21 +93,25 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
               help="Slope amplitude of the procedural bump (0: no normal map).")
 @click.option("--gain", type=click.FloatRange(0, 1000), default=4.0, show_default=True,
               help="Multiplier of the error panels.")
+@click.option("--normal-map", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Tangent-space normal-map image (needs a mesh with UVs) instead of the bump.")
 @force_option
 def render_cmd(mesh: Path, probe: Path, output: Path, size: int, bump: float, gain: float,
-               force: bool) -> None:
+               normal_map: Path | None, force: bool) -> None:
     """Render MESH with a procedural normal map under PROBE, shading with per-vertex H6, H4 and
     SH9 against the brute-force reference; prints the relative RMS errors."""
     from PIL import Image
 
     from ..files import atomic_output, check_output_path
-    from ..hbasis.normalmap import load_mesh, panel_image, render_normal_mapped
+    from ..hbasis.normalmap import load_mesh, panel_image, read_normal_map, render_normal_mapped
 
     check_output_path(output, force)
     if not mesh.is_file():
         raise ShprobeError("no such file", mesh)
     m = load_mesh(mesh)
-    res = render_normal_mapped(m, _lighting(probe, 16), size=size, bump_amplitude=bump)
+    nmap = None if normal_map is None else read_normal_map(normal_map)
+    res = render_normal_mapped(m, _lighting(probe, 16), size=size, bump_amplitude=bump,
+                               normal_map=nmap)
     with atomic_output(output, overwrite=force) as tmp:
         Image.fromarray(panel_image(res, gain)).save(tmp, format="PNG")
     click.echo("| basis | relative RMS error vs brute force |\n| --- | ---: |")

@@ -222,8 +222,11 @@ def mesh_uvs(mesh) -> NDArray | None:
 
 
 def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float = 0.3,
-                         bump_frequency: float | None = None) -> RenderResult:
-    """Render ``mesh`` under ``lighting`` (``_env.Lighting``) with a UV-free procedural bump
+                         bump_frequency: float | None = None,
+                         normal_map: NDArray | None = None) -> RenderResult:
+    """Render ``mesh`` under ``lighting`` (``_env.Lighting``) with a tangent-space
+    ``normal_map`` (H, W, 3) looked up at the interpolated UV (nearest texel, v up, wrapping;
+    green flipped on mirrored charts; needs UVs), or else a UV-free procedural bump
     (:func:`bump_world`), shading with per-vertex baked H6, H4 and tangent-space SH9
     (linearly interpolated, as the paper's per-vertex variant), against the reference E(n') at
     the perturbed world normal: brute force over the probe's pixels, or the lighting's own SH
@@ -258,9 +261,22 @@ def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float 
     tan = interp(frames.matrix[..., 0])
     tan = _unit(tan - np.sum(tan * nrm, -1, keepdims=True) * nrm)
     fp = np.stack([tan, np.cross(nrm, tan), nrm], axis=-1)
-    freq = bump_frequency if bump_frequency is not None else 60.0 / ext
-    nw = bump_world(loc, nrm, bump_amplitude, freq)
-    vt = np.einsum("pji,pj->pi", fp, nw)  # tangent-space normal Fᵀ n'
+    if normal_map is not None:
+        uvs = mesh_uvs(mesh)
+        if uvs is None:
+            raise ShprobeError("a normal-map image needs a mesh with UVs")
+        nm = np.asarray(normal_map, dtype=np.float64)
+        uvp = interp(uvs)
+        col = np.floor(uvp[:, 0] * nm.shape[1]).astype(np.int64) % nm.shape[1]
+        row = np.floor((1.0 - uvp[:, 1]) * nm.shape[0]).astype(np.int64) % nm.shape[0]
+        vt = nm[row, col].copy()
+        vt[:, 1] *= np.where(interp(frames.handedness) < 0, -1.0, 1.0)
+        vt = _unit(vt)
+        nw = np.einsum("pij,pj->pi", fp, vt)
+    else:
+        freq = bump_frequency if bump_frequency is not None else 60.0 / ext
+        nw = bump_world(loc, nrm, bump_amplitude, freq)
+        vt = np.einsum("pji,pj->pi", fp, nw)  # tangent-space normal Fᵀ n'
     vals = {
         "H6": shade_h(interp(bk.h), vt),
         "H4": shade_h(interp(bk.h[:, :4]), vt),
