@@ -322,3 +322,62 @@ def test_midpoint_error_is_second_order():
         e1, e2 = (np.abs(_project(*env_from_function(_lobes, layout, m).samples(), 4) - ref).max()
                   for m in (n, 2 * n))
         assert 3.0 < e1 / e2 < 5.0
+
+
+def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
+    import click
+    from click.testing import CliRunner
+
+    from shprobe.cli.common import LAYOUT_CHOICES, clamp_option, layout_option, load_env_cli
+    from shprobe.images import write_image
+    from shprobe.layouts import LAYOUTS
+
+    assert set(LAYOUT_CHOICES) == {"auto", *LAYOUTS}
+
+    @click.command()
+    @click.argument("probe")
+    @layout_option
+    @clamp_option
+    def cmd(probe, layout, clamp):
+        env = load_env_cli(probe, layout, clamp)
+        click.echo(f"{env.layout.name} {env.grid}")
+
+    write_image(tmp_path / "p.png", np.full((8, 8, 3), 0.5, np.float32))
+    res = CliRunner().invoke(cmd, [str(tmp_path / "p.png"), "--layout", "mirrorball"])
+    assert res.exit_code == 0 and "mirrorball (8, 8)" in res.output
+    assert "warning" in res.output and "not radiance" in res.output
+    res = CliRunner().invoke(cmd, [str(tmp_path / "p.png"), "--layout", "bogus"])
+    assert res.exit_code != 0
+
+
+def test_six_face_images(tmp_path):
+    from shprobe.images import write_image
+
+    env = env_from_function(_lobes, "cube", 16)
+    paths = []
+    for k, name in enumerate(("px", "nx", "py", "ny", "pz", "nz")):
+        paths.append(tmp_path / f"{name}.pfm")
+        write_image(paths[-1], env.radiance[k])
+    back = load_env(paths)
+    assert back.layout.name == "cube"
+    np.testing.assert_array_equal(back.radiance, env.radiance)
+    with pytest.raises(ShprobeError, match="6 face images"):
+        load_env(paths[:5])
+    write_image(tmp_path / "odd.pfm", np.zeros((16, 8, 3), np.float32))
+    with pytest.raises(ShprobeError, match=r"odd\.pfm.*square"):
+        load_env([*paths[:5], tmp_path / "odd.pfm"])
+
+
+def test_bad_aspect_and_zero_size(tmp_path):
+    from shprobe.images import write_image
+
+    write_image(tmp_path / "wide.exr", np.ones((10, 20, 3), np.float32))
+    for lay, what in (("angular", "square"), ("mirrorball", "square"), ("cube", "cross")):
+        with pytest.raises(ShprobeError, match=what) as e:
+            load_env(tmp_path / "wide.exr", layout=lay)
+        assert "wide.exr" in str(e.value) and "\n" not in str(e.value)
+    write_image(tmp_path / "odd.exr", np.ones((10, 17, 3), np.float32))
+    with pytest.raises(ShprobeError, match=r"odd\.exr: cannot tell the layout"):
+        load_env(tmp_path / "odd.exr")
+    with pytest.raises(ShprobeError, match="zero size"):
+        Env(np.zeros((0, 0, 3), np.float32), "latlong")

@@ -36,6 +36,10 @@ _EXPORTS: dict[str, str] = {
     "from_euler_zyz": "rotation",
     # errors
     "ShprobeError": "errors",
+    # precomputed radiance transfer
+    "bake": "prt",
+    "relight": "prt",
+    "load_transfer": "prt",
     # probes in, irradiance out
     "load_env": "prefilter",
     "project": "prefilter",
@@ -47,6 +51,12 @@ _EXPORTS: dict[str, str] = {
     "sh_to_h_matrix": "hbasis",
     "read_image": "images",
     "write_image": "images",
+    # layouts (issue 3, part A)
+    "Env": "layouts",
+    "env_from_function": "layouts",
+    "get_layout": "layouts",
+    "detect_layout": "layouts",
+    "write_env": "layouts",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -69,6 +79,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
     from .hbasis import h_basis, sh_to_h_matrix
     from .images import read_image, write_image
+    from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
     from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm

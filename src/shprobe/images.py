@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -142,6 +143,11 @@ def _to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
                  clamp: bool = False) -> NDArray[np.float32]:
     """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+    if img.size == 0:
+        return img
+    lo, hi = img.min(), img.max()  # fast path: two reductions, no temporaries
+    if lo >= 0 and np.isfinite(hi):
+        return img
     bad_nan = np.isnan(img)
     bad_inf = np.isinf(img)
     bad_neg = img < 0
@@ -245,100 +251,113 @@ def rgbe_to_float(rgbe: NDArray[np.uint8]) -> NDArray[np.float32]:
 def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
     """OpenImageIO decodes RGBE as m · 2^k (k = e − 136); add Radiance's half step 0.5 · 2^k.
 
-    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]."""
-    vmax = img.max(axis=-1, keepdims=True)
-    _, ex = np.frexp(np.where(vmax > 0, vmax, 1.0))  # vmax = f · 2^ex, f in [0.5, 1)
-    step = np.ldexp(np.float32(0.5), (ex - 8).astype(np.int32))
-    return np.where(vmax > 0, img + step, 0.0).astype(np.float32)
+    k is recovered exactly from the largest channel, m_max · 2^k with m_max in [128, 255]
+    (in place, one compiled pass)."""
+    img = np.ascontiguousarray(img, dtype=np.float32)
+    flat = img.reshape(-1, img.shape[-1])
+    # 2^k from the float32 exponent field E of the largest channel: m_max in [128, 256)
+    # means 2^(E−127) = 2^(k+7), so the half step is 2^(E−135)
+    table = np.ldexp(np.float32(1.0), np.arange(256) - 135).astype(np.float32)
+    _half_step_kernel()(flat, flat.view(np.int32), table)
+    return img
 
 
-def float_to_rgbe(rgb: NDArray[np.float32]) -> NDArray[np.uint8]:
-    """Float RGB (..., 3) → RGBE bytes (..., 4), rounding as Radiance's setcolr."""
-    v = np.max(rgb, axis=-1).astype(np.float64)
-    ok = v > 1e-32
-    mant, ex = np.frexp(np.where(ok, v, 1.0))
-    scale = np.where(ok, mant * 256.0 / np.where(ok, v, 1.0), 0.0)
-    out = np.zeros((*rgb.shape[:-1], 4), dtype=np.uint8)
-    out[..., :3] = np.clip(np.floor(rgb * scale[..., None]), 0, 255).astype(np.uint8)
-    out[..., 3] = np.where(ok, np.clip(ex + 128, 0, 255), 0).astype(np.uint8)
-    return out
+@lru_cache(maxsize=1)
+def _half_step_kernel():
+    import math
+
+    import numba
+
+    @numba.njit(cache=True)
+    def kernel(px, bits, table):  # pragma: no cover - compiled
+        for i in range(px.shape[0]):
+            best = 0
+            for c in range(1, px.shape[1]):
+                if px[i, c] > px[i, best]:
+                    best = c
+            v = px[i, best]
+            if v > 0:
+                e = (bits[i, best] >> 23) & 0xFF
+                if e > 0:
+                    step = table[e]
+                else:  # subnormal float32
+                    step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
+                for c in range(px.shape[1]):
+                    px[i, c] += step
+
+    return kernel
 
 
-_DECODER = None
-
-
+@lru_cache(maxsize=1)
 def _rgbe_decode():
-    global _DECODER
-    if _DECODER is None:
-        import numba
+    import numba
 
-        @numba.njit(cache=True)
-        def decode(buf, out):  # pragma: no cover - compiled
-            h, w = out.shape[0], out.shape[1]
-            pos = 0
-            n = buf.shape[0]
-            for y in range(h):
-                if pos + 4 > n:
-                    return 1
-                if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
-                        and buf[pos + 2] < 128):
-                    # new-style RLE: four channel planes
-                    if buf[pos + 2] * 256 + buf[pos + 3] != w:
-                        return 2
-                    pos += 4
-                    for c in range(4):
-                        x = 0
-                        while x < w:
-                            if pos >= n:
-                                return 1
-                            cnt = int(buf[pos])
-                            pos += 1
-                            if cnt > 128:
-                                cnt -= 128
-                                if x + cnt > w or pos >= n:
-                                    return 2
-                                v = buf[pos]
-                                pos += 1
-                                for k in range(cnt):
-                                    out[y, x + k, c] = v
-                            else:
-                                if cnt == 0 or x + cnt > w or pos + cnt > n:
-                                    return 2
-                                for k in range(cnt):
-                                    out[y, x + k, c] = buf[pos + k]
-                                pos += cnt
-                            x += cnt
-                else:
-                    # flat pixels, with old-style repeat markers (1, 1, 1, n)
+    @numba.njit(cache=True)
+    def decode(buf, out):  # pragma: no cover - compiled
+        h, w = out.shape[0], out.shape[1]
+        pos = 0
+        n = buf.shape[0]
+        for y in range(h):
+            if pos + 4 > n:
+                return 1
+            if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
+                    and buf[pos + 2] < 128):
+                # new-style RLE: four channel planes
+                if buf[pos + 2] * 256 + buf[pos + 3] != w:
+                    return 2
+                pos += 4
+                for c in range(4):
                     x = 0
-                    shift = 0
                     while x < w:
-                        if pos + 4 > n:
+                        if pos >= n:
                             return 1
-                        r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
-                        pos += 4
-                        if r == 1 and g == 1 and b == 1:
-                            if x == 0:
+                        cnt = int(buf[pos])
+                        pos += 1
+                        if cnt > 128:
+                            cnt -= 128
+                            if x + cnt > w or pos >= n:
                                 return 2
-                            cnt = int(e) << shift
-                            if x + cnt > w:
+                            v = buf[pos]
+                            pos += 1
+                            for k in range(cnt):
+                                out[y, x + k, c] = v
+                        else:
+                            if cnt == 0 or x + cnt > w or pos + cnt > n:
                                 return 2
                             for k in range(cnt):
-                                for c in range(4):
-                                    out[y, x + k, c] = out[y, x - 1, c]
-                            x += cnt
-                            shift += 8
-                        else:
-                            out[y, x, 0] = r
-                            out[y, x, 1] = g
-                            out[y, x, 2] = b
-                            out[y, x, 3] = e
-                            x += 1
-                            shift = 0
-            return 0
+                                out[y, x + k, c] = buf[pos + k]
+                            pos += cnt
+                        x += cnt
+            else:
+                # flat pixels, with old-style repeat markers (1, 1, 1, n)
+                x = 0
+                shift = 0
+                while x < w:
+                    if pos + 4 > n:
+                        return 1
+                    r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
+                    pos += 4
+                    if r == 1 and g == 1 and b == 1:
+                        if x == 0:
+                            return 2
+                        cnt = int(e) << shift
+                        if x + cnt > w:
+                            return 2
+                        for k in range(cnt):
+                            for c in range(4):
+                                out[y, x + k, c] = out[y, x - 1, c]
+                        x += cnt
+                        shift += 8
+                    else:
+                        out[y, x, 0] = r
+                        out[y, x, 1] = g
+                        out[y, x, 2] = b
+                        out[y, x, 3] = e
+                        x += 1
+                        shift = 0
+        return 0
 
-        _DECODER = decode
-    return _DECODER
+    return decode
 
 
 # ----------------------------------------------------------------------------- writing

@@ -92,11 +92,13 @@ class Layout:
         raise NotImplementedError
 
     def pixel_directions(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
-        """Unit vectors of the pixel centres, ``(*grid, 3)`` (zero vectors where invalid)."""
+        """Unit vectors of the pixel centres, ``(*grid, 3)`` (zero vectors where invalid).
+        Disc layouts return a cached read-only array: copy before writing."""
         raise NotImplementedError
 
     def solid_angles(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
-        """Exact solid angle of each pixel, ``(*grid,)``; 0 where invalid; sums to 4π."""
+        """Exact solid angle of each pixel, ``(*grid,)``; 0 where invalid; sums to 4π.
+        Disc layouts return a cached read-only array: copy before writing."""
         raise NotImplementedError
 
     def valid_mask(self, grid_shape: Sequence[int]) -> NDArray[np.bool_]:
@@ -599,8 +601,9 @@ class Cube(Layout):
 # ----------------------------------------------------------------------------- registry
 
 
+CUBE = Cube()
 LAYOUTS: dict[str, Layout] = {
-    "latlong": LatLong(), "angular": Angular(), "mirrorball": MirrorBall(), "cube": Cube()}
+    "latlong": LatLong(), "angular": Angular(), "mirrorball": MirrorBall(), "cube": CUBE}
 
 
 def get_layout(name: str | Layout) -> Layout:
@@ -683,19 +686,40 @@ class Env:
         return self.layout.sample(self.radiance, dirs)
 
 
-def load_env(path: str | os.PathLike[str], layout: str | Layout | None = None,
-             clamp: bool = False) -> Env:
+def load_env(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
+             layout: str | Layout | None = None, clamp: bool = False) -> Env:
     """Read an environment map (see :func:`shprobe.images.read_image`) in a layout.
 
     ``layout`` None / 'auto' detects it from the shape (:func:`detect_layout`); a requested
-    layout whose aspect does not fit is a one-line ShprobeError naming the file.
+    layout whose aspect does not fit is a one-line ShprobeError naming the file. A sequence of
+    six paths is a cube map given as six face images, in the order +X −X +Y −Y +Z −Z.
     """
     from .images import read_image
 
+    if not isinstance(path, str | os.PathLike):
+        return load_cube_faces(path, clamp=clamp)
     img = read_image(path, clamp=clamp)
     name = None if layout in (None, "auto") else layout
     lay = get_layout(name if name is not None else detect_layout(img.shape, path))
     return env_from_image(img, lay, path=os.fspath(path))
+
+
+def load_cube_faces(paths: Sequence[str | os.PathLike[str]], clamp: bool = False) -> Env:
+    """A cube map from six square face images, in the order +X −X +Y −Y +Z −Z."""
+    from .images import read_image
+
+    paths = list(paths)
+    if len(paths) != 6:
+        raise ShprobeError(f"a cube map needs 6 face images (+X -X +Y -Y +Z -Z), got "
+                           f"{len(paths)}")
+    faces = []
+    for p in paths:
+        img = read_image(p, clamp=clamp)
+        if img.shape[0] != img.shape[1] or (faces and img.shape != faces[0].shape):
+            raise ShprobeError(f"cube faces must be square and all the same size, got "
+                               f"{img.shape[1]}x{img.shape[0]}", p)
+        faces.append(img)
+    return Env(np.stack(faces), CUBE, os.fspath(paths[0]))
 
 
 def env_from_image(img: ArrayLike, layout: str | Layout,
@@ -765,6 +789,7 @@ __all__ = [
     "env_from_function",
     "env_from_image",
     "get_layout",
+    "load_cube_faces",
     "load_env",
     "write_env",
 ]

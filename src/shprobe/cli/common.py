@@ -54,3 +54,39 @@ def parse_size(text: str) -> tuple[int, int]:
 force_option = click.option(
     "--force", "-f", is_flag=True, help="Replace output files that already exist."
 )
+
+
+# layouts (see shprobe.layouts); names listed here so `--help` needs no numpy import
+LAYOUT_CHOICES = ("auto", "latlong", "angular", "mirrorball", "cube")
+
+layout_option = click.option(
+    "--layout", "-l", type=click.Choice(LAYOUT_CHOICES), default="auto", show_default=True,
+    help="Image layout of the probe: auto detects it from the aspect (2:1 lat-long, square "
+         "angular map, 4:3 / 3:4 cross or 6:1 / 1:6 strip cube map); mirror ball only when "
+         "asked for.",
+)
+
+clamp_option = click.option(
+    "--clamp", is_flag=True,
+    help="Set NaN, infinite and negative pixels to 0 (+inf to the largest value) instead of "
+         "refusing the image.",
+)
+
+
+def load_env_cli(path: str, layout: str = "auto", clamp: bool = False):
+    """``shprobe.layouts.load_env`` for commands: an LDR image gives one warning line on
+    stderr (not a Python warning)."""
+    import warnings
+
+    from ..images import LDRWarning
+    from ..layouts import load_env
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LDRWarning)
+        env = load_env(path, layout=None if layout == "auto" else layout, clamp=clamp)
+    for w in caught:
+        if issubclass(w.category, LDRWarning):
+            click.echo(f"shprobe: warning: {w.message}", err=True)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return env

@@ -1,9 +1,180 @@
-"""CLI commands: prt (see the library module it wraps)."""
+"""CLI commands: ``shprobe prt bake`` and ``shprobe prt render`` (precomputed radiance transfer,
+Lisle & Huang 2007 §4; library: :mod:`shprobe.prt`)."""
 
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
 import click
+
+from ..errors import ShprobeError
+from .common import force_option, parse_floats, parse_size
+
+
+def _albedo(text: str | None):
+    if text is None:
+        return None
+    v = parse_floats(text, what="albedo")
+    if len(v) not in (1, 3):
+        raise ShprobeError(f"albedo {text!r} must be one number or r,g,b")
+    return v[0] if len(v) == 1 else v
+
+
+def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int,
+             coeffs_file: str | None = None):
+    """Lighting coefficients (K, 3) or (K,) from exactly one source: a probe (projected to
+    ``lmax``), an R&H preset or a coefficient JSON file (their own degree, ≤ 2 for presets), or
+    the LH §3.2 window "x,y,z,aperture_deg" (LH normalisation, total power 4π)."""
+    import numpy as np
+
+    given = [s for s in (probe, preset, window, coeffs_file) if s is not None]
+    if len(given) != 1:
+        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
+                           "--coeffs FILE.json or --window X,Y,Z,APERTURE_DEG")
+    if window is not None:
+        from ..zonal import circular_window
+
+        x, y, z, ap = parse_floats(window, 4, "window (x,y,z,aperture in degrees)")
+        if not 0 < ap <= 180:
+            raise ShprobeError(f"window aperture must be in (0, 180] degrees, got {ap}")
+        if np.linalg.norm([x, y, z]) == 0:
+            raise ShprobeError(f"window axis {window!r} must not be zero")
+        return circular_window(np.array([x, y, z]) / np.linalg.norm([x, y, z]),
+                               np.radians(ap), lmax)
+    if probe is not None and not Path(probe).is_file():
+        raise ShprobeError("no such probe file", probe)
+    try:
+        from .sources import resolve_coeffs
+    except ImportError:  # the shared source helper is not merged yet
+        resolve_coeffs = None
+    if resolve_coeffs is not None:
+        src = resolve_coeffs(probe, preset, coeffs_file, lmax=lmax if probe else None)
+        return np.asarray(src.coeffs, dtype=np.float64)
+    if coeffs_file is not None:
+        raise ShprobeError("--coeffs needs shprobe.cli.sources (not in this build)")
+    if preset is not None:
+        from ..presets import get_preset
+
+        return np.asarray(get_preset(preset), dtype=np.float64)
+    from .. import prefilter
+
+    return np.asarray(prefilter.project(prefilter.load_env(probe), lmax), dtype=np.float64)
 
 
 def register(group: click.Group) -> None:
-    """Add this module's commands to the top-level group."""
+    """Add the ``prt`` group (bake, render)."""
+
+    @group.group("prt")
+    def prt() -> None:
+        """Precomputed radiance transfer (Lisle & Huang 2007 §4): bake transfer vectors per vertex
+        once, relight under any SH lighting, rotation or degree without re-baking."""
+
+    @prt.command("bake")
+    @click.argument("scene", nargs=-1, required=True, type=click.Path(dir_okay=False))
+    @click.option("--mode", type=click.Choice(["unshadowed", "shadowed", "interreflected"]),
+                  default="shadowed", show_default=True, help="Transfer model.")
+    @click.option("--lmax", type=int, default=10, show_default=True, help="SH degree baked.")
+    @click.option("--samples", type=int, default=1024, show_default=True,
+                  help="Ray directions per vertex (whole sphere; about half are traced).")
+    @click.option("--bounces", type=int, default=2, show_default=True,
+                  help="Interreflection bounces (interreflected only).")
+    @click.option("--ground", is_flag=True, help="Add a ground plane under the meshes.")
+    @click.option("--albedo", default=None, metavar="RHO|R,G,B",
+                  help="Diffuse albedo of every mesh (default 0.8).")
+    @click.option("--seed", type=int, default=0, show_default=True,
+                  help="Seed of the direction set's random rotation.")
+    @click.option("--threads", type=int, default=None,
+                  help="Worker threads for Embree and numpy (default: all cores).")
+    @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+                  help="Transfer file (.npz).")
+    @force_option
+    def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, seed, threads, output,
+                 force):
+        """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes)."""
+        from ..files import check_output_path
+        from ..prt import bake
+        from .common import progress
+
+        check_output_path(output, force)
+        if threads is not None:
+            if threads < 1:
+                raise ShprobeError(f"--threads must be >= 1, got {threads}")
+            import numba
+
+            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        t0 = time.perf_counter()
+        t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,
+                 albedo=_albedo(albedo), seed=seed, ground=ground, threads=threads,
+                 progress=progress)
+        t.save(output, overwrite=force)
+        click.echo(err=True, message=
+            f"{mode} transfer, lmax {lmax}, {t.n_vertices} vertices"
+            + (f", {samples} samples" if mode != "unshadowed" else "")
+            + (f", {bounces} bounces" if mode == "interreflected" else "")
+            + f" in {time.perf_counter() - t0:.2f} s -> {output}")
+
+    @prt.command("render")
+    @click.argument("transfer", type=click.Path(dir_okay=False))
+    @click.argument("probe", required=False, type=click.Path(dir_okay=False))
+    @click.option("--preset", default=None, help="R&H 2001 lighting preset by name.")
+    @click.option("--coeffs", "coeffs_file", default=None, type=click.Path(dir_okay=False),
+                  help="Lighting coefficients from a JSON file (shprobe prefilter --format json).")
+    @click.option("--window", default=None, metavar="X,Y,Z,APERTURE",
+                  help="LH §3.2 circular light window: axis and aperture (degrees).")
+    @click.option("--rotate", default=None, metavar="X,Y,Z,DEG",
+                  help="Turn the scene relative to the lighting (axis, degrees).")
+    @click.option("--lmax", type=int, default=None,
+                  help="SH degree used (default: the transfer's; no re-bake).")
+    @click.option("--size", default="512x512", show_default=True, help="Image size WxH.")
+    @click.option("--azimuth", type=float, default=0.0, show_default=True,
+                  help="Camera azimuth (degrees).")
+    @click.option("--elevation", type=float, default=20.0, show_default=True,
+                  help="Camera elevation (degrees).")
+    @click.option("--exposure", type=float, default=0.0, show_default=True,
+                  help="Exposure (stops) for PNG/JPEG.")
+    @click.option("--turntable", type=int, default=None, metavar="N",
+                  help="Write N frames (OUT_000.png …) of the lighting turning around +Y.")
+    @click.option("--scene", "scene_check", default=None, type=click.Path(dir_okay=False),
+                  help="Refuse the transfer unless it was baked for this mesh.")
+    @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+                  help="Image (.png, .jpg, .exr, .hdr, .pfm).")
+    @force_option
+    def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, size, azimuth,
+                   elevation, exposure, turntable, scene_check, output, force):
+        """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
+        from ..files import check_output_path
+        from ..prt import load_transfer
+
+        t = load_transfer(transfer, scene=scene_check)
+        from ..prt.view import axis_angle, render_frame
+        from ..prt.view import turntable as turntable_frames
+        from ..render import Camera
+        from .common import progress
+
+        use = t.lmax if lmax is None else lmax
+        if use > t.lmax:
+            raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
+                               transfer)
+        coeffs = lighting(probe, preset, window, use, coeffs_file)
+        w, h = parse_size(size)
+        cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
+        rot = None
+        if rotate is not None:
+            x, y, z, deg = parse_floats(rotate, 4, "rotation (x,y,z,degrees)")
+            rot = axis_angle([x, y, z], deg)
+        if turntable is None:
+            check_output_path(output, force)
+            render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, exposure, force)
+            click.echo(err=True, message=f"wrote {output}")
+            return
+        if turntable < 1:
+            raise ShprobeError(f"--turntable needs N >= 1, got {turntable}")
+        out = Path(output)
+        names = [out.with_name(f"{out.stem}_{i:03d}{out.suffix}") for i in range(turntable)]
+        for p in names:
+            check_output_path(p, force)
+        frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam)
+        for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):
+            frame.save(p, exposure, force)
+        click.echo(err=True, message=f"wrote {len(names)} frames {names[0]} … {names[-1]}")

@@ -1,0 +1,74 @@
+"""Run time: rotate the lighting into the scene's frame and dot it with the transfer vectors
+(Lisle & Huang 2007 §1 step 2–3 and §4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShprobeError
+from ..rotation import as_matrix, rotate
+from ..sh import lmax_of, num_coeffs
+from .transfer import Transfer
+
+
+def _as_matrix(rotation: ArrayLike) -> NDArray[np.float64]:
+    """One 3×3 rotation (matrix or (w, x, y, z) quaternion), checked."""
+    r = as_matrix(rotation)
+    if r.shape != (3, 3):
+        raise ShprobeError(f"need one rotation, got shape {r.shape}")
+    return r
+
+
+def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Lighting coefficients (K, C) seen in the frame of a scene turned by ``rotation``.
+
+    Turning the scene by R relative to the lighting is turning the lighting by R⁻¹:
+    L' = rotate(L, R⁻¹), the coefficients of L∘R.
+    """
+    c = np.asarray(coeffs, dtype=np.float64)
+    if c.ndim == 1:
+        c = c[:, None]
+    if c.ndim != 2:
+        raise ShprobeError(f"lighting coefficients must be (K,) or (K, C), got {c.shape}")
+    lmax_of(c.shape[0])
+    if rotation is None:
+        return c
+    return np.asarray(rotate(c, _as_matrix(rotation).T), dtype=np.float64)
+
+
+def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLike | None = None,
+            lmax: int | None = None) -> NDArray[np.float32]:
+    """Per-vertex exit radiance (V, 3) = transfer · rotate(L, R⁻¹), per channel.
+
+    transfer: a :class:`Transfer` or its (V, K) / (V, K, 3) array. coeffs: lighting L_lm (K', 3)
+    or (K',) (grey). rotation: 3×3 rotation of the scene relative to the lighting (None: none).
+    lmax: degree to use (default: the smaller of the transfer's and the lighting's) — the first
+    (lmax+1)² transfer columns, no re-bake. For the unshadowed model with albedo ρ the result is
+    ρ/π · E(n) (R&H eq. 7).
+    """
+    t = transfer.transfer if isinstance(transfer, Transfer) else np.asarray(transfer)
+    if t.ndim not in (2, 3) or (t.ndim == 3 and t.shape[2] != 3):
+        raise ShprobeError(f"transfer must be (V, K) or (V, K, 3), got {t.shape}")
+    c = np.asarray(coeffs, dtype=np.float64)
+    lt, lc = lmax_of(t.shape[1]), lmax_of(c.shape[0])
+    use = min(lt, lc) if lmax is None else int(lmax)
+    if use > min(lt, lc) or use < 0:
+        raise ShprobeError(f"lmax={use} not available: transfer has {lt}, lighting has {lc}")
+    k = num_coeffs(use)
+    light = scene_lighting(c[:k], rotation)
+    if light.shape[1] == 1:
+        light = np.repeat(light, 3, axis=1)
+    if light.shape[1] != 3:
+        raise ShprobeError(f"lighting must have 1 or 3 channels, got {light.shape[1]}")
+    tk = t[:, :k]
+    light = light.astype(tk.dtype if tk.dtype in (np.float32, np.float64) else np.float64)
+    if tk.ndim == 2:
+        return np.asarray(tk @ light, dtype=np.float32)
+    # one matmul: (V, K·3) @ (K·3, 3) with the lighting on the block diagonal per channel
+    m = np.zeros((k, 3, 3), dtype=light.dtype)
+    m[:, [0, 1, 2], [0, 1, 2]] = light
+    return np.asarray(tk.reshape(t.shape[0], k * 3) @ m.reshape(k * 3, 3), dtype=np.float32)
+
+

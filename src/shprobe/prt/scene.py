@@ -1,0 +1,208 @@
+"""PRT scenes: one or more meshes, an optional ground plane, diffuse albedo per vertex.
+
+A :class:`Scene` is the flattened geometry the bake works on: every mesh's vertices, normals and
+faces concatenated, the albedo ρ per vertex (RGB), and a hash of the geometry so that a bake is
+never reused for another mesh (Lisle & Huang 2007 §4: scene switchable at run time).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShprobeError
+
+#: Albedo used where none is given.
+DEFAULT_ALBEDO = 0.8
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Flattened scene geometry.
+
+    vertices (V, 3), normals (V, 3) unit, faces (F, 3) int64 into vertices, albedo (V, 3) diffuse
+    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see :func:`mesh_hash`).
+    """
+
+    vertices: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    albedo: NDArray[np.float64]
+    mesh_hash: str
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def coloured(self) -> bool:
+        """True when some vertex has a non-grey albedo (transfer then has 3 channels)."""
+        a = self.albedo
+        return bool(np.any(a[:, 1:] != a[:, :1]))
+
+    def face_normals(self) -> NDArray[np.float64]:
+        """Unit geometric normals (F, 3) from the winding (counter-clockwise = front)."""
+        v = self.vertices[self.faces]
+        n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+        ln = np.linalg.norm(n, axis=1, keepdims=True)
+        return n / np.where(ln > 0, ln, 1.0)
+
+    def to_trimesh(self):
+        """The scene as one ``trimesh.Trimesh`` (for the renderer)."""
+        import trimesh
+
+        return trimesh.Trimesh(self.vertices, self.faces, vertex_normals=self.normals,
+                               process=False)
+
+
+def mesh_hash(vertices: ArrayLike, faces: ArrayLike) -> str:
+    """SHA-256 (hex) of the vertices (as float32) and the faces (as int64), little-endian.
+
+    float32 so that the hash ignores float64 noise below what a mesh file stores; any moved
+    vertex or changed face gives another hash.
+    """
+    h = hashlib.sha256()
+    v = np.ascontiguousarray(np.asarray(vertices, dtype="<f4"))
+    f = np.ascontiguousarray(np.asarray(faces, dtype="<i8"))
+    h.update(str(v.shape).encode())
+    h.update(v.tobytes())
+    h.update(str(f.shape).encode())
+    h.update(f.tobytes())
+    return h.hexdigest()
+
+
+def _load_mesh(item: Any):
+    """A trimesh.Trimesh from a path or a trimesh object (Scene objects are concatenated)."""
+    import trimesh
+
+    if isinstance(item, str | os.PathLike):
+        p = Path(item)
+        if not p.is_file():
+            raise ShprobeError("no such mesh file", p)
+        try:
+            mesh = trimesh.load(p, force="mesh")
+        except Exception as e:  # trimesh raises many types for bad files
+            raise ShprobeError(f"cannot read mesh: {e}", p) from None
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise ShprobeError("file holds no triangles", p)
+        return mesh
+    if isinstance(item, trimesh.Scene):
+        item = item.to_geometry() if hasattr(item, "to_geometry") else item.dump(concatenate=True)
+    if isinstance(item, trimesh.Trimesh):
+        if len(item.faces) == 0:
+            raise ShprobeError("mesh has no triangles")
+        return item
+    raise ShprobeError(f"cannot use {type(item).__name__} as a mesh (path or trimesh object)")
+
+
+def ground_plane(center_xz: ArrayLike, size: float, y: float, resolution: int = 64):
+    """A square grid (``resolution`` cells a side) in the plane y = ``y``, normal +Y.
+
+    Tessellated so that per-vertex transfer can show shadows on it.
+    """
+    import trimesh
+
+    n = int(resolution)
+    if n < 1 or size <= 0:
+        raise ShprobeError("ground plane needs resolution >= 1 and size > 0")
+    cx, cz = (float(c) for c in np.asarray(center_xz, dtype=np.float64))
+    t = np.linspace(-0.5 * size, 0.5 * size, n + 1)
+    gx, gz = np.meshgrid(cx + t, cz + t, indexing="ij")
+    verts = np.stack([gx.ravel(), np.full(gx.size, float(y)), gz.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a = (i * (n + 1) + j).ravel()
+    b, c, d = a + (n + 1), a + 1, a + n + 2
+    # counter-clockwise seen from +Y: (a, c, b) and (c, d, b)
+    faces = np.concatenate([np.stack([a, c, b], 1), np.stack([c, d, b], 1)])
+    normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
+    return trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
+
+
+def _albedo_rows(spec: Any, n: int, what: str) -> NDArray[np.float64]:
+    """(n, 3) albedo from a scalar, an RGB triple, (n,) or (n, 3)."""
+    a = np.asarray(DEFAULT_ALBEDO if spec is None else spec, dtype=np.float64)
+    if a.ndim == 0:
+        a = np.full((n, 3), float(a))
+    elif a.shape == (3,) and n != 3:
+        a = np.tile(a, (n, 1))
+    elif a.shape == (n,):
+        a = np.repeat(a[:, None], 3, axis=1)
+    elif a.shape != (n, 3):
+        raise ShprobeError(f"albedo for {what} must be a number, RGB, ({n},) or ({n}, 3); "
+                           f"got shape {a.shape}")
+    if not np.all(np.isfinite(a)) or np.any(a < 0) or np.any(a > 1):
+        raise ShprobeError(f"albedo for {what} must lie in [0, 1]")
+    return a
+
+
+def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
+               ground_albedo: Any = None, ground_size: float = 3.0,
+               ground_resolution: int = 64) -> Scene:
+    """Build a :class:`Scene` from a mesh path, a trimesh object, a Scene, or a list of them.
+
+    albedo: None (each mesh's default, ρ = 0.8), one value for all meshes (a number or an RGB
+    triple), or a list with one entry per mesh, each a number, an RGB triple or per-vertex values
+    (V_i,) / (V_i, 3). ground: add a square plane under the scene (at the lowest y of the meshes,
+    ``ground_size`` times the larger horizontal extent, normal +Y) with ``ground_albedo`` (default:
+    the albedo when it is one value, else 0.8).
+    """
+    if isinstance(scene, Scene):
+        if ground:
+            raise ShprobeError("add the ground plane when the scene is built, not to a Scene")
+        if albedo is None:
+            return scene
+        return _with_albedo(scene, _albedo_rows(albedo, scene.n_vertices, "the scene"))
+    items = list(scene) if isinstance(scene, list | tuple) else [scene]
+    if not items:
+        raise ShprobeError("the scene has no meshes")
+    meshes = [_load_mesh(it) for it in items]
+    per_mesh: Sequence[Any]
+    if isinstance(albedo, list | tuple) and len(albedo) == len(meshes) and not (
+        len(meshes) == 3 and all(np.ndim(a) == 0 for a in albedo)
+    ):
+        per_mesh = albedo
+    else:
+        per_mesh = [albedo] * len(meshes)
+    verts, norms, faces, alb = [], [], [], []
+    off = 0
+    for k, (m, a) in enumerate(zip(meshes, per_mesh, strict=True)):
+        v = np.asarray(m.vertices, dtype=np.float64)
+        nrm = np.asarray(m.vertex_normals, dtype=np.float64)
+        verts.append(v)
+        norms.append(nrm)
+        faces.append(np.asarray(m.faces, dtype=np.int64) + off)
+        alb.append(_albedo_rows(a, len(v), f"mesh {k}"))
+        off += len(v)
+    if ground:
+        allv = np.concatenate(verts)
+        lo, hi = allv.min(0), allv.max(0)
+        ext = float(max(hi[0] - lo[0], hi[2] - lo[2], 1e-9))
+        g = ground_plane(0.5 * (lo[[0, 2]] + hi[[0, 2]]), ground_size * ext, lo[1],
+                         ground_resolution)
+        ga = ground_albedo
+        if ga is None:
+            one_value = albedo is not None and (np.ndim(albedo) == 0 or np.shape(albedo) == (3,))
+            ga = albedo if one_value else DEFAULT_ALBEDO
+        verts.append(np.asarray(g.vertices))
+        norms.append(np.asarray(g.vertex_normals))
+        faces.append(np.asarray(g.faces, dtype=np.int64) + off)
+        alb.append(_albedo_rows(ga, len(g.vertices), "the ground"))
+    v = np.concatenate(verts)
+    f = np.concatenate(faces)
+    n = np.concatenate(norms)
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    if not np.all(np.isfinite(v)):
+        raise ShprobeError("mesh has non-finite vertices")
+    n = np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), [0.0, 1.0, 0.0])
+    return Scene(v, n, f, np.concatenate(alb), mesh_hash(v, f))
+
+
+def _with_albedo(scene: Scene, albedo: NDArray[np.float64]) -> Scene:
+    return Scene(scene.vertices, scene.normals, scene.faces, albedo, scene.mesh_hash)

@@ -1,0 +1,61 @@
+"""Pictures of relit transfer: one frame, or a turntable of the lighting turning around the
+object (Lisle & Huang 2007 §4: model, degree and probe switchable at run time, no re-bake).
+Uses the per-vertex renderer ``shprobe.render.render_vertex_colors``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .relight import _as_matrix, relight
+from .transfer import Transfer
+
+
+def axis_angle(axis: ArrayLike, degrees: float) -> NDArray[np.float64]:
+    """Rotation matrix turning by ``degrees`` (right-handed) about ``axis``."""
+    from ..errors import ShprobeError
+
+    a = np.asarray(axis, dtype=np.float64)
+    n = float(np.linalg.norm(a))
+    if a.shape != (3,) or not np.isfinite(n) or n == 0:
+        raise ShprobeError(f"rotation axis must be a non-zero 3-vector, got {axis!r}")
+    x, y, z = a / n
+    t = np.radians(degrees)
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
+
+
+def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | None = None,
+                 light_rotation: ArrayLike | None = None, lmax: int | None = None,
+                 camera: Any = None, background: Any = None):
+    """Render the scene turned by ``rotation`` (3×3, the mesh moves) under the lighting
+    ``coeffs`` turned by ``light_rotation`` (the mesh stays).
+
+    Lighting turned by R_l and scene by R_s: in the scene's frame the lighting is
+    rotate(L, R_s⁻¹ R_l), i.e. ``relight`` with scene rotation R_l⁻¹ R_s. Returns the renderer's
+    RenderResult.
+    """
+    import trimesh
+
+    from ..render import render_vertex_colors
+
+    rs = np.eye(3) if rotation is None else _as_matrix(rotation)
+    rl = np.eye(3) if light_rotation is None else _as_matrix(light_rotation)
+    radiance = relight(transfer, coeffs, rotation=rl.T @ rs, lmax=lmax)
+    mesh = trimesh.Trimesh(transfer.vertices @ rs.T, transfer.faces,
+                           vertex_normals=transfer.normals @ rs.T, process=False)
+    return render_vertex_colors(mesh, radiance, camera, background=background)
+
+
+def turntable(transfer: Transfer, coeffs: ArrayLike, frames: int,
+              rotation: ArrayLike | None = None, lmax: int | None = None, camera: Any = None,
+              axis: ArrayLike = (0.0, 1.0, 0.0)) -> Iterator[Any]:
+    """``frames`` renders with the lighting turned by 360°·i/frames about ``axis`` (+Y) around
+    the (fixed, optionally turned by ``rotation``) scene."""
+    for i in range(int(frames)):
+        yield render_frame(transfer, coeffs, rotation, axis_angle(axis, 360.0 * i / frames),
+                           lmax=lmax, camera=camera)
