@@ -42,6 +42,15 @@ def test_h_matches_paper_formulas():
     np.testing.assert_allclose(h_basis(d), expect, atol=1e-14)
     np.testing.assert_allclose(h_basis(d, 4), expect[:, :4], atol=1e-14)
     assert h_basis(d.astype(np.float32)).dtype == np.float32
+    # large batches go through the numba kernel: same formulas, any leading shape, float32
+    big = random_dirs(2 * 4096, seed=8).reshape(2, 4096, 3)
+    x, y, z = big[..., 0], big[..., 1], big[..., 2]
+    ref = np.stack([np.full_like(x, 1 / np.sqrt(2 * np.pi)), -c * y, c * (2 * z - 1), -c * x,
+                    np.sqrt(15 / (2 * np.pi)) * x * y,
+                    0.5 * np.sqrt(15 / (2 * np.pi)) * (x * x - y * y)], -1)
+    np.testing.assert_allclose(h_basis(big), ref, atol=1e-14)
+    np.testing.assert_allclose(h_basis(big[..., ::-1][..., ::-1], 4), ref[..., :4], atol=1e-14)
+    np.testing.assert_allclose(h_basis(big.astype(np.float32)), ref, atol=1e-6)
     with pytest.raises(ShprobeError):
         h_basis(d, 5)
 

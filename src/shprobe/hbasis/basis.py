@@ -60,6 +60,33 @@ T_H4_PAPER[3, 5] = -math.sqrt(15) / 16
 T_H4_PAPER.flags.writeable = False
 
 
+#: batches at least this large go through the numba kernels
+NUMBA_MIN = 4096
+
+
+@lru_cache(maxsize=1)
+def _h_kernel():
+    """numba kernel (compiled lazily, cached on disk) for H evaluation."""
+    import numba
+
+    c1, c3, c5 = _C1, _C3, _C5
+
+    @numba.njit(cache=True)
+    def h_eval(d, out):
+        n = out.shape[1]
+        for i in range(d.shape[0]):
+            x, y, z = d[i, 0], d[i, 1], d[i, 2]
+            out[i, 0] = c1
+            out[i, 1] = -c3 * y
+            out[i, 2] = c3 * (2 * z - 1)
+            out[i, 3] = -c3 * x
+            if n == 6:
+                out[i, 4] = c5 * x * y
+                out[i, 5] = 0.5 * c5 * (x * x - y * y)
+
+    return h_eval
+
+
 def _check_n(n: int) -> int:
     if n not in (4, 6):
         raise ShprobeError(f"the H-basis has 4 or 6 functions (H4, H6), got n={n!r}")
@@ -78,9 +105,12 @@ def h_basis(normals: ArrayLike, n: int = 6) -> NDArray[np.floating]:
         d = d.astype(np.float64)
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {d.shape}")
+    out = np.empty((*d.shape[:-1], n), dtype=d.dtype)
+    if d.size >= 3 * NUMBA_MIN:
+        _h_kernel()(np.ascontiguousarray(d).reshape(-1, 3), out.reshape(-1, n))
+        return out
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     t = d.dtype.type
-    out = np.empty((*d.shape[:-1], n), dtype=d.dtype)
     out[..., 0] = t(_C1)
     out[..., 1] = t(-_C3) * y
     out[..., 2] = t(_C3) * (2 * z - 1)
