@@ -93,6 +93,12 @@ def test_span_of_h6_survives_sh_to_h_to_evaluate(rng):
     sd = random_dirs(200, seed=3)
     s, *_ = np.linalg.lstsq(sh_basis(sd, 2), h_basis(sd) @ c, rcond=None)
     np.testing.assert_allclose(sh_to_h(s), c, atol=1e-12)
+    # a large batch (numba path) equals T_h @ s for every item
+    batch = rng.normal(size=(3, 2000, 9, 2))
+    want = np.einsum("ij,...jc->...ic", sh_to_h_matrix(), batch)
+    np.testing.assert_allclose(sh_to_h(batch), want, atol=1e-13)
+    np.testing.assert_allclose(sh_to_h(batch, 4)[1, 7], sh_to_h_matrix(2, 4) @ batch[1, 7],
+                               atol=1e-13)
     d, _, _, _ = theta_quadrature(9, 11)
     np.testing.assert_allclose(h_basis(d) @ sh_to_h(s), h_basis(d) @ c, atol=1e-12)
     # project_h of the same function by quadrature

@@ -87,6 +87,31 @@ def _h_kernel():
     return h_eval
 
 
+@lru_cache(maxsize=1)
+def _t_h_kernel():
+    """numba kernel for T_h (l ≤ 2) on (N, 9, C) batches: only its 10 nonzeros."""
+    import numba
+
+    a, b = T_H_CLOSED_FORM[0, 0], T_H_CLOSED_FORM[0, 2]
+    e, f = T_H_CLOSED_FORM[2, 2], T_H_CLOSED_FORM[2, 6]
+    g = T_H_CLOSED_FORM[1, 5]
+
+    @numba.njit(cache=True)
+    def sh_to_h6(s, out):
+        n = out.shape[1]
+        for i in range(s.shape[0]):
+            for c in range(s.shape[2]):
+                out[i, 0, c] = a * s[i, 0, c] + b * s[i, 2, c]
+                out[i, 1, c] = -a * s[i, 1, c] + g * s[i, 5, c]
+                out[i, 2, c] = e * s[i, 2, c] + f * s[i, 6, c]
+                out[i, 3, c] = -a * s[i, 3, c] + g * s[i, 7, c]
+                if n == 6:
+                    out[i, 4, c] = a * s[i, 4, c]
+                    out[i, 5, c] = a * s[i, 8, c]
+
+    return sh_to_h6
+
+
 def _check_n(n: int) -> int:
     if n not in (4, 6):
         raise ShprobeError(f"the H-basis has 4 or 6 functions (H4, H6), got n={n!r}")
@@ -198,6 +223,12 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6) -> NDArray[np.floating]:
     from ..sh import lmax_of
 
     k = c.shape[-1] if c.ndim == 1 else c.shape[-2]
+    n = _check_n(n)
+    if k == 9 and c.ndim >= 2 and c.size >= 9 * NUMBA_MIN:
+        cc = np.ascontiguousarray(c).reshape(-1, 9, c.shape[-1])
+        out = np.empty((cc.shape[0], n, cc.shape[2]), dtype=c.dtype)
+        _t_h_kernel()(cc, out)
+        return out.reshape(*c.shape[:-2], n, c.shape[-1])
     t = sh_to_h_matrix(lmax_of(k), n).astype(c.dtype)
     if c.ndim == 1:
         return t @ c
