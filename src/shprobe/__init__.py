@@ -55,6 +55,9 @@ _EXPORTS: dict[str, str] = {
     "get_preset": "presets",
     "PRESETS": "presets",
     "procedural_env": "environments",
+    # H-basis (Habel & Wimmer 2010)
+    "h_basis": "hbasis",
+    "sh_to_h_matrix": "hbasis",
     "read_image": "images",
     "write_image": "images",
     # layouts (issue 3, part A)
@@ -94,6 +97,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .design import auto_window, min_irradiance, window_factors
     from .errors import ShprobeError
     from .export import export_coeffs, import_coeffs
+    from .hbasis import h_basis, sh_to_h_matrix
     from .images import read_image, write_image
     from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
