@@ -46,6 +46,18 @@ _EXPORTS: dict[str, str] = {
     "irradiance": "prefilter",
     "irradiance_matrix": "prefilter",
     "reference_irradiance": "prefilter",
+    "project_samples": "prefilter",
+    "irradiance_quadratic": "prefilter",
+    "irradiance_from_matrix": "prefilter",
+    "irradiance_map": "prefilter",
+    "error_report": "prefilter",
+    "read_coeffs_json": "prefilter",
+    "get_preset": "presets",
+    "PRESETS": "presets",
+    "procedural_env": "environments",
+    # H-basis (Habel & Wimmer 2010)
+    "h_basis": "hbasis",
+    "sh_to_h_matrix": "hbasis",
     "read_image": "images",
     "write_image": "images",
     # layouts (issue 3, part A)
@@ -54,6 +66,15 @@ _EXPORTS: dict[str, str] = {
     "get_layout": "layouts",
     "detect_layout": "layouts",
     "write_env": "layouts",
+    # rendering, lighting design, export
+    "Camera": "render",
+    "render_vertex_colors": "render",
+    "load_mesh": "render",
+    "min_irradiance": "design",
+    "auto_window": "design",
+    "window_factors": "design",
+    "export_coeffs": "export",
+    "import_coeffs": "export",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -73,10 +94,14 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .design import auto_window, min_irradiance, window_factors
     from .errors import ShprobeError
+    from .export import export_coeffs, import_coeffs
+    from .hbasis import h_basis, sh_to_h_matrix
     from .images import read_image, write_image
     from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
     from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
+    from .render import Camera, load_mesh, render_vertex_colors
     from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .zonal import (

@@ -1,5 +1,364 @@
 """Export and import of coefficients: shaders (GLSL/HLSL/WGSL), JSON, three.js, glTF, cmgen,
 Condon–Shortley.
+
+shprobe's coefficients are lighting (radiance) coefficients L_lm in the R&H basis (no
+Condon–Shortley phase, see ``docs/conventions.md``), world frame +Y up. Each format, and what it
+stores (every exported text repeats this in a comment or a field):
+
+========== ================================================================================
+format     content
+========== ================================================================================
+glsl/hlsl  functions of the world-space normal returning irradiance E(n) (not /π): eq. 11,
+/wgsl      E = nᵀMn with the three 4×4 matrices M baked in (``shprobe_irradiance``), and the
+           eq. 13 polynomial in the 9 L_lm (``shprobe_irradiance_poly``). l ≤ 2 only.
+json       the ``shprobe prefilter --format json`` document (``prefilter.coeffs_document``):
+           ``coefficients`` L_lm [k][rgb], ``irradiance_coefficients`` E_lm = Â_l L_lm,
+           ``M`` (eq. 11–12), R&H signs, any lmax.
+three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array of
+           ``toArray()`` (9 RGB triples, index k = l(l+1)+m). three.js stores radiance L_lm
+           with the R&H basis constants and signs (``getAt``: 0.488603·y for k = 1) and
+           applies Â_l in ``getIrradianceAt`` / the shader: so this is L, unchanged.
+gltf       ``EXT_lights_image_based`` light with ``irradianceCoefficients`` (9×3): irradiance
+           E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated) — the spec
+           text fixes neither; this is how its reference implementation, Babylon.js, reads
+           them (CS-signed basis constants, then ``convertIrradianceToLambertianRadiance``
+           divides by π). The specular cubemaps are not produced.
+cmgen      Filament's ``sh.txt`` ("irradiance, pre-scaled base"): 9 RGB triples c_k such that
+           E(n)/π = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz + c6 (3z² − 1) + c7 zx
+           + c8 (x² − y²) (Filament's ``Irradiance_SphericalHarmonics``): Â_l/π and the basis
+           constants K_lm baked in; the CS phase of Filament's basis cancels in c_k, so
+           c_k = (Â_l/π) K_k L_lm with R&H's positive K_k. Frame: shprobe's world (+Y up),
+           i.e. cmgen run with ``--no-mirror``.
+cs-phase   L_lm with Condon–Shortley signs, L^CS_lm = (−1)^m L_lm, index l(l+1)+m — the
+           order and signs of google/spherical-harmonics (``GetIndex``, ``EvalSH``), any lmax.
+========== ================================================================================
+
+:func:`import_coeffs` reads every one of them back into shprobe's L_lm.
 """
 
 from __future__ import annotations
+
+import json
+import os
+import re
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import ShprobeError
+from .sh import degrees, lmax_of
+
+FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
+
+#: suggested file suffix per format
+SUFFIX = {"glsl": ".glsl", "hlsl": ".hlsl", "wgsl": ".wgsl", "json": ".json",
+          "three": ".three.json", "gltf": ".gltf.json", "cmgen": "_sh.txt",
+          "cs-phase": ".cs.json"}
+
+__all__ = [
+    "FORMATS",
+    "SUFFIX",
+    "basis_constants",
+    "cs_signs",
+    "export_coeffs",
+    "import_coeffs",
+    "parse_coeffs",
+]
+
+_NAMES = ["L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"]
+_CH = "RGB"
+
+
+def basis_constants() -> NDArray[np.float64]:
+    """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k), exact."""
+    p = np.pi
+    k1, k2 = np.sqrt(3 / (4 * p)), np.sqrt(15 / (4 * p))
+    return np.array([0.5 / np.sqrt(p), k1, k1, k1, k2, k2, np.sqrt(5 / (16 * p)), k2,
+                     np.sqrt(15 / (16 * p))])
+
+
+def cs_signs(lmax: int) -> NDArray[np.float64]:
+    """(−1)^m for every flat index up to ``lmax``: R&H ↔ Condon–Shortley."""
+    m = np.concatenate([np.arange(-l, l + 1) for l in range(lmax + 1)])
+    return np.where(m % 2 == 0, 1.0, -1.0)
+
+
+def _ahat(lmax: int) -> NDArray[np.float64]:
+    from .zonal import clamped_cosine_factors
+
+    return clamped_cosine_factors(lmax)[degrees(lmax)]
+
+
+def _as_kc(coeffs: ArrayLike) -> NDArray[np.float64]:
+    from .render import as_coeffs
+
+    c = as_coeffs(coeffs)
+    if not np.all(np.isfinite(c)):
+        raise ShprobeError("coefficients contain NaN or infinity")
+    return c
+
+
+def _nine_rgb(c: NDArray, fmt: str) -> NDArray[np.float64]:
+    """(9, 3) for the l ≤ 2 RGB formats (lower lmax zero-padded, 1 channel → grey)."""
+    if c.shape[0] > 9:
+        raise ShprobeError(f"format {fmt!r} holds only l <= 2 (9 coefficients); got "
+                           f"lmax={lmax_of(c.shape[0])} — truncate first")
+    if c.shape[1] not in (1, 3):
+        raise ShprobeError(f"format {fmt!r} needs 1 or 3 channels, got {c.shape[1]}")
+    out = np.zeros((9, 3))
+    out[: c.shape[0]] = c
+    return out
+
+
+def _f(x: float) -> str:
+    s = format(float(x), ".9g")
+    return s if any(ch in s for ch in ".en") else s + ".0"
+
+
+def _header(prefix: str, lines: list[str]) -> str:
+    return "".join(f"{prefix} {ln}".rstrip() + "\n" for ln in lines)
+
+
+def _shader_header(fmt: str, source: str | None) -> list[str]:
+    return [
+        f"shprobe {fmt} export" + (f" of {source}" if source else ""),
+        "Convention: real SH, Ramamoorthi & Hanrahan 2001 signs (no Condon-Shortley phase),",
+        "world frame +Y up; n is the unit world-space normal.",
+        "Quantity: shprobe_irradiance(n) returns irradiance E(n), NOT divided by pi;",
+        "diffuse radiance = albedo * E(n) / pi.",
+        "shprobe_irradiance: R&H eq. 11, E = p^T M p with p = (n, 1) (M symmetric).",
+        "shprobe_irradiance_poly: R&H eq. 13 in the lighting coefficients L_lm.",
+    ]
+
+
+def _poly_consts() -> tuple[float, float, float, float, float]:
+    from .prefilter import RH_CONSTANTS
+
+    return RH_CONSTANTS
+
+
+def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
+    from .render import quadratic_form
+
+    M = quadratic_form(L9)  # (3, 4, 4)
+    c1, c2, c3, c4, c5 = (_f(c) for c in _poly_consts())
+    if fmt == "glsl":
+        mat = "const mat4 SHPROBE_M_{ch} = mat4({v});\n"
+        arr_open, arr_close = "const vec3 SHPROBE_L[9] = vec3[9](\n", ");\n"
+        vec3, vec4, flt = "vec3", "vec4", "float"
+        fn_open = "vec3 {name}(vec3 n)"
+        const = "const float"
+        mul = "SHPROBE_M_{ch} * p"
+    elif fmt == "hlsl":
+        mat = "static const float4x4 SHPROBE_M_{ch} = float4x4({v});\n"
+        arr_open, arr_close = "static const float3 SHPROBE_L[9] = {\n", "};\n"
+        vec3, vec4, flt = "float3", "float4", "float"
+        fn_open = "float3 {name}(float3 n)"
+        const = "const float"
+        mul = "mul(SHPROBE_M_{ch}, p)"
+    else:  # wgsl
+        mat = "const SHPROBE_M_{ch} = mat4x4<f32>({v});\n"
+        arr_open, arr_close = "const SHPROBE_L = array<vec3<f32>, 9>(\n", ");\n"
+        vec3, vec4, flt = "vec3<f32>", "vec4<f32>", "f32"
+        fn_open = "fn {name}(n: vec3<f32>) -> vec3<f32>"
+        const = "const"
+        mul = "SHPROBE_M_{ch} * p"
+    out = _header("//", _shader_header(fmt, source))
+    for i, ch in enumerate(_CH):
+        out += mat.format(ch=ch, v=", ".join(_f(x) for x in M[i].reshape(-1)))
+    let = "let" if fmt == "wgsl" else vec4
+    out += "\n" + fn_open.format(name="shprobe_irradiance") + " {\n"
+    out += f"    {let} p = {vec4}(n, 1.0);\n"
+    out += "    return {}({});\n}}\n\n".format(
+        vec3, ", ".join(f"dot(p, {mul.format(ch=ch)})" for ch in _CH))
+    out += arr_open
+    out += "".join(f"    {vec3}({', '.join(_f(x) for x in L9[k])}){',' if k < 8 else ''}"
+                   f"  // {_NAMES[k]}\n" for k in range(9))
+    out += arr_close
+    out += "\n" + fn_open.format(name="shprobe_irradiance_poly") + " {\n"
+    for name, val in zip(("c1", "c2", "c3", "c4", "c5"), (c1, c2, c3, c4, c5), strict=True):
+        out += f"    {const} {name}{': ' + flt if fmt == 'wgsl' else ''} = {val};\n"
+    lt = "let" if fmt == "wgsl" else flt
+    out += f"    {lt} x = n.x;\n    {lt} y = n.y;\n    {lt} z = n.z;\n"
+    out += ("    return c1 * SHPROBE_L[8] * (x * x - y * y) + c3 * SHPROBE_L[6] * (z * z)\n"
+            "        + c4 * SHPROBE_L[0] - c5 * SHPROBE_L[6]\n"
+            "        + 2.0 * c1 * (SHPROBE_L[4] * (x * y) + SHPROBE_L[7] * (x * z)"
+            " + SHPROBE_L[5] * (y * z))\n"
+            "        + 2.0 * c2 * (SHPROBE_L[3] * x + SHPROBE_L[1] * y + SHPROBE_L[2] * z);\n")
+    out += "}\n"
+    return out
+
+
+def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str:
+    """Text of ``coeffs`` (L_lm, (K, C) or (K,)) in format ``fmt`` (one of :data:`FORMATS`;
+    see the module doc for what each stores). ``source`` is named in the output."""
+    c = _as_kc(coeffs)
+    if fmt not in FORMATS:
+        raise ShprobeError(f"unknown export format {fmt!r}; choose from {', '.join(FORMATS)}")
+    lmax = lmax_of(c.shape[0])
+    if fmt in ("glsl", "hlsl", "wgsl"):
+        return _shader(_nine_rgb(c, fmt), fmt, source)
+    if fmt == "json":  # the document of `shprobe prefilter --format json`
+        from .prefilter import coeffs_document
+
+        doc = coeffs_document(c, source=source)
+        doc["quantity"] = ("coefficients: lighting (radiance) L_lm; irradiance_coefficients: "
+                           "E_lm = A_l L_lm (E, not divided by pi); M: eq. 11-12 for E")
+        return json.dumps(doc, indent=2) + "\n"
+    if fmt == "three":
+        L9 = _nine_rgb(c, fmt)
+        doc = {
+            "format": "three.SphericalHarmonics3",
+            "convention": "three.js SphericalHarmonics3: R&H basis constants and signs "
+                          "(no Condon-Shortley phase), order k = l(l+1)+m, world +Y up",
+            "quantity": "L_lm radiance coefficients (three.js applies A_l in "
+                        "getIrradianceAt and 1/pi in its Lambert BRDF)",
+            "usage": "new THREE.LightProbe(new THREE.SphericalHarmonics3()"
+                     ".fromArray(coefficients))",
+            "coefficients": L9.reshape(-1).tolist()}
+        if source:
+            doc["source"] = source
+        return json.dumps(doc, indent=2) + "\n"
+    if fmt == "gltf":
+        E9 = _nine_rgb(c, fmt) * (_ahat(2) * cs_signs(2))[:, None]
+        light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
+                                 "rotation": [0.0, 0.0, 0.0, 1.0],
+                                 "irradianceCoefficients": E9.tolist()}
+        doc = {"extensionsUsed": ["EXT_lights_image_based"],
+               "extensions": {"EXT_lights_image_based": {"lights": [light]}},
+               "extras": {"shprobe": {
+                   "convention": "Condon-Shortley signs (odd m negated), order k = l(l+1)+m,"
+                                 " world +Y up (as read by Babylon.js)",
+                   "quantity": "irradiance coefficients E_lm = A_l L_lm, not divided by pi",
+                   "note": "specularImages / specularImageSize are not produced; add them "
+                           "for a complete light"}}}
+        return json.dumps(doc, indent=2) + "\n"
+    if fmt == "cmgen":
+        ck = _nine_rgb(c, fmt) * (_ahat(2) / np.pi * basis_constants())[:, None]
+        out = "".join(f"({', '.join(format(x, '.15f').rjust(18) for x in ck[k])}); "
+                      f"// {_NAMES[k]}, irradiance, pre-scaled base\n" for k in range(9))
+        return out + _header("//", [
+            "shprobe cmgen export" + (f" of {source}" if source else ""),
+            "Filament sh.txt: E(n)/pi = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz"
+            " + c6 (3z^2-1) + c7 zx + c8 (x^2-y^2)",
+            "(A_l/pi and K_lm baked in; Condon-Shortley phase cancels), world +Y up "
+            "(cmgen --no-mirror)"])
+    # cs-phase
+    doc = {"format": "condon-shortley",
+           "convention": "real SH with the Condon-Shortley phase: L_cs = (-1)^m L_rh; order "
+                         "k = l(l+1)+m (google/spherical-harmonics GetIndex, EvalSH)",
+           "quantity": "L_lm radiance coefficients (not convolved, not divided by pi)",
+           "lmax": lmax, "channels": c.shape[1],
+           "coefficients": (c * cs_signs(lmax)[:, None]).tolist()}
+    if source:
+        doc["source"] = source
+    return json.dumps(doc, indent=2) + "\n"
+
+
+# ----------------------------------------------------------------------------- import
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def _from_M(M: NDArray) -> NDArray[np.float64]:
+    """Invert R&H eq. 12: the 9 L_lm of one channel from its 4×4 M."""
+    c1, c2, c3, c4, c5 = _poly_consts()
+    L20 = M[2, 2] / c3
+    return np.array([(M[3, 3] + c5 * L20) / c4, M[1, 3] / c2, M[2, 3] / c2, M[0, 3] / c2,
+                     M[0, 1] / c1, M[1, 2] / c1, L20, M[0, 2] / c1, M[0, 0] / c1])
+
+
+def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64], str]:
+    """(L_lm (K, C), format) from the text of any export format (detected from content)."""
+    where = name
+    stripped = text.lstrip()
+    if stripped.startswith("{"):
+        try:
+            doc = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ShprobeError(f"not valid JSON: {e.msg} (line {e.lineno})", where) from None
+        return _parse_json(doc, where)
+    if "SHPROBE_M_R" in text:
+        fmt = ("hlsl" if "float4x4" in text else "wgsl" if "mat4x4<f32>" in text else "glsl")
+        L = np.empty((9, 3))
+        for i, ch in enumerate(_CH):
+            m = re.search(rf"SHPROBE_M_{ch}\s*=\s*[\w<>]+\(([^)]*)\)", text)
+            if not m:
+                raise ShprobeError(f"shader has no matrix SHPROBE_M_{ch}", where)
+            vals = [float(v) for v in re.findall(_NUM, m.group(1))]
+            if len(vals) != 16:
+                raise ShprobeError(f"SHPROBE_M_{ch} must have 16 numbers, has {len(vals)}",
+                                   where)
+            L[:, i] = _from_M(np.array(vals).reshape(4, 4))
+        return L, fmt
+    rows = re.findall(rf"^\s*\(\s*({_NUM})\s*,\s*({_NUM})\s*,\s*({_NUM})\s*\)", text, re.M)
+    if rows:
+        if len(rows) not in (1, 4, 9):
+            raise ShprobeError(f"cmgen sh.txt must have 1, 4 or 9 rows, has {len(rows)}",
+                               where)
+        ck = np.zeros((9, 3))
+        ck[: len(rows)] = np.array(rows, dtype=np.float64)
+        return ck / (_ahat(2) / np.pi * basis_constants())[:, None], "cmgen"
+    raise ShprobeError("not a coefficient file shprobe can read (json, three, gltf, cmgen, "
+                       "cs-phase, or a shprobe shader)", where)
+
+
+def _kc(arr: Any, where: Any, what: str) -> NDArray[np.float64]:
+    try:
+        a = np.asarray(arr, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"{what} is not a numeric array", where) from None
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2 or not np.all(np.isfinite(a)):
+        raise ShprobeError(f"{what} must be a finite (K, C) array, got shape {a.shape}", where)
+    try:
+        lmax_of(a.shape[0])
+    except ShprobeError as e:
+        raise ShprobeError(f"{what}: {e.message}", where) from None
+    return a
+
+
+def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
+    if not isinstance(doc, dict):
+        raise ShprobeError("JSON coefficient file must hold an object", where)
+    fmt = doc.get("format")
+    if fmt == "shprobe-coeffs":
+        return _kc(doc.get("coefficients"), where, "coefficients"), "json"
+    if fmt == "condon-shortley":
+        c = _kc(doc.get("coefficients"), where, "coefficients")
+        return c * cs_signs(lmax_of(c.shape[0]))[:, None], "cs-phase"
+    if fmt == "three.SphericalHarmonics3" or (
+            isinstance(doc.get("sh"), list) and len(doc["sh"]) == 27):
+        flat = np.asarray(doc.get("coefficients", doc.get("sh")), dtype=np.float64)
+        if flat.size != 27:
+            raise ShprobeError("three.js coefficients must be 27 numbers", where)
+        return flat.reshape(9, 3), "three"
+    ext = doc.get("extensions", {}).get("EXT_lights_image_based")
+    if isinstance(ext, dict):
+        lights = ext.get("lights") or ext.get("ibls") or []
+        if not lights or "irradianceCoefficients" not in lights[0]:
+            raise ShprobeError("EXT_lights_image_based has no irradianceCoefficients", where)
+        E = _kc(lights[0]["irradianceCoefficients"], where, "irradianceCoefficients")
+        if E.shape != (9, 3):
+            raise ShprobeError(f"irradianceCoefficients must be 9x3, got {E.shape}", where)
+        E = E * float(lights[0].get("intensity", 1.0))
+        return E / (_ahat(2) * cs_signs(2))[:, None], "gltf"
+    if "coefficients" in doc:  # a plain {"coefficients": [[...]]} file: shprobe convention
+        return _kc(doc["coefficients"], where, "coefficients"), "json"
+    raise ShprobeError("JSON file holds no coefficients shprobe recognises", where)
+
+
+def import_coeffs(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """Read lighting coefficients L_lm (K, C) back from any export format (detected from the
+    file's content)."""
+    p = os.fspath(path)
+    try:
+        with open(p, encoding="utf-8") as f:
+            text = f.read()
+    except FileNotFoundError:
+        raise ShprobeError("no such file", p) from None
+    except UnicodeDecodeError:
+        raise ShprobeError("not a text coefficient file", p) from None
+    return parse_coeffs(text, p)[0]

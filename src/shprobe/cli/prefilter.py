@@ -1,9 +1,294 @@
-"""CLI commands: prefilter (see the library module it wraps)."""
+"""CLI commands of the main job (R&H 2001): ``prefilter``, ``irradiance``, ``error``, ``demo``."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+from pathlib import Path
+
 import click
+
+from ..errors import ShprobeError
+from .common import force_option
+from .sources import coeff_source_options, resolve_coeffs
+
+#: --format choices of `shprobe prefilter` (all but table/json go to shprobe.export).
+FORMATS = ("table", "json", "glsl", "hlsl", "wgsl", "three", "gltf", "cmgen", "cs-phase")
+OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
+
+
+@contextmanager
+def _progress_bar(description: str):
+    """A rich progress bar on stderr; yields ``update(done, total)``."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from .common import console
+
+    con = console(stderr=True)
+    with Progress(TextColumn(description), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                  TimeRemainingColumn(), console=con, transient=True,
+                  disable=not con.is_terminal) as bar:
+        task = bar.add_task(description, total=None)
+
+        def update(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+def coeff_table(coeffs, title: str | None = None):
+    """A rich table of (K, 3) coefficients laid out as R&H Fig. 2 (rows L_lm, columns R G B)."""
+    from rich.table import Table
+
+    from ..sh import lmax_of
+
+    t = Table()
+    t.add_column("", style="bold")
+    for ch in ("R", "G", "B"):
+        t.add_column(ch, justify="right")
+    lmax = lmax_of(coeffs.shape[0])
+    k = 0
+    for l in range(lmax + 1):
+        for m in range(-l, l + 1):
+            t.add_row(f"L{l}{m}", *(f"{v:+.4f}" for v in coeffs[k]))
+            k += 1
+    return _titled(t, title)
+
+
+def coeff_text(coeffs) -> str:
+    """Plain-text version of :func:`coeff_table`."""
+    from ..sh import lmax_of
+
+    lines = [f"{'':6}{'R':>10}{'G':>10}{'B':>10}"]
+    k = 0
+    for l in range(lmax_of(coeffs.shape[0]) + 1):
+        for m in range(-l, l + 1):
+            lines.append(f"{f'L{l}{m}':6}" + "".join(f"{v:+10.4f}" for v in coeffs[k]))
+            k += 1
+    return "\n".join(lines) + "\n"
+
+
+def error_table(report, title: str | None = None):
+    """A rich table of an :class:`~shprobe.prefilter.ErrorReport`."""
+    from rich.table import Table
+
+    t = Table()
+    for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE"):
+        t.add_column(name, justify="right")
+    for r in report.rows:
+        t.add_row(str(r.lmax), f"{100 * r.mean_frac:.3f} %", f"{100 * r.max_frac:.3f} %",
+                  f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %")
+    return _titled(t, title)
+
+
+def _titled(table, title: str | None):
+    from rich.console import Group
+    from rich.text import Text
+
+    return table if not title else Group(Text(title, style="bold"), table)
+
+
+def error_document(report, source: str | None) -> dict:
+    """JSON form of an error report."""
+    from .._version import __version__
+
+    return {
+        "shprobe_version": __version__, "source": source, "n_normals": report.n_normals,
+        "total_intensity": report.total_intensity.tolist(),
+        "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
+                  "mean_rel": r.mean_rel, "smape": r.smape} for r in report.rows],
+    }
+
+
+def _parse_size(text: str | None, layout: str) -> int | tuple[int, int]:
+    """'WxH' or 'N' → layout size argument; defaults per layout."""
+    from .common import parse_size
+
+    if text is None:
+        return {"latlong": (256, 128), "cube": 64}.get(layout, 256)
+    if "x" not in text.lower():
+        try:
+            n = int(text)
+        except ValueError:
+            raise ShprobeError(f"cannot parse size {text!r}: expected WxH or N") from None
+        if n <= 0:
+            raise ShprobeError(f"size {text!r} must be positive")
+        return n
+    w, h = parse_size(text)
+    if layout == "latlong":
+        return (w, h)
+    if w != h:
+        raise ShprobeError(f"a {layout} map is square: --size N or NxN, got {text}")
+    return w
+
+
+def _export(coeffs, fmt: str, source: str) -> str:
+    try:
+        from ..export import export_coeffs
+    except ImportError:
+        raise ShprobeError(f"--format {fmt} needs shprobe.export, which is not available"
+                           ) from None
+    return export_coeffs(coeffs, fmt, source=source)
 
 
 def register(group: click.Group) -> None:
-    """Add this module's commands to the top-level group."""
+    """Add ``prefilter``, ``irradiance``, ``error`` and ``demo`` to the top-level group."""
+
+    @group.command("prefilter")
+    @coeff_source_options
+    @click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True,
+                  help="Highest SH degree l.")
+    @click.option("--format", "-F", "fmt", type=click.Choice(FORMATS), default="table",
+                  show_default=True, help="Output: R&H Fig. 2 table, JSON, or a shader/engine "
+                  "format (shprobe.export).")
+    @click.option("--output", "-o", type=click.Path(dir_okay=False),
+                  help="Write to FILE instead of stdout.")
+    @force_option
+    def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, force):
+        """Prefilter a light probe into SH lighting coefficients L_lm (R&H 2001 eq. 10).
+
+        PROBE is an environment map (.hdr .exr .pfm .tif .png .jpg) in any layout; --preset
+        or --coeffs give coefficients without an image.
+        """
+        import json
+
+        from ..files import check_output_path, write_text
+        from ..prefilter import coeffs_document
+
+        if output:
+            check_output_path(output, force)  # refuse before the work
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
+        if fmt == "table":
+            if output:
+                write_text(output, coeff_text(src.coeffs), force)
+            else:
+                from .common import console
+
+                title = f"{src.source}  (layout {src.layout})" if src.layout else src.source
+                console().print(coeff_table(src.coeffs, title))
+            return
+        if fmt == "json":
+            text = json.dumps(coeffs_document(src.coeffs, src.source, src.layout), indent=2)
+            text += "\n"
+        else:
+            text = _export(src.coeffs, fmt, src.source)
+        if output:
+            write_text(output, text, force)
+        else:
+            click.echo(text, nl=not text.endswith("\n"))
+
+    @group.command("irradiance")
+    @coeff_source_options
+    @click.option("--output", "-o", required=True, type=click.Path(dir_okay=False),
+                  help="Irradiance map to write (.exr .hdr .pfm .tif, or tone-mapped .png).")
+    @click.option("--out-layout", type=click.Choice(OUT_LAYOUTS), default="same",
+                  show_default=True, help="Layout of the map (same: the probe's; lat-long for "
+                  "presets). 'angular' gives the view of R&H Fig. 3.")
+    @click.option("--size", help="WxH (lat-long) or N (angular, mirror ball, cube face).")
+    @click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True)
+    @click.option("--method", type=click.Choice(("sh", "brute")), default="sh",
+                  show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
+                  "integral per pixel (slow, exact).")
+    @click.option("--exposure", type=float, default=0.0, show_default=True,
+                  help="Exposure in stops for .png output.")
+    @force_option
+    def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout, size,
+                       lmax, method, exposure, force):
+        """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
+        import numpy as np
+
+        from ..files import check_output_path
+        from ..layouts import Env, get_layout, write_env
+        from ..prefilter import irradiance_map, reference_irradiance
+
+        check_output_path(output, force)
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
+                             need_env=(method == "brute"))
+        name = out_layout if out_layout != "same" else (src.layout or "latlong")
+        lay = get_layout(name)
+        sz = _parse_size(size, lay.name)
+        if method == "sh":
+            emap = irradiance_map(src.coeffs, lay, sz)
+        else:
+            grid = lay.grid_shape(sz)
+            dirs = lay.pixel_directions(grid)
+            valid = lay.valid_mask(grid)
+            e = np.zeros((*grid, 3), dtype=np.float32)
+            with _progress_bar("brute-force irradiance") as update:
+                e[valid] = reference_irradiance(src.env, dirs[valid], chunk=1 << 16,
+                                                progress=update)
+            emap = Env(e, lay)
+        write_env(output, emap, overwrite=force, exposure=exposure)
+        click.echo(f"wrote {output} ({lay.name} {'x'.join(map(str, emap.grid[::-1]))}, "
+                   f"{method}, lmax {lmax})", err=True)
+
+    @group.command("error")
+    @coeff_source_options
+    @click.option("--lmax-max", type=click.IntRange(0, 32), default=4, show_default=True,
+                  help="Report lmax = 1 .. this value.")
+    @click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
+                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid.")
+    @click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
+                  default="table", show_default=True)
+    def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, fmt):
+        """Error of the SH irradiance against the exact hemispherical integral, as a fraction
+        of the total intensity ∫L dω (R&H 2001 §3.1)."""
+        import json
+
+        from ..prefilter import error_report
+
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
+        with _progress_bar("reference irradiance") as update:
+            rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
+                               normal_grid=grid_h, progress=update)
+        if fmt == "json":
+            click.echo(json.dumps(error_document(rep, src.source), indent=2))
+        else:
+            from .common import console
+
+            console().print(error_table(rep, f"{src.source}: SH irradiance vs brute force, "
+                                              f"{rep.n_normals} normals"))
+
+    @group.command("demo")
+    @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="shprobe-demo",
+                  show_default=True, help="Folder for the pictures (created if missing).")
+    @click.option("--size", type=click.IntRange(8, 2048), default=128, show_default=True,
+                  help="Height of the procedural lat-long environment.")
+    @force_option
+    def demo_cmd(out_dir, size, force):
+        """The main job with no files: a procedural sky → SH coefficients → irradiance map,
+        a side-by-side picture and the error table."""
+        import numpy as np
+
+        from ..environments import procedural_env
+        from ..files import check_output_path, write_json
+        from ..images import write_image
+        from ..prefilter import coeffs_document, error_report, irradiance_map, project
+        from .common import console
+
+        out = Path(out_dir)
+        if out.exists() and not out.is_dir():
+            raise ShprobeError("exists and is not a folder", out)
+        names = ["probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
+                 "coefficients.json"]
+        out.mkdir(parents=True, exist_ok=True)
+        for n in names:  # refuse before writing anything
+            check_output_path(out / n, force)
+        env = procedural_env(2 * size, size)
+        coeffs = project(env, 2)
+        con = console()
+        con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
+                                      "(R&H 2001 Fig. 2 layout)"))
+        emap = irradiance_map(coeffs, "latlong", (2 * size, size))
+        side = np.concatenate([env.radiance, emap.radiance / np.pi], axis=1)
+        write_image(out / "probe.exr", env.radiance, overwrite=force)
+        write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
+        write_image(out / "irradiance.png", emap.radiance / np.pi, overwrite=force,
+                    exposure=-1.0)
+        write_image(out / "side_by_side.png", side, overwrite=force, exposure=-1.0)
+        write_json(out / "coefficients.json", coeffs_document(coeffs, "procedural", "latlong"),
+                   overwrite=force)
+        with _progress_bar("reference irradiance") as update:
+            rep = error_report(env, progress=update)
+        con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
+        con.print(f"wrote {', '.join(names)} in {out}/ (irradiance .png shows E/π, the "
+                  "radiance of a white diffuse surface)")

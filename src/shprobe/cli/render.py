@@ -1,9 +1,437 @@
-"""CLI commands: render (see the library module it wraps)."""
+"""CLI commands: render, basis-images, edit, window, export (see ``shprobe.render``,
+``shprobe.design``, ``shprobe.export``)."""
 
 from __future__ import annotations
 
+import os
+import time
+from pathlib import Path
+from typing import Any
+
 import click
+
+from ..errors import ShprobeError
+from .common import force_option, parse_floats, parse_size
+from .sources import coeff_source_options, resolve_coeffs
+
+FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
+WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
+               "with KIND one of hann, lanczos, gaussian, laplacian.")
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def source_options(fn):
+    """[PROBE] | --preset NAME | --coeffs FILE (+ --layout, --clamp): cli.sources."""
+    return coeff_source_options(fn)
+
+
+def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
+                required=True) -> tuple[Any, str, Any]:
+    """(coefficients (K, C), name, Env or None) from the source options. ``--coeffs`` reads
+    every `shprobe export` format (:func:`shprobe.export.import_coeffs`)."""
+    import numpy as np
+
+    given = [v for v in (probe, preset, coeffs_file) if v]
+    if not given and not required:
+        return None, "", None
+    if coeffs_file and len(given) == 1:
+        from ..export import import_coeffs
+
+        return _cut(import_coeffs(coeffs_file), lmax, coeffs_file), coeffs_file, None
+    src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
+    return np.asarray(src.coeffs), src.source, src.env
+
+
+def _cut(c, lmax, name):
+    from ..sh import lmax_of, num_coeffs
+
+    if lmax is None:
+        return c
+    if lmax > lmax_of(c.shape[0]):
+        raise ShprobeError(f"has coefficients up to lmax={lmax_of(c.shape[0])}, not {lmax}",
+                           name)
+    return c[: num_coeffs(lmax)]
+
+
+def parse_window(text: str | None):
+    """None | 'auto' | (kind, strength)."""
+    if not text:
+        return None
+    if text.strip().lower() == "auto":
+        return "auto"
+    kind, _, s = text.partition(":")
+    from ..design import WINDOWS
+
+    if kind not in WINDOWS or not s:
+        raise ShprobeError(f"window {text!r}: expected 'auto' or KIND:STRENGTH with KIND one "
+                           f"of {', '.join(WINDOWS)}")
+    return kind, parse_floats(s, 1, "window strength")[0]
+
+
+def apply_window_spec(coeffs, spec, echo=None):
+    """Window ``coeffs`` per ``spec``; returns (coeffs, description)."""
+    from ..design import apply_window, auto_window, window_bias, window_factors
+    from ..sh import lmax_of
+
+    if spec is None:
+        return coeffs, None
+    if spec == "auto":
+        ch = auto_window(coeffs)
+        desc = (f"window auto -> {ch.kind}" + (f" strength {ch.strength:.4g}" if ch.strength
+                                                else "") + f", bias {100 * ch.bias:.2f}% (L2 of E)")
+        return apply_window(coeffs, ch.factors), desc
+    kind, s = spec
+    f = window_factors(kind, lmax_of(coeffs.shape[0]), s)
+    return apply_window(coeffs, f), (f"window {kind} strength {s:g}, bias "
+                                     f"{100 * window_bias(coeffs, f):.2f}% (L2 of E)")
+
+
+def camera_options(fn):
+    opts = [
+        click.option("--size", default="512x512", show_default=True, help="Image size WxH."),
+        click.option("--azimuth", default=0.0, show_default=True,
+                     help="Orbit angle about +Y in degrees (0: camera on +Z looking along -Z)."),
+        click.option("--elevation", default=0.0, show_default=True,
+                     help="Orbit elevation in degrees."),
+        click.option("--fov", default=40.0, show_default=True,
+                     help="Vertical field of view in degrees (perspective)."),
+        click.option("--ortho", is_flag=True, help="Orthographic camera."),
+        click.option("--mode", type=click.Choice(["pixel", "vertex"]), default="pixel",
+                     show_default=True,
+                     help="Shade per pixel, or per vertex and interpolate (R&H procedural)."),
+    ]
+    for o in reversed(opts):
+        fn = o(fn)
+    return fn
+
+
+def make_camera(size, azimuth, elevation, fov, ortho):
+    from ..render import Camera
+
+    w, h = parse_size(size)
+    return Camera(w, h, projection="orthographic" if ortho else "perspective",
+                  azimuth=azimuth, elevation=elevation, fov=fov)
+
+
+def load_geometry(mesh, sphere):
+    from ..render import load_mesh
+
+    if mesh and sphere:
+        raise ShprobeError("give either --mesh MESH or --sphere, not both")
+    return None if (sphere or not mesh) else load_mesh(mesh)
+
+
+def _rotation(text: str):
+    """'ax,ay,az:DEGREES' → 3×3 rotation matrix (Rodrigues)."""
+    import numpy as np
+
+    axis, _, deg = text.partition(":")
+    a = np.array(parse_floats(axis, 3, "rotation axis"))
+    if not deg or np.linalg.norm(a) == 0:
+        raise ShprobeError(f"rotation {text!r}: expected AX,AY,AZ:DEGREES, e.g. 0,1,0:90")
+    a = a / np.linalg.norm(a)
+    t = np.radians(parse_floats(deg, 1, "rotation angle")[0])
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+
+
+def _lm(text: str) -> tuple[int, int]:
+    v = parse_floats(text, 2, "coefficient 'l,m'")
+    return int(v[0]), int(v[1])
+
+
+def _kv(text: str, what: str) -> tuple[str, str]:
+    k, sep, v = text.partition("=")
+    if not sep:
+        raise ShprobeError(f"{what} {text!r}: expected KEY=VALUE")
+    return k, v
+
+
+# ----------------------------------------------------------------------------- commands
 
 
 def register(group: click.Group) -> None:
-    """Add this module's commands to the top-level group."""
+    """Add render, basis-images, edit, window and export to the top-level group."""
+
+    @group.command("render")
+    @source_options
+    @click.option("--mesh", type=click.Path(dir_okay=False),
+                  help="Mesh to render (OBJ, PLY, glTF/GLB).")
+    @click.option("--sphere", is_flag=True, help="Render the analytic unit sphere (default).")
+    @camera_options
+    @click.option("--albedo", default=None,
+                  help="Constant albedo r,g,b (default: the mesh's texture or vertex colours, "
+                       "else 1).")
+    @click.option("--background", default=None,
+                  help="'env' (the probe itself, default with a probe), 'none', or r,g,b.")
+    @click.option("--exposure", default=0.0, show_default=True,
+                  help="PNG tone map: x 2^EXPOSURE, clamp, sRGB.")
+    @click.option("--window", "window", default=None, help=WINDOW_HELP)
+    @click.option("--lmax", default=2, show_default=True, help="SH degree of the lighting.")
+    @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+                  help="Output image: .png (tone-mapped) or .exr/.hdr/.pfm (linear).")
+    @click.option("--exr", type=click.Path(dir_okay=False), help="Also write linear EXR here.")
+    @force_option
+    def render_cmd(probe, layout, clamp, preset, coeffs_file, mesh, sphere, size, azimuth,
+                   elevation, fov, ortho, mode, albedo, background, exposure, window, lmax,
+                   output, exr, force):
+        """Render a diffuse object lit by SH lighting (R&H 2001 §3.2): radiance =
+        albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
+        probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
+        from ..render import render
+
+        t0 = time.perf_counter()
+        coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
+        coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))
+        geo = load_geometry(mesh, sphere)
+        cam = make_camera(size, azimuth, elevation, fov, ortho)
+        if background is None:
+            bg = env
+        elif background.lower() == "env":
+            if env is None:
+                raise ShprobeError("--background env needs a probe image as the source")
+            bg = env
+        elif background.lower() == "none":
+            bg = None
+        else:
+            bg = parse_floats(background, 3, "background colour")
+        alb = parse_floats(albedo, 3, "albedo") if albedo else None
+        res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
+        res.save(output, exposure=exposure, overwrite=force)
+        if exr:
+            res.save(exr, overwrite=force)
+        dt = time.perf_counter() - t0
+        if wdesc:
+            click.echo(wdesc)
+        click.echo(f"{output}: {cam.width}x{cam.height} {mode} shading of "
+                   f"{'sphere' if geo is None else os.path.basename(mesh)} under {name}, "
+                   f"{100 * res.mask.mean():.1f}% object pixels, {dt:.2f} s")
+
+    @group.command("basis-images")
+    @click.argument("mesh", required=False, type=click.Path(dir_okay=False))
+    @click.option("--sphere", is_flag=True, help="Use the unit sphere instead of a mesh.")
+    @camera_options
+    @click.option("--lmax", default=2, show_default=True)
+    @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
+                  help="Output folder (created).")
+    @force_option
+    def basis_cmd(mesh, sphere, size, azimuth, elevation, fov, ortho, mode, lmax, outdir,
+                  force):
+        """Render the irradiance basis images of an object (R&H 2001 §3.3, Fig. 4): for each
+        (l, m) the object under L = e_lm, i.e. A_l y_lm(n) / pi. PNGs: positive green,
+        negative blue, one common linear scale (so l = 2 looks dimmer, as in the paper);
+        EXRs: the signed linear values. Any lighting L gives image = sum L_lm * basis_lm."""
+        import numpy as np
+
+        from ..images import write_image
+        from ..render import basis_images, basis_visual
+        from ..sh import sh_lm
+
+        geo = load_geometry(mesh, sphere or not mesh)
+        if not mesh and not sphere:
+            raise ShprobeError("give a MESH or --sphere")
+        cam = make_camera(size, azimuth, elevation, fov, ortho)
+        res = basis_images(geo, cam, lmax=lmax, mode=mode)
+        out = Path(outdir)
+        out.mkdir(parents=True, exist_ok=True)
+        B = res.image
+        scale = float(np.abs(B).max())
+        tiles = []
+        for k in range(B.shape[-1]):
+            l, m = sh_lm(k)
+            stem = out / f"basis_l{l}_m{m:+d}"
+            write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
+            vis = basis_visual(B[..., k], scale)
+            write_image(stem.with_suffix(".png"), vis, overwrite=force)
+            tiles.append(vis)
+        # pyramid sheet: band l on row l, centred
+        H, W = B.shape[:2]
+        sheet = np.zeros(((lmax + 1) * H, (2 * lmax + 1) * W, 3), np.float32)
+        for k, t in enumerate(tiles):
+            l, m = sh_lm(k)
+            c = lmax + m
+            sheet[l * H:(l + 1) * H, c * W:(c + 1) * W] = t
+        write_image(out / "basis.png", sheet, overwrite=force)
+        click.echo(f"{out}: {B.shape[-1]} basis images (PNG + EXR) and basis.png; common "
+                   f"scale {scale:.4g}")
+
+    @group.command("edit")
+    @source_options
+    @click.option("--lmax", default=2, show_default=True,
+                  help="Degree of the result (sources are cut or zero-padded).")
+    @click.option("--blend", "blends", multiple=True,
+                  help="Add another lighting FILE:WEIGHT (any export format) or "
+                       "preset:NAME:WEIGHT. Repeatable.")
+    @click.option("--weight", default=1.0, show_default=True,
+                  help="Weight of the main source in the blend.")
+    @click.option("--directional", multiple=True,
+                  help="Add a directional light DX,DY,DZ:R,G,B (direction towards the light; "
+                       "irradiance). Repeatable.")
+    @click.option("--cone", multiple=True,
+                  help="Add a disc light DX,DY,DZ:APERTURE_DEG:R,G,B (radiance). Repeatable.")
+    @click.option("--sky", default=None,
+                  help="Add a hemisphere light SKY_R,G,B[:GROUND_R,G,B[:UX,UY,UZ]].")
+    @click.option("--set", "sets", multiple=True, help="L,M=R,G,B (or one value).")
+    @click.option("--scale", "scales", multiple=True, help="L,M=FACTOR.")
+    @click.option("--negate", "negates", multiple=True, help="L,M.")
+    @click.option("--set-band", multiple=True, help="L=R,G,B.")
+    @click.option("--scale-band", multiple=True, help="L=FACTOR (0 removes the band).")
+    @click.option("--negate-band", multiple=True, type=int, help="L.")
+    @click.option("--rotate", "rotations", multiple=True,
+                  help="Turn the lighting by AX,AY,AZ:DEGREES (right-hand rule). Repeatable.")
+    @click.option("--window", "window", default=None, help=WINDOW_HELP)
+    @click.option("--format", "fmt", type=click.Choice(FORMATS), default="json",
+                  show_default=True, help="Output format (see `shprobe export`).")
+    @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False))
+    @force_option
+    def edit_cmd(probe, layout, clamp, preset, coeffs_file, lmax, blends, weight, directional,
+                 cone, sky, sets, scales, negates, set_band, scale_band, negate_band,
+                 rotations, window, fmt, output, force):
+        """Lighting design (R&H 2001 §3.3): start from a source (or from darkness), then, in
+        this order: blend, add lights, set/scale/negate coefficients and bands, rotate,
+        window; write the coefficients."""
+        import numpy as np
+
+        from .. import design
+        from ..export import export_coeffs, import_coeffs
+        from ..files import write_text
+
+        base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, None,
+                                    required=False)
+        L = np.zeros(((lmax + 1) ** 2, 3)) if base is None else \
+            design.pad_coeffs(base, lmax) * weight
+        for b in blends:
+            head, _, w = b.rpartition(":")
+            if head.startswith("preset:"):
+                c, _, _ = load_source(None, head[7:], None, lmax=None)
+            else:
+                c = import_coeffs(head)
+            L = design.blend([(L, 1.0), (design.pad_coeffs(c, lmax),
+                                         parse_floats(w, 1, "blend weight")[0])])
+        for d in directional:
+            dirs, _, rgb = d.partition(":")
+            L = L + design.directional_light(parse_floats(dirs, 3, "direction"),
+                                             parse_floats(rgb or "1", None, "colour"), lmax)
+        for c in cone:
+            parts = c.split(":")
+            if len(parts) != 3:
+                raise ShprobeError(f"--cone {c!r}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
+            L = L + design.cone_light(parse_floats(parts[0], 3, "direction"),
+                                      np.radians(parse_floats(parts[1], 1, "aperture")[0]),
+                                      parse_floats(parts[2], None, "colour"), lmax)
+        if sky:
+            parts = sky.split(":")
+            L = L + design.sky_light(
+                parse_floats(parts[2], 3, "up") if len(parts) > 2 else (0, 1, 0),
+                parse_floats(parts[0], None, "sky colour"),
+                parse_floats(parts[1], None, "ground colour") if len(parts) > 1 else 0.0,
+                lmax)
+        for s in sets:
+            k, v = _kv(s, "--set")
+            L = design.set_coeff(L, *_lm(k), parse_floats(v, None, "value"))
+        for s in scales:
+            k, v = _kv(s, "--scale")
+            L = design.scale_coeff(L, *_lm(k), parse_floats(v, None, "factor"))
+        for s in negates:
+            L = design.negate_coeff(L, *_lm(s))
+        for s in set_band:
+            k, v = _kv(s, "--set-band")
+            L = design.set_band(L, int(parse_floats(k, 1, "band")[0]),
+                                parse_floats(v, None, "value"))
+        for s in scale_band:
+            k, v = _kv(s, "--scale-band")
+            L = design.scale_band(L, int(parse_floats(k, 1, "band")[0]),
+                                  parse_floats(v, None, "factor"))
+        for b in negate_band:
+            L = design.negate_band(L, b)
+        for r in rotations:
+            L = design.rotate_lighting(L, _rotation(r))
+        L, wdesc = apply_window_spec(L, parse_window(window))
+        write_text(output, export_coeffs(L, fmt, source=name or "shprobe edit"),
+                   overwrite=force)
+        if wdesc:
+            click.echo(wdesc)
+        click.echo(f"{output}: {fmt}, lmax {design.lmax_of(L.shape[0])}, "
+                   f"from {name or 'darkness'}")
+
+    @group.command("window")
+    @source_options
+    @click.option("--lmax", default=2, show_default=True)
+    @click.option("--window", "window", default="auto", show_default=True, help=WINDOW_HELP)
+    @click.option("-o", "--output", type=click.Path(dir_okay=False),
+                  help="Write the windowed coefficients (JSON).")
+    @force_option
+    def window_cmd(probe, layout, clamp, preset, coeffs_file, lmax, window, output, force):
+        """Certify min E(n) over the sphere (exact for lmax <= 2: trust-region dual of
+        n^T M n, R&H eq. 11; numerical above) and window the lighting until E >= 0
+        ('auto': the mildest of hann, lanczos, gaussian, laplacian by the L2 bias of E)."""
+        from ..design import (
+            WINDOWS,
+            apply_window,
+            auto_window,
+            min_irradiance,
+            window_bias,
+            window_factors,
+        )
+        from ..export import export_coeffs
+        from ..files import write_text
+
+        coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
+        spec = parse_window(window)
+        before = min_irradiance(coeffs)
+
+        def show(tag, cert):
+            kind = "certified" if cert.exact else "numerical"
+            vals = ", ".join(f"{v:.5g}" for v in cert.minimum)
+            click.echo(f"{tag}: min E = ({vals}) [{kind}, {cert.method}]")
+
+        click.echo(f"{name}: lmax {lmax}")
+        show("before", before)
+        if spec == "auto":
+            ch = auto_window(coeffs)
+            for k in WINDOWS:
+                if k in ch.candidates:
+                    s, b = ch.candidates[k]
+                    click.echo(f"  {k:9s} strength {s:.5g}  bias {100 * b:.3f}%")
+            f, after = ch.factors, ch.after
+            click.echo(f"chosen: {ch.kind}" + (f" strength {ch.strength:.5g}, bias "
+                                                f"{100 * ch.bias:.3f}% (relative L2 change of E)"
+                                                if ch.kind != "none" else
+                                                " (already non-negative)"))
+        else:
+            kind, s = spec
+            f = window_factors(kind, lmax, s)
+            after = min_irradiance(apply_window(coeffs, f))
+            click.echo(f"window {kind} strength {s:g}, bias {100 * window_bias(coeffs, f):.3f}%")
+        click.echo("factors: " + ", ".join(f"{x:.4f}" for x in f))
+        show("after", after)
+        if output:
+            write_text(output, export_coeffs(apply_window(coeffs, f), "json", source=name),
+                       overwrite=force)
+
+    @group.command("export")
+    @source_options
+    @click.option("--lmax", default=2, show_default=True)
+    @click.option("--format", "fmt", type=click.Choice(FORMATS), required=True,
+                  help="glsl/hlsl/wgsl (E(n), eq. 11 and 13), json, three, gltf, cmgen, "
+                       "cs-phase; each states its convention.")
+    @click.option("--window", "window", default=None, help=WINDOW_HELP)
+    @click.option("-o", "--output", type=click.Path(dir_okay=False),
+                  help="Output file (default: print).")
+    @force_option
+    def export_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, window, output, force):
+        """Export lighting coefficients for shaders and engines (`--coeffs` reads every
+        format back)."""
+        from ..export import export_coeffs
+        from ..files import write_text
+
+        coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
+        coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))
+        text = export_coeffs(coeffs, fmt, source=name)
+        if output:
+            write_text(output, text, overwrite=force)
+            click.echo(f"{output}: {fmt}" + (f"; {wdesc}" if wdesc else ""))
+        else:
+            click.echo(text, nl=False)

@@ -1,3 +1,37 @@
-"""The H-basis and rival hemispherical bases (Habel & Wimmer 2010)."""
+"""The H-basis and rival hemispherical bases (Habel & Wimmer 2010).
+
+* :mod:`.basis` — H4/H6 (eq. 8–13), T_h (SH → H), hemispherical quadrature and projection.
+* :mod:`.rivals` — HL2, HSH, Makhotkin, Zernike, least-squares SH: one ``HemiBasis`` interface.
+* :mod:`.study` — the Fig. 3 IMSE study.
+* :mod:`.normalmap` — tangent frames, per-vertex bake, normal-mapped shading.
+
+Conventions: docs/hbasis.md.
+"""
 
 from __future__ import annotations
+
+from .basis import (
+    T_H4_PAPER,
+    T_H_CLOSED_FORM,
+    evaluate_h,
+    h_basis,
+    hemisphere_quadrature,
+    project_h,
+    sh_to_h,
+    sh_to_h_matrix,
+)
+from .rivals import HemiBasis, all_bases, get_basis
+
+__all__ = [
+    "T_H4_PAPER",
+    "T_H_CLOSED_FORM",
+    "HemiBasis",
+    "all_bases",
+    "evaluate_h",
+    "get_basis",
+    "h_basis",
+    "hemisphere_quadrature",
+    "project_h",
+    "sh_to_h",
+    "sh_to_h_matrix",
+]
