@@ -184,16 +184,16 @@ def register(group: click.Group) -> None:
                                "expected one of " + " ".join(WRITE_EXTENSIONS), output)
         stops = _exposure(exposure)
         t = load_transfer(transfer, scene=list(scene_check) or None)
-        from ..prt.view import axis_angle, frame_radiance, render_frame
-        from ..prt.view import turntable as turntable_frames
-        from ..render import Camera
-        from .common import progress
-
         use = t.lmax if lmax is None else lmax
         if use > t.lmax:
             raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
                                transfer)
         coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
+        from ..prt.view import axis_angle, frame_radiance, render_frame
+        from ..prt.view import turntable as turntable_frames
+        from ..render import Camera
+        from .common import progress
+
         w, h = parse_size(size)
         cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
         rot = None
