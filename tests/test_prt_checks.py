@@ -82,7 +82,7 @@ def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
     want = irradiance_by_quadrature(circular_window(np.array([1.0, 0, 0]), np.radians(60), 6),
                                     np.array([0.0, 0.0, 1.0]), 6)[0] / np.pi
     # vertex colours interpolated over the icosphere's ~8° triangles: a few per cent
-    assert img[n // 2, n // 2] == pytest.approx(want, rel=0.05, abs=0.01 * img.max())
+    assert img[n // 2, n // 2] == pytest.approx(want, rel=0.05, abs=0.01 * float(img.max()))
 
 
 @needs_renderer
