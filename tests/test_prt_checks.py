@@ -7,27 +7,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from shprobe import render as render_mod
-from shprobe import zonal
 from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.images import read_image, write_image
 from shprobe.prt import bake, load_transfer
 from shprobe.sh import sh_basis
 
-needs_renderer = pytest.mark.skipif(
-    not hasattr(render_mod, "render_vertex_colors") or not hasattr(zonal, "circular_window"),
-    reason="needs shprobe.render.render_vertex_colors (branch render, not on main yet)")
-
-
-def one_line_error(capsys, args, *needles):
-    capsys.readouterr()
-    assert main(args) != 0
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("shprobe: error:") and "\n" not in err, err
-    for n in needles:
-        assert n in err, err
-    return err
+from .test_prt_cli import fails_with_one_line as one_line_error
+from .test_prt_cli import needs_renderer
 
 
 @pytest.fixture
