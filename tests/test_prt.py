@@ -102,8 +102,6 @@ def test_unshadowed_matches_prefilter_irradiance():
     prefilter = pytest.importorskip("shprobe.prefilter")
     if not hasattr(prefilter, "irradiance"):
         pytest.skip("shprobe.prefilter.irradiance not merged yet")
-    n = random_dirs(50, seed=4)
-    m = trimesh.Trimesh(n, np.zeros((0, 3), dtype=int), process=False)
     m = trimesh.creation.icosphere(1)
     L = np.random.default_rng(5).normal(size=(9, 3))
     t = bake(m, mode="unshadowed", lmax=2, albedo=1.0)

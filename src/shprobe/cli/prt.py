@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import force_option, parse_floats, parse_size
+from .common import clamp_option, force_option, layout_option, parse_floats, parse_size
 
 
 def _albedo(text: str | None):
@@ -22,10 +22,11 @@ def _albedo(text: str | None):
 
 
 def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int,
-             coeffs_file: str | None = None):
-    """Lighting coefficients (K, 3) or (K,) from exactly one source: a probe (projected to
-    ``lmax``), an R&H preset or a coefficient JSON file (their own degree, ≤ 2 for presets), or
-    the LH §3.2 window "x,y,z,aperture_deg" (LH normalisation, total power 4π)."""
+             coeffs_file: str | None = None, layout: str = "auto", clamp: bool = False):
+    """Lighting coefficients (K, 3) or (K,) from exactly one source: a probe (read in
+    ``layout`` with ``clamp``, projected to ``lmax``), an R&H preset or a coefficient JSON file
+    (their own degree, ≤ 2 for presets), or the LH §3.2 window "x,y,z,aperture_deg" (LH
+    normalisation, total power 4π)."""
     import numpy as np
 
     given = [s for s in (probe, preset, window, coeffs_file) if s is not None]
@@ -49,7 +50,8 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
     except ImportError:  # the shared source helper is not merged yet
         resolve_coeffs = None
     if resolve_coeffs is not None:
-        src = resolve_coeffs(probe, preset, coeffs_file, lmax=lmax if probe else None)
+        src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
+                             lmax=lmax if probe else None)
         return np.asarray(src.coeffs, dtype=np.float64)
     if coeffs_file is not None:
         raise ShprobeError("--coeffs needs shprobe.cli.sources (not in this build)")
@@ -58,8 +60,34 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
 
         return np.asarray(get_preset(preset), dtype=np.float64)
     from .. import prefilter
+    from .common import load_env_cli
 
-    return np.asarray(prefilter.project(prefilter.load_env(probe), lmax), dtype=np.float64)
+    env = load_env_cli(probe, layout, clamp)
+    return np.asarray(prefilter.project(env, lmax), dtype=np.float64)
+
+
+def auto_exposure(radiance, target: float = 0.8) -> float:
+    """Exposure in stops that maps the 99th percentile of the largest channel of the given
+    per-vertex radiance (..., V, 3) to ``target`` (0 when there is no light)."""
+    import numpy as np
+
+    peak = float(np.percentile(np.max(np.asarray(radiance), axis=-1), 99.0))
+    return float(np.log2(target / peak)) if np.isfinite(peak) and peak > 0 else 0.0
+
+
+def _exposure(text: str) -> float | None:
+    """``auto`` → None; otherwise a finite number of stops."""
+    import math
+
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise ShprobeError(f"--exposure must be 'auto' or a number of stops, got {text!r}")
+    return v
 
 
 def register(group: click.Group) -> None:
@@ -131,32 +159,41 @@ def register(group: click.Group) -> None:
                   help="Camera azimuth (degrees).")
     @click.option("--elevation", type=float, default=20.0, show_default=True,
                   help="Camera elevation (degrees).")
-    @click.option("--exposure", type=float, default=0.0, show_default=True,
-                  help="Exposure (stops) for PNG/JPEG.")
+    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+                  help="PNG exposure in stops; auto puts the 99th percentile of the vertex "
+                       "radiance (over all frames) at 80 % of white. Linear formats ignore it.")
     @click.option("--turntable", type=int, default=None, metavar="N",
                   help="Write N frames (OUT_000.png …) of the lighting turning around +Y.")
-    @click.option("--scene", "scene_check", default=None, type=click.Path(dir_okay=False),
-                  help="Refuse the transfer unless it was baked for this mesh.")
+    @click.option("--scene", "scene_check", multiple=True, type=click.Path(dir_okay=False),
+                  help="Refuse the transfer unless it was baked for this mesh (repeat for "
+                       "the several meshes of a scene; the baked ground plane is implied).")
+    @layout_option
+    @clamp_option
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Image (.png, .jpg, .exr, .hdr, .pfm).")
     @force_option
     def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, size, azimuth,
-                   elevation, exposure, turntable, scene_check, output, force):
+                   elevation, exposure, turntable, scene_check, layout, clamp, output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
         from ..files import check_output_path
+        from ..images import WRITE_EXTENSIONS
         from ..prt import load_transfer
 
-        t = load_transfer(transfer, scene=scene_check)
-        from ..prt.view import axis_angle, render_frame
-        from ..prt.view import turntable as turntable_frames
-        from ..render import Camera
-        from .common import progress
-
+        if Path(output).suffix.lower() not in WRITE_EXTENSIONS:
+            raise ShprobeError(f"cannot write extension {Path(output).suffix or '(none)'!r}; "
+                               "expected one of " + " ".join(WRITE_EXTENSIONS), output)
+        stops = _exposure(exposure)
+        t = load_transfer(transfer, scene=list(scene_check) or None)
         use = t.lmax if lmax is None else lmax
         if use > t.lmax:
             raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
                                transfer)
-        coeffs = lighting(probe, preset, window, use, coeffs_file)
+        coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
+        from ..prt.view import axis_angle, frame_radiance, render_frame
+        from ..prt.view import turntable as turntable_frames
+        from ..render import Camera
+        from .common import progress
+
         w, h = parse_size(size)
         cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
         rot = None
@@ -165,7 +202,9 @@ def register(group: click.Group) -> None:
             rot = axis_angle([x, y, z], deg)
         if turntable is None:
             check_output_path(output, force)
-            render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, exposure, force)
+            if stops is None:
+                stops = auto_exposure(frame_radiance(t, coeffs, rot, lmax=lmax))
+            render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, stops, force)
             click.echo(err=True, message=f"wrote {output}")
             return
         if turntable < 1:
@@ -174,7 +213,11 @@ def register(group: click.Group) -> None:
         names = [out.with_name(f"{out.stem}_{i:03d}{out.suffix}") for i in range(turntable)]
         for p in names:
             check_output_path(p, force)
+        if stops is None:  # one exposure for all frames: the light turning must show
+            stops = auto_exposure([frame_radiance(
+                t, coeffs, rot, axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax)
+                for i in range(turntable)])
         frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam)
         for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):
-            frame.save(p, exposure, force)
+            frame.save(p, stops, force)
         click.echo(err=True, message=f"wrote {len(names)} frames {names[0]} … {names[-1]}")

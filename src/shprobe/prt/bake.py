@@ -175,7 +175,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     transfer = (total[:, :, 0] if channels == 1 else total).astype(np.float32)
     meta = {
         "mesh_hash": sc.mesh_hash, "mode": mode, "lmax": lmax, "samples": samples,
-        "bounces": bounces, "seed": int(seed),
+        "bounces": bounces, "seed": int(seed), "ground": bool(ground),
         "albedo": {"min": sc.albedo.min(0).tolist(), "max": sc.albedo.max(0).tolist(),
                    "mean": sc.albedo.mean(0).tolist()},
         "directions": "spherical Fibonacci, seeded random rotation" if samples else "none",

@@ -175,6 +175,7 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
     for k, (m, a) in enumerate(zip(meshes, per_mesh, strict=True)):
         v = np.asarray(m.vertices, dtype=np.float64)
         nrm = np.asarray(m.vertex_normals, dtype=np.float64)
+        _check_normals(nrm, np.asarray(m.faces), items[k], k)
         verts.append(v)
         norms.append(nrm)
         faces.append(np.asarray(m.faces, dtype=np.int64) + off)
@@ -202,6 +203,19 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
         raise ShprobeError("mesh has non-finite vertices")
     n = np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), [0.0, 1.0, 0.0])
     return Scene(v, n, f, np.concatenate(alb), mesh_hash(v, f))
+
+
+def _check_normals(normals: NDArray[np.float64], faces: NDArray, item: Any, k: int) -> None:
+    """Refuse vertices of triangles whose normal is zero or not finite (only degenerate
+    triangles around them): their transfer would be meaningless."""
+    used = np.zeros(len(normals), dtype=bool)
+    used[np.asarray(faces, dtype=np.int64).ravel()] = True
+    ln = np.linalg.norm(normals, axis=1)
+    bad = used & ~(np.isfinite(ln) & (ln > 1e-12))
+    if bad.any():
+        where = item if isinstance(item, str | os.PathLike) else None
+        raise ShprobeError(f"mesh {k} has {int(bad.sum())} vertices with a zero or non-finite "
+                           "normal (degenerate triangles); repair the mesh", where)
 
 
 def _with_albedo(scene: Scene, albedo: NDArray[np.float64]) -> Scene:

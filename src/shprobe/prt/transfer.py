@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -83,20 +84,29 @@ class Transfer:
 
 
 def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
-    """Read a transfer .npz; with ``scene`` (anything :func:`load_scene` takes) refuse a file
-    baked for another mesh (hash mismatch).
+    """Read a transfer .npz; with ``scene`` (anything :func:`load_scene` takes: the mesh
+    path(s) or object(s) given to :func:`~shprobe.prt.bake`; the ground plane is added again
+    when the bake had one) refuse a file baked for another mesh (hash mismatch).
     """
     p = Path(path)
     if not p.is_file():
         raise ShprobeError("no such transfer file", p)
+    if not zipfile.is_zipfile(p):
+        raise ShprobeError("not a transfer file (not an .npz archive; empty, truncated or "
+                           "another format)", p)
+    names = ("transfer", "vertices", "normals", "faces", "albedo", "metadata")
     try:
         with np.load(p, allow_pickle=False) as d:
-            arrays = {k: d[k] for k in ("transfer", "vertices", "normals", "faces", "albedo",
-                                        "metadata")}
-    except KeyError as e:
-        raise ShprobeError(f"not a shprobe transfer file (missing {e})", p) from None
+            missing = [k for k in names if k not in d.files]
+            if missing:
+                raise ShprobeError("not a shprobe transfer file (no "
+                                   + ", ".join(missing) + " array)", p)
+            arrays = {k: d[k] for k in names}
+    except ShprobeError:
+        raise
     except Exception as e:
-        raise ShprobeError(f"cannot read transfer file: {e}", p) from None
+        raise ShprobeError(f"cannot read transfer file (truncated or corrupt): "
+                           f"{' '.join(str(e).split())[:200]}", p) from None
     try:
         meta = json.loads(str(arrays.pop("metadata")))
     except ValueError:
@@ -116,7 +126,10 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     if mesh_hash(v, arrays["faces"]) != meta.get("mesh_hash"):
         raise ShprobeError("stored mesh does not match the file's mesh hash (corrupt file)", p)
     if scene is not None:
-        want = load_scene(scene).mesh_hash
+        if isinstance(scene, Scene):
+            want = scene.mesh_hash
+        else:  # rebuild the scene as baked: the same meshes, with its ground plane if any
+            want = load_scene(scene, ground=bool(meta.get("ground", False))).mesh_hash
         if want != meta["mesh_hash"]:
             raise ShprobeError(
                 f"baked for mesh {meta['mesh_hash'][:12]}…, not for this mesh ({want[:12]}…); "

@@ -29,6 +29,17 @@ def axis_angle(axis: ArrayLike, degrees: float) -> NDArray[np.float64]:
     return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
 
 
+def frame_radiance(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | None = None,
+                   light_rotation: ArrayLike | None = None, lmax: int | None = None
+                   ) -> NDArray[np.float32]:
+    """Per-vertex radiance (V, 3) of the scene turned by ``rotation`` under the lighting turned
+    by ``light_rotation``: in the scene's frame the lighting is rotate(L, R_s⁻¹ R_l), i.e.
+    ``relight`` with scene rotation R_l⁻¹ R_s (LH eq. 4–5)."""
+    rs = np.eye(3) if rotation is None else _as_matrix(rotation)
+    rl = np.eye(3) if light_rotation is None else _as_matrix(light_rotation)
+    return relight(transfer, coeffs, rotation=rl.T @ rs, lmax=lmax)
+
+
 def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | None = None,
                  light_rotation: ArrayLike | None = None, lmax: int | None = None,
                  camera: Any = None, background: Any = None):
@@ -44,8 +55,7 @@ def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | No
     from ..render import render_vertex_colors
 
     rs = np.eye(3) if rotation is None else _as_matrix(rotation)
-    rl = np.eye(3) if light_rotation is None else _as_matrix(light_rotation)
-    radiance = relight(transfer, coeffs, rotation=rl.T @ rs, lmax=lmax)
+    radiance = frame_radiance(transfer, coeffs, rs, light_rotation, lmax)
     mesh = trimesh.Trimesh(transfer.vertices @ rs.T, transfer.faces,
                            vertex_normals=transfer.normals @ rs.T, process=False)
     return render_vertex_colors(mesh, radiance, camera, background=background)
