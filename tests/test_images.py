@@ -208,7 +208,12 @@ def test_nan_inf_negative(tmp_path):
     a[1, 1, 1] = np.inf
     a[2, 2, 2] = -1.0
     a[2, 3, 2] = -2.0
-    write_image(tmp_path / "bad.exr", a)
+    import OpenImageIO as oiio  # write_image itself refuses NaN/Inf, so write the file raw
+
+    out = oiio.ImageOutput.create(str(tmp_path / "bad.exr"))
+    out.open(str(tmp_path / "bad.exr"), oiio.ImageSpec(a.shape[1], a.shape[0], 3, oiio.FLOAT))
+    out.write_image(a)
+    out.close()
     msg = _one_line_error(tmp_path / "bad.exr", "1 NaN")
     assert "1 infinite" in msg and "2 negative" in msg
     b = read_image(tmp_path / "bad.exr", clamp=True)
@@ -228,3 +233,17 @@ def test_write_refuses_existing_and_bad_extension(tmp_path):
     with pytest.raises(ShprobeError, match="cannot write extension"):
         write_image(tmp_path / "a.gif", a)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.exr"]  # no temp files left
+
+
+def test_write_refuses_nan_and_inf(tmp_path):
+    from shprobe.errors import ShprobeError
+    from shprobe.images import write_image
+
+    a = np.ones((4, 8, 3), np.float32)
+    a[1, 2, 0] = np.nan
+    a[3, 3, 1] = np.inf
+    for ext in (".exr", ".hdr", ".pfm", ".png"):
+        out = tmp_path / f"bad{ext}"
+        with pytest.raises(ShprobeError, match="2 NaN or Inf"):
+            write_image(out, a)
+        assert not out.exists() and not list(tmp_path.iterdir())

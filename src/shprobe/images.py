@@ -376,7 +376,8 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
 
     ``.exr`` (float, or half with ``half=True``), ``.hdr`` (RGBE), ``.pfm`` and ``.tif`` are
     linear and ignore ``exposure``; ``.png`` is tone-mapped with :func:`tonemap` (exposure in
-    stops). An existing file is replaced only with ``overwrite=True``.
+    stops). An existing file is replaced only with ``overwrite=True``. NaN or Inf values are
+    refused; ``.hdr`` (RGBE, unsigned) stores negative values as 0.
     """
     p = Path(path)
     ext = p.suffix.lower()
@@ -392,6 +393,11 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
     if a.shape[2] == 1:
         a = np.repeat(a, 3, axis=2)
     a = np.ascontiguousarray(a[:, :, :3])
+    bad = int(np.count_nonzero(~np.isfinite(a)))
+    if bad:
+        raise ShprobeError(f"refusing to write an image with {bad} NaN or Inf values", p)
+    if ext == ".hdr":
+        a = np.maximum(a, 0.0)  # RGBE has no sign
     with atomic_output(p, overwrite) as tmp:
         if ext == ".pfm":
             _write_pfm(tmp, a)
