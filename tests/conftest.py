@@ -49,3 +49,14 @@ def random_dirs(n: int, seed: int = 0, dtype=np.float64) -> np.ndarray:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+def write_raw_pfm(path: Path, rgb: np.ndarray) -> Path:
+    """Write a little-endian colour PFM by hand (bottom row first), NaN/Inf kept as they are.
+
+    The project's writer refuses non-finite pixels, so bad-input tests make their files here.
+    """
+    a = np.asarray(rgb, np.float32)
+    h, w = a.shape[:2]
+    Path(path).write_bytes(f"PF\n{w} {h}\n-1.0\n".encode() + a[::-1].astype("<f4").tobytes())
+    return Path(path)

@@ -13,6 +13,8 @@ from shprobe.layouts import Env
 from shprobe.prefilter import irradiance, irradiance_map, project
 from shprobe.presets import get_preset
 
+from .conftest import write_raw_pfm
+
 
 @pytest.fixture
 def probe(tmp_path):
@@ -156,7 +158,7 @@ def _bad_files(tmp_path):
     nan = tmp_path / "nan.pfm"
     img = np.ones((16, 32, 3), np.float32)
     img[3, 4, 1] = np.nan
-    write_image(nan, img)
+    write_raw_pfm(nan, img)
     return {"empty": ([empty], "empty"), "truncated": ([trunc], "trunc.hdr"),
             "corrupt": ([corrupt], "corrupt.exr"), "unknown": ([unknown], "probe.xyz"),
             "aspect": ([square, "--layout", "latlong"], "square.pfm"),

@@ -13,6 +13,7 @@ from shprobe.images import read_image, write_image
 from shprobe.prt import bake, load_transfer
 from shprobe.sh import sh_basis
 
+from .conftest import write_raw_pfm
 from .test_prt_cli import fails_with_one_line as one_line_error
 from .test_prt_cli import needs_renderer
 
@@ -118,12 +119,11 @@ def test_render_layout_option_reaches_the_probe(tmp_path, sphere_transfer, capsy
     write_image(probe, np.ones((32, 48, 3), np.float32))  # 3:2: no layout fits
     one_line_error(capsys, ["prt", "render", str(sphere_transfer), str(probe), "--layout",
                             "latlong", "-o", str(tmp_path / "x.png")], "probe.exr", "2:1")
-    nan = tmp_path / "nan.exr"
     a = np.ones((16, 32, 3), np.float32)
     a[2, 3, 0] = np.nan
-    write_image(nan, a)
+    nan = write_raw_pfm(tmp_path / "nan.pfm", a)
     one_line_error(capsys, ["prt", "render", str(sphere_transfer), str(nan), "-o",
-                            str(tmp_path / "x.png")], "nan.exr", "NaN", "--clamp")
+                            str(tmp_path / "x.png")], "nan.pfm", "NaN", "--clamp")
     assert not (tmp_path / "x.png").exists()
 
 
