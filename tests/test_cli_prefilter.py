@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from shprobe.cli.main import main
 from shprobe.images import read_image, write_image
@@ -155,6 +156,10 @@ def _bad_files(tmp_path):
     unknown.write_bytes(b"hello")
     square = tmp_path / "square.pfm"
     write_image(square, np.ones((16, 16, 3), np.float32))
+    png = tmp_path / "good.png"
+    Image.fromarray(np.random.default_rng(1).integers(0, 256, (64, 128, 3), np.uint8)).save(png)
+    trunc_png = tmp_path / "trunc.png"
+    trunc_png.write_bytes(png.read_bytes()[: len(png.read_bytes()) // 2])
     nan = tmp_path / "nan.pfm"
     img = np.ones((16, 32, 3), np.float32)
     img[3, 4, 1] = np.nan
@@ -162,18 +167,20 @@ def _bad_files(tmp_path):
     return {"empty": ([empty], "empty"), "truncated": ([trunc], "trunc.hdr"),
             "corrupt": ([corrupt], "corrupt.exr"), "unknown": ([unknown], "probe.xyz"),
             "aspect": ([square, "--layout", "latlong"], "square.pfm"),
-            "nan": ([nan], "nan.pfm")}
+            "nan": ([nan], "nan.pfm"), "truncated-png": ([trunc_png], "trunc.png")}
 
 
-@pytest.mark.parametrize("case", ["empty", "truncated", "corrupt", "unknown", "aspect", "nan"])
+@pytest.mark.parametrize("case", ["empty", "truncated", "corrupt", "unknown", "aspect", "nan",
+                                  "truncated-png"])
 @pytest.mark.parametrize("command", ["prefilter", "irradiance", "error"])
-def test_bad_input_is_one_line_and_writes_nothing(case, command, tmp_path, capsys):
+def test_bad_input_is_one_line_and_writes_nothing(case, command, tmp_path, capfd):
+    """capfd, not capsys: C libraries (libpng) write to file descriptor 2 directly."""
     args, name = _bad_files(tmp_path)[case]
     outdir = tmp_path / "out"
     outdir.mkdir()
     extra = {"prefilter": ["--format", "json", "-o", outdir / "c.json"],
              "irradiance": ["-o", outdir / "e.exr"], "error": []}[command]
-    rc, _, err = run([command, *args, *extra], capsys)
+    rc, _, err = run([command, *args, *extra], capfd)
     one_line_error(rc, err)
     assert name in err
     assert list(outdir.iterdir()) == []

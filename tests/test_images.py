@@ -86,6 +86,19 @@ def test_rgba_exr_drops_alpha(tmp_path):
     np.testing.assert_allclose(b, a[:, :, :3], rtol=2**-10)
 
 
+def test_rgba_png_colour_is_not_multiplied_by_alpha(tmp_path):
+    """PNG stores unassociated alpha: the colour channels decode as stored (Pillow writes it)."""
+    from PIL import Image
+
+    a = np.zeros((2, 3, 4), np.uint8)
+    a[..., 0], a[..., 1], a[..., 2], a[..., 3] = 200, 100, 30, 64
+    Image.fromarray(a, "RGBA").save(tmp_path / "a.png")
+    with pytest.warns(LDRWarning):
+        b = read_image(tmp_path / "a.png")
+    expect = [((v / 255 + 0.055) / 1.055) ** 2.4 for v in (200, 100, 30)]
+    np.testing.assert_allclose(b, np.broadcast_to(expect, (2, 3, 3)), rtol=1e-5)
+
+
 @pytest.mark.parametrize("little", [True, False])
 def test_hand_written_pfm(tmp_path, little):
     """PFM rows are stored bottom-up; the sign of the scale gives the byte order."""

@@ -19,7 +19,11 @@ from __future__ import annotations
 
 import os
 import re
+import sys
+import tempfile
 import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -62,7 +66,8 @@ def linear_to_srgb(v: ArrayLike) -> NDArray[np.float32]:
 def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.float32]:
     """Read an image as linear RGB ``(H, W, 3) float32``, row 0 at the top.
 
-    Grey images are repeated to 3 channels; a 4th (alpha) channel and any beyond are dropped.
+    Grey images are repeated to 3 channels; a 4th (alpha) channel and any beyond are dropped
+    (colour is read as stored, not multiplied by alpha).
     Raises :class:`ShprobeError` naming the file for a missing, empty, truncated, corrupt or
     unknown file, and for NaN/Inf/negative pixels unless ``clamp``.
     """
@@ -101,21 +106,25 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
 def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
     import OpenImageIO as oiio
 
-    inp = oiio.ImageInput.open(str(p))
-    if inp is None:
-        raise ShprobeError(f"cannot read image: {_oneline(oiio.geterror()) or 'corrupt'}", p)
-    try:
-        spec = inp.spec()
-        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
-            raise ShprobeError("image has zero size", p)
-        fmt = str(spec.format)
-        data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
-        if data is None or inp.has_error:
-            raise ShprobeError(
-                f"cannot read image (truncated or corrupt): {_oneline(inp.geterror())}", p)
-        cs = str(spec.getattribute("oiio:ColorSpace") or "").lower()
-    finally:
-        inp.close()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)  # colour as stored, not premultiplied
+    with _c_stderr() as c_messages:
+        inp = oiio.ImageInput.open(str(p), config)
+        if inp is None:
+            raise ShprobeError("cannot read image: "
+                               + (_oneline(oiio.geterror() or c_messages()) or "corrupt"), p)
+        try:
+            spec = inp.spec()
+            if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+                raise ShprobeError("image has zero size", p)
+            fmt = str(spec.format)
+            data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+            if data is None or inp.has_error:
+                raise ShprobeError("cannot read image (truncated or corrupt): "
+                                   + _oneline(inp.geterror() or c_messages()), p)
+            cs = str(spec.getattribute("oiio:ColorSpace") or "").lower()
+        finally:
+            inp.close()
     data = np.asarray(data, dtype=np.float32)
     if data.ndim == 2:
         data = data[:, :, None]
@@ -123,6 +132,38 @@ def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
     if ldr and not ("lin" in cs and "srgb" not in cs):
         data = srgb_to_linear(data)
     return data, ldr
+
+
+@contextmanager
+def _c_stderr() -> Iterator[Callable[[], str]]:
+    """Catch what C libraries print on file descriptor 2 (libpng reports errors there itself).
+
+    Yields a function returning the text caught so far. If the block raises, the text is dropped
+    (the exception carries the message); otherwise it is passed on to stderr unchanged.
+    """
+    try:
+        saved = os.dup(2)
+    except OSError:  # no fd 2 (embedded interpreters): nothing to catch
+        yield lambda: ""
+        return
+    with tempfile.TemporaryFile() as tmp:
+
+        def caught() -> str:
+            tmp.flush()
+            tmp.seek(0)
+            return tmp.read().decode(errors="replace")
+
+        sys.stderr.flush()
+        os.dup2(tmp.fileno(), 2)
+        ok = False
+        try:
+            yield caught
+            ok = True
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            if ok and (text := caught()):
+                sys.stderr.write(text)
 
 
 def _oneline(msg: str | None) -> str:
