@@ -194,3 +194,22 @@ def test_existing_output_is_refused_before_any_work(probe, tmp_path, capsys):
     one_line_error(rc, err)
     assert out.read_bytes() == b"keep me"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["e.exr", "probe.hdr"]
+
+
+@pytest.mark.parametrize("command", [["irradiance", "--method", "brute"],
+                                     ["render", "--sphere", "--size", "8"]])
+def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_path, capsys,
+                                                         monkeypatch):
+    import shprobe.prefilter
+    import shprobe.render
+
+    def boom(*a, **k):
+        raise AssertionError("work started before the output was checked")
+
+    monkeypatch.setattr(shprobe.prefilter, "reference_irradiance", boom)
+    monkeypatch.setattr(shprobe.render, "render", boom)
+    path, _ = probe
+    rc, _, err = run([command[0], path, *command[1:], "-o", tmp_path / "e.gif"], capsys)
+    one_line_error(rc, err)
+    assert "e.gif" in err and "extension" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["probe.hdr"]

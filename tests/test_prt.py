@@ -99,9 +99,8 @@ def test_unshadowed_equals_rho_over_pi_irradiance():
 
 
 def test_unshadowed_matches_prefilter_irradiance():
-    prefilter = pytest.importorskip("shprobe.prefilter")
-    if not hasattr(prefilter, "irradiance"):
-        pytest.skip("shprobe.prefilter.irradiance not merged yet")
+    from shprobe import prefilter
+
     m = trimesh.creation.icosphere(1)
     L = np.random.default_rng(5).normal(size=(9, 3))
     t = bake(m, mode="unshadowed", lmax=2, albedo=1.0)

@@ -15,7 +15,6 @@ from shprobe.sh import sh_basis
 
 from .conftest import write_raw_pfm
 from .test_prt_cli import fails_with_one_line as one_line_error
-from .test_prt_cli import needs_renderer
 
 
 @pytest.fixture
@@ -53,7 +52,6 @@ def irradiance_by_quadrature(coeffs, n, lmax):
 # ----------------------------------------------------------------------------- pictures
 
 
-@needs_renderer
 def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
     """Camera at +Z (azimuth 0, elevation 0) with +X to the right: a window on +X lights the
     right half; the pixel at the image centre (normal +Z) has ρ/π E(+Z), E by quadrature."""
@@ -73,7 +71,6 @@ def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
     assert img[n // 2, n // 2] == pytest.approx(want, rel=0.05, abs=0.01 * float(img.max()))
 
 
-@needs_renderer
 def test_turntable_frame_is_the_window_turned_by_hand(tmp_path, sphere_transfer):
     """Frame i turns the lighting by 360°·i/N about +Y: frame 1 of 4 under a window on +X is the
     still render of the window on R_y(90°)·X = −Z (LH §3.2 window about R a; no Wigner)."""
@@ -88,7 +85,6 @@ def test_turntable_frame_is_the_window_turned_by_hand(tmp_path, sphere_transfer)
     assert np.abs(f0 - frame).max() > 0.1 * still.max()
 
 
-@needs_renderer
 def test_auto_exposure_neither_blown_out_nor_dark(tmp_path, sphere_transfer, capsys):
     from PIL import Image
 

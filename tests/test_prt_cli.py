@@ -6,14 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from shprobe import render as render_mod
-from shprobe import zonal
 from shprobe.cli.main import main
 from shprobe.prt import bake, load_transfer
-
-needs_renderer = pytest.mark.skipif(
-    not hasattr(render_mod, "render_vertex_colors") or not hasattr(zonal, "circular_window"),
-    reason="needs shprobe.render.render_vertex_colors (branch render, not on main yet)")
 
 
 @pytest.fixture
@@ -79,7 +73,6 @@ def test_render_refuses_transfer_of_another_mesh(tmp_path, sphere_obj, capsys):
     assert not (tmp_path / "x.png").exists()
 
 
-@needs_renderer
 def test_render_window_and_turntable(tmp_path, sphere_obj):
     out = tmp_path / "t.npz"
     assert main(["prt", "bake", str(sphere_obj), "--mode", "shadowed", "--lmax", "6",
@@ -97,12 +90,7 @@ def test_render_window_and_turntable(tmp_path, sphere_obj):
     assert not np.array_equal(frames[0], frames[1])  # the light moved
 
 
-@needs_renderer
 def test_render_probe_and_preset_need_no_rebake(tmp_path, sphere_obj, grace_path):
-    from shprobe import prefilter, presets
-
-    if not hasattr(prefilter, "project") or not hasattr(presets, "get_preset"):
-        pytest.skip("needs shprobe.prefilter.project and shprobe.presets.get_preset")
     out = tmp_path / "t.npz"
     assert main(["prt", "bake", str(sphere_obj), "--mode", "unshadowed", "--lmax", "6",
                  "-o", str(out)]) == 0

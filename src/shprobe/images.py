@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ShprobeError
-from .files import atomic_output
+from .files import atomic_output, check_output_path
 
 #: Extensions read_image accepts.
 READ_EXTENSIONS = (".hdr", ".rgbe", ".pic", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg",
@@ -411,6 +411,18 @@ def tonemap(rgb: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
     return np.round(linear_to_srgb(v) * 255.0).astype(np.uint8)
 
 
+def check_image_output(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
+    """Refuse, before any work, an output :func:`write_image` cannot write or may not replace:
+    an unknown extension, an existing file (unless ``overwrite``), a missing folder."""
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in WRITE_EXTENSIONS:
+        raise ShprobeError(
+            f"cannot write extension {ext or '(none)'!r}; expected one of "
+            + " ".join(WRITE_EXTENSIONS), p)
+    return check_output_path(p, overwrite)
+
+
 def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = False,
                 exposure: float = 0.0, half: bool = False) -> Path:
     """Write linear RGB ``(H, W, 3)`` (or ``(H, W)`` grey) atomically.
@@ -420,12 +432,8 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
     stops). An existing file is replaced only with ``overwrite=True``. NaN or Inf values are
     refused; ``.hdr`` (RGBE, unsigned) stores negative values as 0.
     """
-    p = Path(path)
+    p = check_image_output(path, overwrite)
     ext = p.suffix.lower()
-    if ext not in WRITE_EXTENSIONS:
-        raise ShprobeError(
-            f"cannot write extension {ext or '(none)'!r}; expected one of "
-            + " ".join(WRITE_EXTENSIONS), p)
     a = np.asarray(rgb, dtype=np.float32)
     if a.ndim == 2:
         a = np.repeat(a[:, :, None], 3, axis=2)

@@ -105,6 +105,8 @@ def render_cmd(mesh: Path, probe: Path, output: Path, size: int, bump: float, ga
     from ..files import atomic_output, check_output_path
     from ..hbasis.normalmap import load_mesh, panel_image, read_normal_map, render_normal_mapped
 
+    if output.suffix.lower() != ".png":
+        raise ShprobeError("the comparison panel is written as .png", output)
     check_output_path(output, force)
     if not mesh.is_file():
         raise ShprobeError("no such file", mesh)

@@ -117,7 +117,7 @@ def _parse_size(text: str | None, layout: str) -> int | tuple[int, int]:
     if layout == "latlong":
         return (w, h)
     if w != h:
-        raise ShprobeError(f"a {layout} map is square: --size N or NxN, got {text}")
+        raise ShprobeError(f"the {layout} layout is square: --size N or NxN, got {text}")
     return w
 
 
@@ -196,11 +196,11 @@ def register(group: click.Group) -> None:
         """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
         import numpy as np
 
-        from ..files import check_output_path
+        from ..images import check_image_output
         from ..layouts import Env, get_layout, write_env
         from ..prefilter import irradiance_map, reference_irradiance
 
-        check_output_path(output, force)
+        check_image_output(output, force)
         src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
                              need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")

@@ -45,25 +45,11 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
                                np.radians(ap), lmax)
     if probe is not None and not Path(probe).is_file():
         raise ShprobeError("no such probe file", probe)
-    try:
-        from .sources import resolve_coeffs
-    except ImportError:  # the shared source helper is not merged yet
-        resolve_coeffs = None
-    if resolve_coeffs is not None:
-        src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
-                             lmax=lmax if probe else None)
-        return np.asarray(src.coeffs, dtype=np.float64)
-    if coeffs_file is not None:
-        raise ShprobeError("--coeffs needs shprobe.cli.sources (not in this build)")
-    if preset is not None:
-        from ..presets import get_preset
+    from .sources import resolve_coeffs
 
-        return np.asarray(get_preset(preset), dtype=np.float64)
-    from .. import prefilter
-    from .common import load_env_cli
-
-    env = load_env_cli(probe, layout, clamp)
-    return np.asarray(prefilter.project(env, lmax), dtype=np.float64)
+    src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
+                         lmax=lmax if probe else None)
+    return np.asarray(src.coeffs, dtype=np.float64)
 
 
 def auto_exposure(radiance, target: float = 0.8) -> float:
@@ -170,18 +156,16 @@ def register(group: click.Group) -> None:
     @layout_option
     @clamp_option
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-                  help="Image (.png, .jpg, .exr, .hdr, .pfm).")
+                  help="Image: .png (tone-mapped) or .exr .hdr .pfm .tif (linear).")
     @force_option
     def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, size, azimuth,
                    elevation, exposure, turntable, scene_check, layout, clamp, output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
-        from ..files import check_output_path
-        from ..images import WRITE_EXTENSIONS
+        from ..images import check_image_output
         from ..prt import load_transfer
 
-        if Path(output).suffix.lower() not in WRITE_EXTENSIONS:
-            raise ShprobeError(f"cannot write extension {Path(output).suffix or '(none)'!r}; "
-                               "expected one of " + " ".join(WRITE_EXTENSIONS), output)
+        # the name as given (frames get _000 … suffixes; their existence is checked below)
+        check_image_output(output, force or turntable is not None)
         stops = _exposure(exposure)
         t = load_transfer(transfer, scene=list(scene_check) or None)
         use = t.lmax if lmax is None else lmax
@@ -201,7 +185,6 @@ def register(group: click.Group) -> None:
             x, y, z, deg = parse_floats(rotate, 4, "rotation (x,y,z,degrees)")
             rot = axis_angle([x, y, z], deg)
         if turntable is None:
-            check_output_path(output, force)
             if stops is None:
                 stops = auto_exposure(frame_radiance(t, coeffs, rot, lmax=lmax))
             render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, stops, force)
@@ -212,7 +195,7 @@ def register(group: click.Group) -> None:
         out = Path(output)
         names = [out.with_name(f"{out.stem}_{i:03d}{out.suffix}") for i in range(turntable)]
         for p in names:
-            check_output_path(p, force)
+            check_image_output(p, force)
         if stops is None:  # one exposure for all frames: the light turning must show
             stops = auto_exposure([frame_radiance(
                 t, coeffs, rot, axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax)

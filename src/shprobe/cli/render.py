@@ -180,9 +180,13 @@ def register(group: click.Group) -> None:
         """Render a diffuse object lit by SH lighting (R&H 2001 §3.2): radiance =
         albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
         probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
+        from ..images import check_image_output
         from ..render import render
 
         t0 = time.perf_counter()
+        check_image_output(output, force)
+        if exr:
+            check_image_output(exr, force)
         coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
         coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))
         geo = load_geometry(mesh, sphere)
