@@ -362,22 +362,26 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
 
     O(T·S); a numba kernel parallel over normals, fed ``chunk`` samples at a time so memory
     stays bounded. ``subdivide=k`` splits every pixel into k×k sub-pixels (exact sub-solid
-    angles, constant radiance) to check convergence. ``progress(done, total)`` is called after
-    each chunk when given.
+    angles, constant radiance) to check convergence. ``progress(done, total)`` is called with
+    the normal–sample pairs done so far, every ~2²³ pairs, when given.
     """
     n = np.asarray(normals, dtype=np.float64)
     if n.ndim < 1 or n.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
     flat = np.ascontiguousarray(n.reshape(-1, 3))
-    out = np.zeros((flat.shape[0], 3))
+    t = flat.shape[0]
+    out = np.zeros((t, 3))
     kern = _kernels()["brute"]
-    total = int(np.prod(env.grid)) * int(subdivide) ** 2
+    total = t * int(np.prod(env.grid)) * int(subdivide) ** 2
     done = 0
     for d, lw in _sample_chunks(env, subdivide, int(chunk)):
-        kern(flat, np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T), out)
-        done += d.shape[0]
-        if progress is not None:
-            progress(min(done, total), total)
+        dT, lwT = np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T)
+        block = max(256, (1 << 23) // max(1, d.shape[0]))  # normals per call
+        for i in range(0, t, block):
+            kern(flat[i:i + block], dT, lwT, out[i:i + block])
+            done += min(block, t - i) * d.shape[0]
+            if progress is not None:
+                progress(min(done, total), total)
     return out.reshape(*n.shape[:-1], 3)
 
 
