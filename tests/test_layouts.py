@@ -130,13 +130,14 @@ def test_solid_angles_sum_to_4pi(name, n):
     assert np.all(sa >= 0)
 
 
+@pytest.mark.parametrize("n", [20, 21])
 @pytest.mark.parametrize("name", ["angular", "mirrorball"])
-def test_disc_solid_angles_against_scipy_dblquad(name):
-    """Independent check: adaptive 2-D quadrature of the Jacobian over pixel ∩ disc."""
+def test_disc_solid_angles_against_scipy_dblquad(name, n):
+    """Independent check: adaptive 2-D quadrature of the Jacobian over pixel ∩ disc (odd n:
+    the middle row and column straddle the axes)."""
     from scipy.integrate import dblquad
 
     lay = get_layout(name)
-    n = 20
     sa = lay.solid_angles((n, n))
     h = 2.0 / n
     if name == "angular":
@@ -147,7 +148,8 @@ def test_disc_solid_angles_against_scipy_dblquad(name):
         def jac(y, x):
             return 4.0
     # centre, interior, rim pixels (partly covered, centre inside and outside), outside
-    for j, i in [(9, 10), (3, 7), (0, 9), (1, 4), (2, 2), (6, 0), (0, 0)]:
+    for j, i in [(9, 10), (3, 7), (0, 9), (1, 4), (2, 2), (6, 0), (0, 0), (10, 10), (0, 10),
+                 (13, 17), (19, 12)]:
         a0, b1 = -1 + h * i, 1 - h * j
         a1, b0 = a0 + h, b1 - h
 

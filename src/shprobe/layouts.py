@@ -272,24 +272,15 @@ class _Disc(Layout):
 
     label = "a disc map"
 
+    #: radial map of the numba table kernel (0: angular, 1: mirror ball)
+    kind = -1
+
     # the radial map, vectorised over r in [0, 1]
     def theta(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
         raise NotImplementedError
 
     def radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         raise NotImplementedError
-
-    def jac(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
-        """dω / (da db) at radius r (r < 1)."""
-        raise NotImplementedError
-
-    def _dirs_ab(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = np.hypot(a, b)
-        th = self.theta(np.minimum(r, 1.0))
-        s = np.sin(th)
-        safe = np.where(r > 0, r, 1.0)
-        return np.stack([np.where(r > 0, s * a / safe, 0.0), np.where(r > 0, s * b / safe, 0.0),
-                         np.cos(th)], axis=-1)
 
     def pixel_directions(self, grid_shape):
         n, _ = self.check_grid(grid_shape)
@@ -313,97 +304,37 @@ class _Disc(Layout):
         xy = self.direction_to_pixel(dirs, img.shape[:2])
         return _bilinear(img, xy[..., 0], xy[..., 1], wrap_x=False)
 
-    # exact solid angles ------------------------------------------------------
-    def _interior_order(self, n: int) -> int:
-        return 8 if n <= 16 else 6 if n <= 64 else 4 if n <= 512 else 3
-
-    def _rim_quadrature(self, a0, a1, b0, b1, nq: int = 16, with_dirs: bool = False):
-        """∫∫ over pixel ∩ disc of jac (solid angle) and of jac·ω, for pixels (P,) given by
-        their edges a0 < a1, b0 < b1. Outer x split where the clipped inner limits change,
-        x = end ∓ (len)·t² substitutions take the √(1−x²) branch point out."""
-        lo_x = np.maximum(a0, -1.0)
-        hi_x = np.minimum(a1, 1.0)
-        cand = [a0, a1]
-        for bb in (b0, b1):
-            s = np.sqrt(np.clip(1.0 - bb * bb, 0.0, None))
-            cand += [s, -s]
-        brk = np.sort(np.clip(np.stack(cand, -1), lo_x[:, None], hi_x[:, None]), axis=-1)
-        t, wt = _gauss(nq)
-        omega = np.zeros(a0.shape)
-        vec = np.zeros((*a0.shape, 3))
-        for k in range(brk.shape[1] - 1):
-            lo, hi = brk[:, k][:, None], brk[:, k + 1][:, None]
-            ln = hi - lo
-            at_right = hi >= 1.0
-            x = np.where(at_right, hi - ln * t * t, lo + ln * t * t)  # (P, nq)
-            wx = 2.0 * ln * t * wt
-            s = np.sqrt(np.clip(1.0 - x * x, 0.0, None))
-            ylo = np.maximum(b0[:, None], -s)
-            yhi = np.minimum(b1[:, None], s)
-            ly = np.clip(yhi - ylo, 0.0, None)
-            y = ylo[..., None] + ly[..., None] * t  # (P, nq, nq)
-            w = (wx * ly)[..., None] * wt
-            xx = np.broadcast_to(x[..., None], y.shape)
-            r = np.hypot(xx, y)
-            jw = self.jac(np.minimum(r, 1.0)) * w
-            omega += jw.sum(axis=(1, 2))
-            if with_dirs:
-                vec += np.einsum("pij,pijc->pc", jw, self._dirs_ab(xx, y))
-        return omega, vec
+    def _exact_solid_angles(self, n: int) -> NDArray[np.float64] | None:
+        """Closed-form pixel solid angles (N, N), where the radial map has them."""
+        return None
 
 
 @lru_cache(maxsize=8)
 def _disc_tables(layout: _Disc, n: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(solid angles (N, N), directions (N, N, 3)) of a disc layout, read-only, cached."""
-    edges = -1.0 + 2.0 * np.arange(n + 1) / n  # a edges, left to right
-    centres = 0.5 * (edges[:-1] + edges[1:])
-    a = centres[None, :]
-    b = -centres[:, None]  # row j: b = 1 − 2(j+0.5)/n
-    dirs = layout._dirs_ab(np.broadcast_to(a, (n, n)), np.broadcast_to(b, (n, n)))
-    # nearest and farthest distance of each pixel square to the centre
-    lo1 = np.minimum(np.abs(edges[:-1]), np.abs(edges[1:]))
-    lo1 = np.where(edges[:-1] * edges[1:] < 0, 0.0, lo1)
-    hi1 = np.maximum(np.abs(edges[:-1]), np.abs(edges[1:]))
-    rmin = np.hypot(lo1[::-1][:, None], lo1[None, :])
-    rmax = np.hypot(hi1[::-1][:, None], hi1[None, :])
-    inside = rmax <= 1.0
-    rim = (rmin < 1.0) & ~inside
-    omega = layout._exact_solid_angles(n, edges)
-    h = 2.0 / n
-    if omega is None:
-        omega = np.zeros((n, n))
-        # interior pixels: tensor Gauss on the (analytic) Jacobian, one pixel row at a time,
-        # over the left half only (the table is mirror symmetric in a and in b)
-        q = layout._interior_order(n)
-        t, wt = _gauss(q)
-        half = (n + 1) // 2
-        xs = (edges[:half, None] + h * t[None, :]).ravel()  # (half q,)
-        wq = np.outer(wt, wt) * h * h
-        for j in range(half):
-            if not inside[j, :half].any():
-                continue
-            ys = 1.0 - 2.0 * j / n - h * t  # (q,)
-            r = np.hypot(xs[None, :], ys[:, None])  # (q, half q)
-            f = layout.jac(np.minimum(r, 1.0)).reshape(q, half, q)
-            omega[j, :half] = np.einsum("inj,ij->n", f, wq)
-        omega[:, n - half:] = omega[:, :half][:, ::-1]
-        omega[n - half:, :] = omega[:half, :][::-1, :]
-        omega[~inside] = 0.0
-        # rim pixels: quadrature clipped to the disc
-        jr, ir = np.nonzero(rim)
-        if jr.size:
-            b1 = 1.0 - 2.0 * jr / n
-            omega[jr, ir] = layout._rim_quadrature(edges[ir], edges[ir + 1], b1 - h, b1)[0]
-    # rim pixels whose centre lies outside the disc look along their mean direction
-    rc = np.hypot(centres[None, :], centres[:, None])
-    jr, ir = np.nonzero(rim & (rc >= 1.0))
-    if jr.size:
-        b1 = 1.0 - 2.0 * jr / n
-        vec = layout._rim_quadrature(edges[ir], edges[ir + 1], b1 - h, b1, nq=6,
-                                     with_dirs=True)[1]
-        vn = np.linalg.norm(vec, axis=-1, keepdims=True)
-        dirs[jr, ir] = vec / np.where(vn > 0, vn, 1.0)
-    dirs[omega <= 0] = 0.0
+    """(solid angles (N, N), directions (N, N, 3)) of a disc layout, read-only, cached.
+
+    Solid angles are ∫∫ jac(r) da db over each pixel ∩ disc, jac = dω / (da db): closed form
+    where the layout has one, else tensor Gauss–Legendre inside the disc (order 8 → 3 as N
+    grows) and, for pixels cut by the rim, a quadrature clipped to the disc. Directions are
+    the pixel centres', except rim pixels whose centre lies outside the disc, which look along
+    their mean direction. Pixels outside the disc: 0 and (0, 0, 0). One quadrant is computed
+    (numba) and mirrored: the tables are symmetric in a and in b.
+    """
+    from ._layout_kernels import disc_quadrant  # numba, imported lazily
+
+    q = 8 if n <= 16 else 6 if n <= 64 else 4 if n <= 512 else 3
+    exact = layout._exact_solid_angles(n)
+    om, dq = disc_quadrant(layout.kind, n, np.zeros((0, 0)) if exact is None else exact,
+                           *_gauss(q), *_gauss(16), *_gauss(6))
+    half = (n + 1) // 2
+    omega = np.empty((n, n))
+    dirs = np.empty((n, n, 3))
+    omega[:half, :half] = om
+    dirs[:half, :half] = dq
+    omega[:half, n - half:] = om[:, ::-1]  # a → −a: x → −x
+    dirs[:half, n - half:] = dq[:, ::-1] * [-1.0, 1.0, 1.0]
+    omega[n - half:] = omega[:half][::-1]  # b → −b: y → −y
+    dirs[n - half:] = dirs[:half][::-1] * [1.0, -1.0, 1.0]
     omega.flags.writeable = False
     dirs.flags.writeable = False
     return omega, dirs
@@ -414,19 +345,13 @@ class Angular(_Disc):
 
     name = "angular"
     label = "an angular map"
+    kind = 0  # jac: dω = sin θ dθ dφ = π sin(πr)/r · r dr dφ
 
     def theta(self, r):
         return np.pi * r
 
     def radius(self, theta):
         return theta / np.pi
-
-    def jac(self, r):
-        # dω = sin θ dθ dφ = π sin(πr)/r · r dr dφ ; sin(πr)/r = π sinc(r)
-        return np.pi * np.pi * np.sinc(r) * (r < 1.0)
-
-    def _exact_solid_angles(self, n, edges):
-        return None
 
 
 class MirrorBall(_Disc):
@@ -441,11 +366,11 @@ class MirrorBall(_Disc):
     def radius(self, theta):
         return np.sin(0.5 * theta)
 
-    def jac(self, r):
-        return np.where(r < 1.0, 4.0, 0.0)
+    kind = 1  # jac = 4
 
-    def _exact_solid_angles(self, n, edges):
+    def _exact_solid_angles(self, n):
         # 4 × area(pixel ∩ unit disc), by inclusion–exclusion of quarter-plane areas
+        edges = -1.0 + 2.0 * np.arange(n + 1) / n
         s = _disc_corner_area(edges[None, :], edges[::-1][:, None])  # S(a_i, b_j), b top→bottom
         area = s[1:, 1:] - s[1:, :-1] - s[:-1, 1:] + s[:-1, :-1]
         return 4.0 * np.abs(area)
