@@ -168,3 +168,33 @@ def test_shader_compiles(fmt, tmp_path):
     path.write_text(src)
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_every_command_reads_every_format_back(fmt, tmp_path, capsys):
+    """`prefilter --format F -o FILE`, then `--coeffs FILE` in each command that takes it: the
+    same lighting comes back (cs-phase signs and gltf/cmgen scalings undone)."""
+    from shprobe.cli.main import main
+    from shprobe.images import read_image
+    from shprobe.prefilter import irradiance, irradiance_map
+    from shprobe.presets import get_preset
+
+    L = get_preset("grace")
+    f = tmp_path / f"c.{fmt}"
+    assert main(["prefilter", "--preset", "grace", "--format", fmt, "-o", str(f)]) == 0
+    capsys.readouterr()
+    assert main(["prefilter", "--coeffs", str(f), "--format", "json",
+                 "-o", str(tmp_path / "p.json")]) == 0
+    back = np.array(json.loads((tmp_path / "p.json").read_text())["coefficients"])
+    np.testing.assert_allclose(back, L, atol=5e-6)
+    assert main(["export", "--coeffs", str(f), "--format", "json",
+                 "-o", str(tmp_path / "x.json")]) == 0
+    np.testing.assert_allclose(import_coeffs(tmp_path / "x.json"), L, atol=5e-6)
+    assert main(["irradiance", "--coeffs", str(f), "--size", "16x8",
+                 "-o", str(tmp_path / "e.exr")]) == 0
+    want = irradiance_map(L, "latlong", (16, 8)).radiance
+    np.testing.assert_allclose(read_image(tmp_path / "e.exr"), want, rtol=1e-4, atol=1e-4)
+    assert main(["render", "--coeffs", str(f), "--sphere", "--size", "16x16",
+                 "-o", str(tmp_path / "r.exr")]) == 0
+    img = read_image(tmp_path / "r.exr")
+    assert img[8, 8] == pytest.approx(irradiance(L, [0.0, 0.0, 1.0]) / np.pi, rel=0.05)

@@ -369,6 +369,11 @@ def test_json_document_round_trip(tmp_path):
     (tmp_path / "five.json").write_text('{"coefficients": [[1,2,3],[1,2,3]]}')
     with pytest.raises(ShprobeError, match="lmax"):
         read_coeffs_json(tmp_path / "five.json")
+    from shprobe.export import export_coeffs
+
+    (tmp_path / "cs.json").write_text(export_coeffs(c, "cs-phase"))  # other signs: refused
+    with pytest.raises(ShprobeError, match=r"cs\.json.*cs-phase"):
+        read_coeffs_json(tmp_path / "cs.json")
 
 
 # ----------------------------------------------------------------------------- presets / env

@@ -15,7 +15,6 @@ error report.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Iterator
@@ -501,32 +500,25 @@ def coeffs_document(coeffs: ArrayLike, source: str | None = None, layout: str | 
 
 
 def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
-    """Coefficients (K, 3) from a JSON document written by ``shprobe prefilter`` (or any JSON
-    with ``coefficients`` [k][rgb], or a bare [k][rgb] list)."""
+    """Coefficients (K, C) from a shprobe JSON document (``shprobe prefilter --format json``,
+    or any JSON object with ``coefficients`` [k][rgb] in shprobe's convention).
+
+    Other formats (Condon–Shortley JSON, three.js, glTF, shaders, cmgen) are refused here:
+    :func:`shprobe.export.import_coeffs` reads every format and converts it.
+    """
+    from .export import parse_coeffs
+
     try:
         with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
+            text = f.read()
     except FileNotFoundError:
         raise ShprobeError("no such file", path) from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ShprobeError(f"not a JSON file ({str(e).splitlines()[0]})", path) from None
-    data = doc.get("coefficients") if isinstance(doc, dict) else doc
-    if data is None:
-        raise ShprobeError("JSON has no 'coefficients' entry", path)
-    try:
-        c = np.asarray(data, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ShprobeError("'coefficients' is not a numeric [k][rgb] array", path) from None
-    if c.ndim == 1:
-        c = np.repeat(c[:, None], 3, axis=1)
-    if c.ndim != 2 or c.shape[1] != 3:
-        raise ShprobeError(f"'coefficients' must be [k][rgb], got shape {c.shape}", path)
-    try:
-        lmax_of(c.shape[0])
-    except ShprobeError as e:
-        raise ShprobeError(e.message, path) from None
-    if not np.all(np.isfinite(c)):
-        raise ShprobeError("'coefficients' contain NaN or Inf", path)
+    except UnicodeDecodeError:
+        raise ShprobeError("not a text file", path) from None
+    c, fmt = parse_coeffs(text, os.fspath(path))
+    if fmt != "json":
+        raise ShprobeError(f"holds {fmt} coefficients, not a shprobe JSON document (read it "
+                           "with shprobe.export.import_coeffs)", path)
     return c
 
 

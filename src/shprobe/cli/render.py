@@ -29,30 +29,14 @@ def source_options(fn):
 
 def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
                 required=True) -> tuple[Any, str, Any]:
-    """(coefficients (K, C), name, Env or None) from the source options. ``--coeffs`` reads
-    every `shprobe export` format (:func:`shprobe.export.import_coeffs`)."""
+    """(coefficients (K, C), name, Env or None) from the source options
+    (:func:`shprobe.cli.sources.resolve_coeffs`)."""
     import numpy as np
 
-    given = [v for v in (probe, preset, coeffs_file) if v]
-    if not given and not required:
+    if not required and not (probe or preset or coeffs_file):
         return None, "", None
-    if coeffs_file and len(given) == 1:
-        from ..export import import_coeffs
-
-        return _cut(import_coeffs(coeffs_file), lmax, coeffs_file), coeffs_file, None
     src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
     return np.asarray(src.coeffs), src.source, src.env
-
-
-def _cut(c, lmax, name):
-    from ..sh import lmax_of, num_coeffs
-
-    if lmax is None:
-        return c
-    if lmax > lmax_of(c.shape[0]):
-        raise ShprobeError(f"has coefficients up to lmax={lmax_of(c.shape[0])}, not {lmax}",
-                           name)
-    return c[: num_coeffs(lmax)]
 
 
 def parse_window(text: str | None):

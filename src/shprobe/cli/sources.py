@@ -40,8 +40,9 @@ def coeff_source_options(fn: Callable) -> Callable:
     """Add ``[PROBE]``, ``--layout``, ``--clamp``, ``--preset`` and ``--coeffs`` to a command
     (parameters ``probe``, ``layout``, ``clamp``, ``preset``, ``coeffs_file``)."""
     fn = click.option("--coeffs", "coeffs_file", type=click.Path(dir_okay=False),
-                      help="Read lighting coefficients from a JSON file written by "
-                           "`shprobe prefilter --format json`.")(fn)
+                      help="Read lighting coefficients from a file in any `--format` that "
+                           "`shprobe prefilter` writes (json, three, gltf, cmgen, cs-phase, "
+                           "or a shprobe shader).")(fn)
     fn = click.option("--preset", type=click.Choice(PRESET_NAMES),
                       help="Use an R&H 2001 Fig. 2 table instead of a probe.")(fn)
     fn = clamp_option(fn)
@@ -55,8 +56,9 @@ def resolve_coeffs(probe: str | None = None, preset: str | None = None,
                    ) -> CoeffSource:
     """Exactly one of ``probe`` / ``preset`` / ``coeffs_file`` → coefficients.
 
-    A probe is projected to ``lmax`` (R&H eq. 10). A preset (lmax 2) or JSON file is cut to
-    ``lmax`` when that is lower, and refused when it is higher. ``lmax=None`` keeps a preset's
+    A probe is projected to ``lmax`` (R&H eq. 10). A preset (lmax 2) or coefficient file (any
+    export format, :func:`shprobe.export.import_coeffs`; one channel is repeated to RGB) is cut
+    to ``lmax`` when that is lower, and refused when it is higher. ``lmax=None`` keeps a preset's
     or file's own degree (a probe then uses 2). ``need_env`` refuses sources without a probe.
     """
     from ..sh import lmax_of, num_coeffs
@@ -80,9 +82,11 @@ def resolve_coeffs(probe: str | None = None, preset: str | None = None,
 
         c, name, have = get_preset(preset), f"preset:{preset}", None
     else:
-        from ..prefilter import read_coeffs_json
+        from ..export import import_coeffs
 
-        c, name, have = read_coeffs_json(coeffs_file), coeffs_file, coeffs_file
+        c, name, have = import_coeffs(coeffs_file), coeffs_file, coeffs_file
+        if c.shape[1] == 1:
+            c = np.repeat(c, 3, axis=1)
     if lmax is not None:
         own = lmax_of(c.shape[0])
         if lmax > own:
