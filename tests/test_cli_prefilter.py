@@ -213,3 +213,30 @@ def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_pat
     one_line_error(rc, err)
     assert "e.gif" in err and "extension" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["probe.hdr"]
+
+
+def test_six_cube_face_files(tmp_path, capsys):
+    """PROBE given as six face images (+X −X +Y −Y +Z −Z): f = 1 + a·ω has L00 = √(4π) and
+    L_1m = a·√(4π/3) on (y, z, x) (R&H signs)."""
+    from shprobe.layouts import env_from_function
+
+    a = np.array([0.5, 0.2, -0.3])
+    env = env_from_function(lambda d: 1.0 + d @ a[:, None] * np.ones(3), "cube", 16)
+    faces = [tmp_path / f"{n}.exr" for n in ("px", "nx", "py", "ny", "pz", "nz")]
+    for k, f in enumerate(faces):
+        write_image(f, env.radiance[k])
+    out = tmp_path / "c.json"
+    rc, _, _ = run(["prefilter", *faces, "--format", "json", "-o", out], capsys)
+    assert rc == 0
+    doc = json.loads(out.read_text())
+    assert doc["layout"] == "cube"
+    want = np.zeros(9)
+    want[0] = np.sqrt(4 * np.pi)
+    want[[1, 2, 3]] = a[[1, 2, 0]] * np.sqrt(4 * np.pi / 3)
+    np.testing.assert_allclose(np.array(doc["coefficients"]), want[:, None] * np.ones(3),
+                               atol=1e-5)
+    rc, _, err = run(["prefilter", *faces[:3]], capsys)
+    one_line_error(rc, err)
+    assert "six cube faces" in err
+    rc, _, err = run(["prefilter", *faces, "--layout", "latlong"], capsys)
+    one_line_error(rc, err)

@@ -73,7 +73,7 @@ clamp_option = click.option(
 )
 
 
-def load_env_cli(path: str, layout: str = "auto", clamp: bool = False):
+def load_env_cli(path: str | list[str], layout: str = "auto", clamp: bool = False):
     """``shprobe.layouts.load_env`` for commands: an LDR image gives one warning line on
     stderr (not a Python warning)."""
     import warnings

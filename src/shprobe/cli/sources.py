@@ -36,9 +36,23 @@ class CoeffSource:
     env: Any = None
 
 
+def _probe_paths(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]
+                 ) -> str | list[str] | None:
+    """PROBE...: none, one image, or six cube-face images (+X −X +Y −Y +Z −Z)."""
+    if not value:
+        return None
+    if len(value) == 1:
+        return value[0]
+    if len(value) == 6:
+        return list(value)
+    raise click.BadParameter(f"give one probe image, or six cube faces in the order "
+                             f"+X -X +Y -Y +Z -Z (got {len(value)} files)", ctx, param)
+
+
 def coeff_source_options(fn: Callable) -> Callable:
-    """Add ``[PROBE]``, ``--layout``, ``--clamp``, ``--preset`` and ``--coeffs`` to a command
-    (parameters ``probe``, ``layout``, ``clamp``, ``preset``, ``coeffs_file``)."""
+    """Add ``[PROBE]...``, ``--layout``, ``--clamp``, ``--preset`` and ``--coeffs`` to a command
+    (parameters ``probe``, ``layout``, ``clamp``, ``preset``, ``coeffs_file``). PROBE is one
+    image, or six cube-face images in the order +X −X +Y −Y +Z −Z."""
     fn = click.option("--coeffs", "coeffs_file", type=click.Path(dir_okay=False),
                       help="Read lighting coefficients from a file in any `--format` that "
                            "`shprobe prefilter` writes (json, three, gltf, cmgen, cs-phase, "
@@ -47,10 +61,11 @@ def coeff_source_options(fn: Callable) -> Callable:
                       help="Use an R&H 2001 Fig. 2 table instead of a probe.")(fn)
     fn = clamp_option(fn)
     fn = layout_option(fn)
-    return click.argument("probe", required=False, type=click.Path(dir_okay=False))(fn)
+    return click.argument("probe", nargs=-1, callback=_probe_paths, metavar="[PROBE]...",
+                          type=click.Path(dir_okay=False))(fn)
 
 
-def resolve_coeffs(probe: str | None = None, preset: str | None = None,
+def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = None,
                    coeffs_file: str | None = None, layout: str = "auto",
                    lmax: int | None = 2, clamp: bool = False, need_env: bool = False
                    ) -> CoeffSource:
@@ -74,8 +89,11 @@ def resolve_coeffs(probe: str | None = None, preset: str | None = None,
         from ..prefilter import project
         from .common import load_env_cli
 
-        env = load_env_cli(probe, layout, clamp)
-        return CoeffSource(project(env, 2 if lmax is None else lmax), probe,
+        if isinstance(probe, list) and layout not in ("auto", "cube"):
+            raise ShprobeError(f"six face images make a cube map, not --layout {layout}")
+        env = load_env_cli(probe, "auto" if isinstance(probe, list) else layout, clamp)
+        name = probe if isinstance(probe, str) else f"{probe[0]} … {probe[-1]} (cube faces)"
+        return CoeffSource(project(env, 2 if lmax is None else lmax), name,
                            env.layout.name, env)
     if preset:
         from ..presets import get_preset
