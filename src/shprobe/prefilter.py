@@ -361,7 +361,9 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
 
     O(T·S); a numba kernel parallel over normals, fed ``chunk`` samples at a time so memory
     stays bounded. ``subdivide=k`` splits every pixel into k×k sub-pixels (exact sub-solid
-    angles, constant radiance) to check convergence. ``progress(done, total)`` is called with
+    angles, constant radiance) to check convergence; lat-long builds them chunk by chunk, the
+    other layouts build their k²-times larger pixel tables whole (memory O(k²·S)).
+    ``progress(done, total)`` is called with
     the normal–sample pairs done so far, every ~2²³ pairs, when given.
     """
     n = np.asarray(normals, dtype=np.float64)
