@@ -73,12 +73,33 @@ def test_cli_render_bunny_probe(tmp_path, grace_path, bunny_path):
     assert im.std() > 5  # background shows the probe, the bunny is shaded
 
 
-def test_cli_basis_images(tmp_path):
+def test_cli_basis_images(tmp_path, capsys):
+    from PIL import Image
+
     d = tmp_path / "basis"
-    assert run("basis-images", "--sphere", "--size", "24x24", "-o", d) == 0
+    assert run("basis-images", "--sphere", "--size", "25x25", "--ortho", "-o", d) == 0
     names = sorted(p.name for p in d.iterdir())
     assert len([n for n in names if n.endswith(".exr")]) == 9
     assert "basis.png" in names and "basis_l1_m-1.png" in names
+    # R&H Fig. 4 colouring: positive green, negative blue. Orthographic camera on +Z: the
+    # centre pixel sees n = +Z, where y_10 > 0 and y_20 > 0; the right edge n ≈ +X, where
+    # y_20 = 0.315(3z² − 1) < 0 and y_11 > 0, the left edge n ≈ −X with y_11 < 0.
+    px = {k: np.asarray(Image.open(d / f"basis_{k}.png")).astype(int)
+          for k in ("l1_m+0", "l2_m+0", "l1_m+1")}
+    c, e = 12, 23
+    assert px["l1_m+0"][c, c, 1] > 100 and px["l1_m+0"][c, c, 2] == 0
+    assert px["l2_m+0"][c, c, 1] > 50 and px["l2_m+0"][c, e, 2] > 30
+    assert px["l2_m+0"][c, e, 1] == 0
+    assert px["l1_m+1"][c, e, 1] > 100 and px["l1_m+1"][c, 1, 2] > 100
+    assert px["l1_m+1"][c, 1, 1] == 0 and np.all(px["l1_m+1"][..., 0] == 0)
+    # one existing output: refused before anything is written
+    d2 = tmp_path / "b2"
+    d2.mkdir()
+    (d2 / "basis.png").write_bytes(b"keep")
+    capsys.readouterr()
+    assert run("basis-images", "--sphere", "--size", "8x8", "-o", d2) == 1
+    assert "basis.png" in capsys.readouterr().err
+    assert [p.name for p in d2.iterdir()] == ["basis.png"]
 
 
 def test_cli_edit_lights_and_edits(tmp_path):
@@ -100,6 +121,24 @@ def test_cli_edit_lights_and_edits(tmp_path):
     R = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # 90° about +Y
     np.testing.assert_allclose(import_coeffs(out2), rotate(L, R), atol=1e-10)
     assert run("edit", "--set", "1,5=1", "-o", tmp_path / "bad.json") == 1
+    # edits above --lmax are refused, not silently grown
+    for args in (["--set", "3,0=1"], ["--negate-band", "5"], ["--scale-band", "3=2"]):
+        assert run("edit", "--preset", "grace", *args, "-o", tmp_path / "x.json") == 1
+    assert not (tmp_path / "x.json").exists()
+    assert run("edit", "--preset", "grace", "--lmax", "3", "--set", "3,0=1",
+               "-o", tmp_path / "x.json") == 0
+    assert import_coeffs(tmp_path / "x.json").shape == (16, 3)
+
+
+def test_cli_edit_blends_a_probe_image(tmp_path, grace_path, ennis_path):
+    """--blend PROBE:W projects the image: grace + 0.5·ennis."""
+    from shprobe.layouts import load_env
+    from shprobe.prefilter import project
+
+    out = tmp_path / "b.json"
+    assert run("edit", grace_path, "--blend", f"{ennis_path}:0.5", "-o", out) == 0
+    want = project(load_env(grace_path), 2) + 0.5 * project(load_env(ennis_path), 2)
+    np.testing.assert_allclose(import_coeffs(out), want, rtol=1e-6, atol=1e-9)
 
 
 def test_cli_window_ennis(tmp_path, ennis_path, capsys):

@@ -213,23 +213,30 @@ def register(group: click.Group) -> None:
         EXRs: the signed linear values. Any lighting L gives image = sum L_lm * basis_lm."""
         import numpy as np
 
+        from ..files import check_output_path
         from ..images import write_image
         from ..render import basis_images, basis_visual
-        from ..sh import sh_lm
+        from ..sh import check_lmax, num_coeffs, sh_lm
 
-        geo = load_geometry(mesh, sphere or not mesh)
         if not mesh and not sphere:
             raise ShprobeError("give a MESH or --sphere")
+        out = Path(outdir)
+        if out.exists() and not out.is_dir():
+            raise ShprobeError("exists and is not a folder", out)
+        stems = [out / "basis_l{}_m{:+d}".format(*sh_lm(k))
+                 for k in range(num_coeffs(check_lmax(lmax)))]
+        if out.is_dir():  # every output refused before any work
+            for p in [*(st.with_suffix(e) for st in stems for e in (".exr", ".png")),
+                      out / "basis.png"]:
+                check_output_path(p, force)
+        geo = load_geometry(mesh, sphere)
         cam = make_camera(size, azimuth, elevation, fov, ortho)
         res = basis_images(geo, cam, lmax=lmax, mode=mode)
-        out = Path(outdir)
         out.mkdir(parents=True, exist_ok=True)
         B = res.image
         scale = float(np.abs(B).max())
         tiles = []
-        for k in range(B.shape[-1]):
-            l, m = sh_lm(k)
-            stem = out / f"basis_l{l}_m{m:+d}"
+        for k, stem in enumerate(stems):
             write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
             vis = basis_visual(B[..., k], scale)
             write_image(stem.with_suffix(".png"), vis, overwrite=force)
@@ -247,11 +254,13 @@ def register(group: click.Group) -> None:
 
     @group.command("edit")
     @source_options
-    @click.option("--lmax", default=2, show_default=True,
-                  help="Degree of the result (sources are cut or zero-padded).")
+    @click.option("--lmax", type=click.IntRange(0, 64), default=2, show_default=True,
+                  help="Degree of the result (sources are cut or zero-padded; edits above it "
+                       "are refused).")
     @click.option("--blend", "blends", multiple=True,
-                  help="Add another lighting FILE:WEIGHT (any export format) or "
-                       "preset:NAME:WEIGHT. Repeatable.")
+                  help="Add another lighting FILE:WEIGHT (a probe image, projected, or "
+                       "coefficients in any export format) or preset:NAME:WEIGHT. "
+                       "Repeatable.")
     @click.option("--weight", default=1.0, show_default=True,
                   help="Weight of the main source in the blend.")
     @click.option("--directional", multiple=True,
@@ -284,20 +293,36 @@ def register(group: click.Group) -> None:
 
         from .. import design
         from ..export import export_coeffs, import_coeffs
-        from ..files import write_text
+        from ..files import check_output_path, write_text
+        from ..images import READ_EXTENSIONS
 
+        check_output_path(output, force)
         base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, None,
                                     required=False)
         L = np.zeros(((lmax + 1) ** 2, 3)) if base is None else \
             design.pad_coeffs(base, lmax) * weight
         for b in blends:
             head, _, w = b.rpartition(":")
+            if not head:
+                raise ShprobeError(f"--blend {b!r}: expected FILE:WEIGHT or preset:NAME:WEIGHT")
             if head.startswith("preset:"):
                 c, _, _ = load_source(None, head[7:], None, lmax=None)
+            elif Path(head).suffix.lower() in READ_EXTENSIONS:  # a probe image
+                c, _, _ = load_source(head, None, None, layout, clamp, lmax)
             else:
                 c = import_coeffs(head)
             L = design.blend([(L, 1.0), (design.pad_coeffs(c, lmax),
                                          parse_floats(w, 1, "blend weight")[0])])
+
+        def lm(text: str, what: str) -> tuple[int, int]:
+            l, m = _lm(text)
+            if l > lmax:
+                raise ShprobeError(f"{what} {text!r}: l = {l} is above --lmax {lmax}")
+            return l, m
+
+        def band(text: str, what: str) -> int:
+            return lm(f"{text},0", what)[0]
+
         for d in directional:
             dirs, _, rgb = d.partition(":")
             L = L + design.directional_light(parse_floats(dirs, 3, "direction"),
@@ -318,22 +343,20 @@ def register(group: click.Group) -> None:
                 lmax)
         for s in sets:
             k, v = _kv(s, "--set")
-            L = design.set_coeff(L, *_lm(k), parse_floats(v, None, "value"))
+            L = design.set_coeff(L, *lm(k, "--set"), parse_floats(v, None, "value"))
         for s in scales:
             k, v = _kv(s, "--scale")
-            L = design.scale_coeff(L, *_lm(k), parse_floats(v, None, "factor"))
+            L = design.scale_coeff(L, *lm(k, "--scale"), parse_floats(v, None, "factor"))
         for s in negates:
-            L = design.negate_coeff(L, *_lm(s))
+            L = design.negate_coeff(L, *lm(s, "--negate"))
         for s in set_band:
             k, v = _kv(s, "--set-band")
-            L = design.set_band(L, int(parse_floats(k, 1, "band")[0]),
-                                parse_floats(v, None, "value"))
+            L = design.set_band(L, band(k, "--set-band"), parse_floats(v, None, "value"))
         for s in scale_band:
             k, v = _kv(s, "--scale-band")
-            L = design.scale_band(L, int(parse_floats(k, 1, "band")[0]),
-                                  parse_floats(v, None, "factor"))
+            L = design.scale_band(L, band(k, "--scale-band"), parse_floats(v, None, "factor"))
         for b in negate_band:
-            L = design.negate_band(L, b)
+            L = design.negate_band(L, band(str(b), "--negate-band"))
         for r in rotations:
             L = design.rotate_lighting(L, _rotation(r))
         L, wdesc = apply_window_spec(L, parse_window(window))
