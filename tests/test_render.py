@@ -276,6 +276,39 @@ def test_rotation_equivalence():
     np.testing.assert_allclose(res.image[res.mask], expect, rtol=1e-4, atol=1e-5)
 
 
+def test_material_and_face_colours_from_disk(tmp_path):
+    """Untextured albedo from the file: OBJ ``Kd``, glTF ``baseColorFactor`` (both linear),
+    PLY face colours (8-bit sRGB); files written by hand except the GLB."""
+    import trimesh
+    from trimesh.visual import TextureVisuals
+    from trimesh.visual.material import PBRMaterial
+
+    L = lighting()
+    cam = Camera(16, 16, projection="orthographic", ortho_height=1.0)
+    white = render(_quad(), L, cam)
+    quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+    (tmp_path / "k.mtl").write_text("newmtl m\nKd 0.8 0.4 0.2\n")
+    (tmp_path / "k.obj").write_text(f"mtllib k.mtl\n{quad}usemtl m\nf 1 2 3\nf 1 3 4\n")
+    res = render(load_mesh(tmp_path / "k.obj"), L, cam)
+    np.testing.assert_allclose(res.image[white.mask], white.image[white.mask] * [0.8, 0.4, 0.2],
+                               rtol=1e-2)
+    g = trimesh.Trimesh(_quad().vertices, _quad().faces, process=False)
+    g.visual = TextureVisuals(material=PBRMaterial(baseColorFactor=[0.2, 1.0, 0.6, 1.0]))
+    g.export(tmp_path / "g.glb")
+    res = render(load_mesh(tmp_path / "g.glb"), L, cam)
+    np.testing.assert_allclose(res.image[white.mask], white.image[white.mask] * [0.2, 1.0, 0.6],
+                               rtol=1e-2)
+    (tmp_path / "f.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+        "-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2 255 0 0\n3 0 2 3 0 0 255\n")
+    res = render(load_mesh(tmp_path / "f.ply"), L, cam)
+    # face 0 (lower right of the diagonal) red, face 1 (upper left) blue
+    assert res.image[12, 14, 0] > 0.5 * white.image[12, 14, 0] and res.image[12, 14, 2] == 0
+    assert res.image[2, 1, 2] > 0.5 * white.image[2, 1, 2] and res.image[2, 1, 0] == 0
+
+
 def test_textured_obj_and_coloured_ply_from_disk(tmp_path):
     """Albedo taken from the file: an OBJ + MTL + PNG texture, a PLY with vertex colours."""
     import trimesh

@@ -102,7 +102,7 @@ def test_cli_basis_images(tmp_path, capsys):
     assert [p.name for p in d2.iterdir()] == ["basis.png"]
 
 
-def test_cli_edit_lights_and_edits(tmp_path):
+def test_cli_edit_lights_and_edits(tmp_path, capsys):
     from shprobe import design
 
     out = tmp_path / "e.json"
@@ -121,6 +121,8 @@ def test_cli_edit_lights_and_edits(tmp_path):
     R = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # 90° about +Y
     np.testing.assert_allclose(import_coeffs(out2), rotate(L, R), atol=1e-10)
     assert run("edit", "--set", "1,5=1", "-o", tmp_path / "bad.json") == 1
+    assert run("edit", "--cone", "0,0,1:200:1", "-o", tmp_path / "bad.json") == 1
+    assert "degrees" in capsys.readouterr().err
     # edits above --lmax are refused, not silently grown
     for args in (["--set", "3,0=1"], ["--negate-band", "5"], ["--scale-band", "3=2"]):
         assert run("edit", "--preset", "grace", *args, "-o", tmp_path / "x.json") == 1
@@ -171,6 +173,14 @@ def test_cli_bad_mesh_is_one_line(tmp_path, capsys):
                "-o", tmp_path / "x.png") == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("shprobe: error:") and "m.obj" in err and "\n" not in err
+    # a point and a flat sliver: no extent / no normals, named
+    (tmp_path / "p.obj").write_text("v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n")
+    (tmp_path / "s.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    for name, what in (("p.obj", "zero extent"), ("s.obj", "non-zero area")):
+        assert run("render", "--coeffs", tmp_path / "L.json", "--mesh", tmp_path / name,
+                   "-o", tmp_path / "x.png") == 1
+        err = capsys.readouterr().err.strip()
+        assert name in err and what in err and "\n" not in err, err
 
 
 def test_bunny_loads(bunny_path):

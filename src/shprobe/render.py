@@ -179,6 +179,10 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
         raise ShprobeError("mesh file holds no triangles", p)
     if not np.all(np.isfinite(obj.vertices)):
         raise ShprobeError("mesh has non-finite vertex coordinates", p)
+    if not np.ptp(obj.vertices, axis=0).max() > 0:
+        raise ShprobeError("mesh has zero extent (all vertices coincide)", p)
+    if not obj.area > 0:
+        raise ShprobeError("mesh has no triangle of non-zero area (no normals)", p)
     return obj
 
 
@@ -366,7 +370,8 @@ def _trace_sphere(origins: NDArray, dirs: NDArray) -> Hits:
 
 
 def _mesh_texture(mesh: trimesh.Trimesh) -> tuple[NDArray, NDArray] | None:
-    """(uv (V, 2), linear texture (h, w, 3)) of a textured mesh, else None."""
+    """(uv (V, 2), linear texture (h, w, 3)) of a textured mesh, else None. A glTF texture is
+    multiplied by its ``baseColorFactor`` (glTF 2.0 §3.9.2)."""
     vis = getattr(mesh, "visual", None)
     if vis is None or getattr(vis, "kind", None) != "texture":
         return None
@@ -379,8 +384,11 @@ def _mesh_texture(mesh: trimesh.Trimesh) -> tuple[NDArray, NDArray] | None:
             break
     if uv is None or img is None:
         return None
-    tex = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
-    return np.asarray(uv, dtype=np.float64), srgb_to_linear(tex)
+    tex = srgb_to_linear(np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0)
+    factor = getattr(mat, "baseColorFactor", None)
+    if factor is not None:
+        tex = tex * (np.asarray(factor, np.float32)[:3] / 255.0)
+    return np.asarray(uv, dtype=np.float64), tex
 
 
 def _mesh_vertex_colors(mesh: trimesh.Trimesh) -> NDArray | None:
@@ -388,6 +396,25 @@ def _mesh_vertex_colors(mesh: trimesh.Trimesh) -> NDArray | None:
     if vis is None or getattr(vis, "kind", None) != "vertex":
         return None
     return srgb_to_linear(np.asarray(vis.vertex_colors)[:, :3] / 255.0)
+
+
+def _mesh_face_colors(mesh: trimesh.Trimesh) -> NDArray | None:
+    """Per-face colours (PLY face colours; 8-bit sRGB, like vertex colours) in linear RGB."""
+    vis = getattr(mesh, "visual", None)
+    if vis is None or getattr(vis, "kind", None) != "face":
+        return None
+    return srgb_to_linear(np.asarray(vis.face_colors)[:, :3] / 255.0)
+
+
+def _mesh_material_color(mesh: trimesh.Trimesh) -> NDArray | None:
+    """The constant colour of an untextured material: glTF ``baseColorFactor`` or OBJ ``Kd``
+    (both linear reflectances), else None."""
+    mat = getattr(getattr(mesh, "visual", None), "material", None)
+    for attr in ("baseColorFactor", "diffuse"):
+        v = getattr(mat, attr, None) if mat is not None else None
+        if v is not None:
+            return np.asarray(v, np.float32)[:3] / 255.0
+    return None
 
 
 def sample_texture(tex: NDArray, uv: NDArray) -> NDArray[np.float32]:
@@ -453,6 +480,12 @@ def _albedo_per_pixel(mesh, albedo, hits: Hits, hit: NDArray, C: int) -> NDArray
         vc = _mesh_vertex_colors(mesh)
         if vc is not None:
             return _interp(vc, mesh, hits, hit)[:, :C]
+        fc = _mesh_face_colors(mesh)
+        if fc is not None:
+            return fc[hits.face[hit]][:, :C]
+        mc = _mesh_material_color(mesh)
+        if mc is not None:
+            return np.broadcast_to(mc[None, :C], (int(hit.sum()), min(C, 3)))
         return None
     a = np.asarray(albedo, dtype=np.float32)
     if a.ndim <= 1:
@@ -491,10 +524,11 @@ def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | Non
 
     ``mesh``: a trimesh mesh, or None for the analytic unit sphere (per-vertex mode then uses a
     tessellated sphere). ``mode``: ``"pixel"`` or ``"vertex"`` (R&H §3.2 procedural shader:
-    E at vertices, radiance interpolated). ``albedo``: None (the mesh's texture or vertex
-    colours when it has them, else 1), a scalar or (C,) colour, or (V, C) per-vertex values
-    (linear). ``background``: None (black), a colour, an Env / object with ``sample(dirs)``, a
-    callable, or a lat-long array. Radiance = ρ E(n) / π.
+    E at vertices, radiance interpolated). ``albedo``: None (the mesh's own: its texture, ×
+    glTF ``baseColorFactor``; else vertex colours; else face colours; else the material's
+    colour, glTF ``baseColorFactor`` or OBJ ``Kd``; else 1), a scalar or (C,) colour, or
+    (V, C) per-vertex values (linear). ``background``: None (black), a colour, an Env / object
+    with ``sample(dirs)``, a callable, or a lat-long array. Radiance = ρ E(n) / π.
     """
     camera = camera or Camera()
     if mode not in ("pixel", "vertex"):

@@ -146,8 +146,8 @@ def register(group: click.Group) -> None:
     @click.option("--sphere", is_flag=True, help="Render the analytic unit sphere (default).")
     @camera_options
     @click.option("--albedo", default=None,
-                  help="Constant albedo r,g,b (default: the mesh's texture or vertex colours, "
-                       "else 1).")
+                  help="Constant albedo r,g,b (default: the mesh's texture, vertex or face "
+                       "colours or material colour, else 1).")
     @click.option("--background", default=None,
                   help="'env' (the probe itself, default with a probe), 'none', or r,g,b.")
     @click.option("--exposure", default=0.0, show_default=True,
@@ -331,8 +331,10 @@ def register(group: click.Group) -> None:
             parts = c.split(":")
             if len(parts) != 3:
                 raise ShprobeError(f"--cone {c!r}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
-            L = L + design.cone_light(parse_floats(parts[0], 3, "direction"),
-                                      np.radians(parse_floats(parts[1], 1, "aperture")[0]),
+            ap = parse_floats(parts[1], 1, "aperture")[0]
+            if not 0 < ap <= 180:
+                raise ShprobeError(f"--cone {c!r}: aperture must be in (0, 180] degrees")
+            L = L + design.cone_light(parse_floats(parts[0], 3, "direction"), np.radians(ap),
                                       parse_floats(parts[2], None, "colour"), lmax)
         if sky:
             parts = sky.split(":")
