@@ -198,3 +198,25 @@ def test_every_command_reads_every_format_back(fmt, tmp_path, capsys):
                  "-o", str(tmp_path / "r.exr")]) == 0
     img = read_image(tmp_path / "r.exr")
     assert img[8, 8] == pytest.approx(irradiance(L, [0.0, 0.0, 1.0]) / np.pi, rel=0.05)
+
+
+def test_import_three_light_probe_json_cmgen_labels_and_gltf_document(tmp_path):
+    """three.js LightProbe.toJSON() (object.sh × intensity); cmgen rows labelled otherwise
+    than 'irradiance, pre-scaled base' are refused; the glTF export is a glTF 2.0 document
+    whose scene refers to the light."""
+    doc = {"metadata": {"version": 4.6, "type": "Object"},
+           "object": {"uuid": "x", "type": "LightProbe", "layers": 1, "intensity": 2.0,
+                      "sh": L9.reshape(-1).tolist()}}
+    (tmp_path / "probe.json").write_text(json.dumps(doc))
+    np.testing.assert_allclose(import_coeffs(tmp_path / "probe.json"), 2.0 * L9, atol=1e-12)
+    good = export_coeffs(L9, "cmgen")
+    np.testing.assert_allclose(parse_coeffs(good)[0], L9, atol=1e-12)
+    bad = good.replace("irradiance, pre-scaled base", "radiance")
+    with pytest.raises(ShprobeError, match="pre-scaled base"):
+        parse_coeffs(bad, "sh.txt")
+    unlabelled = "\n".join(line.split("//")[0] for line in good.splitlines()
+                           if line.startswith("("))
+    np.testing.assert_allclose(parse_coeffs(unlabelled)[0], L9, atol=1e-12)
+    g = json.loads(export_coeffs(L9, "gltf"))
+    assert g["asset"]["version"] == "2.0"
+    assert g["scenes"][g["scene"]]["extensions"]["EXT_lights_image_based"]["light"] == 0

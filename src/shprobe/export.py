@@ -18,17 +18,22 @@ three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array 
            ``toArray()`` (9 RGB triples, index k = l(l+1)+m). three.js stores radiance L_lm
            with the R&H basis constants and signs (``getAt``: 0.488603·y for k = 1) and
            applies Â_l in ``getIrradianceAt`` / the shader: so this is L, unchanged.
+           Import also takes ``LightProbe.toJSON()`` (``object.sh`` × ``object.intensity``).
 gltf       ``EXT_lights_image_based`` light with ``irradianceCoefficients`` (9×3): irradiance
            E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated) — the spec
            text fixes neither; this is how its reference implementation, Babylon.js, reads
            them (CS-signed basis constants, then ``convertIrradianceToLambertianRadiance``
-           divides by π). The specular cubemaps are not produced.
+           divides by π). A minimal glTF document (``asset``, a scene referring to the
+           light); the extension's required specular cube maps are not produced, so merge
+           the light into an asset that has them.
 cmgen      Filament's ``sh.txt`` ("irradiance, pre-scaled base"): 9 RGB triples c_k such that
            E(n)/π = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz + c6 (3z² − 1) + c7 zx
            + c8 (x² − y²) (Filament's ``Irradiance_SphericalHarmonics``): Â_l/π and the basis
            constants K_lm baked in; the CS phase of Filament's basis cancels in c_k, so
            c_k = (Â_l/π) K_k L_lm with R&H's positive K_k. Frame: shprobe's world (+Y up),
-           i.e. cmgen run with ``--no-mirror``.
+           i.e. cmgen run with ``--no-mirror``. Import takes rows labelled "irradiance,
+           pre-scaled base" (cmgen ``--sh-irradiance --sh-shader``) or unlabelled rows, and
+           refuses other labelled forms.
 cs-phase   L_lm with Condon–Shortley signs, L^CS_lm = (−1)^m L_lm, index l(l+1)+m — the
            order and signs of google/spherical-harmonics (``GetIndex``, ``EvalSH``), any lmax.
 ========== ================================================================================
@@ -225,14 +230,20 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
         light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
                                  "rotation": [0.0, 0.0, 0.0, 1.0],
                                  "irradianceCoefficients": E9.tolist()}
-        doc = {"extensionsUsed": ["EXT_lights_image_based"],
+        from ._version import __version__
+
+        doc = {"asset": {"version": "2.0", "generator": f"shprobe {__version__}"},
+               "extensionsUsed": ["EXT_lights_image_based"],
                "extensions": {"EXT_lights_image_based": {"lights": [light]}},
+               "scene": 0,
+               "scenes": [{"nodes": [], "extensions": {"EXT_lights_image_based": {"light": 0}}}],
                "extras": {"shprobe": {
                    "convention": "Condon-Shortley signs (odd m negated), order k = l(l+1)+m,"
                                  " world +Y up (as read by Babylon.js)",
                    "quantity": "irradiance coefficients E_lm = A_l L_lm, not divided by pi",
-                   "note": "specularImages / specularImageSize are not produced; add them "
-                           "for a complete light"}}}
+                   "note": "a light to merge into an asset: the extension's required "
+                           "specularImages / specularImageSize (prefiltered cube maps) are "
+                           "not produced"}}}
         return json.dumps(doc, indent=2) + "\n"
     if fmt == "cmgen":
         ck = _nine_rgb(c, fmt) * (_ahat(2) / np.pi * basis_constants())[:, None]
@@ -294,6 +305,10 @@ def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64
         return L, fmt
     rows = re.findall(rf"^\s*\(\s*({_NUM})\s*,\s*({_NUM})\s*,\s*({_NUM})\s*\)", text, re.M)
     if rows:
+        labels = re.findall(r"^\s*\([^)]*\)\s*;?\s*//(.*)$", text, re.M)
+        if any("pre-scaled base" not in lb or "irradiance" not in lb for lb in labels):
+            raise ShprobeError("cmgen sh.txt holds another form than 'irradiance, pre-scaled "
+                               "base' (run cmgen with --sh-irradiance --sh-shader)", where)
         if len(rows) not in (1, 4, 9):
             raise ShprobeError(f"cmgen sh.txt must have 1, 4 or 9 rows, has {len(rows)}",
                                where)
@@ -329,6 +344,15 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
     if fmt == "condon-shortley":
         c = _kc(doc.get("coefficients"), where, "coefficients")
         return c * cs_signs(lmax_of(c.shape[0]))[:, None], "cs-phase"
+    obj = doc.get("object")  # three.js LightProbe.toJSON(): {"metadata", "object": {"sh"}}
+    if isinstance(obj, dict) and isinstance(obj.get("sh"), list):
+        try:
+            flat = np.asarray(obj["sh"], dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise ShprobeError("three.js LightProbe sh is not numeric", where) from None
+        if flat.size != 27 or not np.all(np.isfinite(flat)):
+            raise ShprobeError("three.js LightProbe sh must be 27 finite numbers", where)
+        return flat.reshape(9, 3) * float(obj.get("intensity", 1.0)), "three"
     if fmt == "three.SphericalHarmonics3" or (
             isinstance(doc.get("sh"), list) and len(doc["sh"]) == 27):
         flat = np.asarray(doc.get("coefficients", doc.get("sh")), dtype=np.float64)
