@@ -31,3 +31,11 @@ def test_console_script_runs_without_traceback():
                        text=True)
     assert r.returncode != 0
     assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_bare_groups_print_their_help(capsys):
+    for args in ([], ["sh"], ["prt"], ["hbasis"]):
+        assert main(args) == 0
+        out = capsys.readouterr()
+        assert out.out.startswith("Usage: shprobe") and "Commands:" in out.out
+        assert out.err == ""

@@ -29,6 +29,16 @@ def test_eval_json_normalises_and_matches_table(capsys):
                                                  0.546274 * 0.36], atol=1e-6)
 
 
+def test_eval_extreme_magnitudes_normalise(capfd):
+    """(1e200, 1e200, 0) and (1e-320, 0, 0) are valid directions: no overflow warning."""
+    rc, out, err = run(["sh", "eval", "--dir", "1e200,1e200,0", "--dir", "1e-320,0,0",
+                        "--lmax", "1", "--format", "json"], capfd)
+    assert rc == 0 and err == ""
+    v = np.array(json.loads(out)["values"])
+    np.testing.assert_allclose(v[:, 1:], [[0.488603 / np.sqrt(2), 0, 0.488603 / np.sqrt(2)],
+                                          [0, 0, 0.488603]], atol=1e-6)
+
+
 def test_eval_table(capsys):
     rc, out, _ = run(["sh", "eval", "--dir", "1,0,0", "--lmax", "1"], capsys)
     assert rc == 0

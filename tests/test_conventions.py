@@ -22,7 +22,7 @@ from .conftest import random_dirs
 
 
 def pyshtools():
-    return pytest.importorskip("pyshtools", reason="pyshtools not installed (bench extra)")
+    return pytest.importorskip("pyshtools", reason="pyshtools not installed (dev extra)")
 
 
 def cs_table(d):

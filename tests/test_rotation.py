@@ -230,6 +230,10 @@ def test_bad_coefficients_and_quaternion():
         from_quaternion([0, 0, 0, 0])
     with pytest.raises(ShprobeError):
         wigner_d(np.eye(3), -1)
+    with pytest.raises(ShprobeError, match="GiB"):  # refused before allocating 32 GiB
+        wigner_d(np.eye(3), 256)
+    with pytest.raises(ShprobeError, match="from_euler_zyz"):
+        wigner_d([0.1, 0.2, 0.3], 2)
 
 
 @pytest.mark.parametrize("lmax", [0, 1, 2])

@@ -76,6 +76,19 @@ def test_degree_256_addition_theorem_and_legendre():
     np.testing.assert_allclose(dot, want, atol=1e-12 * (2 * lmax + 1) / (4 * np.pi))
 
 
+@pytest.mark.parametrize("lmax", [128, 256])
+def test_every_value_against_scipy_at_high_degree(lmax):
+    """Each y_lm, not only sums over m (a flipped sign or a cos/sin swap within a band leaves
+    the addition theorem intact): against scipy's sph_harm_y, relative to the band's scale
+    √((2l+1)/4π), on random and near-pole directions."""
+    d = np.concatenate([random_dirs(6, seed=9),
+                        [[1e-4, 2e-4, 1.0], [0.6, 0.8, 0.0], [-0.3, 0.1, -0.948683]]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+    err = (sh_basis(d, lmax) - sh_basis_scipy(d, lmax)) / np.sqrt((2 * l + 1) / (4 * np.pi))
+    assert np.abs(err).max() < 1e-10
+
+
 def test_degree_1024_finite_float32():
     d = random_dirs(3, seed=7, dtype=np.float32)
     Y = sh_basis(d, 1024)

@@ -134,18 +134,16 @@ def test_zonal_from_moments_batched_and_normalised():
     np.testing.assert_allclose(b, mom[deg] * sh_basis(axes / 3.0, 3), atol=1e-15)
 
 
-def test_convolve_irradiance_of_a_lobe():
-    # clamped cosine convolved with a delta-like window → irradiance at the window axis
-    # ≈ power·cos(0) for a tiny window: E(n) = ∫ L max(u·n,0) ≈ 4π
-    lmax = 2
-    n = np.array([0.0, 0.0, 1.0])
-    L = circular_window(n, 1e-3, lmax)[:, None]
+def test_convolve_gives_the_hemispherical_integral():
+    """For lighting band-limited to l ≤ 4, E(n) = Σ Â_l L_lm y_lm(n) (Funk–Hecke) equals
+    ∫ L(ω) max(n·ω, 0) dω by quadrature over the hemisphere about n."""
+    lmax = 4
+    L = np.random.default_rng(71).normal(size=((lmax + 1) ** 2, 2))
     E = convolve(L, clamped_cosine_factors(lmax))
-    val = sh_basis(n, lmax) @ E[:, 0]
-    # order-2 truncation of the clamped cosine at the pole: Σ Â_l (2l+1)/(4π)·4π/(... )
-    want = 4 * np.pi * sum(clamped_cosine_factors(2)[l] * (2 * l + 1) / (4 * np.pi)
-                           for l in range(3))
-    assert abs(val - want) < 1e-5
+    for n in random_dirs(5, seed=72):
+        u, w = cap_quadrature(n, 0.0, nz=40, nphi=80)
+        want = (sh_basis(u, lmax) @ L * ((u @ n) * w)[:, None]).sum(0)
+        np.testing.assert_allclose(sh_basis(n, lmax) @ E, want, rtol=1e-12, atol=1e-12)
 
 
 def test_bad_inputs():

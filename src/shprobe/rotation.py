@@ -39,6 +39,8 @@ _F64 = np.dtype(np.float64)
 
 #: Largest degree :func:`rotate` / :func:`wigner_d` accept (the d(π/2) table grows as lmax³/3).
 ROTATION_LMAX = 256
+#: wigner_d refuses to build more than this many bytes of dense matrices (rotate never does).
+WIGNER_D_MAX_BYTES = 2 << 30
 
 
 def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
@@ -117,6 +119,8 @@ def _matrices(rotation: Any) -> NDArray[np.float64]:
     raise ShprobeError(
         f"rotation must be (..., 3, 3) matrices or (..., 4) quaternions (w, x, y, z), "
         f"got shape {r.shape}"
+        + ("; for ZYZ Euler angles pass from_euler_zyz(alpha, beta, gamma)"
+           if r.shape[-1:] == (3,) else "")
     )
 
 
@@ -173,11 +177,19 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     Entry [k(l,m), k(l,n)] is D^l_mn(R) of LH eq. 4–5 in shprobe's basis (R&H signs), so that
     ``D @ a`` are the coefficients of f∘R⁻¹ when ``a`` are those of f. Each block is
     orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
-    leading axes.
+    leading axes. ``rotation``: (..., 3, 3) matrices, (..., 4) unit quaternions (w, x, y, z),
+    or a scipy ``Rotation``; ZYZ Euler angles through :func:`from_euler_zyz`. The dense result
+    is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation).
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
     R = _matrices(rotation)
     batch = R.shape[:-2]
+    size = R.size // 9 * num_coeffs(lmax) ** 2 * 8
+    if size > WIGNER_D_MAX_BYTES:
+        raise ShprobeError(
+            f"wigner_d at lmax={lmax} would be {size / 2**30:.1f} GiB of dense (K, K) "
+            f"matrices (limit {WIGNER_D_MAX_BYTES / 2**30:.0f} GiB); rotate() applies the "
+            "rotation block by block without forming them")
     out, err = _kernels().wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))
     if R.size:
         _check_err(err)

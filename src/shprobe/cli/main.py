@@ -39,6 +39,9 @@ def main(argv: list[str] | None = None) -> int:
         rv = cli.main(args=argv, prog_name="shprobe", standalone_mode=False)
     except click.exceptions.Exit as e:
         return e.exit_code
+    except click.exceptions.NoArgsIsHelpError as e:  # a bare group: its help, as --help does
+        click.echo(e.ctx.get_help() if e.ctx else e.format_message())
+        return 0
     except click.exceptions.Abort:
         _err("aborted")
         return 130

@@ -47,10 +47,11 @@ def register(group: click.Group) -> None:
         vecs = []
         for text in dirs:
             v = np.array(parse_floats(text, 3, "direction"))
-            n = float(np.linalg.norm(v))
-            if not np.isfinite(n) or n == 0.0:
+            big = float(np.abs(v).max())
+            if not np.all(np.isfinite(v)) or big == 0.0:
                 raise ShprobeError(f"direction {text!r} must be a finite, non-zero vector")
-            vecs.append(v / n)
+            v = v / big  # scaled first: the norm of (1e200, 1e200, 0) must not overflow
+            vecs.append(v / np.linalg.norm(v))
         d = np.array(vecs)
         y = sh_basis(d, lmax)
         if fmt == "json":
