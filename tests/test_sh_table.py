@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shprobe import sh_basis, sh_index, sh_lm
+from shprobe import ShprobeError, sh_basis, sh_index, sh_lm
 
 from .conftest import random_dirs
 
@@ -30,6 +30,16 @@ def test_index_roundtrip():
         l, m = sh_lm(k)
         assert abs(m) <= l and sh_index(l, m) == k
     assert sh_index(2, -2) == 4 and sh_index(1, 1) == 3
+    # arrays: every (l, m) up to l = 300 in order, and back; bad pairs refused
+    l = np.repeat(np.arange(301), 2 * np.arange(301) + 1)
+    m = np.concatenate([np.arange(-j, j + 1) for j in range(301)])
+    np.testing.assert_array_equal(sh_index(l, m), np.arange(301 ** 2))
+    lb, mb = sh_lm(np.arange(301 ** 2).reshape(-1, 7))
+    np.testing.assert_array_equal(lb.reshape(-1), l)
+    np.testing.assert_array_equal(mb.reshape(-1), m)
+    assert sh_lm(10**12 + 5) == (10**6, 5 - 10**6)
+    with pytest.raises(ShprobeError):
+        sh_index([1, 2], [2, 0])
 
 
 def test_batched_shape():

@@ -146,6 +146,16 @@ def test_convolve_gives_the_hemispherical_integral():
         np.testing.assert_allclose(sh_basis(n, lmax) @ E, want, rtol=1e-12, atol=1e-12)
 
 
+def test_float32_axis_gives_float32():
+    ax = np.array([0.3, -0.5, 0.8], np.float32)
+    for c in (circular_window(ax, 0.4, 6), circular_window(ax, 0.4, 6, radiance=[1, 2, 3]),
+              zonal_coeffs(lambda z: z * z, ax, 6)):
+        assert c.dtype == np.float32
+    np.testing.assert_allclose(circular_window(ax, 0.4, 6),
+                               circular_window(ax.astype(np.float64), 0.4, 6), rtol=1e-6,
+                               atol=1e-7)
+
+
 def test_bad_inputs():
     with pytest.raises(ShprobeError):
         circular_window([0, 0, 1], 0.0, 4)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,23 +47,42 @@ def num_coeffs(lmax: int) -> int:
     return (lmax + 1) ** 2
 
 
-def sh_index(l: int, m: int) -> int:
-    """Flat index k = l(l+1) + m."""
-    if l < 0 or abs(m) > l:
-        raise ShprobeError(f"no spherical harmonic with l={l}, m={m}")
-    return l * (l + 1) + m
+@overload
+def sh_index(l: int, m: int) -> int: ...
+@overload
+def sh_index(l: ArrayLike, m: ArrayLike) -> NDArray[np.int64]: ...
+def sh_index(l, m):
+    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast)."""
+    if np.ndim(l) == 0 and np.ndim(m) == 0:
+        l, m = int(l), int(m)
+        if l < 0 or abs(m) > l:
+            raise ShprobeError(f"no spherical harmonic with l={l}, m={m}")
+        return l * (l + 1) + m
+    la, ma = np.broadcast_arrays(np.asarray(l, dtype=np.int64), np.asarray(m, dtype=np.int64))
+    bad = (la < 0) | (np.abs(ma) > la)
+    if bad.any():
+        i = np.argmax(bad.reshape(-1))
+        raise ShprobeError(f"no spherical harmonic with l={la.reshape(-1)[i]}, "
+                           f"m={ma.reshape(-1)[i]}")
+    return la * (la + 1) + ma
 
 
-def sh_lm(k: int) -> tuple[int, int]:
-    """Inverse of :func:`sh_index`: (l, m) of flat index ``k``."""
-    if k < 0:
+@overload
+def sh_lm(k: int) -> tuple[int, int]: ...
+@overload
+def sh_lm(k: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]: ...
+def sh_lm(k):
+    """Inverse of :func:`sh_index`: (l, m) of flat index ``k`` (an integer or integer array)."""
+    ka = np.asarray(k, dtype=np.int64)
+    if (ka < 0).any():
         raise ShprobeError(f"flat SH index must be >= 0, got {k}")
-    l = int(np.sqrt(k))
-    while (l + 1) ** 2 <= k:
-        l += 1
-    while l * l > k:
-        l -= 1
-    return l, k - l * (l + 1)
+    l = np.sqrt(ka).astype(np.int64)
+    l += (l + 1) ** 2 <= ka  # exact integer correction of the float square root
+    l -= l * l > ka
+    m = ka - l * (l + 1)
+    if ka.ndim == 0:
+        return int(l), int(m)
+    return l, m
 
 
 def lmax_of(n_coeffs: int) -> int:

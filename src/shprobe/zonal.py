@@ -124,11 +124,12 @@ def _unit_axis(axis: ArrayLike) -> NDArray[np.float64]:
     return n / norm
 
 
-def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.float64]:
+def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floating]:
     """b_lm = moments_l · y_lm(axis) (LH eq. 7), shape (..., K) for axes (..., 3).
 
     ``moments`` (lmax+1,) are 2π∫h P_l (see :func:`legendre_moments`); the axis is normalised.
-    Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting.
+    Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis
+    gives float32 coefficients (computed in float64).
     """
     from .sh import sh_basis
 
@@ -136,7 +137,8 @@ def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.float6
     if mom.ndim != 1 or mom.size == 0:
         raise ShprobeError(f"moments must be a 1-D array of lmax+1 values, got {mom.shape}")
     lmax = mom.size - 1
-    return mom[degrees(lmax)] * sh_basis(_unit_axis(axis), lmax)
+    out = mom[degrees(lmax)] * sh_basis(_unit_axis(axis), lmax)
+    return out.astype(np.float32) if np.asarray(axis).dtype == np.float32 else out
 
 
 def zonal_coeffs(
@@ -145,8 +147,9 @@ def zonal_coeffs(
     lmax: int,
     n_quad: int | None = None,
     interval: tuple[float, float] = (-1.0, 1.0),
-) -> NDArray[np.float64]:
-    """SH coefficients (..., K) of f(u) = h(u·n) about axis n (LH Prop. 3.2)."""
+) -> NDArray[np.floating]:
+    """SH coefficients (..., K) of f(u) = h(u·n) about axis n (LH Prop. 3.2); float32 for a
+    float32 axis."""
     return zonal_from_moments(legendre_moments(h, lmax, n_quad, interval), axis)
 
 
@@ -176,7 +179,7 @@ def circular_window(
     lmax: int,
     power: float = 4.0 * np.pi,
     radiance: ArrayLike | None = None,
-) -> NDArray[np.float64]:
+) -> NDArray[np.floating]:
     """SH coefficients of a circular light window of angular radius ``aperture`` (radians)
     about ``axis`` (LH §3.2, eq. 11).
 
@@ -190,7 +193,7 @@ def circular_window(
         return zonal_from_moments(mom * (float(power) / (4.0 * np.pi)), axis)
     solid = 2.0 * np.pi * (1.0 - np.cos(float(aperture)))
     b = zonal_from_moments(mom * (solid / (4.0 * np.pi)), axis)
-    rad = np.asarray(radiance, dtype=np.float64)
+    rad = np.asarray(radiance, dtype=b.dtype)
     if rad.ndim == 0:
         return b * rad
     if rad.ndim != 1:
