@@ -8,28 +8,35 @@ called directly on the bake's own rays, and trimesh's `ray_pyembree.intersects_a
 
 from __future__ import annotations
 
-import argparse
 import os
+
+# BLAS pinned to one thread before numpy loads: the relight timings (one sgemm) are stable
+# that way on a shared 2-core box; the bakes do no BLAS work of note.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse
 import platform
 import time
 from pathlib import Path
 
 import numpy as np
 
-from shprobe.prt import bake, load_scene, relight, sample_directions
+from shprobe.prt import Transfer, bake, load_scene, relight, sample_directions
 from shprobe.prt.bake import OFFSET_FRACTION, RayCaster
 
 HERE = Path(__file__).resolve().parent
 
 
 def best(fn, repeat=3):
-    """Best wall time of ``repeat`` calls (seconds) and the last result."""
-    times, out = [], None
+    """Best wall time and best process CPU time (all threads) of ``repeat`` calls (seconds),
+    and the last result."""
+    wall, cpu, out = float("inf"), float("inf"), None
     for _ in range(repeat):
-        t = time.perf_counter()
+        w, c = time.perf_counter(), time.process_time()
         out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
+        wall = min(wall, time.perf_counter() - w)
+        cpu = min(cpu, time.process_time() - c)
+    return wall, cpu, out
 
 
 def bake_rays(scene, samples, seed):
@@ -42,6 +49,14 @@ def bake_rays(scene, samples, seed):
     return p[vi], d[dj]
 
 
+def rotation(rng):
+    q = rng.normal(size=4)
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     default_mesh = os.environ.get("SHPROBE_TEST_DATA", str(HERE.parent.parent / "shared"))
@@ -51,6 +66,7 @@ def main() -> None:
     ap.add_argument("--vertices", type=int, default=100_000)
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args()
+    load0 = os.getloadavg()
 
     scene = load_scene(args.mesh, ground=True)
     o, d = bake_rays(scene, args.samples, 0)
@@ -71,67 +87,95 @@ def main() -> None:
             lambda: list(ex.map(lambda p: caster.occluded(*p), parts)),
     }
     # interleaved rounds, best of each: the machine is shared, so load hits all alike
-    times = {k: float("inf") for k in runs}
+    wall = {k: float("inf") for k in runs}
+    cpu = dict(wall)
     for _ in range(args.rounds):
         for k, fn in runs.items():
-            times[k] = min(times[k], best(fn, 1)[0])
+            w, c, _ = best(fn, 1)
+            wall[k], cpu[k] = min(wall[k], w), min(cpu[k], c)
     ex.shutdown()
     hit = caster.occluded(o, d)
-    rows = [(k, t, n_rays / t) for k, t in times.items()]
+    rows = [(k, wall[k], cpu[k], n_rays) for k in runs]
 
     import trimesh
     from trimesh.ray.ray_pyembree import RayMeshIntersector
 
     tm = trimesh.Trimesh(scene.vertices, scene.faces, process=False)
     rmi = RayMeshIntersector(tm)
-    t_tm, _ = best(lambda: rmi.intersects_any(o, d), 1)
-    rows.append(("trimesh ray_pyembree.intersects_any, same rays", t_tm, n_rays / t_tm))
+    w, c, _ = best(lambda: rmi.intersects_any(o, d), 1)
+    rows.append(("trimesh ray_pyembree.intersects_any, same rays", w, c, n_rays))
+    w, c, _ = best(lambda: bake(args.mesh, ground=True, mode="shadowed", lmax=args.lmax,
+                                samples=args.samples, seed=0, threads=2), 3)
+    rows.append(("shprobe shadowed bake from the .obj path (load + ground + bake), 2 threads",
+                 w, c, n_rays))
+    w, c, _ = best(lambda: bake(scene, mode="interreflected", lmax=args.lmax,
+                                   samples=args.samples, bounces=2, seed=0, threads=2), 3)
+    rows.append(("shprobe interreflected bake, 2 bounces (all models), 2 threads", w, c, n_rays))
+    w, c, _ = best(lambda: bake(scene, mode="unshadowed", lmax=args.lmax), 3)
+    rows.append(("shprobe unshadowed bake (analytic)", w, c, 0))
 
-    t_ir, _ = best(lambda: bake(scene, mode="interreflected", lmax=args.lmax,
-                                samples=args.samples, bounces=2, seed=0, threads=2), 1)
-    rows.append(("shprobe interreflected bake, 2 bounces, 2 threads", t_ir, n_rays / t_ir))
-    t_un, _ = best(lambda: bake(scene, mode="unshadowed", lmax=args.lmax), 3)
-    rows.append(("shprobe unshadowed bake (analytic)", t_un, float("nan")))
-
-    print(f"# PRT bench — {platform.node()} {platform.machine()}, {os.cpu_count()} cores\n")
+    print(f"# PRT bench — {platform.node()} {platform.machine()}, {os.cpu_count()} cores, "
+          f"load average {load0[0]:.2f} / {load0[1]:.2f} / {load0[2]:.2f} (1/5/15 min) at "
+          "start\n")
     print(f"Scene: {Path(args.mesh).name} + ground plane, {scene.n_vertices} vertices, "
           f"{len(scene.faces)} triangles; {args.samples} directions/vertex, lmax={args.lmax}, "
-          f"{n_rays} rays traced (upper hemispheres), {hit.mean():.1%} blocked.\n")
-    print("| what | time (s) | rays/s (M) |")
-    print("| --- | ---: | ---: |")
-    for name, t, r in rows:
-        print(f"| {name} | {t:.3f} | {r / 1e6:.2f} |")
-    ratio1 = rows[0][2] / rows[1][2]
-    ratio2 = rows[2][2] / rows[3][2]
-    print(f"\nBake / raw Embree throughput: {ratio1:.0%} (1 thread), {ratio2:.0%} (2 threads).\n")
+          f"{n_rays} rays traced (upper hemispheres), {hit.mean():.1%} blocked. "
+          f"Best of {args.rounds} interleaved rounds (first four rows), else best of 3 "
+          "(trimesh: 1).\n")
+    print("| what | wall (s) | CPU (s) | rays/s wall (M) | rays per CPU-s (M) |")
+    print("| --- | ---: | ---: | ---: | ---: |")
+    for name, w, c, n in rows:
+        rw = f"{n / w / 1e6:.2f}" if n else "–"
+        rc = f"{n / c / 1e6:.2f}" if n else "–"
+        print(f"| {name} | {w:.3f} | {c:.3f} | {rw} | {rc} |")
+    k1, e1, k2, e2 = list(runs)
+    print(f"\nBake / raw Embree throughput — wall: {wall[e1] / wall[k1]:.0%} (1 thread), "
+          f"{wall[e2] / wall[k2]:.0%} (2 threads); CPU time: {cpu[e1] / cpu[k1]:.0%} "
+          f"(1 thread), {cpu[e2] / cpu[k2]:.0%} (2 threads).\n")
 
     # run time: relight V vertices at lmax including the Wigner rotation of the lighting
     rng = np.random.default_rng(0)
     k = (args.lmax + 1) ** 2
-    T = rng.normal(size=(args.vertices, k)).astype(np.float32)
-    Tc = rng.normal(size=(args.vertices, k, 3)).astype(np.float32)
+    V = args.vertices
+    T = rng.normal(size=(V, k)).astype(np.float32)
+    Tc = rng.normal(size=(V, k, 3)).astype(np.float32)
     L = rng.normal(size=(k, 3))
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    R = rotation(rng)
+    normals = rng.normal(size=(V, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    # a Transfer as an interreflected bake of V vertices with 2 bounces leaves it
+    big = Transfer(vertices=normals, normals=normals, faces=np.zeros((0, 3), np.int64),
+                   albedo=np.full((V, 3), 0.8), lmax=args.lmax,
+                   traced=rng.normal(size=(3, V, k)).astype(np.float32), bounce_counts=(0, 1, 2),
+                   metadata={"mode": "interreflected"})
+    w_un, _, _ = best(lambda: relight(big, L, R, mode="unshadowed"), 1)  # computes, caches
     relight(T, L, rotation=R)  # warm caches
     Lf = L.astype(np.float32)
+    n = 30
     rr = [
         ("shprobe relight, grey transfer (V, K), with rotation",
-         best(lambda: relight(T, L, rotation=R), 30)[0]),
-        ("shprobe relight, grey transfer, no rotation", best(lambda: relight(T, L), 30)[0]),
+         best(lambda: relight(T, L, rotation=R), n)),
+        ("shprobe relight, grey transfer, no rotation", best(lambda: relight(T, L), n)),
         ("shprobe relight, coloured transfer (V, K, 3), with rotation",
-         best(lambda: relight(Tc, L, rotation=R), 30)[0]),
-        ("numpy T @ L alone (float32)", best(lambda: T @ Lf, 30)[0]),
+         best(lambda: relight(Tc, L, rotation=R), n)),
+        ("shprobe relight of a Transfer, --mode shadowed picked at run time, with rotation",
+         best(lambda: relight(big, L, R, mode="shadowed"), n)),
+        ("shprobe relight of a Transfer, --bounces 1 picked at run time, with rotation",
+         best(lambda: relight(big, L, R, bounces=1), n)),
+        ("shprobe relight of a Transfer, unshadowed (analytic, cached), with rotation",
+         best(lambda: relight(big, L, R, mode="unshadowed"), n)),
+        ("numpy T @ L alone (float32)", best(lambda: T @ Lf, n)),
     ]
-    print(f"Relight: {args.vertices} vertices, lmax={args.lmax}, best of 30.\n")
-    print("| what | time (ms) |")
-    print("| --- | ---: |")
-    for name, t in rr:
-        print(f"| {name} | {t * 1e3:.2f} |")
+    print(f"Relight: {V} vertices, lmax={args.lmax}, best of {n}, BLAS "
+          f"(OpenBLAS) threads = {os.environ['OPENBLAS_NUM_THREADS']}.\n")
+    print("| what | wall (ms) | CPU (ms) |")
+    print("| --- | ---: | ---: |")
+    for name, (w, c, _) in rr:
+        print(f"| {name} | {w * 1e3:.2f} | {c * 1e3:.2f} |")
+    print(f"\nFirst unshadowed relight of that Transfer (computes the analytic transfer of {V} "
+          f"normals once): {w_un * 1e3:.1f} ms.")
+    load1 = os.getloadavg()
+    print(f"\nLoad average at the end: {load1[0]:.2f} / {load1[1]:.2f} / {load1[2]:.2f}.")
 
 
 if __name__ == "__main__":

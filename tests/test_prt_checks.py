@@ -131,7 +131,7 @@ def test_bad_transfer_files_are_one_line(tmp_path, capsys, content):
                             str(tmp_path / "x.png")], "bad.npz", "not a transfer file")
     other = tmp_path / "other.npz"
     np.savez(other, a=np.zeros(3))
-    with pytest.raises(ShprobeError, match="no transfer, vertices"):
+    with pytest.raises(ShprobeError, match="no vertices, normals"):
         load_transfer(other)
 
 

@@ -12,13 +12,34 @@ from ..errors import ShprobeError
 from .common import clamp_option, force_option, layout_option, parse_floats, parse_size
 
 
-def _albedo(text: str | None):
-    if text is None:
-        return None
+def _albedo_value(text: str):
+    """One ``--albedo`` value: a grey number or r,g,b."""
     v = parse_floats(text, what="albedo")
     if len(v) not in (1, 3):
         raise ShprobeError(f"albedo {text!r} must be one number or r,g,b")
-    return v[0] if len(v) == 1 else v
+    return v[0] if len(v) == 1 else tuple(v)
+
+
+def albedo_arguments(values: tuple[str, ...], n_meshes: int) -> dict:
+    """``--albedo`` given 0 times (defaults: vertex colours, else 0.8), once (every mesh and
+    the ground) or once per mesh in order → the ``albedo`` / ``mesh_albedo`` bake arguments."""
+    if not values:
+        return {}
+    parsed = [_albedo_value(v) for v in values]
+    if len(parsed) == 1:
+        return {"albedo": parsed[0]}
+    if len(parsed) != n_meshes:
+        raise ShprobeError(f"--albedo given {len(parsed)} times for {n_meshes} meshes: give it "
+                           "once (every mesh) or once per mesh, in order")
+    return {"mesh_albedo": parsed}
+
+
+def _finite(values: list[float], what: str, text: str) -> list[float]:
+    import math
+
+    if not all(math.isfinite(v) for v in values):
+        raise ShprobeError(f"{what} {text!r} must be finite numbers")
+    return values
 
 
 def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int,
@@ -36,13 +57,15 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
     if window is not None:
         from ..zonal import circular_window
 
-        x, y, z, ap = parse_floats(window, 4, "window (x,y,z,aperture in degrees)")
+        x, y, z, ap = _finite(parse_floats(window, 4, "window (x,y,z,aperture in degrees)"),
+                              "window", window)
         if not 0 < ap <= 180:
             raise ShprobeError(f"window aperture must be in (0, 180] degrees, got {ap}")
-        if np.linalg.norm([x, y, z]) == 0:
+        axis = np.array([x, y, z])
+        if not np.any(axis != 0):
             raise ShprobeError(f"window axis {window!r} must not be zero")
-        return circular_window(np.array([x, y, z]) / np.linalg.norm([x, y, z]),
-                               np.radians(ap), lmax)
+        axis = axis / np.abs(axis).max()  # no overflow in the norm for huge components
+        return circular_window(axis / np.linalg.norm(axis), np.radians(ap), lmax)
     if probe is not None and not Path(probe).is_file():
         raise ShprobeError("no such probe file", probe)
     from .sources import resolve_coeffs
@@ -91,42 +114,50 @@ def register(group: click.Group) -> None:
     @click.option("--lmax", type=int, default=10, show_default=True, help="SH degree baked.")
     @click.option("--samples", type=int, default=1024, show_default=True,
                   help="Ray directions per vertex (whole sphere; about half are traced).")
-    @click.option("--bounces", type=int, default=2, show_default=True,
-                  help="Interreflection bounces (interreflected only).")
+    @click.option("--bounces", type=click.IntRange(min=0), default=2, show_default=True,
+                  help="Interreflection bounces (interreflected only); render can use fewer.")
     @click.option("--ground", is_flag=True, help="Add a ground plane under the meshes.")
-    @click.option("--albedo", default=None, metavar="RHO|R,G,B",
-                  help="Diffuse albedo of every mesh (default 0.8).")
-    @click.option("--seed", type=int, default=0, show_default=True,
-                  help="Seed of the direction set's random rotation.")
-    @click.option("--threads", type=int, default=None,
-                  help="Worker threads for Embree and numpy (default: all cores).")
+    @click.option("--albedo", multiple=True, metavar="RHO|R,G,B",
+                  help="Diffuse albedo: once for every mesh (and the ground), or once per mesh "
+                       "in the order of SCENE. Default: a mesh's own vertex colours (sRGB "
+                       "decoded), else 0.8.")
+    @click.option("--ground-albedo", default=None, metavar="RHO|R,G,B",
+                  help="Albedo of the ground plane (default: a single --albedo, else 0.8).")
+    @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+                  help="Seed (>= 0) of the direction set's random rotation.")
+    @click.option("--threads", type=click.IntRange(min=1), default=None,
+                  help="Worker threads (default: all cores) for the Embree ray queries, the "
+                       "numba ray-set/visibility kernels and the sparse bounce products. The "
+                       "bake does no BLAS work of note; only Embree's BVH build (milliseconds) "
+                       "uses Embree's own threads.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option
-    def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, seed, threads, output,
-                 force):
-        """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes)."""
+    def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, ground_albedo, seed,
+                 threads, output, force):
+        """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes).
+
+        One bake serves every model up to --mode: a shadowed bake can also be rendered
+        unshadowed; an interreflected one also shadowed or with fewer bounces
+        (`shprobe prt render --mode ... --bounces ...`)."""
         from ..files import check_output_path
         from ..prt import bake
         from .common import progress
 
         check_output_path(output, force)
-        if threads is not None:
-            if threads < 1:
-                raise ShprobeError(f"--threads must be >= 1, got {threads}")
-            import numba
-
-            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        kw = albedo_arguments(albedo, len(scene))
         t0 = time.perf_counter()
         t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,
-                 albedo=_albedo(albedo), seed=seed, ground=ground, threads=threads,
-                 progress=progress)
+                 seed=seed, ground=ground, threads=threads, progress=progress,
+                 ground_albedo=None if ground_albedo is None else _albedo_value(ground_albedo),
+                 **kw)
         t.save(output, overwrite=force)
+        models = ", ".join(t.modes) + (f" (<= {bounces} bounces)" if mode == "interreflected"
+                                       else "")
         click.echo(err=True, message=
-            f"{mode} transfer, lmax {lmax}, {t.n_vertices} vertices"
+            f"{mode} bake, lmax {lmax}, {t.n_vertices} vertices"
             + (f", {samples} samples" if mode != "unshadowed" else "")
-            + (f", {bounces} bounces" if mode == "interreflected" else "")
-            + f" in {time.perf_counter() - t0:.2f} s -> {output}")
+            + f" in {time.perf_counter() - t0:.2f} s -> {output}; models: {models}")
 
     @prt.command("render")
     @click.argument("transfer", type=click.Path(dir_okay=False))
@@ -140,6 +171,12 @@ def register(group: click.Group) -> None:
                   help="Turn the scene relative to the lighting (axis, degrees).")
     @click.option("--lmax", type=int, default=None,
                   help="SH degree used (default: the transfer's; no re-bake).")
+    @click.option("--mode", type=click.Choice(["unshadowed", "shadowed", "interreflected"]),
+                  default=None, help="Model, picked at run time (default: the baked one): "
+                  "unshadowed from any bake, shadowed from a shadowed or interreflected bake, "
+                  "interreflected from an interreflected bake.")
+    @click.option("--bounces", type=click.IntRange(min=0), default=None, metavar="K",
+                  help="Interreflection bounces used (at most the baked number; default all).")
     @click.option("--size", default="512x512", show_default=True, help="Image size WxH.")
     @click.option("--azimuth", type=float, default=0.0, show_default=True,
                   help="Camera azimuth (degrees).")
@@ -158,11 +195,13 @@ def register(group: click.Group) -> None:
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Image: .png (tone-mapped) or .exr .hdr .pfm .tif (linear).")
     @force_option
-    def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, size, azimuth,
-                   elevation, exposure, turntable, scene_check, layout, clamp, output, force):
+    def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, mode, bounces,
+                   size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
+                   output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
         from ..images import check_image_output
         from ..prt import load_transfer
+        from ..prt.view import axis_angle, frame_radiance, render_frame
 
         # the name as given (frames get _000 … suffixes; their existence is checked below)
         check_image_output(output, force or turntable is not None)
@@ -172,22 +211,30 @@ def register(group: click.Group) -> None:
         if use > t.lmax:
             raise ShprobeError(f"transfer was baked to lmax={t.lmax}, cannot render at {use}",
                                transfer)
+        try:  # the model must be in the file: refuse before any work
+            t.select(mode, bounces, use)
+        except ShprobeError as e:
+            raise ShprobeError(e.message, transfer) from None
+        for value, name in ((azimuth, "--azimuth"), (elevation, "--elevation")):
+            _finite([value], name, str(value))
+        rot = None
+        if rotate is not None:
+            x, y, z, deg = _finite(parse_floats(rotate, 4, "rotation (x,y,z,degrees)"),
+                                   "--rotate", rotate)
+            rot = axis_angle([x, y, z], deg)
         coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
-        from ..prt.view import axis_angle, frame_radiance, render_frame
         from ..prt.view import turntable as turntable_frames
         from ..render import Camera
         from .common import progress
 
         w, h = parse_size(size)
         cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
-        rot = None
-        if rotate is not None:
-            x, y, z, deg = parse_floats(rotate, 4, "rotation (x,y,z,degrees)")
-            rot = axis_angle([x, y, z], deg)
+        model = {"mode": mode, "bounces": bounces}
         if turntable is None:
             if stops is None:
-                stops = auto_exposure(frame_radiance(t, coeffs, rot, lmax=lmax))
-            render_frame(t, coeffs, rot, lmax=lmax, camera=cam).save(output, stops, force)
+                stops = auto_exposure(frame_radiance(t, coeffs, rot, lmax=lmax, **model))
+            render_frame(t, coeffs, rot, lmax=lmax, camera=cam, **model).save(output, stops,
+                                                                              force)
             click.echo(err=True, message=f"wrote {output}")
             return
         if turntable < 1:
@@ -198,9 +245,9 @@ def register(group: click.Group) -> None:
             check_image_output(p, force)
         if stops is None:  # one exposure for all frames: the light turning must show
             stops = auto_exposure([frame_radiance(
-                t, coeffs, rot, axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax)
-                for i in range(turntable)])
-        frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam)
+                t, coeffs, rot, axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax,
+                **model) for i in range(turntable)])
+        frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam, **model)
         for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):
             frame.save(p, stops, force)
         click.echo(err=True, message=f"wrote {len(names)} frames {names[0]} … {names[-1]}")

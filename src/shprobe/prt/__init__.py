@@ -3,15 +3,16 @@ interreflected diffuse transfer, baked per vertex and relit at run time with any
 
 Modules: :mod:`.scene` (meshes, ground plane, albedo, hash), :mod:`.bake` (transfer vectors by
 Embree ray casting), :mod:`.transfer` (the :class:`Transfer` result, .npz I/O, radiance scale),
-:mod:`.relight` (rotation of the lighting and the per-vertex dot product).
+:mod:`.relight` (rotation of the lighting and the per-vertex dot product). One bake serves every
+model up to the one baked; the model, degree and lighting are picked at run time.
 """
 
 from __future__ import annotations
 
-from .bake import bake, sample_directions, unshadowed_transfer
+from .bake import bake, sample_directions
 from .relight import relight, scene_lighting
-from .scene import Scene, ground_plane, load_scene, mesh_hash
-from .transfer import MODES, Transfer, load_transfer
+from .scene import Scene, ground_plane, load_scene, mesh_hash, vertex_colour_albedo
+from .transfer import MODES, Transfer, load_transfer, unshadowed_transfer
 
 __all__ = [
     "MODES",
@@ -26,4 +27,5 @@ __all__ = [
     "sample_directions",
     "scene_lighting",
     "unshadowed_transfer",
+    "vertex_colour_albedo",
 ]

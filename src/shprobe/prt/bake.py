@@ -11,6 +11,16 @@ Three diffuse models, all with the radiance scale of :mod:`shprobe.prt.transfer`
   that hits a front face, the previous bounce's transfer interpolated barycentrically over the
   hit triangle: T_b(v) = ρ_v/π Σ_j max(0, n·ω_j) T_{b−1}(hit_j) 4π/N. Back-face hits block
   light but send none.
+
+One bake serves every model up to the one baked (run-time switching, LH §4): the unshadowed
+transfer is analytic in the stored normals; an interreflected bake keeps its bounce-0 (shadowed)
+transfer and the cumulative transfer after every bounce.
+
+Threads: ``threads`` workers run the ray casting (Embree queries from embreex, which releases the
+GIL), the numba ray-set and visibility kernels (``nogil``) and the sparse bounce products (scipy,
+GIL released) on blocks of vertices. No kernel here is numba-``parallel`` and the bake does no
+BLAS work of note; Embree's BVH build (milliseconds) uses Embree's own threads, which embreex
+does not let us set.
 """
 
 from __future__ import annotations
@@ -25,10 +35,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..sh import check_lmax, degrees, num_coeffs, sh_basis
-from ..zonal import clamped_cosine_factors
+from ..sh import check_lmax, num_coeffs, sh_basis
 from .scene import Scene, load_scene
-from .transfer import MODES, Transfer
+from .transfer import MODES, Transfer, as_stored, coloured, times_albedo, unshadowed_transfer
+
+__all__ = ["RayCaster", "bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17
@@ -52,10 +63,12 @@ def random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
 def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:
     """N spherical-Fibonacci unit vectors turned by a random rotation drawn from ``seed``.
 
-    Each point carries the solid angle 4π/N; the same seed gives the same directions.
+    Each point carries the solid angle 4π/N; the same seed (an integer >= 0) gives the same
+    directions.
     """
-    if n < 1:
-        raise ShprobeError(f"need at least 1 sample direction, got {n}")
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise ShprobeError(f"need at least 1 sample direction, got {n!r}")
+    seed = check_seed(seed)
     i = np.arange(n, dtype=np.float64)
     z = 1.0 - (2.0 * i + 1.0) / n
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
@@ -64,10 +77,20 @@ def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:
     return d @ random_rotation(np.random.default_rng(seed)).T
 
 
-def unshadowed_transfer(normals: NDArray[np.floating], lmax: int) -> NDArray[np.float64]:
-    """Â_l y_lm(n) for each normal, (V, K): the SH of max(0, n·ω) (LH eq. 9, π H_l = Â_l)."""
-    a = clamped_cosine_factors(lmax)[degrees(lmax)]
-    return sh_basis(np.asarray(normals, dtype=np.float64), lmax) * a
+def check_seed(seed: Any) -> int:
+    """A seed must be an integer >= 0 (numpy's seeding refuses negatives)."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ShprobeError(f"seed must be an integer >= 0, got {seed!r}")
+    return int(seed)
+
+
+def check_threads(threads: Any) -> int:
+    """None → all cores; otherwise an integer >= 1."""
+    if threads is None:
+        return max(1, os.cpu_count() or 1)
+    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
+        raise ShprobeError(f"threads must be an integer >= 1, got {threads!r}")
+    return int(threads)
 
 
 class RayCaster:
@@ -133,60 +156,102 @@ def _quiet(items: Iterable[Any], description: str = "", total: int | None = None
 
 def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
-         threads: int | None = None, progress: ProgressFn | None = None) -> Transfer:
+         threads: int | None = None, progress: ProgressFn | None = None, *,
+         mesh_albedo: Any = None, ground_albedo: Any = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
-    scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`; albedo and ground
-    as in :func:`load_scene`. mode: 'unshadowed' | 'shadowed' | 'interreflected'. lmax: degree
-    baked (any lower degree can be used later). samples: ray directions per vertex over the whole
-    sphere (about half are traced). bounces: interreflection bounces (interreflected only).
-    seed: picks the random rotation of the direction set. threads: Embree/numpy workers
-    (default: all cores). progress: a wrapper ``progress(items, description, total)`` that
-    yields ``items`` (e.g. :func:`shprobe.cli.common.progress`).
+    scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
+    for every mesh (a number or r,g,b); mesh_albedo: one entry per mesh (number, r,g,b or
+    per-vertex values); ground, ground_albedo: see :func:`load_scene`. mode: 'unshadowed' |
+    'shadowed' | 'interreflected' — the most complete model baked: a shadowed bake also gives
+    unshadowed, an interreflected bake also gives shadowed and any fewer bounces
+    (:meth:`Transfer.select`). lmax: degree baked (any lower degree can be used later).
+    samples: ray directions per vertex over the whole sphere (about half are traced).
+    bounces: interreflection bounces (interreflected only). seed: an integer >= 0, picks the
+    random rotation of the direction set. threads: workers for ray casting, kernels and bounce
+    products (default: all cores; see the module docstring). progress: a wrapper
+    ``progress(items, description, total)`` that yields ``items`` (e.g.
+    :func:`shprobe.cli.common.progress`).
 
-    Returns a :class:`Transfer`: (V, K) float32, or (V, K, 3) when the albedo is coloured, with
-    transfer · L = exit radiance ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
+    Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
+    is coloured) is the baked model, with transfer · L = exit radiance
+    ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
     """
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     lmax = check_lmax(lmax)
-    sc = load_scene(scene, albedo=albedo, ground=ground)
-    samples = int(samples) if mode != "unshadowed" else 0
-    bounces = int(bounces) if mode == "interreflected" else 0
-    if mode != "unshadowed" and samples < 16:
-        raise ShprobeError(f"need at least 16 samples per vertex, got {samples}")
-    if bounces < 0:
-        raise ShprobeError(f"bounces must be >= 0, got {bounces}")
-    wrap = progress or _quiet
-    rho = sc.albedo / np.pi  # (V, 3)
-    channels = 3 if sc.coloured else 1
-    if mode == "unshadowed":
-        t0 = unshadowed_transfer(sc.normals, lmax)
-        total = t0[:, :, None] * rho[:, None, :channels]
+    seed = check_seed(seed)
+    nthreads = check_threads(threads)
+    traced_mode = mode != "unshadowed"
+    if traced_mode:
+        if isinstance(samples, bool) or not isinstance(samples, int | np.integer) \
+                or samples < 16:
+            raise ShprobeError(f"need at least 16 samples per vertex, got {samples!r}")
+        samples = int(samples)
     else:
-        t0, gather = _trace(sc, lmax, samples, seed, mode == "interreflected", threads, wrap)
-        t_prev = t0[:, :, None] * rho[:, None, :channels]
-        total = t_prev.copy()
-        k = num_coeffs(lmax)
-        for _ in wrap(range(bounces), "bounces", bounces):
-            g = (gather @ t_prev.reshape(sc.n_vertices, k * channels)).reshape(t_prev.shape)
-            t_prev = g * rho[:, None, :channels]
-            total += t_prev
-    transfer = (total[:, :, 0] if channels == 1 else total).astype(np.float32)
+        samples = 0
+    if mode == "interreflected":
+        if isinstance(bounces, bool) or not isinstance(bounces, int | np.integer) \
+                or bounces < 0:
+            raise ShprobeError(f"bounces must be an integer >= 0, got {bounces!r}")
+        bounces = int(bounces)
+    else:
+        bounces = 0
+    sc = load_scene(scene, albedo=albedo, ground=ground, ground_albedo=ground_albedo,
+                    mesh_albedo=mesh_albedo)
+    wrap = progress or _quiet
+    k = num_coeffs(lmax)
+    shape = (sc.n_vertices, k) + ((3,) if coloured(sc.albedo) else ())
+    counts = tuple(range(bounces + 1)) if traced_mode else ()
+    traced = np.empty((len(counts), *shape), dtype=np.float32)
+    if traced_mode:
+        with ThreadPoolExecutor(nthreads) as pool:
+            pmap = pool.map if nthreads > 1 else map
+            spans = _chunks(sc.n_vertices, samples)
+            t0, blocks = _trace(sc, lmax, samples, seed, mode == "interreflected", spans, pmap,
+                                wrap)
+            # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
+            total = times_albedo(t0, sc.albedo)  # (V, K, C), C = 1 or 3
+            traced[0] = as_stored(total)
+            prev = total
+            rho = sc.albedo[:, None, : total.shape[2]] / np.pi
+            for b in wrap(range(1, bounces + 1), "bounces", bounces):
+                prev = _gather(blocks, spans, prev, pmap) * rho
+                total = total + prev
+                traced[b] = as_stored(total)
     meta = {
         "mesh_hash": sc.mesh_hash, "mode": mode, "lmax": lmax, "samples": samples,
-        "bounces": bounces, "seed": int(seed), "ground": bool(ground),
+        "bounces": bounces, "seed": seed, "ground": bool(ground),
         "albedo": {"min": sc.albedo.min(0).tolist(), "max": sc.albedo.max(0).tolist(),
                    "mean": sc.albedo.mean(0).tolist()},
         "directions": "spherical Fibonacci, seeded random rotation" if samples else "none",
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }
-    return Transfer(transfer, sc.vertices, sc.normals, sc.faces, sc.albedo, meta)
+    return Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
+                    lmax=lmax, traced=traced, bounce_counts=counts, metadata=meta)
+
+
+def _gather(blocks: list[Any], spans: list[tuple[int, int]], prev: NDArray[np.float64],
+            pmap: Callable[..., Iterable[Any]]) -> NDArray[np.float64]:
+    """One bounce: (gather matrix) @ previous bounce, block rows in parallel (scipy's sparse
+    product releases the GIL)."""
+    v, k, c = prev.shape
+    flat = prev.reshape(v, k * c)
+    out = np.empty_like(flat)
+
+    def one(i: int) -> None:
+        i0, i1 = spans[i]
+        out[i0:i1] = blocks[i] @ flat
+
+    for _ in pmap(one, range(len(blocks))):
+        pass
+    return out.reshape(v, k, c)
 
 
 def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
-           threads: int | None, wrap: ProgressFn):
-    """Visibility-weighted projection Σ V cos y 4π/N (V, K), and the bounce gather matrix."""
+           spans: list[tuple[int, int]], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn):
+    """Visibility-weighted projection Σ V cos y 4π/N (V, K), and the bounce gather matrix as
+    one CSR block of rows per span (None without gather)."""
     dirs = sample_directions(samples, seed)
     dirs32 = dirs.astype(np.float32)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
@@ -199,7 +264,6 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     faces = sc.faces
 
     from scipy.sparse import coo_matrix
-    from scipy.sparse import vstack as sparse_vstack
 
     kernels = _kernels()
     k = yw.shape[1]
@@ -234,16 +298,10 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
         g = coo_matrix((vals.astype(np.float64), (rows, cols)), shape=(i1 - i0, sc.n_vertices))
         return proj, g.tocsr()
 
-    spans = _chunks(sc.n_vertices, samples)
-    nthreads = max(1, int(threads or os.cpu_count() or 1))
     t0 = np.empty((sc.n_vertices, num_coeffs(lmax)), dtype=np.float64)
-    parts = []
-    with ThreadPoolExecutor(nthreads) as ex:
-        results = ex.map(work, spans) if nthreads > 1 else map(work, spans)
-        for (i0, i1), (proj, g) in zip(spans, wrap(results, "tracing rays", len(spans)),
-                                       strict=True):
-            t0[i0:i1] = proj
-            if g is not None:
-                parts.append(g)
-    gmat = sparse_vstack(parts, format="csr") if gather else None
-    return t0, gmat
+    blocks = []
+    for (i0, i1), (proj, g) in zip(spans, wrap(pmap(work, spans), "tracing rays", len(spans)),
+                                   strict=True):
+        t0[i0:i1] = proj
+        blocks.append(g)
+    return t0, blocks

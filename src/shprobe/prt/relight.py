@@ -39,36 +39,48 @@ def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDAr
 
 
 def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLike | None = None,
-            lmax: int | None = None) -> NDArray[np.float32]:
-    """Per-vertex exit radiance (V, 3) = transfer · rotate(L, R⁻¹), per channel.
+            lmax: int | None = None, mode: str | None = None,
+            bounces: int | None = None) -> NDArray[np.float32]:
+    """Per-vertex exit radiance (V, 3) = transfer · rotate(L, R⁻¹), per channel (LH §4).
 
-    transfer: a :class:`Transfer` or its (V, K) / (V, K, 3) array. coeffs: lighting L_lm (K', 3)
-    or (K',) (grey). rotation: 3×3 rotation of the scene relative to the lighting (None: none).
-    lmax: degree to use (default: the smaller of the transfer's and the lighting's) — the first
-    (lmax+1)² transfer columns, no re-bake. For the unshadowed model with albedo ρ the result is
-    ρ/π · E(n) (R&H eq. 7).
+    transfer: a :class:`Transfer` or a (V, K) / (V, K, 3) transfer array. coeffs: lighting L_lm
+    (K', 3) or (K',) (grey). rotation: 3×3 rotation of the scene relative to the lighting (None:
+    none). lmax: degree to use (default: the smaller of the transfer's and the lighting's) — the
+    first (lmax+1)² transfer columns, no re-bake. mode, bounces: the model, picked at run time
+    from a :class:`Transfer` (:meth:`Transfer.select`: 'unshadowed' always, 'shadowed' when the
+    bake cast rays, 'interreflected' with at most the baked bounces; default the baked model).
+    For the unshadowed model with albedo ρ the result is ρ/π · E(n) (R&H eq. 7).
     """
-    t = transfer.transfer if isinstance(transfer, Transfer) else np.asarray(transfer)
-    if t.ndim not in (2, 3) or (t.ndim == 3 and t.shape[2] != 3):
-        raise ShprobeError(f"transfer must be (V, K) or (V, K, 3), got {t.shape}")
+    if isinstance(transfer, Transfer):
+        lt = transfer.lmax
+    else:
+        if mode is not None or bounces is not None:
+            raise ShprobeError("mode and bounces pick a model of a Transfer, not of an array")
+        t = np.asarray(transfer)
+        if t.ndim not in (2, 3) or (t.ndim == 3 and t.shape[2] != 3):
+            raise ShprobeError(f"transfer must be (V, K) or (V, K, 3), got {t.shape}")
+        lt = lmax_of(t.shape[1])
     c = np.asarray(coeffs, dtype=np.float64)
-    lt, lc = lmax_of(t.shape[1]), lmax_of(c.shape[0])
+    if c.ndim not in (1, 2):
+        raise ShprobeError(f"lighting coefficients must be (K,) or (K, C), got {c.shape}")
+    lc = lmax_of(c.shape[0])
     use = min(lt, lc) if lmax is None else int(lmax)
     if use > min(lt, lc) or use < 0:
         raise ShprobeError(f"lmax={use} not available: transfer has {lt}, lighting has {lc}")
     k = num_coeffs(use)
+    if isinstance(transfer, Transfer):
+        tk = transfer.select(mode, bounces, use)
+    else:
+        tk = t[:, :k]
     light = scene_lighting(c[:k], rotation)
     if light.shape[1] == 1:
         light = np.repeat(light, 3, axis=1)
     if light.shape[1] != 3:
         raise ShprobeError(f"lighting must have 1 or 3 channels, got {light.shape[1]}")
-    tk = t[:, :k]
     light = light.astype(tk.dtype if tk.dtype in (np.float32, np.float64) else np.float64)
     if tk.ndim == 2:
         return np.asarray(tk @ light, dtype=np.float32)
     # one matmul: (V, K·3) @ (K·3, 3) with the lighting on the block diagonal per channel
     m = np.zeros((k, 3, 3), dtype=light.dtype)
     m[:, [0, 1, 2], [0, 1, 2]] = light
-    return np.asarray(tk.reshape(t.shape[0], k * 3) @ m.reshape(k * 3, 3), dtype=np.float32)
-
-
+    return np.asarray(tk.reshape(tk.shape[0], k * 3) @ m.reshape(k * 3, 3), dtype=np.float32)

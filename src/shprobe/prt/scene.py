@@ -126,36 +126,85 @@ def ground_plane(center_xz: ArrayLike, size: float, y: float, resolution: int = 
 
 
 def _albedo_rows(spec: Any, n: int, what: str) -> NDArray[np.float64]:
-    """(n, 3) albedo from a scalar, an RGB triple, (n,) or (n, 3)."""
-    a = np.asarray(DEFAULT_ALBEDO if spec is None else spec, dtype=np.float64)
+    """(n, 3) albedo from a number, an RGB triple (3,), or per-vertex values (n,), (n, 1) or
+    (n, 3). A 1-D array of length 3 is always RGB (a 3-vertex mesh's grey values: (3, 1))."""
+    try:
+        a = np.asarray(spec, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"albedo for {what} must be numbers, got {spec!r}") from None
     if a.ndim == 0:
         a = np.full((n, 3), float(a))
-    elif a.shape == (3,) and n != 3:
+    elif a.shape == (3,):
         a = np.tile(a, (n, 1))
-    elif a.shape == (n,):
-        a = np.repeat(a[:, None], 3, axis=1)
+    elif a.shape in ((n,), (n, 1)):
+        a = np.repeat(a.reshape(n, 1), 3, axis=1)
     elif a.shape != (n, 3):
-        raise ShprobeError(f"albedo for {what} must be a number, RGB, ({n},) or ({n}, 3); "
-                           f"got shape {a.shape}")
+        raise ShprobeError(f"albedo for {what} must be a number, r,g,b, or per-vertex ({n},) / "
+                           f"({n}, 3); got shape {a.shape}")
     if not np.all(np.isfinite(a)) or np.any(a < 0) or np.any(a > 1):
         raise ShprobeError(f"albedo for {what} must lie in [0, 1]")
     return a
 
 
+def _one_value(albedo: Any, what: str) -> Any:
+    """Check that ``albedo`` is one value for every mesh: a number or an RGB triple."""
+    if albedo is None:
+        return None
+    try:
+        shape = np.shape(albedo)
+    except ValueError:
+        shape = None
+    if shape not in ((), (3,)):
+        raise ShprobeError(f"{what} is one value for every mesh, a number or r,g,b (got "
+                           f"{'shape ' + str(shape) if shape else 'a ragged list'}); give "
+                           "per-mesh or per-vertex albedo as mesh_albedo=[one entry per mesh]")
+    return albedo
+
+
+def vertex_colour_albedo(mesh: Any) -> NDArray[np.float64] | None:
+    """A mesh's own vertex colours as albedo (V, 3): the stored 8-bit sRGB display values
+    decoded to linear reflectance (IEC 61966-2-1); None when the mesh has none."""
+    visual = getattr(mesh, "visual", None)
+    if visual is None or getattr(visual, "kind", None) != "vertex":
+        return None
+    from ..images import srgb_to_linear
+
+    c = np.asarray(visual.vertex_colors, dtype=np.float64)[:, :3] / 255.0
+    if c.shape != (len(mesh.vertices), 3):
+        return None
+    return np.asarray(srgb_to_linear(c), dtype=np.float64)
+
+
 def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
                ground_albedo: Any = None, ground_size: float = 3.0,
-               ground_resolution: int = 64) -> Scene:
+               ground_resolution: int = 64, mesh_albedo: Sequence[Any] | None = None) -> Scene:
     """Build a :class:`Scene` from a mesh path, a trimesh object, a Scene, or a list of them.
 
-    albedo: None (each mesh's default, ρ = 0.8), one value for all meshes (a number or an RGB
-    triple), or a list with one entry per mesh, each a number, an RGB triple or per-vertex values
-    (V_i,) / (V_i, 3). ground: add a square plane under the scene (at the lowest y of the meshes,
-    ``ground_size`` times the larger horizontal extent, normal +Y) with ``ground_albedo`` (default:
-    the albedo when it is one value, else 0.8).
+    Albedo (diffuse reflectance ρ in [0, 1]), two unambiguous ways:
+
+    - ``albedo``: one value for every mesh (and the ground): a number, or an RGB triple;
+    - ``mesh_albedo``: a sequence with exactly one entry per mesh, in order, each None (that
+      mesh's default), a number, an RGB triple (a 1-D array of length 3 is always RGB), or
+      per-vertex values (V_i,), (V_i, 1) or (V_i, 3).
+
+    Default (neither, or a None entry): the mesh's own vertex colours when it has them
+    (sRGB-decoded, :func:`vertex_colour_albedo`), else ρ = 0.8. ground: add a square plane under
+    the scene (at the lowest y of the meshes, ``ground_size`` times the larger horizontal
+    extent, normal +Y) with ``ground_albedo`` (a number or RGB; default ``albedo``, else 0.8).
     """
+    _one_value(albedo, "albedo")
+    _one_value(ground_albedo, "ground_albedo")
+    if albedo is not None and mesh_albedo is not None:
+        raise ShprobeError("give albedo (one value for every mesh) or mesh_albedo (one entry "
+                           "per mesh), not both")
     if isinstance(scene, Scene):
         if ground:
             raise ShprobeError("add the ground plane when the scene is built, not to a Scene")
+        if mesh_albedo is not None:
+            if len(mesh_albedo) != 1:
+                raise ShprobeError(f"mesh_albedo has {len(mesh_albedo)} entries for a Scene "
+                                   "(one flattened mesh): give one")
+            albedo = mesh_albedo[0]
         if albedo is None:
             return scene
         return _with_albedo(scene, _albedo_rows(albedo, scene.n_vertices, "the scene"))
@@ -163,11 +212,13 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
     if not items:
         raise ShprobeError("the scene has no meshes")
     meshes = [_load_mesh(it) for it in items]
-    per_mesh: Sequence[Any]
-    if isinstance(albedo, list | tuple) and len(albedo) == len(meshes) and not (
-        len(meshes) == 3 and all(np.ndim(a) == 0 for a in albedo)
-    ):
-        per_mesh = albedo
+    if mesh_albedo is not None:
+        if isinstance(mesh_albedo, str) or not isinstance(mesh_albedo, Sequence):
+            raise ShprobeError("mesh_albedo must be a list with one entry per mesh")
+        if len(mesh_albedo) != len(meshes):
+            raise ShprobeError(f"mesh_albedo has {len(mesh_albedo)} entries for "
+                               f"{len(meshes)} meshes: give one per mesh")
+        per_mesh: Sequence[Any] = mesh_albedo
     else:
         per_mesh = [albedo] * len(meshes)
     verts, norms, faces, alb = [], [], [], []
@@ -179,7 +230,9 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
         verts.append(v)
         norms.append(nrm)
         faces.append(np.asarray(m.faces, dtype=np.int64) + off)
-        alb.append(_albedo_rows(a, len(v), f"mesh {k}"))
+        if a is None:
+            a = vertex_colour_albedo(m)
+        alb.append(_albedo_rows(DEFAULT_ALBEDO if a is None else a, len(v), f"mesh {k}"))
         off += len(v)
     if ground:
         allv = np.concatenate(verts)
@@ -187,10 +240,7 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
         ext = float(max(hi[0] - lo[0], hi[2] - lo[2], 1e-9))
         g = ground_plane(0.5 * (lo[[0, 2]] + hi[[0, 2]]), ground_size * ext, lo[1],
                          ground_resolution)
-        ga = ground_albedo
-        if ga is None:
-            one_value = albedo is not None and (np.ndim(albedo) == 0 or np.shape(albedo) == (3,))
-            ga = albedo if one_value else DEFAULT_ALBEDO
+        ga = next((x for x in (ground_albedo, albedo) if x is not None), DEFAULT_ALBEDO)
         verts.append(np.asarray(g.vertices))
         norms.append(np.asarray(g.vertex_normals))
         faces.append(np.asarray(g.faces, dtype=np.int64) + off)

@@ -1,4 +1,5 @@
-"""The baked transfer: per-vertex transfer vectors with the scene they belong to, saved as .npz.
+"""The baked transfer: per-vertex transfer vectors of every model a bake can give, with the scene
+they belong to, saved as .npz.
 
 Radiance scale (one convention everywhere in ``shprobe.prt``): for lighting coefficients L_lm
 (radiance), ``transfer[v] · L`` is the exit radiance of vertex v,
@@ -7,6 +8,13 @@ Radiance scale (one convention everywhere in ``shprobe.prt``): for lighting coef
 
 so for the unshadowed model it is ρ/π times the irradiance E(n_v) = Σ Â_l L_lm y_lm(n_v)
 (R&H eq. 7; LH eq. 9 with π H_l = Â_l).
+
+Run-time model switching (LH §4; the issue's "model switchable at run time"): one bake serves
+every model up to what it traced. The unshadowed transfer is analytic in the stored normals and
+albedo (LH eq. 9) and is never stored; a ray-traced bake stores the shadowed transfer (bounce 0)
+and, for an interreflected bake, the cumulative transfer after each bounce, so
+:meth:`Transfer.select` picks unshadowed, shadowed or interreflected with any number of bounces
+up to the baked one, without re-baking.
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ import json
 import os
 import zipfile
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -23,36 +32,70 @@ from numpy.typing import NDArray
 
 from ..errors import ShprobeError
 from ..files import save_npz
-from ..sh import check_lmax, lmax_of, num_coeffs
+from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis
+from ..zonal import clamped_cosine_factors
 from .scene import Scene, load_scene, mesh_hash
 
 FORMAT = "shprobe-prt"
-FORMAT_VERSION = 1
+#: 1: one ``transfer`` array of the baked model; 2: ``traced`` layers + ``bounce_counts``.
+FORMAT_VERSION = 2
 MODES = ("unshadowed", "shadowed", "interreflected")
+
+
+def unshadowed_transfer(normals: NDArray[np.floating], lmax: int) -> NDArray[np.float64]:
+    """Â_l y_lm(n) for each normal, (V, K): the SH of max(0, n·ω) (LH eq. 9, π H_l = Â_l)."""
+    a = clamped_cosine_factors(lmax)[degrees(lmax)]
+    return sh_basis(np.asarray(normals, dtype=np.float64), lmax) * a
+
+
+def coloured(albedo: NDArray[np.float64]) -> bool:
+    """True when some vertex has a non-grey albedo (the transfer then has 3 channels)."""
+    a = np.asarray(albedo)
+    return bool(np.any(a[:, 1:] != a[:, :1]))
+
+
+def times_albedo(t: NDArray[np.float64], albedo: NDArray[np.float64]) -> NDArray[np.float64]:
+    """ρ/π · t: (V, K) → (V, K, 1) for grey albedo, (V, K, 3) for coloured albedo."""
+    channels = 3 if coloured(albedo) else 1
+    return t[:, :, None] * (np.asarray(albedo, dtype=np.float64) / np.pi)[:, None, :channels]
+
+
+def as_stored(t: NDArray[np.float64]) -> NDArray[np.float32]:
+    """(V, K, 1) → (V, K) float32; (V, K, 3) stays three-channel."""
+    return np.asarray(t[..., 0] if t.shape[-1] == 1 else t, dtype=np.float32)
+
+
+def _count(bounces: Any) -> int:
+    if isinstance(bounces, bool) or not isinstance(bounces, int | np.integer) or bounces < 0:
+        raise ShprobeError(f"bounces must be an integer >= 0, got {bounces!r}")
+    return int(bounces)
 
 
 @dataclass(frozen=True)
 class Transfer:
-    """Per-vertex transfer vectors and their scene.
+    """Per-vertex transfer vectors of every model a bake gives, and their scene.
 
-    transfer: (V, K) float32, or (V, K, 3) when the albedo is coloured; K = (lmax+1)², flat SH
-    index on axis 1. vertices/normals (V, 3), faces (F, 3), albedo (V, 3) as baked.
-    metadata: mesh_hash, mode, lmax, samples, bounces, seed, albedo summary, and the scale.
+    vertices/normals (V, 3), faces (F, 3), albedo (V, 3) as baked; lmax the baked degree.
+    traced: (S, V, K) float32, or (S, V, K, 3) when the albedo is coloured — the ray-traced
+    transfer, cumulative: ``traced[i]`` is shadowed plus ``bounce_counts[i]`` bounces
+    (``bounce_counts`` = (0, 1, …, B) for an interreflected bake with B bounces, (0,) for a
+    shadowed bake, () with S = 0 for an unshadowed bake). K = (lmax+1)², flat SH index.
+    metadata: mesh_hash, mode (the most complete model baked), lmax, samples, bounces, seed,
+    albedo summary, and the scale.
     """
 
-    transfer: NDArray[np.float32]
     vertices: NDArray[np.float64]
     normals: NDArray[np.float64]
     faces: NDArray[np.int64]
     albedo: NDArray[np.float64]
+    lmax: int
+    traced: NDArray[np.float32]
+    bounce_counts: tuple[int, ...] = ()
     metadata: dict[str, Any] = field(default_factory=dict)
 
     @property
-    def lmax(self) -> int:
-        return lmax_of(self.transfer.shape[1])
-
-    @property
     def mode(self) -> str:
+        """The most complete model baked (the default of :meth:`select`)."""
         return str(self.metadata.get("mode", ""))
 
     @property
@@ -61,14 +104,84 @@ class Transfer:
 
     @property
     def n_vertices(self) -> int:
-        return int(self.transfer.shape[0])
+        return int(self.vertices.shape[0])
 
-    def truncated(self, lmax: int) -> Transfer:
-        """The same transfer at a lower degree: the first (lmax+1)² columns (no re-bake)."""
+    @property
+    def max_bounces(self) -> int | None:
+        """Largest number of bounces available (0 for a shadowed bake; None without rays)."""
+        return max(self.bounce_counts) if self.bounce_counts else None
+
+    @property
+    def modes(self) -> tuple[str, ...]:
+        """The models this transfer can give at run time."""
+        out = ["unshadowed"]
+        if 0 in self.bounce_counts:
+            out.append("shadowed")
+        if any(b > 0 for b in self.bounce_counts):
+            out.append("interreflected")
+        return tuple(out)
+
+    @property
+    def transfer(self) -> NDArray[np.float32]:
+        """The transfer of the baked model, (V, K) or (V, K, 3): ``select()``."""
+        return self.select()
+
+    @cached_property
+    def _unshadowed(self) -> NDArray[np.float32]:
+        return as_stored(times_albedo(unshadowed_transfer(self.normals, self.lmax), self.albedo))
+
+    def select(self, mode: str | None = None, bounces: int | None = None,
+               lmax: int | None = None) -> NDArray[np.float32]:
+        """The transfer (V, K) or (V, K, 3) of one model, picked at run time (no re-bake).
+
+        mode: 'unshadowed' (always available: analytic from the normals, LH eq. 9),
+        'shadowed' (bakes that cast rays), 'interreflected' (shadowed plus ``bounces`` bounces,
+        at most the baked number; default all of them); None: the baked mode (``bounces``
+        alone implies 'interreflected'). lmax: the first (lmax+1)² columns (default: all).
+        """
+        if mode is None:
+            mode = "interreflected" if bounces is not None else self.mode
+        if mode not in MODES:
+            raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
+        if bounces is not None and mode != "interreflected":
+            raise ShprobeError(f"bounces apply to the interreflected model, not to {mode}")
+        k = num_coeffs(self.lmax if lmax is None else self._check_lmax(lmax))
+        if mode == "unshadowed":
+            return self._unshadowed[:, :k]
+        if not self.bounce_counts:
+            raise ShprobeError(f"this transfer was baked unshadowed (no rays): it cannot give "
+                               f"the {mode} model; bake with --mode {mode}")
+        if mode == "shadowed":
+            want = 0
+        elif bounces is None:
+            if self.mode != "interreflected":
+                raise ShprobeError("this transfer was baked shadowed (no bounces): it cannot "
+                                   "give the interreflected model; bake with --mode "
+                                   "interreflected")
+            want = max(self.bounce_counts)
+        else:
+            want = _count(bounces)
+        if want not in self.bounce_counts:
+            what = "the shadowed model" if mode == "shadowed" else f"{want} bounces"
+            top = max(self.bounce_counts)
+            if want < top:  # a gap in the layers: only files of format 1 have them
+                raise ShprobeError(f"this transfer (from a format-1 file) holds only its baked "
+                                   f"model ({self.mode}, {top} bounces), not {what}; re-bake "
+                                   "to switch models")
+            raise ShprobeError(f"this transfer was baked with {top} bounces; it cannot give "
+                               f"{what}")
+        return self.traced[self.bounce_counts.index(want), :, :k]
+
+    def _check_lmax(self, lmax: int) -> int:
         lmax = check_lmax(lmax)
         if lmax > self.lmax:
             raise ShprobeError(f"transfer was baked to lmax={self.lmax}, cannot use lmax={lmax}")
-        return replace(self, transfer=self.transfer[:, : num_coeffs(lmax)],
+        return lmax
+
+    def truncated(self, lmax: int) -> Transfer:
+        """The same transfer at a lower degree: the first (lmax+1)² columns (no re-bake)."""
+        lmax = self._check_lmax(lmax)
+        return replace(self, lmax=lmax, traced=self.traced[:, :, : num_coeffs(lmax)],
                        metadata={**self.metadata, "lmax": lmax})
 
     def scene(self) -> Scene:
@@ -77,16 +190,22 @@ class Transfer:
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> Path:
         """Write an .npz (atomic; an existing file is replaced only with ``overwrite``)."""
-        meta = {"format": FORMAT, "version": FORMAT_VERSION, **self.metadata}
-        return save_npz(path, overwrite=overwrite, transfer=self.transfer,
+        meta = {"format": FORMAT, "version": FORMAT_VERSION, **self.metadata, "lmax": self.lmax}
+        return save_npz(path, overwrite=overwrite, traced=self.traced,
+                        bounce_counts=np.asarray(self.bounce_counts, dtype=np.int64),
                         vertices=self.vertices, normals=self.normals, faces=self.faces,
                         albedo=self.albedo, metadata=np.array(json.dumps(meta)))
 
 
+_GEOMETRY = ("vertices", "normals", "faces", "albedo", "metadata")
+_ARRAYS = {1: ("transfer",), 2: ("traced", "bounce_counts")}
+
+
 def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
-    """Read a transfer .npz; with ``scene`` (anything :func:`load_scene` takes: the mesh
-    path(s) or object(s) given to :func:`~shprobe.prt.bake`; the ground plane is added again
-    when the bake had one) refuse a file baked for another mesh (hash mismatch).
+    """Read a transfer .npz (format 2, or format 1 with only its baked model); with ``scene``
+    (anything :func:`load_scene` takes: the mesh path(s) or object(s) given to
+    :func:`~shprobe.prt.bake`; the ground plane is added again when the bake had one) refuse a
+    file baked for another mesh (hash mismatch).
     """
     p = Path(path)
     if not p.is_file():
@@ -94,35 +213,53 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     if not zipfile.is_zipfile(p):
         raise ShprobeError("not a transfer file (not an .npz archive; empty, truncated or "
                            "another format)", p)
-    names = ("transfer", "vertices", "normals", "faces", "albedo", "metadata")
     try:
         with np.load(p, allow_pickle=False) as d:
-            missing = [k for k in names if k not in d.files]
+            missing = [k for k in _GEOMETRY if k not in d.files]
             if missing:
                 raise ShprobeError("not a shprobe transfer file (no "
                                    + ", ".join(missing) + " array)", p)
-            arrays = {k: d[k] for k in names}
+            meta = _metadata(d["metadata"], p)
+            version = meta.get("version")
+            if version not in _ARRAYS:
+                raise ShprobeError(f"transfer file format {version!r} is not supported "
+                                   f"(this shprobe reads formats 1 and 2)", p)
+            missing = [k for k in _ARRAYS[version] if k not in d.files]
+            if missing:
+                raise ShprobeError("not a shprobe transfer file (no "
+                                   + ", ".join(missing) + " array)", p)
+            arrays = {k: d[k] for k in _GEOMETRY[:-1] + _ARRAYS[version]}
     except ShprobeError:
         raise
     except Exception as e:
         raise ShprobeError(f"cannot read transfer file (truncated or corrupt): "
                            f"{' '.join(str(e).split())[:200]}", p) from None
-    try:
-        meta = json.loads(str(arrays.pop("metadata")))
-    except ValueError:
-        raise ShprobeError("transfer metadata is not valid JSON", p) from None
-    if meta.get("format") != FORMAT:
-        raise ShprobeError("not a shprobe transfer file", p)
-    if meta.get("mode") not in MODES:
-        raise ShprobeError(f"unknown transfer mode {meta.get('mode')!r}", p)
-    t = arrays["transfer"]
+    mode = meta.get("mode")
+    if mode not in MODES:
+        raise ShprobeError(f"unknown transfer mode {mode!r}", p)
     v = arrays["vertices"]
-    if t.ndim not in (2, 3) or t.shape[0] != v.shape[0] or (t.ndim == 3 and t.shape[2] != 3):
-        raise ShprobeError(f"transfer array has shape {t.shape} for {v.shape[0]} vertices", p)
+    if version == 1:
+        traced, counts = _from_format_1(arrays["transfer"], mode, meta, v.shape[0], p)
+    else:
+        traced = arrays["traced"]
+        counts = tuple(int(b) for b in np.asarray(arrays["bounce_counts"]).ravel())
+    if (traced.ndim not in (3, 4) or traced.shape[0] != len(counts)
+            or traced.shape[1] != v.shape[0] or (traced.ndim == 4 and traced.shape[3] != 3)):
+        raise ShprobeError(f"transfer array has shape {traced.shape} for {v.shape[0]} vertices "
+                           f"and {len(counts)} layers", p)
     try:
-        lmax_of(t.shape[1])
+        lmax = lmax_of(traced.shape[2])
     except ShprobeError as e:
         raise ShprobeError(e.message, p) from None
+    if lmax != meta.get("lmax"):
+        raise ShprobeError(f"transfer array is lmax {lmax}, metadata says {meta.get('lmax')}", p)
+    # layers: () unshadowed, (0,) shadowed, (0, …, B) interreflected; a file converted from
+    # format 1 may hold only (B,)
+    top = {"unshadowed": None, "shadowed": 0}.get(mode, meta.get("bounces"))
+    if (any(b < 0 for b in counts) or list(counts) != sorted(set(counts))
+            or (max(counts) if counts else None) != top):
+        raise ShprobeError(f"{mode} transfer with bounce layers {list(counts)} (corrupt file)",
+                           p)
     if mesh_hash(v, arrays["faces"]) != meta.get("mesh_hash"):
         raise ShprobeError("stored mesh does not match the file's mesh hash (corrupt file)", p)
     if scene is not None:
@@ -136,5 +273,31 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
                 "re-bake it", p)
     meta.pop("format", None)
     meta.pop("version", None)
-    return Transfer(transfer=t, vertices=v, normals=arrays["normals"], faces=arrays["faces"],
-                    albedo=arrays["albedo"], metadata=meta)
+    return Transfer(vertices=v, normals=arrays["normals"], faces=arrays["faces"],
+                    albedo=arrays["albedo"], lmax=lmax, traced=traced, bounce_counts=counts,
+                    metadata=meta)
+
+
+def _metadata(raw: NDArray, p: Path) -> dict[str, Any]:
+    try:
+        meta = json.loads(str(raw))
+    except ValueError:
+        raise ShprobeError("transfer metadata is not valid JSON", p) from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise ShprobeError("not a shprobe transfer file", p)
+    return meta
+
+
+def _from_format_1(t: NDArray, mode: str, meta: dict[str, Any], n_vertices: int,
+                   p: Path) -> tuple[NDArray, tuple[int, ...]]:
+    """Format 1 stored one array, the baked model: shadowed → layer 0, interreflected → its
+    bounce count only; unshadowed is recomputed analytically (an empty layer stack)."""
+    if t.ndim not in (2, 3) or t.shape[0] != n_vertices or (t.ndim == 3 and t.shape[2] != 3):
+        raise ShprobeError(f"transfer array has shape {t.shape} for {n_vertices} vertices", p)
+    try:
+        meta.setdefault("lmax", lmax_of(t.shape[1]))
+    except ShprobeError as e:
+        raise ShprobeError(e.message, p) from None
+    if mode == "unshadowed":
+        return t[None][:0], ()
+    return t[None], (0,) if mode == "shadowed" else (int(meta.get("bounces", 0)),)
