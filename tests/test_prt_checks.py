@@ -164,7 +164,7 @@ def test_hash_check_with_ground_and_several_meshes(tmp_path, capsys):
 def test_zero_normals_are_refused(tmp_path, capsys):
     bad = tmp_path / "flat.obj"
     bad.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")  # a triangle of zero area
-    with pytest.raises(ShprobeError, match="zero or non-finite normal"):
+    with pytest.raises(ShprobeError, match=r"flat\.obj.*(zero or non-finite normal|no normals)"):
         bake(bad, mode="unshadowed", lmax=2)
     one_line_error(capsys, ["prt", "bake", str(bad), "-o", str(tmp_path / "x.npz")],
                    "flat.obj", "normal")

@@ -276,6 +276,26 @@ def test_vertex_colours_are_the_default_albedo(tmp_path):
     assert np.all(bake(plain, mode="unshadowed", lmax=0).albedo == 0.8)
 
 
+def test_face_and_material_colours_are_the_default_albedo(tmp_path):
+    """As the renderer reads them: PLY face colours (sRGB) averaged over each vertex's faces,
+    an OBJ's Kd (linear) on every vertex. Files written by hand."""
+    quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+    (tmp_path / "k.mtl").write_text("newmtl m\nKd 0.8 0.4 0.2\n")
+    (tmp_path / "k.obj").write_text(f"mtllib k.mtl\n{quad}usemtl m\nf 1 2 3\nf 1 3 4\n")
+    np.testing.assert_allclose(bake(tmp_path / "k.obj", mode="unshadowed", lmax=1).albedo,
+                               np.tile([0.8, 0.4, 0.2], (4, 1)), atol=3e-3)
+    (tmp_path / "f.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+        "-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2 255 0 0\n3 0 2 3 0 0 255\n")
+    t = bake(tmp_path / "f.ply", mode="unshadowed", lmax=1)
+    # vertices 0 and 2 touch both faces, 1 only the red one, 3 only the blue one
+    red, blue, half = [1.0, 0, 0], [0, 0, 1.0], [0.5, 0, 0.5]
+    order = np.argsort(t.vertices[:, 0] * 10 + t.vertices[:, 1])  # (-1,-1) (-1,1) (1,-1) (1,1)
+    np.testing.assert_allclose(t.albedo[order], [half, blue, red, half], atol=1e-6)
+
+
 # ----------------------------------------------------------------------------- seeds, threads
 
 

@@ -417,6 +417,29 @@ def _mesh_material_color(mesh: trimesh.Trimesh) -> NDArray | None:
     return None
 
 
+def mesh_vertex_albedo(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
+    """A mesh's own albedo per vertex (V, 3), linear, for per-vertex shading (PRT): its
+    texture sampled at the vertex UVs (× glTF ``baseColorFactor``), else its vertex colours,
+    else its face colours averaged over each vertex's faces, else its material colour (glTF
+    ``baseColorFactor`` / OBJ ``Kd``); None when it has none of them."""
+    nv = len(mesh.vertices)
+    tex = _mesh_texture(mesh)
+    if tex is not None and len(tex[0]) == nv:
+        return sample_texture(tex[1], tex[0])[:, :3].astype(np.float64)
+    vc = _mesh_vertex_colors(mesh)
+    if vc is not None and len(vc) == nv:
+        return np.asarray(vc, np.float64)
+    fc = _mesh_face_colors(mesh)
+    if fc is not None:
+        faces = np.asarray(mesh.faces)
+        acc = np.zeros((nv, 3))
+        np.add.at(acc, faces.reshape(-1), np.repeat(fc.astype(np.float64), 3, axis=0))
+        cnt = np.bincount(faces.reshape(-1), minlength=nv)[:, None]
+        return np.where(cnt > 0, acc / np.maximum(cnt, 1), 1.0)
+    mc = _mesh_material_color(mesh)
+    return None if mc is None else np.broadcast_to(mc.astype(np.float64), (nv, 3)).copy()
+
+
 def sample_texture(tex: NDArray, uv: NDArray) -> NDArray[np.float32]:
     """Bilinear lookup with wrap-around; uv (P, 2), v = 0 at the bottom row of the image."""
     h, w = tex.shape[:2]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from .bake import bake, sample_directions
 from .relight import relight, scene_lighting
-from .scene import Scene, ground_plane, load_scene, mesh_hash, vertex_colour_albedo
+from .scene import Scene, ground_plane, load_scene, mesh_hash
 from .transfer import MODES, Transfer, load_transfer, unshadowed_transfer
 
 __all__ = [
@@ -27,5 +27,4 @@ __all__ = [
     "sample_directions",
     "scene_lighting",
     "unshadowed_transfer",
-    "vertex_colour_albedo",
 ]

@@ -11,13 +11,13 @@ import hashlib
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..render import mesh_vertex_albedo
 
 #: Albedo used where none is given.
 DEFAULT_ALBEDO = 0.8
@@ -83,16 +83,9 @@ def _load_mesh(item: Any):
     import trimesh
 
     if isinstance(item, str | os.PathLike):
-        p = Path(item)
-        if not p.is_file():
-            raise ShprobeError("no such mesh file", p)
-        try:
-            mesh = trimesh.load(p, force="mesh")
-        except Exception as e:  # trimesh raises many types for bad files
-            raise ShprobeError(f"cannot read mesh: {e}", p) from None
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise ShprobeError("file holds no triangles", p)
-        return mesh
+        from ..render import load_mesh
+
+        return load_mesh(item)
     if isinstance(item, trimesh.Scene):
         item = item.to_geometry() if hasattr(item, "to_geometry") else item.dump(concatenate=True)
     if isinstance(item, trimesh.Trimesh):
@@ -161,20 +154,6 @@ def _one_value(albedo: Any, what: str) -> Any:
     return albedo
 
 
-def vertex_colour_albedo(mesh: Any) -> NDArray[np.float64] | None:
-    """A mesh's own vertex colours as albedo (V, 3): the stored 8-bit sRGB display values
-    decoded to linear reflectance (IEC 61966-2-1); None when the mesh has none."""
-    visual = getattr(mesh, "visual", None)
-    if visual is None or getattr(visual, "kind", None) != "vertex":
-        return None
-    from ..images import srgb_to_linear
-
-    c = np.asarray(visual.vertex_colors, dtype=np.float64)[:, :3] / 255.0
-    if c.shape != (len(mesh.vertices), 3):
-        return None
-    return np.asarray(srgb_to_linear(c), dtype=np.float64)
-
-
 def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
                ground_albedo: Any = None, ground_size: float = 3.0,
                ground_resolution: int = 64, mesh_albedo: Sequence[Any] | None = None) -> Scene:
@@ -187,8 +166,9 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
       mesh's default), a number, an RGB triple (a 1-D array of length 3 is always RGB), or
       per-vertex values (V_i,), (V_i, 1) or (V_i, 3).
 
-    Default (neither, or a None entry): the mesh's own vertex colours when it has them
-    (sRGB-decoded, :func:`vertex_colour_albedo`), else ρ = 0.8. ground: add a square plane under
+    Default (neither, or a None entry): the mesh's own colour when it has one (texture at the
+    vertex UVs, vertex, face or material colours: :func:`shprobe.render.mesh_vertex_albedo`),
+    else ρ = 0.8. ground: add a square plane under
     the scene (at the lowest y of the meshes, ``ground_size`` times the larger horizontal
     extent, normal +Y) with ``ground_albedo`` (a number or RGB; default ``albedo``, else 0.8).
     """
@@ -231,7 +211,7 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
         norms.append(nrm)
         faces.append(np.asarray(m.faces, dtype=np.int64) + off)
         if a is None:
-            a = vertex_colour_albedo(m)
+            a = mesh_vertex_albedo(m)
         alb.append(_albedo_rows(DEFAULT_ALBEDO if a is None else a, len(v), f"mesh {k}"))
         off += len(v)
     if ground:
