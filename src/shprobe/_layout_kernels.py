@@ -1,8 +1,9 @@
 """numba kernel of :mod:`shprobe.layouts`: the disc layouts' pixel tables (imported lazily).
 
-One quadrant (rows and columns ``< (n+1)//2``: a ≤ 0, b ≥ 0) of the solid angles and
-directions of an n × n disc image; the caller mirrors it. The radial maps and the quadrature
-are those described in ``layouts._Disc``; ``kind`` 0 is the angular map, 1 the mirror ball.
+The solid angles and directions of an n × n disc image, computed on one quadrant (rows and
+columns ``< (n+1)//2``: a ≤ 0, b ≥ 0) and mirrored (the tables are symmetric in a and in b).
+The radial maps and the quadrature are those described in ``layouts._disc_tables``; ``kind``
+0 is the angular map, 1 the mirror ball.
 """
 
 from __future__ import annotations
@@ -92,20 +93,22 @@ def _rim(kind, a0, a1, b0, b1, t, wt, with_dirs, vec):
 
 
 @numba.njit(cache=True, parallel=True)
-def disc_quadrant(kind, n, omega_exact, tq, wq, t16, w16, t6, w6):
-    """(solid angles (h, h), directions (h, h, 3)) of the top-left quadrant, h = (n+1)//2.
+def disc_tables(kind, n, omega_exact, tq, wq, t16, w16, t6, w6):
+    """(solid angles (n, n), directions (n, n, 3)) of a disc layout.
 
     Interior pixels: tensor Gauss (``tq``, ``wq`` on [0, 1]) of the Jacobian, unless
-    ``omega_exact`` (n × n) is given (``kind`` 1); rim pixels: :func:`_rim` with 16 nodes;
-    rim pixels whose centre is outside the disc look along their mean direction (6 nodes).
+    ``omega_exact`` (n × n) is given; rim pixels: :func:`_rim` with 16 nodes; rim pixels whose
+    centre is outside the disc look along their mean direction (6 nodes). Pixels outside the
+    disc: 0 and (0, 0, 0).
     """
     half = (n + 1) // 2
     h = 2.0 / n
     exact = omega_exact.shape[0] == n
-    omega = np.zeros((half, half))
-    dirs = np.zeros((half, half, 3))
+    omega = np.zeros((n, n))
+    dirs = np.zeros((n, n, 3))
     for j in numba.prange(half):
         vec = np.empty(3)
+        d = np.zeros(3)
         b1 = 1.0 - j * h
         b0 = b1 - h
         for i in range(half):
@@ -132,15 +135,26 @@ def disc_quadrant(kind, n, omega_exact, tq, wq, t16, w16, t6, w6):
                 om *= h * h
             else:
                 om = _rim(kind, a0, a1, b0, b1, t16, w16, False, vec)
-            omega[j, i] = om
             if om <= 0.0:
                 continue
             if not inside and math.hypot(ac, bc) >= 1.0:
                 _rim(kind, a0, a1, b0, b1, t6, w6, True, vec)
                 vn = math.sqrt(vec[0] ** 2 + vec[1] ** 2 + vec[2] ** 2)
-                if vn > 0.0:
-                    for c in range(3):
-                        dirs[j, i, c] = vec[c] / vn
+                for c in range(3):
+                    d[c] = vec[c] / vn if vn > 0.0 else 0.0
             else:
-                _dir(kind, ac, bc, dirs[j, i])
+                _dir(kind, ac, bc, d)
+            # the four mirror images: a → −a flips x, b → −b flips y
+            _put(omega, dirs, j, i, om, d, 1.0, 1.0)
+            _put(omega, dirs, j, n - 1 - i, om, d, -1.0, 1.0)
+            _put(omega, dirs, n - 1 - j, i, om, d, 1.0, -1.0)
+            _put(omega, dirs, n - 1 - j, n - 1 - i, om, d, -1.0, -1.0)
     return omega, dirs
+
+
+@numba.njit(cache=True, inline="always")
+def _put(omega, dirs, j, i, om, d, sx, sy):
+    omega[j, i] = om
+    dirs[j, i, 0] = sx * d[0]
+    dirs[j, i, 1] = sy * d[1]
+    dirs[j, i, 2] = d[2]

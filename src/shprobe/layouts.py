@@ -318,23 +318,14 @@ def _disc_tables(layout: _Disc, n: int) -> tuple[NDArray[np.float64], NDArray[np
     grows) and, for pixels cut by the rim, a quadrature clipped to the disc. Directions are
     the pixel centres', except rim pixels whose centre lies outside the disc, which look along
     their mean direction. Pixels outside the disc: 0 and (0, 0, 0). One quadrant is computed
-    (numba) and mirrored: the tables are symmetric in a and in b.
+    and mirrored (numba, :func:`shprobe._layout_kernels.disc_tables`).
     """
-    from ._layout_kernels import disc_quadrant  # numba, imported lazily
+    from ._layout_kernels import disc_tables  # numba, imported lazily
 
     q = 8 if n <= 16 else 6 if n <= 64 else 4 if n <= 512 else 3
     exact = layout._exact_solid_angles(n)
-    om, dq = disc_quadrant(layout.kind, n, np.zeros((0, 0)) if exact is None else exact,
-                           *_gauss(q), *_gauss(16), *_gauss(6))
-    half = (n + 1) // 2
-    omega = np.empty((n, n))
-    dirs = np.empty((n, n, 3))
-    omega[:half, :half] = om
-    dirs[:half, :half] = dq
-    omega[:half, n - half:] = om[:, ::-1]  # a → −a: x → −x
-    dirs[:half, n - half:] = dq[:, ::-1] * [-1.0, 1.0, 1.0]
-    omega[n - half:] = omega[:half][::-1]  # b → −b: y → −y
-    dirs[n - half:] = dirs[:half][::-1] * [1.0, -1.0, 1.0]
+    omega, dirs = disc_tables(layout.kind, n, np.zeros((0, 0)) if exact is None else exact,
+                              *_gauss(q), *_gauss(16), *_gauss(6))
     omega.flags.writeable = False
     dirs.flags.writeable = False
     return omega, dirs
