@@ -60,79 +60,50 @@ T_H4_PAPER[3, 5] = -math.sqrt(15) / 16
 T_H4_PAPER.flags.writeable = False
 
 
-#: batches at least this large go through the numba kernels
+#: batches at least this large go through the numba kernels (``._kernels``)
 NUMBA_MIN = 4096
 
 
-@lru_cache(maxsize=1)
-def _h_kernel():
-    """numba kernel (compiled lazily, cached on disk) for H evaluation."""
-    import numba
-
-    c1, c3, c5 = _C1, _C3, _C5
-
-    @numba.njit(cache=True)
-    def h_eval(d, out):
-        n = out.shape[1]
-        for i in range(d.shape[0]):
-            x, y, z = d[i, 0], d[i, 1], d[i, 2]
-            out[i, 0] = c1
-            out[i, 1] = -c3 * y
-            out[i, 2] = c3 * (2 * z - 1)
-            out[i, 3] = -c3 * x
-            if n == 6:
-                out[i, 4] = c5 * x * y
-                out[i, 5] = 0.5 * c5 * (x * x - y * y)
-
-    return h_eval
-
-
-@lru_cache(maxsize=1)
-def _t_h_kernel():
-    """numba kernel for T_h (l ≤ 2) on (N, 9, C) batches: only its 10 nonzeros."""
-    import numba
-
-    a, b = T_H_CLOSED_FORM[0, 0], T_H_CLOSED_FORM[0, 2]
-    e, f = T_H_CLOSED_FORM[2, 2], T_H_CLOSED_FORM[2, 6]
-    g = T_H_CLOSED_FORM[1, 5]
-
-    @numba.njit(cache=True)
-    def sh_to_h6(s, out):
-        n = out.shape[1]
-        for i in range(s.shape[0]):
-            for c in range(s.shape[2]):
-                out[i, 0, c] = a * s[i, 0, c] + b * s[i, 2, c]
-                out[i, 1, c] = -a * s[i, 1, c] + g * s[i, 5, c]
-                out[i, 2, c] = e * s[i, 2, c] + f * s[i, 6, c]
-                out[i, 3, c] = -a * s[i, 3, c] + g * s[i, 7, c]
-                if n == 6:
-                    out[i, 4, c] = a * s[i, 4, c]
-                    out[i, 5, c] = a * s[i, 8, c]
-
-    return sh_to_h6
-
-
 def _check_n(n: int) -> int:
-    if n not in (4, 6):
+    if isinstance(n, bool) or n not in (4, 6):
         raise ShprobeError(f"the H-basis has 4 or 6 functions (H4, H6), got n={n!r}")
     return int(n)
 
 
-def h_basis(normals: ArrayLike, n: int = 6) -> NDArray[np.floating]:
+def _float_array(a: ArrayLike) -> NDArray[np.floating]:
+    x = np.asarray(a)
+    if x.dtype not in (np.float32, np.float64):
+        x = x.astype(np.float64)
+    return x
+
+
+def _check_out(out: object, shape: tuple[int, ...], dtype: np.dtype) -> NDArray[np.floating]:
+    if (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != dtype
+            or not out.flags.c_contiguous or not out.flags.writeable):
+        raise ShprobeError(f"out must be a writeable C-contiguous {dtype} array of shape {shape}")
+    return out
+
+
+def h_basis(normals: ArrayLike, n: int = 6,
+            out: NDArray[np.floating] | None = None) -> NDArray[np.floating]:
     """H¹..Hⁿ (H&W 2010 eq. 8–13) of tangent-frame unit normals (..., 3) → (..., n).
 
     z is the surface normal. The functions are orthonormal over the upper hemisphere z ≥ 0
-    only; below it they are just the same polynomials. float32 input gives float32 output.
+    only; below it they are just the same polynomials. float32 input gives float32 output
+    (other types become float64). ``out``: an optional preallocated C-contiguous (..., n)
+    array of the normals' float type, filled and returned. Batches of ≥ 4096 normals run a
+    single-threaded numba kernel that writes each row straight into the output.
     """
     n = _check_n(n)
-    d = np.asarray(normals)
-    if d.dtype not in (np.float32, np.float64):
-        d = d.astype(np.float64)
+    d = _float_array(normals)
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {d.shape}")
-    out = np.empty((*d.shape[:-1], n), dtype=d.dtype)
+    shape = (*d.shape[:-1], n)
+    out = np.empty(shape, dtype=d.dtype) if out is None else _check_out(out, shape, d.dtype)
     if d.size >= 3 * NUMBA_MIN:
-        _h_kernel()(np.ascontiguousarray(d).reshape(-1, 3), out.reshape(-1, n))
+        from ._kernels import h_rows
+
+        h_rows(np.ascontiguousarray(d).reshape(-1, 3), out.reshape(-1, n))
         return out
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     t = d.dtype.type
@@ -147,19 +118,33 @@ def h_basis(normals: ArrayLike, n: int = 6) -> NDArray[np.floating]:
 
 
 def evaluate_h(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.floating]:
-    """E_H(n) = Σ h_i Hⁱ(n) (H&W eq. 15).
+    """E_H(n) = Σᵢ hᵢ Hⁱ(n) (H&W 2010 eq. 15).
 
-    ``coeffs`` is (..., n, C) or (..., n) with n = 4 or 6, ``normals`` (..., 3) tangent-frame
-    normals broadcasting against the leading axes; returns (..., C) or (...).
+    Layout (as for SH coefficients, docs/architecture.md): ``coeffs`` is (..., n, C) with the
+    basis count n = 4 (H4) or 6 (H6) on axis −2 and C channels last — so a (6, 6) array is six
+    functions of six channels — or a 1-D (n,) single channel. ``normals`` (..., 3) are
+    tangent-frame unit normals whose leading axes broadcast against the coefficients'
+    leading axes. Returns (..., C), or (...) for 1-D coefficients. One-channel per-point
+    coefficients are (P, n, 1), not (P, n).
     """
     c = np.asarray(coeffs)
-    nd = np.asarray(normals)
-    if c.ndim >= 2 and c.shape[-2] in (4, 6) and c.shape[-1] not in (4, 6):
-        b = h_basis(nd, c.shape[-2])
-        return np.einsum("...i,...ic->...c", b, c)
-    if c.shape[-1] not in (4, 6):
-        raise ShprobeError(f"H coefficients must have 4 or 6 on the basis axis, got {c.shape}")
-    return np.einsum("...i,...i->...", h_basis(nd, c.shape[-1]), c)
+    nd = _float_array(normals)
+    if nd.ndim < 1 or nd.shape[-1] != 3:
+        raise ShprobeError(f"normals must have shape (..., 3), got {nd.shape}")
+    if c.ndim == 1:
+        if c.shape[0] not in (4, 6):
+            raise ShprobeError(f"H coefficients must be (n,) or (..., n, C) with n = 4 or 6, "
+                               f"got shape {c.shape}")
+        return h_basis(nd, c.shape[0]) @ c
+    if c.ndim == 0 or c.shape[-2] not in (4, 6):
+        raise ShprobeError(f"H coefficients must be (..., n, C) with n = 4 or 6 on axis -2 "
+                           f"(one channel: (..., n, 1)), got shape {c.shape}")
+    try:
+        np.broadcast_shapes(c.shape[:-2], nd.shape[:-1])
+    except ValueError:
+        raise ShprobeError(f"H coefficients {c.shape} (leading axes {c.shape[:-2]}) do not "
+                           f"broadcast against normals {nd.shape}") from None
+    return np.einsum("...i,...ic->...c", h_basis(nd, c.shape[-2]), c)
 
 
 @lru_cache(maxsize=32)
@@ -215,24 +200,44 @@ def sh_to_h_matrix(lmax: int = 2, n: int = 6) -> NDArray[np.float64]:
     return _t_h(lmax, 6)[:n] if n != 6 else _t_h(lmax, 6)
 
 
-def sh_to_h(sh_coeffs: ArrayLike, n: int = 6) -> NDArray[np.floating]:
-    """H coefficients (..., n, C) of SH coefficients (..., K, C) (or (K,) → (n,)): T_h · s."""
-    c = np.asarray(sh_coeffs)
-    if c.dtype not in (np.float32, np.float64):
-        c = c.astype(np.float64)
-    from ..sh import lmax_of
+def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
+            out: NDArray[np.floating] | None = None) -> NDArray[np.floating]:
+    """H coefficients T_h · s (H&W 2010 §4.1) of SH coefficients.
 
-    k = c.shape[-1] if c.ndim == 1 else c.shape[-2]
+    Layout as everywhere in shprobe: ``sh_coeffs`` is (..., K, C) with K = (lmax+1)² on axis
+    −2 and C channels last, giving (..., n, C); a 1-D (K,) single set gives (n,). N sets of one
+    channel are (N, K, 1), not (N, K). The matrix is :func:`sh_to_h_matrix` (lmax, n). float32
+    stays float32. ``out``: an optional preallocated C-contiguous array of the result's shape
+    and float type, filled and returned. For K = 9 and ≥ 4096 sets a single-threaded numba
+    kernel applies only T_h's 10 nonzeros and writes straight into the output (one-channel,
+    RGB and general-C variants).
+    """
     n = _check_n(n)
+    c = _float_array(sh_coeffs)
+    if c.ndim == 0:
+        raise ShprobeError("SH coefficients must be (K,) or (..., K, C), got a scalar")
+    k = c.shape[-1] if c.ndim == 1 else c.shape[-2]
+    if k < 1 or math.isqrt(k) ** 2 != k:
+        raise ShprobeError(
+            f"SH coefficients must be (..., K, C) with K = (lmax+1)² on axis -2 and channels "
+            f"last (for one channel pass (..., K, 1), or a single set (K,)); got shape "
+            f"{c.shape}, whose axis -2 ({k}) is not a square")
+    shape = (n,) if c.ndim == 1 else (*c.shape[:-2], n, c.shape[-1])
+    out = np.empty(shape, dtype=c.dtype) if out is None else _check_out(out, shape, c.dtype)
     if k == 9 and c.ndim >= 2 and c.size >= 9 * NUMBA_MIN:
-        cc = np.ascontiguousarray(c).reshape(-1, 9, c.shape[-1])
-        out = np.empty((cc.shape[0], n, cc.shape[2]), dtype=c.dtype)
-        _t_h_kernel()(cc, out)
-        return out.reshape(*c.shape[:-2], n, c.shape[-1])
-    t = sh_to_h_matrix(lmax_of(k), n).astype(c.dtype)
-    if c.ndim == 1:
-        return t @ c
-    return np.matmul(t, c)
+        from ._kernels import t_h_any, t_h_c1, t_h_c3
+
+        nch = c.shape[-1]
+        cc = np.ascontiguousarray(c)
+        if nch == 1:
+            t_h_c1(cc.reshape(-1, 9), out.reshape(-1, n))
+        elif nch == 3:
+            t_h_c3(cc.reshape(-1, 27), out.reshape(-1, 3 * n))
+        else:
+            t_h_any(cc.reshape(-1, 9, nch), out.reshape(-1, n, nch))
+        return out
+    t = sh_to_h_matrix(math.isqrt(k) - 1, n).astype(c.dtype)
+    return np.matmul(t, c, out=out)
 
 
 def project_h(func, n: int = 6, n_z: int = 48, n_phi: int = 96) -> NDArray[np.float64]:

@@ -21,7 +21,9 @@ tangent-space normal v read from a normal map.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -115,12 +117,50 @@ def to_tangent_sh(sh_coeffs: ArrayLike, frames: ArrayLike) -> NDArray[np.float64
 
 @dataclass
 class Bake:
-    """Per-vertex tangent-space coefficients: ``h`` (V, n, C) H coefficients, ``sh`` (V, 9, C)
-    the tangent-space quadratic SH of the same irradiance (for comparison)."""
+    """Per-vertex tangent-space coefficients: ``h`` (V, n, C) H coefficients (n = 6 or 4),
+    ``sh`` (V, 9, C) the tangent-space quadratic SH of the same irradiance (for comparison),
+    ``frames`` (V, 3, 3) the tangent frames they are expressed in."""
 
     h: NDArray[np.float64]
     sh: NDArray[np.float64]
     frames: NDArray[np.float64]
+
+
+def load_bake(path: str | os.PathLike[str], mesh: Any = None) -> Bake:
+    """Read a ``shprobe hbasis bake`` .npz (arrays ``h``, ``sh9``, ``frames``, ``mesh_hash``).
+
+    With ``mesh`` (a trimesh), refuse a file baked for another mesh: its ``mesh_hash``
+    (:func:`shprobe.prt.scene.mesh_hash` of the vertices and faces) must match. One-line
+    :class:`ShprobeError` on any problem.
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    if not p.is_file():
+        raise ShprobeError("no such file", p)
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError) as e:
+        raise ShprobeError(f"cannot read baked coefficients: {e}", p) from None
+    missing = [k for k in ("h", "sh9", "frames", "mesh_hash") if k not in data]
+    if missing:
+        raise ShprobeError(f"not a 'shprobe hbasis bake' file (missing {', '.join(missing)})",
+                           p)
+    h, sh9, fr = (np.asarray(data[k], dtype=np.float64) for k in ("h", "sh9", "frames"))
+    v = h.shape[0] if h.ndim == 3 else -1
+    if (h.ndim != 3 or h.shape[1] not in (4, 6) or sh9.shape[:2] != (v, 9)
+            or fr.shape != (v, 3, 3) or sh9.shape[2] != h.shape[2]):
+        raise ShprobeError(f"inconsistent baked arrays h {h.shape}, sh9 {sh9.shape}, "
+                           f"frames {fr.shape}", p)
+    if mesh is not None:
+        from ..prt.scene import mesh_hash
+
+        want, got = mesh_hash(mesh.vertices, mesh.faces), str(data["mesh_hash"])
+        if got != want:
+            raise ShprobeError(f"was baked for another mesh (mesh hash {got[:12]}… ≠ "
+                               f"{want[:12]}…); bake it again for this mesh", p)
+    return Bake(h, sh9, fr)
 
 
 def bake(irradiance_sh: ArrayLike, frames: ArrayLike, n: int = 6, lmax: int | None = 4) -> Bake:
@@ -193,14 +233,24 @@ def read_normal_map(path) -> NDArray[np.float64]:
 class RenderResult:
     """Orthographic render (camera on +Z looking along −Z, +Y up) of a normal-mapped mesh.
 
-    ``images`` maps "reference", "H6", "H4", "SH9" to (H, W, 3) irradiance images (NaN where
-    no surface was hit); ``rel_rms`` the RMS error over hit pixels and channels divided by
-    the RMS of the reference irradiance there.
+    ``images`` maps "reference", "H6" (when the bake has 6 functions), "H4", "SH9" to
+    (H, W, 3) irradiance images (NaN where no surface was hit); ``rel_rms`` the RMS error over
+    hit pixels and channels divided by the RMS of the reference irradiance there. Per hit
+    pixel (P of them, in the order of ``pixel_index``, flat indices into H × W):
+    ``world_normals`` the perturbed world normal n′, ``tangent_normals`` v = F_pᵀ n′ in the
+    interpolated frame ``pixel_frames`` F_p, ``triangles`` the hit face and ``bary`` the
+    barycentric weights used to interpolate the per-vertex coefficients.
     """
 
     images: dict[str, NDArray[np.float64]]
     rel_rms: dict[str, float]
     mask: NDArray[np.bool_]
+    pixel_index: NDArray[np.int64] | None = None
+    world_normals: NDArray[np.float64] | None = None
+    tangent_normals: NDArray[np.float64] | None = None
+    pixel_frames: NDArray[np.float64] | None = None
+    triangles: NDArray[np.int64] | None = None
+    bary: NDArray[np.float64] | None = None
 
 
 def load_mesh(path):
@@ -223,14 +273,17 @@ def mesh_uvs(mesh) -> NDArray | None:
 
 def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float = 0.3,
                          bump_frequency: float | None = None,
-                         normal_map: NDArray | None = None) -> RenderResult:
+                         normal_map: NDArray | None = None,
+                         baked: Bake | None = None) -> RenderResult:
     """Render ``mesh`` under ``lighting`` (``_env.Lighting``) with a tangent-space
     ``normal_map`` (H, W, 3) looked up at the interpolated UV (nearest texel, v up, wrapping;
     green flipped on mirrored charts; needs UVs), or else a UV-free procedural bump
     (:func:`bump_world`), shading with per-vertex baked H6, H4 and tangent-space SH9
     (linearly interpolated, as the paper's per-vertex variant), against the reference E(n') at
     the perturbed world normal: brute force over the probe's pixels, or the lighting's own SH
-    expansion (lmax ≥ 2) when only coefficients were given."""
+    expansion (lmax ≥ 2) when only coefficients were given. ``baked``: per-vertex coefficients
+    from :func:`bake` / :func:`load_bake` for this mesh (with their frames) instead of baking
+    here (H4-only bakes give no "H6" image)."""
     from ..zonal import clamped_cosine_factors, convolve
     from ._env import brute_force_irradiance
 
@@ -239,7 +292,14 @@ def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float 
     frames = tangent_frames(v, f, np.asarray(mesh.vertex_normals), mesh_uvs(mesh))
     lmax = lmax_of(lighting.sh.shape[0])
     e = convolve(lighting.sh, clamped_cosine_factors(lmax))
-    bk = bake(e, frames.matrix, n=6)
+    if baked is None:
+        bk = bake(e, frames.matrix, n=6)
+    else:
+        if baked.h.shape[0] != len(v) or baked.frames.shape != (len(v), 3, 3):
+            raise ShprobeError(f"baked coefficients are for {baked.h.shape[0]} vertices, the "
+                               f"mesh has {len(v)}")
+        bk = baked
+        frames = Frames(np.asarray(baked.frames, dtype=np.float64), frames.handedness)
 
     lo, hi = v.min(axis=0), v.max(axis=0)
     ext = float(max(hi[0] - lo[0], hi[1] - lo[1])) * 1.05
@@ -277,11 +337,11 @@ def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float 
         freq = bump_frequency if bump_frequency is not None else 60.0 / ext
         nw = bump_world(loc, nrm, bump_amplitude, freq)
         vt = np.einsum("pji,pj->pi", fp, nw)  # tangent-space normal Fᵀ n'
-    vals = {
-        "H6": shade_h(interp(bk.h), vt),
-        "H4": shade_h(interp(bk.h[:, :4]), vt),
-        "SH9": shade_sh(interp(bk.sh), vt),
-    }
+    vals = {}
+    if bk.h.shape[1] == 6:
+        vals["H6"] = shade_h(interp(bk.h), vt)
+    vals["H4"] = shade_h(interp(bk.h[:, :4]), vt)
+    vals["SH9"] = shade_sh(interp(bk.sh), vt)
     if lighting.dirs is not None:
         ref = brute_force_irradiance(lighting, nw)
     else:
@@ -296,12 +356,14 @@ def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float 
         images[k] = img.reshape(size, size, 3)
     scale = float(np.sqrt(np.mean(ref**2)))
     rel = {k: float(np.sqrt(np.mean((vals[k] - ref) ** 2)) / scale)
-           for k in ("H6", "H4", "SH9")}
-    return RenderResult(images, rel, mask.reshape(size, size))
+           for k in vals if k != "reference"}
+    return RenderResult(images, rel, mask.reshape(size, size), np.asarray(iray, dtype=np.int64),
+                        nw, vt, fp, np.asarray(itri, dtype=np.int64), bary)
 
 
 def panel_image(res: RenderResult, gain: float = 4.0) -> NDArray[np.uint8]:
-    """2×4 panel, 8-bit sRGB-ish: top reference | H6 | H4 | SH9, bottom |error|×gain."""
+    """2×4 panel (2×3 without H6), 8-bit sRGB-ish: top reference | H6 | H4 | SH9, bottom
+    |error|×gain."""
     ref = res.images["reference"]
     scale = np.nanpercentile(ref, 99) or 1.0
 
@@ -309,7 +371,8 @@ def panel_image(res: RenderResult, gain: float = 4.0) -> NDArray[np.uint8]:
         y = np.clip(np.nan_to_num(x / scale, nan=0.0), 0, 1) ** (1 / 2.2)
         return (255 * y + 0.5).astype(np.uint8)
 
-    top = [tone(res.images[k]) for k in ("reference", "H6", "H4", "SH9")]
+    keys = [k for k in ("H6", "H4", "SH9") if k in res.images]
+    top = [tone(res.images[k]) for k in ("reference", *keys)]
     blank = np.zeros_like(ref)
-    bot = [tone(blank)] + [tone(gain * np.abs(res.images[k] - ref)) for k in ("H6", "H4", "SH9")]
+    bot = [tone(blank)] + [tone(gain * np.abs(res.images[k] - ref)) for k in keys]
     return np.concatenate([np.concatenate(top, 1), np.concatenate(bot, 1)], 0)

@@ -18,14 +18,17 @@ Definitions (φ from +x towards +y, θ from +z, z = cos θ):
 * **HSH2, HSH3** — hemispherical harmonics (Gautron et al. 2004): √2 · y_lm(θ', φ) with
   cos θ' = 2 cos θ − 1, i.e. SH of the shifted direction (2x√(z/(1+z)), 2y√(z/(1+z)), 2z − 1),
   bands l ≤ 1 (4) and l ≤ 2 (9); orthonormal on Ω+.
-* **Makhotkin2, Makhotkin3** — shifted Jacobi polynomials (Makhotkin 1996), SH band
-  structure: for band n, m = −n..n, N · trig(mφ) · (sin θ')^|m| · P^(|m|, |m|+1)_{n−|m|}(2z − 1).
-  These are orthonormal for the *cosine-weighted* measure z dω used in radiative transfer (the
-  paper does not print them; this is our reconstruction, see docs/hbasis.md), and are
-  projected with that inner product, c_i = ∫ f B_i z dω (``fit="cosine"``). They are zero
-  (m ≠ 0) or constant (m = 0) on the border like HSH and span the same space as HSH with the
-  same bands, so a least-squares fit in their span would give exactly HSH's IMSE. Gram matrix
-  in dω: not identity.
+* **Makhotkin2, Makhotkin3** — shifted Jacobi polynomials (Makhotkin 1996) with the SH band
+  structure, bands n ≤ 1 (4) and n ≤ 2 (9): N · trig(mφ) · (sin θ′)^|m| ·
+  P^(|m|,|m|)_{n−|m|}(2z − 1) with sin θ′ = 2√(z(1−z)) (cos θ′ = 2z − 1: the shift of H&W
+  §2.2). With x = 2z − 1 the hemisphere measure is ½ dx dφ and (sin θ′)^{2|m|} = (1 − x²)^|m|
+  is the Jacobi weight of P^(|m|,|m|), so these are orthonormal on Ω+ — "hemispherically
+  orthonormal", zero (m ≠ 0) or constant (m = 0) on the border, as H&W §2.2 describe — with
+  the closed-form Jacobi norms. Since P^(m,m)_{l−m} ∝ d^m P_l/dx^m, they coincide function by
+  function with HSH (tested): the paper's two "shifted" bases are the same functions, written
+  once through shifted SH and once through shifted Jacobi polynomials. The seed paper does not
+  print Makhotkin's formulas; an earlier reconstruction, orthonormal for the cosine-weighted
+  measure z dω of radiative transfer, is kept as :func:`makhotkin_cosine` (not in the study).
 * **Zernike3, Zernike6** — Zernike polynomials on the hemisphere (Koenderink et al. 1996) with
   ρ = √2 sin(θ/2) = √(1 − z) (area-preserving map, dω = 2ρ dρ dφ): N R_n^|m|(ρ) trig(mφ) for
   n ≤ 1 (3) and n ≤ 2 (6); N = √((n+1)/π), or √((n+1)/2π) for m = 0. Z_2^0 = −H³.
@@ -35,6 +38,7 @@ Definitions (φ from +x towards +y, θ from +z, z = cos θ):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -187,33 +191,76 @@ def _band_lm(nmax: int) -> list[tuple[int, int]]:
     return [(n, m) for n in range(nmax + 1) for m in range(-n, n + 1)]
 
 
+def _jacobi_norm2(k: int, a: int, b: int) -> float:
+    """∫_{-1}^{1} (1−x)^a (1+x)^b P_k^{(a,b)}(x)² dx (DLMF 18.3.1 / Szegő (4.3.3))."""
+    return (2.0 ** (a + b + 1) / (2 * k + a + b + 1) * math.gamma(k + a + 1)
+            * math.gamma(k + b + 1) / (math.gamma(k + a + b + 1) * math.factorial(k)))
+
+
 def _makhotkin(nmax: int) -> Callable[[NDArray], NDArray]:
+    """Hemispherically orthonormal shifted Jacobi basis, bands n ≤ nmax (see the module doc):
+    N · trig(mφ) · (sin θ′)^|m| · P^{(|m|,|m|)}_{n−|m|}(2z − 1), sin θ′ = 2√(z(1 − z)).
+
+    With x = 2z − 1 the measure dω = dz dφ becomes ½ dx dφ and the weight (sin θ′)^{2|m|} =
+    (1 − x²)^{|m|} is exactly the Jacobi weight of P^{(|m|,|m|)}: N² · ½ h_k · ∫trig² dφ = 1
+    with h_k the Jacobi norm (:func:`_jacobi_norm2`)."""
     from scipy.special import eval_jacobi
 
-    # N² · ∫_0^1 z (1−t²)^|m| P^(|m|,|m|+1)_k(t)² dz · ∫ trig² dφ = 1, t = 2z − 1, computed by
-    # Gauss–Legendre (exact: polynomial integrand)
-    tz, wz = np.polynomial.legendre.leggauss(2 * nmax + 8)
-    z = 0.5 * (tz + 1)
     norms = {}
     for n, m in _band_lm(nmax):
-        a, k = abs(m), n - abs(m)
-        t = 2 * z - 1
-        g = (1 - t * t) ** a * eval_jacobi(k, a, a + 1, t) ** 2
-        radial = np.sum(0.5 * wz * z * g)
-        norms[n, m] = 1.0 / np.sqrt(radial * (2 * np.pi if m == 0 else np.pi))
+        a = abs(m)
+        norms[n, m] = 1.0 / math.sqrt(0.5 * _jacobi_norm2(n - a, a, a)
+                                      * (2 * math.pi if m == 0 else math.pi))
 
     def ev(d: NDArray) -> NDArray:
-        s = _shifted(d)
+        z = np.clip(d[..., 2], 0.0, 1.0)
+        x = 2.0 * z - 1.0
+        sin_t = 2.0 * np.sqrt(z * (1.0 - z))  # sin θ′
         r = np.sqrt(np.maximum(0.0, 1 - d[..., 2] ** 2))
-        sin_t = np.sqrt(np.maximum(0.0, 1 - s[..., 2] ** 2))  # sin θ'
         out = np.empty((*d.shape[:-1], len(norms)))
         for i, (n, m) in enumerate(norms):
             a = abs(m)
-            out[..., i] = (norms[n, m] * sin_t**a * eval_jacobi(n - a, a, a + 1, s[..., 2])
+            out[..., i] = (norms[n, m] * sin_t**a * eval_jacobi(n - a, a, a, x)
                            * _trig(m, d[..., 0], d[..., 1], r))
         return out
 
     return ev
+
+
+def _makhotkin_cosine(nmax: int) -> Callable[[NDArray], NDArray]:
+    """The earlier reconstruction, orthonormal for the cosine-weighted measure z dω:
+    N · trig(mφ) · (sin θ′)^|m| · P^{(|m|,|m|+1)}_{n−|m|}(2z − 1)."""
+    from scipy.special import eval_jacobi
+
+    norms = {}
+    for n, m in _band_lm(nmax):
+        a = abs(m)
+        # ∫_0^1 z (4z(1−z))^a P² dz = ¼ ∫ (1−x)^a (1+x)^{a+1} P² dx (x = 2z − 1)
+        radial = 0.25 * _jacobi_norm2(n - a, a, a + 1)
+        norms[n, m] = 1.0 / math.sqrt(radial * (2 * math.pi if m == 0 else math.pi))
+
+    def ev(d: NDArray) -> NDArray:
+        z = np.clip(d[..., 2], 0.0, 1.0)
+        sin_t = 2.0 * np.sqrt(z * (1.0 - z))
+        r = np.sqrt(np.maximum(0.0, 1 - d[..., 2] ** 2))
+        out = np.empty((*d.shape[:-1], len(norms)))
+        for i, (n, m) in enumerate(norms):
+            a = abs(m)
+            out[..., i] = (norms[n, m] * sin_t**a * eval_jacobi(n - a, a, a + 1, 2 * z - 1)
+                           * _trig(m, d[..., 0], d[..., 1], r))
+        return out
+
+    return ev
+
+
+def makhotkin_cosine(nmax: int) -> HemiBasis:
+    """The cosine-weighted shifted Jacobi variant (orthonormal for z dω, projected with that
+    inner product), bands n ≤ ``nmax``; not part of :func:`all_bases` (docs/hbasis.md §3)."""
+    if nmax not in (1, 2):
+        raise ShprobeError(f"makhotkin_cosine has bands n ≤ 1 or 2, got {nmax!r}")
+    return HemiBasis(f"Makhotkin{nmax + 1} (z dω)", (nmax + 1) ** 2, _makhotkin_cosine(nmax),
+                     fit="cosine", orthonormal=False,
+                     description="shifted Jacobi P^(m,m+1), orthonormal for z dω")
 
 
 def _zernike_nm(nmax: int) -> list[tuple[int, int]]:
@@ -257,8 +304,8 @@ def all_bases() -> dict[str, HemiBasis]:
         HemiBasis("SH4 (LSQ)", 4, lambda d: sh_basis(d, 1), orthonormal=False,
                   description="linear SH, least squares on the hemisphere"),
         HemiBasis("HSH2", 4, _hsh(1), description="hemispherical harmonics l<=1 (Gautron 2004)"),
-        HemiBasis("Makhotkin2", 4, _makhotkin(1), fit="cosine", orthonormal=False,
-                  description="shifted Jacobi (Makhotkin 1996) n<=1, cosine-weighted projection"),
+        HemiBasis("Makhotkin2", 4, _makhotkin(1),
+                  description="shifted Jacobi (Makhotkin 1996) n<=1, orthonormal on Ω+"),
         HemiBasis("H6", 6, lambda d: h_basis(d, 6), description="H-basis, H1..H6"),
         HemiBasis("Zernike6", 6, _zernike(2), description="Zernike n<=2 (Koenderink 1996)"),
         HemiBasis("SH9", 9, lambda d: sh_basis(d, 2), fit="sphere", orthonormal=False,
@@ -266,8 +313,8 @@ def all_bases() -> dict[str, HemiBasis]:
         HemiBasis("SH9 (LSQ)", 9, lambda d: sh_basis(d, 2), orthonormal=False,
                   description="quadratic SH, least squares on the hemisphere"),
         HemiBasis("HSH3", 9, _hsh(2), description="hemispherical harmonics l<=2 (Gautron 2004)"),
-        HemiBasis("Makhotkin3", 9, _makhotkin(2), fit="cosine", orthonormal=False,
-                  description="shifted Jacobi (Makhotkin 1996) n<=2, cosine-weighted projection"),
+        HemiBasis("Makhotkin3", 9, _makhotkin(2),
+                  description="shifted Jacobi (Makhotkin 1996) n<=2, orthonormal on Ω+"),
     ]
     return {b.name: b for b in bases}
 
