@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from shprobe.layouts import Env, get_layout
-from shprobe.prefilter import irradiance_map, project, reference_irradiance
+from shprobe.prefilter import _project_latlong, irradiance_map, project, reference_irradiance
 from shprobe.sh import sh_basis
 
 
@@ -88,8 +88,11 @@ def main() -> None:
     rad = rng.random((h, w, 3), dtype=np.float32)
     env = Env(rad, "latlong")
     for lmax in (2, 8):
-        rows.append((f"lat-long {w}×{h} float32, lmax {lmax}", "shprobe.project",
+        rows.append((f"lat-long {w}×{h} float32, lmax {lmax}",
+                     f"shprobe.project (rows over {os.cpu_count()} threads)",
                      best_ms(lambda lm=lmax: project(env, lm))))
+        rows.append(("", "shprobe, one thread (the peer's BLAS call)",
+                     best_ms(lambda lm=lmax: _project_latlong(rad, lm, threads=1))))
         rows.append(("", "separable numpy (peer)",
                      best_ms(lambda lm=lmax: separable_numpy_peer(rad, lm))))
         try:

@@ -103,6 +103,12 @@ def test_latlong_separable_projection_equals_direct_sum(lmax):
     d, L, dw = env.samples()
     direct = (sh_basis(d, lmax) * dw[:, None]).T @ L.astype(np.float64)
     np.testing.assert_allclose(project(env, lmax), direct, atol=1e-6 * np.abs(direct).max())
+    # the rows split over threads (done by default for large images) give the same sums
+    from shprobe.prefilter import _project_latlong
+
+    for threads in (2, 3, 7):
+        np.testing.assert_array_equal(_project_latlong(rad, lmax, threads),
+                                      _project_latlong(rad, lmax, 1))
 
 
 def test_project_samples_equals_direct_sum():

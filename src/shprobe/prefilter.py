@@ -134,12 +134,27 @@ def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDA
     return trig, weights, ms + lmax
 
 
-def _project_latlong(rad: NDArray[np.float32], lmax: int) -> NDArray[np.float64]:
+def _project_latlong(rad: NDArray[np.float32], lmax: int, threads: int | None = None
+                     ) -> NDArray[np.float64]:
+    """The separable transform: per row Σ_ψ L cos/sin(mψ) (one BLAS product per row, the rows
+    split over ``threads`` threads — default: the machine's cores, for images of ≥ 2²⁰ pixels),
+    then Σ_θ with the row weights dω_row Λ_l|m|(θ_row)."""
     h, w = rad.shape[:2]
     trig, weights, mrow = _latlong_tables(h, w, lmax)
     if rad.dtype != np.float32:
         rad = rad.astype(np.float32)
-    f = np.matmul(trig[None], rad)  # (H, M, C): Σ over each row of L cos/sin(mψ)
+    f = np.empty((h, trig.shape[0], rad.shape[2]), np.float32)  # (H, M, C)
+    n = threads if threads is not None else (os.cpu_count() or 1) if h * w >= 1 << 20 else 1
+    n = max(1, min(int(n), 16, h))
+    if n == 1:
+        np.matmul(trig[None], rad, out=f)
+    else:  # numpy releases the GIL in matmul
+        from concurrent.futures import ThreadPoolExecutor
+
+        cuts = np.linspace(0, h, n + 1).astype(int)
+        with ThreadPoolExecutor(n) as pool:
+            list(pool.map(lambda a, b: np.matmul(trig[None], rad[a:b], out=f[a:b]),
+                          cuts[:-1], cuts[1:]))
     cp = np.einsum("hk,hkc->kc", weights, f[:, mrow, :].astype(np.float64))
     return _from_pole_y(cp)
 
@@ -188,9 +203,10 @@ def _project_kernel(d: NDArray, v: NDArray, wt: NDArray, lmax: int) -> NDArray[n
 def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
     """Lighting coefficients L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10) → (K, 3) float64.
 
-    Lat-long maps take the separable path (cos/sin matrix product per row, then the normalised
-    Legendre functions in θ); other layouts run one numba pass over the pixels with the
-    layout's (cached) direction and solid-angle tables, skipping pixels with dω = 0.
+    Lat-long maps take the separable path (cos/sin matrix product per row, rows spread over the
+    machine's cores, then the normalised Legendre functions in θ); other layouts run one numba
+    pass over the pixels with the layout's (cached) direction and solid-angle tables, skipping
+    pixels with dω = 0.
     """
     lmax = check_lmax(lmax)
     if not isinstance(env, Env):
