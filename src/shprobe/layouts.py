@@ -446,11 +446,16 @@ class Cube(Layout):
     def pixel_directions(self, grid_shape):
         _, n, _ = self.check_grid(grid_shape)
         c = self._face_coords(n)
-        sc = c[None, None, :, None]
-        tc = c[None, :, None, None]
-        ax = _CUBE_AXES
-        d = ax[:, None, None, 0] + sc * ax[:, None, None, 1] + tc * ax[:, None, None, 2]
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+        # ω = (e_major + sc e_right + tc e_down) / √(1 + sc² + tc²): the norm is the same on
+        # every face, and each axis is a signed unit vector, so each component is ±u, ±s or ±t
+        u = 1.0 / np.sqrt(1.0 + c[None, :] ** 2 + c[:, None] ** 2)  # (row tc, column sc)
+        parts = (u, c[None, :] * u, c[:, None] * u)
+        d = np.empty((6, n, n, 3))
+        for f in range(6):
+            for k in range(3):
+                j = int(np.argmax(np.abs(_CUBE_AXES[f, :, k])))
+                np.multiply(parts[j], _CUBE_AXES[f, j, k], out=d[f, :, :, k])
+        return d
 
     def solid_angles(self, grid_shape):
         _, n, _ = self.check_grid(grid_shape)
