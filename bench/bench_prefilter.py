@@ -11,6 +11,7 @@ installed), and a naive numpy projection (basis matrix × pixels) for the angula
 from __future__ import annotations
 
 import math
+import os
 import sys
 import tempfile
 import time
@@ -74,12 +75,9 @@ def naive_angular_peer(env: Env, lmax: int) -> np.ndarray:
 
 def main() -> None:
     quick = "--quick" in sys.argv
-    import os
-    import platform
+    from _machine import machine
 
-    print(f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
-          f"{platform.python_version()}, numpy {np.__version__}, load average at start "
-          f"{os.getloadavg()[0]:.2f}\n")
+    print(f"Machine: {machine()}\n")
     rng = np.random.default_rng(0)
     rows: list[tuple[str, str, float]] = []
 
@@ -171,7 +169,7 @@ def main() -> None:
           f"{t / 9:.0f}×) |")
     print(f"\nmax |E_SH − E_brute| / ∫L dω (green) = "
           f"{np.abs(emap[:, 1] - ref[:, 1]).max() / tot:.4f}")
-    print(f"\nload average at end {__import__('os').getloadavg()[0]:.2f}")
+    print(f"\nload average at end {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -14,12 +14,13 @@ import os
 for _v in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
     os.environ[_v] = "1"
 
-import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+from _machine import machine  # noqa: E402
 
 
 def best(f, number=1, repeat=7):
@@ -41,21 +42,6 @@ def best(f, number=1, repeat=7):
 def unit_dirs(n, seed=0):
     v = np.random.default_rng(seed).normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
-def machine():
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-            f"numpy {np.__version__}, load average at start {load:.2f}")
 
 
 def bench_basis(rows):
