@@ -338,6 +338,23 @@ def test_sh_to_h_kernels_and_out(rng, dtype, channels):
             sh_to_h(s, out=bad)
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("channels", [1, 3])
+def test_sh_to_h_streaming_stores(rng, dtype, channels):
+    """Outputs over STREAM_MIN_BYTES are written with streaming stores: the same values, and
+    H4 as well as H6."""
+    from shprobe.hbasis.basis import STREAM_MIN_BYTES
+
+    n_sets = STREAM_MIN_BYTES // (4 * channels * np.dtype(dtype).itemsize) + 123
+    s = rng.normal(size=(n_sets, 9, channels)).astype(dtype)
+    want = _t_h_reference(s)
+    tol = 1e-13 if dtype == np.float64 else 3e-6
+    for n in (6, 4):
+        got = sh_to_h(s, n)
+        assert got.nbytes >= STREAM_MIN_BYTES
+        np.testing.assert_allclose(got, want[:, :n], atol=tol * np.abs(want).max())
+
+
 def test_h_basis_out(rng):
     d = random_dirs(5000, seed=3)
     out = np.empty((5000, 6))

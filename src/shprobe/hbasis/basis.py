@@ -62,6 +62,10 @@ T_H4_PAPER.flags.writeable = False
 
 #: batches at least this large go through the numba kernels (``._kernels``)
 NUMBA_MIN = 4096
+#: one-channel float64 SH → H outputs at least this large are written with streaming stores
+#: (``._kernels.t_h_c1_stream``): they would not stay in the caches anyway, so the stores skip
+#: reading the lines in first.
+STREAM_MIN_BYTES = 8 << 20
 
 
 def _check_n(n: int) -> int:
@@ -210,7 +214,8 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
     stays float32. ``out``: an optional preallocated C-contiguous array of the result's shape
     and float type, filled and returned. For K = 9 and ≥ 4096 sets a single-threaded numba
     kernel applies only T_h's 10 nonzeros and writes straight into the output (one-channel,
-    RGB and general-C variants).
+    RGB and general-C variants; one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with
+    streaming stores).
     """
     n = _check_n(n)
     c = _float_array(sh_coeffs)
@@ -225,11 +230,13 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
     shape = (n,) if c.ndim == 1 else (*c.shape[:-2], n, c.shape[-1])
     out = np.empty(shape, dtype=c.dtype) if out is None else _check_out(out, shape, c.dtype)
     if k == 9 and c.ndim >= 2 and c.size >= 9 * NUMBA_MIN:
-        from ._kernels import t_h_any, t_h_c1, t_h_c3
+        from ._kernels import t_h_any, t_h_c1, t_h_c1_stream, t_h_c3
 
         nch = c.shape[-1]
         cc = np.ascontiguousarray(c)
-        if nch == 1:
+        if nch == 1 and out.itemsize == 8 and out.nbytes >= STREAM_MIN_BYTES:
+            t_h_c1_stream(cc.reshape(-1), out.reshape(-1))
+        elif nch == 1:
             t_h_c1(cc.reshape(-1, 9), out.reshape(-1, n))
         elif nch == 3:
             t_h_c3(cc.reshape(-1, 27), out.reshape(-1, 3 * n))
