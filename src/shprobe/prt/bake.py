@@ -37,7 +37,15 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from ..sh import check_lmax, num_coeffs, sh_basis
 from .scene import Scene, load_scene
-from .transfer import MODES, Transfer, as_stored, coloured, times_albedo, unshadowed_transfer
+from .transfer import (
+    MODES,
+    Transfer,
+    as_stored,
+    check_int,
+    coloured,
+    times_albedo,
+    unshadowed_transfer,
+)
 
 __all__ = ["RayCaster", "bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
 
@@ -66,9 +74,8 @@ def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:
     Each point carries the solid angle 4π/N; the same seed (an integer >= 0) gives the same
     directions.
     """
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-        raise ShprobeError(f"need at least 1 sample direction, got {n!r}")
-    seed = check_seed(seed)
+    n = check_int(n, 1, "the number of sample directions")
+    seed = check_int(seed, 0, "seed")
     i = np.arange(n, dtype=np.float64)
     z = 1.0 - (2.0 * i + 1.0) / n
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
@@ -77,20 +84,11 @@ def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:
     return d @ random_rotation(np.random.default_rng(seed)).T
 
 
-def check_seed(seed: Any) -> int:
-    """A seed must be an integer >= 0 (numpy's seeding refuses negatives)."""
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ShprobeError(f"seed must be an integer >= 0, got {seed!r}")
-    return int(seed)
-
-
 def check_threads(threads: Any) -> int:
     """None → all cores; otherwise an integer >= 1."""
     if threads is None:
         return max(1, os.cpu_count() or 1)
-    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
-        raise ShprobeError(f"threads must be an integer >= 1, got {threads!r}")
-    return int(threads)
+    return check_int(threads, 1, "threads")
 
 
 class RayCaster:
@@ -180,23 +178,11 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     lmax = check_lmax(lmax)
-    seed = check_seed(seed)
+    seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
     traced_mode = mode != "unshadowed"
-    if traced_mode:
-        if isinstance(samples, bool) or not isinstance(samples, int | np.integer) \
-                or samples < 16:
-            raise ShprobeError(f"need at least 16 samples per vertex, got {samples!r}")
-        samples = int(samples)
-    else:
-        samples = 0
-    if mode == "interreflected":
-        if isinstance(bounces, bool) or not isinstance(bounces, int | np.integer) \
-                or bounces < 0:
-            raise ShprobeError(f"bounces must be an integer >= 0, got {bounces!r}")
-        bounces = int(bounces)
-    else:
-        bounces = 0
+    samples = check_int(samples, 16, "samples per vertex") if traced_mode else 0
+    bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
     sc = load_scene(scene, albedo=albedo, ground=ground, ground_albedo=ground_albedo,
                     mesh_albedo=mesh_albedo)
     wrap = progress or _quiet

@@ -65,10 +65,11 @@ def as_stored(t: NDArray[np.float64]) -> NDArray[np.float32]:
     return np.asarray(t[..., 0] if t.shape[-1] == 1 else t, dtype=np.float32)
 
 
-def _count(bounces: Any) -> int:
-    if isinstance(bounces, bool) or not isinstance(bounces, int | np.integer) or bounces < 0:
-        raise ShprobeError(f"bounces must be an integer >= 0, got {bounces!r}")
-    return int(bounces)
+def check_int(value: Any, minimum: int, what: str) -> int:
+    """``value`` as an int, refusing bools, non-integers and values below ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ShprobeError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -160,7 +161,7 @@ class Transfer:
                                    "interreflected")
             want = max(self.bounce_counts)
         else:
-            want = _count(bounces)
+            want = check_int(bounces, 0, "bounces")
         if want not in self.bounce_counts:
             what = "the shadowed model" if mode == "shadowed" else f"{want} bounces"
             top = max(self.bounce_counts)
