@@ -40,6 +40,19 @@ def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[f
     return vals
 
 
+def unit_vector(values: list[float], text: str, what: str = "direction"):
+    """Three floats → a unit vector (numpy array); one-line error for non-finite or zero
+    vectors. Scaled by the largest component first, so (1e200, 1e200, 0) does not overflow."""
+    import numpy as np
+
+    v = np.asarray(values, dtype=np.float64)
+    big = float(np.abs(v).max()) if v.size else 0.0
+    if not np.all(np.isfinite(v)) or big == 0.0:
+        raise ShprobeError(f"{what} {text!r} must be a finite, non-zero vector")
+    v = v / big
+    return v / np.linalg.norm(v)
+
+
 def parse_size(text: str) -> tuple[int, int]:
     """Parse 'WxH' into (W, H)."""
     try:

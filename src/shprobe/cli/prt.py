@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option, parse_floats, parse_size
+from .common import clamp_option, force_option, layout_option, parse_floats, parse_size, unit_vector
 
 
 def _albedo_value(text: str):
@@ -61,11 +61,8 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
                               "window", window)
         if not 0 < ap <= 180:
             raise ShprobeError(f"window aperture must be in (0, 180] degrees, got {ap}")
-        axis = np.array([x, y, z])
-        if not np.any(axis != 0):
-            raise ShprobeError(f"window axis {window!r} must not be zero")
-        axis = axis / np.abs(axis).max()  # no overflow in the norm for huge components
-        return circular_window(axis / np.linalg.norm(axis), np.radians(ap), lmax)
+        return circular_window(unit_vector([x, y, z], window, "window axis"), np.radians(ap),
+                               lmax)
     if probe is not None and not Path(probe).is_file():
         raise ShprobeError("no such probe file", probe)
     from .sources import resolve_coeffs

@@ -8,7 +8,7 @@ import math
 import click
 
 from ..errors import ShprobeError
-from .common import parse_floats
+from .common import parse_floats, unit_vector
 
 
 def _lmax(value: int) -> int:
@@ -46,12 +46,7 @@ def register(group: click.Group) -> None:
         lmax = _lmax(lmax)
         vecs = []
         for text in dirs:
-            v = np.array(parse_floats(text, 3, "direction"))
-            big = float(np.abs(v).max())
-            if not np.all(np.isfinite(v)) or big == 0.0:
-                raise ShprobeError(f"direction {text!r} must be a finite, non-zero vector")
-            v = v / big  # scaled first: the norm of (1e200, 1e200, 0) must not overflow
-            vecs.append(v / np.linalg.norm(v))
+            vecs.append(unit_vector(parse_floats(text, 3, "direction"), text))
         d = np.array(vecs)
         y = sh_basis(d, lmax)
         if fmt == "json":
