@@ -33,8 +33,8 @@ def main() -> None:
 
     import OpenImageIO as oiio
 
-    from shprobe.images import read_image, read_rgbe, write_image
-    from shprobe.layouts import get_layout
+    from shprobe.probes.images import read_image, read_rgbe, write_image
+    from shprobe.probes.layouts import get_layout
 
     rng = np.random.default_rng(0)
     # a probe-like image: smooth sky plus noise and a few hot pixels (RLE sees real data)

@@ -19,8 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from shprobe.layouts import Env, get_layout
-from shprobe.prefilter import _project_latlong, irradiance_map, project, reference_irradiance
+from shprobe.lighting.prefilter import (
+    _project_latlong,
+    irradiance_map,
+    project,
+    reference_irradiance,
+)
+from shprobe.probes.layouts import Env, get_layout
 from shprobe.sh import sh_basis
 
 
@@ -118,14 +123,14 @@ def main() -> None:
     rows.append(("", f"layout tables, a second size ({n - 1}², not cached)", tables2_ms))
 
     # --- decoding ---------------------------------------------------------------------
-    from shprobe.images import read_image, write_image
+    from shprobe.probes.images import read_image, write_image
 
     with tempfile.TemporaryDirectory() as tmp:
         big = (rng.random((h, w, 3)) * 4).astype(np.float32)
         for ext in (".hdr", ".exr", ".pfm"):
             p = Path(tmp) / f"probe{ext}"
             write_image(p, big)
-            rows.append((f"decode {w}×{h} {ext}", "shprobe.images.read_image",
+            rows.append((f"decode {w}×{h} {ext}", "shprobe.probes.images.read_image",
                          best_ms(lambda p=p: read_image(p), repeat=3)))
 
     print("| case | implementation | time (ms, best of N) |")

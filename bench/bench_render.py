@@ -3,7 +3,7 @@
 Run: ``PYTHONPATH=src python bench/bench_render.py`` — prints markdown tables.
 
 1. 1024×1024 render of the bunny (../shared/meshes/bunny.obj), per-pixel and per-vertex
-   shading: the whole ``shprobe.render.render`` call (rays, Embree, normals, shading), and
+   shading: the whole ``shprobe.scene.render.render`` call (rays, Embree, normals, shading), and
    its parts.
 2. Shading 10⁶ vertex normals with 9 RGB coefficients: shprobe's numba kernel (R&H eq. 11–13)
    against peers measured in the same run: the eq. 13 polynomial vectorised in numpy, the SH
@@ -27,9 +27,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
-from shprobe.render import Camera, load_mesh, render, shade_irradiance, trace  # noqa: E402
+from shprobe.scene.render import Camera, load_mesh, render, shade_irradiance, trace  # noqa: E402
 from shprobe.sh import sh_basis  # noqa: E402
-from shprobe.zonal import clamped_cosine_factors, convolve  # noqa: E402
+from shprobe.sh.zonal import clamped_cosine_factors, convolve  # noqa: E402
 
 
 def timeit(fn, repeat=5):

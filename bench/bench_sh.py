@@ -77,8 +77,8 @@ def bench_basis(rows):
 def bench_rotation(rows, batch_rows):
     from scipy.spatial.transform import Rotation
 
-    from shprobe.conventions import to_shtools
-    from shprobe.rotation import rotate
+    from shprobe.sh.conventions import to_shtools
+    from shprobe.sh.rotation import rotate
 
     lmax = 8
     K = (lmax + 1) ** 2

@@ -9,10 +9,10 @@ import pytest
 from PIL import Image
 
 from shprobe.cli.main import main
-from shprobe.images import read_image, write_image
-from shprobe.layouts import Env
-from shprobe.prefilter import irradiance, irradiance_map, project
-from shprobe.presets import get_preset
+from shprobe.lighting.prefilter import irradiance, irradiance_map, project
+from shprobe.probes.images import read_image, write_image
+from shprobe.probes.layouts import Env
+from shprobe.probes.presets import get_preset
 
 from .conftest import write_raw_pfm
 
@@ -200,14 +200,14 @@ def test_existing_output_is_refused_before_any_work(probe, tmp_path, capsys):
                                      ["render", "--sphere", "--size", "8"]])
 def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_path, capsys,
                                                          monkeypatch):
-    import shprobe.prefilter
-    import shprobe.render
+    import shprobe.lighting.prefilter
+    import shprobe.scene.render
 
     def boom(*a, **k):
         raise AssertionError("work started before the output was checked")
 
-    monkeypatch.setattr(shprobe.prefilter, "reference_irradiance", boom)
-    monkeypatch.setattr(shprobe.render, "render", boom)
+    monkeypatch.setattr(shprobe.lighting.prefilter, "reference_irradiance", boom)
+    monkeypatch.setattr(shprobe.scene.render, "render", boom)
     path, _ = probe
     rc, _, err = run([command[0], path, *command[1:], "-o", tmp_path / "e.gif"], capsys)
     one_line_error(rc, err)
@@ -218,7 +218,7 @@ def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_pat
 def test_six_cube_face_files(tmp_path, capsys):
     """PROBE given as six face images (+X −X +Y −Y +Z −Z): f = 1 + a·ω has L00 = √(4π) and
     L_1m = a·√(4π/3) on (y, z, x) (R&H signs)."""
-    from shprobe.layouts import env_from_function
+    from shprobe.probes.layouts import env_from_function
 
     a = np.array([0.5, 0.2, -0.3])
     env = env_from_function(lambda d: 1.0 + d @ a[:, None] * np.ones(3), "cube", 16)

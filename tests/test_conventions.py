@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from shprobe import ShprobeError
-from shprobe.conventions import (
+from shprobe.sh import sh_basis
+from shprobe.sh.conventions import (
     from_4pi,
     from_condon_shortley,
     from_shtools,
@@ -16,7 +17,6 @@ from shprobe.conventions import (
     to_condon_shortley,
     to_shtools,
 )
-from shprobe.sh import sh_basis
 
 from .conftest import random_dirs
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shprobe.design import (
+from shprobe.errors import ShprobeError
+from shprobe.lighting.design import (
     WINDOWS,
     auto_window,
     blend,
@@ -22,8 +23,7 @@ from shprobe.design import (
     window_bias,
     window_factors,
 )
-from shprobe.errors import ShprobeError
-from shprobe.render import shade_irradiance
+from shprobe.scene.render import shade_irradiance
 from shprobe.sh import sh_basis
 
 from .conftest import random_dirs
@@ -31,7 +31,7 @@ from .conftest import random_dirs
 
 def project_latlong(path, lmax):
     """Brute-force projection of a lat-long probe (R&H eq. 10 as a Riemann sum), written out
-    here independently of shprobe.prefilter: row 0 = +Y, u = 0.5 → −Z, u = 0.75 → +X."""
+    here independently of shprobe.lighting.prefilter: row 0 = +Y, u = 0.5 → −Z, u = 0.75 → +X."""
     import OpenImageIO as oiio
 
     img = oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)[:, :, :3].astype(np.float64)

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.export import FORMATS, export_coeffs, import_coeffs, parse_coeffs
+from shprobe.lighting.export import FORMATS, export_coeffs, import_coeffs, parse_coeffs
 from shprobe.sh import sh_basis
-from shprobe.zonal import clamped_cosine_factors
+from shprobe.sh.zonal import clamped_cosine_factors
 
 from .conftest import random_dirs
 
@@ -175,9 +175,9 @@ def test_every_command_reads_every_format_back(fmt, tmp_path, capsys):
     """`prefilter --format F -o FILE`, then `--coeffs FILE` in each command that takes it: the
     same lighting comes back (cs-phase signs and gltf/cmgen scalings undone)."""
     from shprobe.cli.main import main
-    from shprobe.images import read_image
-    from shprobe.prefilter import irradiance, irradiance_map
-    from shprobe.presets import get_preset
+    from shprobe.lighting.prefilter import irradiance, irradiance_map
+    from shprobe.probes.images import read_image
+    from shprobe.probes.presets import get_preset
 
     L = get_preset("grace")
     f = tmp_path / f"c.{fmt}"

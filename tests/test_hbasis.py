@@ -30,7 +30,7 @@ from shprobe.hbasis.study import (
     vmf_moments,
 )
 from shprobe.sh import sh_basis
-from shprobe.zonal import clamped_cosine_factors
+from shprobe.sh.zonal import clamped_cosine_factors
 
 from .conftest import random_dirs
 

@@ -19,7 +19,7 @@ from shprobe.hbasis.normalmap import (
 )
 from shprobe.hbasis.study import LMAX_SIGNAL, imse, random_irradiance
 from shprobe.sh import sh_basis
-from shprobe.zonal import clamped_cosine_factors, convolve
+from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
 from .conftest import random_dirs
 
@@ -140,7 +140,7 @@ def test_bump_normals_are_unit_and_tilt():
 
 def test_probe_sh_matches_brute_force(grace_path):
     from shprobe.hbasis._env import brute_force_irradiance, load_lighting
-    from shprobe.zonal import clamped_cosine_factors, convolve
+    from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     L = load_lighting(grace_path, 16)
     n = random_dirs(40, seed=12)
@@ -160,7 +160,7 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     _orthonormal_right_handed(z["frames"])
     # the file's coefficients are T_h applied to the frame-rotated irradiance
     from shprobe.hbasis._env import load_lighting
-    from shprobe.zonal import clamped_cosine_factors, convolve
+    from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     L = load_lighting(grace_path, 4)
     e = convolve(L.sh, clamped_cosine_factors(4))
@@ -253,7 +253,7 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
 
     from shprobe.hbasis._env import load_lighting
     from shprobe.hbasis.normalmap import read_normal_map, render_normal_mapped
-    from shprobe.zonal import clamped_cosine_factors, convolve
+    from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     g = np.linspace(-1, 1, 5)
     X, Y = np.meshgrid(g, g)
@@ -304,7 +304,7 @@ def test_render_pixels_match_independent_projection(bunny_path, probe):
     projected onto H6 by quadrature in each vertex's frame (and in each pixel's own frame)."""
     from shprobe.hbasis._env import load_lighting
     from shprobe.hbasis.normalmap import load_mesh, render_normal_mapped
-    from shprobe.layouts import load_env
+    from shprobe.probes.layouts import load_env
 
     from .conftest import data_file
 

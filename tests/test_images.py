@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.images import LDRWarning, read_image, read_rgbe, srgb_to_linear, write_image
+from shprobe.probes.images import LDRWarning, read_image, read_rgbe, srgb_to_linear, write_image
 
 
 def _img(h=6, w=10, seed=0):
@@ -250,7 +250,7 @@ def test_write_refuses_existing_and_bad_extension(tmp_path):
 
 def test_write_refuses_nan_and_inf(tmp_path):
     from shprobe.errors import ShprobeError
-    from shprobe.images import write_image
+    from shprobe.probes.images import write_image
 
     a = np.ones((4, 8, 3), np.float32)
     a[1, 2, 0] = np.nan

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.layouts import Env, LatLong, detect_layout, env_from_function, get_layout, load_env
+from shprobe.probes.layouts import (
+    Env,
+    LatLong,
+    detect_layout,
+    env_from_function,
+    get_layout,
+    load_env,
+)
 
 FOUR_PI = 4.0 * np.pi
 
@@ -297,7 +304,7 @@ def test_same_environment_same_coefficients_in_every_layout(tmp_path, layout, si
     O(Δ²) with Δ the pixel's angular size (≈ 0.025 rad here for every layout; measured errors
     are 3e-5..1e-4, falling 4× per halving of Δ). RGBE (.hdr) keeps 8 mantissa bits, a
     per-pixel error up to 2⁻⁸ that only partly averages out on a smooth map: 1e-3 there."""
-    from shprobe.layouts import write_env
+    from shprobe.probes.layouts import write_env
 
     lmax = 4
     ref = _reference_coeffs(lmax)
@@ -331,8 +338,8 @@ def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
     from click.testing import CliRunner
 
     from shprobe.cli.common import LAYOUT_CHOICES, clamp_option, layout_option, load_env_cli
-    from shprobe.images import write_image
-    from shprobe.layouts import LAYOUTS
+    from shprobe.probes.images import write_image
+    from shprobe.probes.layouts import LAYOUTS
 
     assert set(LAYOUT_CHOICES) == {"auto", *LAYOUTS}
 
@@ -353,7 +360,7 @@ def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
 
 
 def test_six_face_images(tmp_path):
-    from shprobe.images import write_image
+    from shprobe.probes.images import write_image
 
     env = env_from_function(_lobes, "cube", 16)
     paths = []
@@ -371,7 +378,7 @@ def test_six_face_images(tmp_path):
 
 
 def test_bad_aspect_and_zero_size(tmp_path):
-    from shprobe.images import write_image
+    from shprobe.probes.images import write_image
 
     write_image(tmp_path / "wide.exr", np.ones((10, 20, 3), np.float32))
     for lay, what in (("angular", "square"), ("mirrorball", "square"), ("cube", "cross")):

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.layouts import Env, get_layout
-from shprobe.prefilter import (
+from shprobe.lighting.prefilter import (
     RH_CONSTANTS,
     coeffs_document,
     error_report,
@@ -26,6 +25,7 @@ from shprobe.prefilter import (
     reference_irradiance,
     total_intensity,
 )
+from shprobe.probes.layouts import Env, get_layout
 from shprobe.sh import sh_basis
 
 from .conftest import data_file, random_dirs
@@ -47,7 +47,7 @@ def rh_basis9(d: np.ndarray) -> np.ndarray:
 
 def own_latlong_quadrature(img: np.ndarray) -> np.ndarray:
     """Straightforward midpoint quadrature of a lat-long image, written independently of
-    shprobe.layouts: row 0 = +Y, u = 0 → +Z, u = 0.5 → −Z, u = 0.75 → +X."""
+    shprobe.probes.layouts: row 0 = +Y, u = 0 → +Z, u = 0.5 → −Z, u = 0.75 → +X."""
     h, w = img.shape[:2]
     out = np.zeros((9, 3))
     u = (np.arange(w) + 0.5) / w
@@ -104,7 +104,7 @@ def test_latlong_separable_projection_equals_direct_sum(lmax):
     direct = (sh_basis(d, lmax) * dw[:, None]).T @ L.astype(np.float64)
     np.testing.assert_allclose(project(env, lmax), direct, atol=1e-6 * np.abs(direct).max())
     # the rows split over threads (done by default for large images) give the same sums
-    from shprobe.prefilter import _project_latlong
+    from shprobe.lighting.prefilter import _project_latlong
 
     for threads in (2, 3, 7):
         np.testing.assert_array_equal(_project_latlong(rad, lmax, threads),
@@ -126,7 +126,7 @@ def test_other_layouts_project_the_same_function(name):
     lay = get_layout(name)
     coeffs = np.random.default_rng(7).normal(size=(9, 3))
     size = 48 if name == "cube" else 256
-    from shprobe.layouts import env_from_function
+    from shprobe.probes.layouts import env_from_function
 
     env = env_from_function(lambda d: rh_basis9(d) @ coeffs, lay, size)
     got = project(env, 2)
@@ -136,7 +136,7 @@ def test_other_layouts_project_the_same_function(name):
 
 def test_latlong_projection_recovers_known_coefficients():
     coeffs = np.random.default_rng(8).normal(size=(9, 3))
-    from shprobe.layouts import env_from_function
+    from shprobe.probes.layouts import env_from_function
 
     env = env_from_function(lambda d: rh_basis9(d) @ coeffs, "latlong", 256)
     np.testing.assert_allclose(project(env, 2), coeffs, atol=2e-4 * np.abs(coeffs).max())
@@ -146,8 +146,8 @@ def test_latlong_projection_recovers_known_coefficients():
 
 @pytest.mark.parametrize("probe", ["grace", "ennis"])
 def test_probe_coefficients_equal_independent_quadrature(probe):
-    from shprobe.images import read_image
-    from shprobe.layouts import load_env
+    from shprobe.probes.images import read_image
+    from shprobe.probes.layouts import load_env
 
     from .conftest import data_file
 
@@ -193,7 +193,7 @@ def test_small_disc_gives_clamped_cosine_lobe():
 
 def test_tilted_disc_lobe_follows_its_direction():
     """A disc away from the pole (pixel-centre coverage): E_SH depends on n·d only."""
-    from shprobe.layouts import env_from_function
+    from shprobe.probes.layouts import env_from_function
 
     alpha = math.radians(10.0)
     d0 = np.array([0.6, -0.3, 0.74])
@@ -288,7 +288,7 @@ def test_directional_light_max_error_is_9_4_percent():
 
 @pytest.mark.parametrize("probe", ["grace", "ennis"])
 def test_rh_claim_on_natural_light(probe):
-    from shprobe.layouts import load_env
+    from shprobe.probes.layouts import load_env
 
     from .conftest import data_file
 
@@ -302,7 +302,7 @@ def test_rh_claim_on_natural_light(probe):
 
 
 def test_brute_force_converges_with_subdivision(grace_path):
-    from shprobe.layouts import load_env
+    from shprobe.probes.layouts import load_env
 
     env = load_env(grace_path)
     n = random_dirs(64, seed=41)
@@ -325,7 +325,7 @@ def test_reference_chunking_and_generic_path_agree():
     np.testing.assert_allclose(reference_irradiance(env, n, chunk=7), direct, rtol=1e-10)
     np.testing.assert_allclose(reference_irradiance(env, n), direct, rtol=1e-10)
     # the generic (sample) path of the other layouts, with subdivision
-    from shprobe.layouts import env_from_function
+    from shprobe.probes.layouts import env_from_function
 
     for name, size in (("angular", 24), ("cube", 8)):
         genv = env_from_function(lambda d: 1.0 + d * [0.5, 0.2, -0.3], name, size)
@@ -375,7 +375,7 @@ def test_json_document_round_trip(tmp_path):
     (tmp_path / "five.json").write_text('{"coefficients": [[1,2,3],[1,2,3]]}')
     with pytest.raises(ShprobeError, match="lmax"):
         read_coeffs_json(tmp_path / "five.json")
-    from shprobe.export import export_coeffs
+    from shprobe.lighting.export import export_coeffs
 
     (tmp_path / "cs.json").write_text(export_coeffs(c, "cs-phase"))  # other signs: refused
     with pytest.raises(ShprobeError, match=r"cs\.json.*cs-phase"):
@@ -386,7 +386,7 @@ def test_json_document_round_trip(tmp_path):
 
 
 def test_presets_match_the_seed_tables():
-    from shprobe.presets import PRESETS, get_preset
+    from shprobe.probes.presets import PRESETS, get_preset
 
     assert set(PRESETS) == {"grace", "eucalyptus", "stpeters"}
     seed = data_file("seeds", "ramamoorthi-hanrahan-2001-irradiance-environment-maps.md")
@@ -399,7 +399,7 @@ def test_presets_match_the_seed_tables():
 
 
 def test_procedural_env_is_deterministic_and_lit_from_above():
-    from shprobe.environments import SUN_DIRECTION, procedural_env
+    from shprobe.probes.environments import SUN_DIRECTION, procedural_env
 
     a, b = procedural_env(128, 64), procedural_env(128, 64)
     np.testing.assert_array_equal(a.radiance, b.radiance)

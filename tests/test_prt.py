@@ -99,7 +99,7 @@ def test_unshadowed_equals_rho_over_pi_irradiance():
 
 
 def test_unshadowed_matches_prefilter_irradiance():
-    from shprobe import prefilter
+    from shprobe.lighting import prefilter
 
     m = trimesh.creation.icosphere(1)
     L = np.random.default_rng(5).normal(size=(9, 3))
@@ -314,7 +314,7 @@ def test_bad_input_is_refused(tmp_path):
 def test_turning_the_light_is_turning_the_scene_back():
     """A window about axis a turned by R is the window about R a (LH §3.2, independent of the
     Wigner matrices); relighting with scene rotation R⁻¹ must give the same radiance."""
-    from shprobe.zonal import circular_window
+    from shprobe.sh.zonal import circular_window
 
     m = icosphere()
     t = bake(m, mode="shadowed", lmax=8, samples=256, seed=2)

@@ -9,7 +9,7 @@ import trimesh
 
 from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
-from shprobe.images import read_image, write_image
+from shprobe.probes.images import read_image, write_image
 from shprobe.prt import bake, load_transfer
 from shprobe.sh import sh_basis
 
@@ -55,7 +55,7 @@ def irradiance_by_quadrature(coeffs, n, lmax):
 def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
     """Camera at +Z (azimuth 0, elevation 0) with +X to the right: a window on +X lights the
     right half; the pixel at the image centre (normal +Z) has ρ/π E(+Z), E by quadrature."""
-    from shprobe.zonal import circular_window
+    from shprobe.sh.zonal import circular_window
 
     out = tmp_path / "x.pfm"
     assert main(["prt", "render", str(sphere_transfer), "--window", "1,0,0,60", "--size",

@@ -117,7 +117,7 @@ def fails_with_one_line_fd(capfd, args, *needles):
 def test_render_picks_the_model_at_run_time(tmp_path, sphere_obj, capsys):
     """One interreflected bake renders as shadowed, as 1 bounce and as unshadowed, pixel for
     pixel the same as renders of separate bakes (same seed and samples)."""
-    from shprobe.images import read_image
+    from shprobe.probes.images import read_image
 
     box = tmp_path / "box.obj"
     trimesh.creation.box(extents=[1.0, 0.2, 1.0]).apply_translation([0.0, 1.3, 0.0]).export(box)
@@ -209,7 +209,7 @@ def test_render_refuses_non_finite_numbers_in_one_line(tmp_path, sphere_obj, cap
 
 def test_render_huge_axis_is_normalised_without_overflow(tmp_path, sphere_obj, capfd):
     """An axis of 1e308 components is a direction like any other (no overflow warning)."""
-    from shprobe.images import read_image
+    from shprobe.probes.images import read_image
 
     t = tmp_path / "t.npz"
     assert main(["prt", "bake", str(sphere_obj), "--mode", "unshadowed", "--lmax", "2", "-o",

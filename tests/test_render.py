@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.render import (
+from shprobe.scene.render import (
     Camera,
     load_mesh,
     quadratic_form,
@@ -17,9 +17,9 @@ from shprobe.render import (
     sphere_mesh,
     tonemap,
 )
-from shprobe.rotation import rotate
 from shprobe.sh import sh_basis
-from shprobe.zonal import clamped_cosine_factors
+from shprobe.sh.rotation import rotate
+from shprobe.sh.zonal import clamped_cosine_factors
 
 from .conftest import random_dirs
 
@@ -187,7 +187,7 @@ def test_albedo_constant_vertex_and_texture():
 def test_background_is_environment_lookup():
     """Env radiance = direction + 1 on a lat-long grid: an orthographic camera sees one
     direction, its view direction, in every background pixel."""
-    from shprobe.layouts import Env, get_layout
+    from shprobe.probes.layouts import Env, get_layout
 
     d = get_layout("latlong").pixel_directions((64, 128))
     env = Env((d + 1).astype(np.float32), "latlong")

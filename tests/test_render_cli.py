@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from shprobe.cli.main import main
-from shprobe.export import import_coeffs
-from shprobe.render import Camera, basis_images, load_mesh, relight, render, sphere_mesh
+from shprobe.lighting.export import import_coeffs
+from shprobe.scene.render import Camera, basis_images, load_mesh, relight, render, sphere_mesh
 
 
 def _L(seed=3):
@@ -35,7 +35,7 @@ def test_relighting_identity(mode):
 def test_basis_image_values_are_Ahat_y_over_pi():
     """Channel k on the analytic sphere is Â_l y_k(n)/π at the pixel normal."""
     from shprobe.sh import sh_basis
-    from shprobe.zonal import clamped_cosine_factors
+    from shprobe.sh.zonal import clamped_cosine_factors
 
     B = basis_images(None, Camera(24, 24))
     n = B.normals[B.mask].astype(np.float64)
@@ -103,7 +103,7 @@ def test_cli_basis_images(tmp_path, capsys):
 
 
 def test_cli_edit_lights_and_edits(tmp_path, capsys):
-    from shprobe import design
+    from shprobe.lighting import design
 
     out = tmp_path / "e.json"
     assert run("edit", "--sky", "1,1,1:0.2,0.2,0.2", "--directional", "0,1,0:3,2,1",
@@ -116,7 +116,7 @@ def test_cli_edit_lights_and_edits(tmp_path, capsys):
     # rotate, and start from that file
     out2 = tmp_path / "r.json"
     assert run("edit", "--coeffs", out, "--rotate", "0,1,0:90", "-o", out2) == 0
-    from shprobe.rotation import rotate
+    from shprobe.sh.rotation import rotate
 
     R = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # 90° about +Y
     np.testing.assert_allclose(import_coeffs(out2), rotate(L, R), atol=1e-10)
@@ -134,8 +134,8 @@ def test_cli_edit_lights_and_edits(tmp_path, capsys):
 
 def test_cli_edit_blends_a_probe_image(tmp_path, grace_path, ennis_path):
     """--blend PROBE:W projects the image: grace + 0.5·ennis."""
-    from shprobe.layouts import load_env
-    from shprobe.prefilter import project
+    from shprobe.lighting.prefilter import project
+    from shprobe.probes.layouts import load_env
 
     out = tmp_path / "b.json"
     assert run("edit", grace_path, "--blend", f"{ennis_path}:0.5", "-o", out) == 0
@@ -152,7 +152,7 @@ def test_cli_window_ennis(tmp_path, ennis_path, capsys):
     assert "-" in before.split("=")[1].split("[")[0]  # a negative minimum before
     assert "-" not in after.split("=")[1].split("[")[0].replace("e-", "e")
     assert "chosen:" in text
-    from shprobe.design import min_irradiance
+    from shprobe.lighting.design import min_irradiance
 
     assert min_irradiance(import_coeffs(out)).nonnegative
 
@@ -190,8 +190,8 @@ def test_bunny_loads(bunny_path):
 
 def test_cli_prefilter_export_feeds_render(tmp_path, grace_path):
     """`shprobe prefilter --format gltf` → `render --coeffs` uses the same lighting as the probe."""
-    from shprobe.layouts import load_env
-    from shprobe.prefilter import project
+    from shprobe.lighting.prefilter import project
+    from shprobe.probes.layouts import load_env
 
     out = tmp_path / "g.gltf.json"
     assert run("prefilter", grace_path, "--format", "gltf", "-o", out) == 0

@@ -136,7 +136,7 @@ def test_generated_unrolled_module_is_current():
     spec = importlib.util.spec_from_file_location("gen", root / "tools" / "gen_sh_unrolled.py")
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
-    assert (root / "src" / "shprobe" / "_sh_unrolled.py").read_text() == gen.source()
+    assert (root / "src" / "shprobe" / "sh" / "_unrolled.py").read_text() == gen.source()
 
 
 def test_import_does_not_load_numba():
@@ -144,8 +144,8 @@ def test_import_does_not_load_numba():
     import subprocess
     import sys
 
-    code = ("import sys, shprobe, shprobe.sh, shprobe.rotation, shprobe.zonal, "
-            "shprobe.conventions, shprobe.cli.main; print('numba' in sys.modules)")
+    code = ("import sys, shprobe, shprobe.sh, shprobe.sh.rotation, shprobe.sh.zonal, "
+            "shprobe.sh.conventions, shprobe.cli.main; print('numba' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
 

@@ -10,7 +10,7 @@ from scipy.special import eval_legendre
 
 from shprobe import ShprobeError
 from shprobe.sh import sh_basis
-from shprobe.zonal import (
+from shprobe.sh.zonal import (
     circular_window,
     clamped_cosine_factors,
     clamped_cosine_H,

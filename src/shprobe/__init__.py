@@ -22,18 +22,18 @@ _EXPORTS: dict[str, str] = {
     "num_coeffs": "sh",
     "lmax_of": "sh",
     # zonal functions
-    "clamped_cosine_factors": "zonal",
-    "zonal_coeffs": "zonal",
-    "circular_window": "zonal",
-    "convolve": "zonal",
-    "clamped_cosine_H": "zonal",
-    "legendre_moments": "zonal",
-    "zonal_from_moments": "zonal",
+    "clamped_cosine_factors": "sh.zonal",
+    "zonal_coeffs": "sh.zonal",
+    "circular_window": "sh.zonal",
+    "convolve": "sh.zonal",
+    "clamped_cosine_H": "sh.zonal",
+    "legendre_moments": "sh.zonal",
+    "zonal_from_moments": "sh.zonal",
     # rotation
-    "wigner_d": "rotation",
-    "rotate": "rotation",
-    "from_quaternion": "rotation",
-    "from_euler_zyz": "rotation",
+    "wigner_d": "sh.rotation",
+    "rotate": "sh.rotation",
+    "from_quaternion": "sh.rotation",
+    "from_euler_zyz": "sh.rotation",
     # errors
     "ShprobeError": "errors",
     # precomputed radiance transfer
@@ -41,40 +41,40 @@ _EXPORTS: dict[str, str] = {
     "relight": "prt",
     "load_transfer": "prt",
     # probes in, irradiance out
-    "load_env": "prefilter",
-    "project": "prefilter",
-    "irradiance": "prefilter",
-    "irradiance_matrix": "prefilter",
-    "reference_irradiance": "prefilter",
-    "project_samples": "prefilter",
-    "irradiance_quadratic": "prefilter",
-    "irradiance_from_matrix": "prefilter",
-    "irradiance_map": "prefilter",
-    "error_report": "prefilter",
-    "read_coeffs_json": "prefilter",
-    "get_preset": "presets",
-    "PRESETS": "presets",
-    "procedural_env": "environments",
+    "load_env": "lighting.prefilter",
+    "project": "lighting.prefilter",
+    "irradiance": "lighting.prefilter",
+    "irradiance_matrix": "lighting.prefilter",
+    "reference_irradiance": "lighting.prefilter",
+    "project_samples": "lighting.prefilter",
+    "irradiance_quadratic": "lighting.prefilter",
+    "irradiance_from_matrix": "lighting.prefilter",
+    "irradiance_map": "lighting.prefilter",
+    "error_report": "lighting.prefilter",
+    "read_coeffs_json": "lighting.prefilter",
+    "get_preset": "probes.presets",
+    "PRESETS": "probes.presets",
+    "procedural_env": "probes.environments",
     # H-basis (Habel & Wimmer 2010)
     "h_basis": "hbasis",
     "sh_to_h_matrix": "hbasis",
-    "read_image": "images",
-    "write_image": "images",
-    # layouts (issue 3, part A)
-    "Env": "layouts",
-    "env_from_function": "layouts",
-    "get_layout": "layouts",
-    "detect_layout": "layouts",
-    "write_env": "layouts",
+    "read_image": "probes.images",
+    "write_image": "probes.images",
+    # layouts
+    "Env": "probes.layouts",
+    "env_from_function": "probes.layouts",
+    "get_layout": "probes.layouts",
+    "detect_layout": "probes.layouts",
+    "write_env": "probes.layouts",
     # rendering, lighting design, export
-    "Camera": "render",
-    "render_vertex_colors": "render",
-    "load_mesh": "render",
-    "min_irradiance": "design",
-    "auto_window": "design",
-    "window_factors": "design",
-    "export_coeffs": "export",
-    "import_coeffs": "export",
+    "Camera": "scene.render",
+    "render_vertex_colors": "scene.render",
+    "load_mesh": "scene.render",
+    "min_irradiance": "lighting.design",
+    "auto_window": "lighting.design",
+    "window_factors": "lighting.design",
+    "export_coeffs": "lighting.export",
+    "import_coeffs": "lighting.export",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -94,17 +94,23 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .design import auto_window, min_irradiance, window_factors
     from .errors import ShprobeError
-    from .export import export_coeffs, import_coeffs
     from .hbasis import h_basis, sh_to_h_matrix
-    from .images import read_image, write_image
-    from .layouts import Env, detect_layout, env_from_function, get_layout, write_env
-    from .prefilter import irradiance, irradiance_matrix, load_env, project, reference_irradiance
-    from .render import Camera, load_mesh, render_vertex_colors
-    from .rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
+    from .lighting.design import auto_window, min_irradiance, window_factors
+    from .lighting.export import export_coeffs, import_coeffs
+    from .lighting.prefilter import (
+        irradiance,
+        irradiance_matrix,
+        load_env,
+        project,
+        reference_irradiance,
+    )
+    from .probes.images import read_image, write_image
+    from .probes.layouts import Env, detect_layout, env_from_function, get_layout, write_env
+    from .scene.render import Camera, load_mesh, render_vertex_colors
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
-    from .zonal import (
+    from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
+    from .sh.zonal import (
         circular_window,
         clamped_cosine_factors,
         clamped_cosine_H,

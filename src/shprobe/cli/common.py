@@ -91,8 +91,8 @@ def load_env_cli(path: str | list[str], layout: str = "auto", clamp: bool = Fals
     stderr (not a Python warning)."""
     import warnings
 
-    from ..images import LDRWarning
-    from ..layouts import load_env
+    from ..probes.images import LDRWarning
+    from ..probes.layouts import load_env
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LDRWarning)

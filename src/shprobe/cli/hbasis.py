@@ -72,7 +72,7 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     from ..hbasis.normalmap import bake, load_mesh, mesh_uvs, tangent_frames
     from ..prt.scene import mesh_hash
     from ..sh import lmax_of, num_coeffs
-    from ..zonal import clamped_cosine_factors, convolve
+    from ..sh.zonal import clamped_cosine_factors, convolve
 
     check_output_path(output, force)
     if not mesh.is_file():

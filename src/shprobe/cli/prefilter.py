@@ -123,7 +123,7 @@ def _parse_size(text: str | None, layout: str) -> int | tuple[int, int]:
 
 def _export(coeffs, fmt: str, source: str) -> str:
     try:
-        from ..export import export_coeffs
+        from ..lighting.export import export_coeffs
     except ImportError:
         raise ShprobeError(f"--format {fmt} needs shprobe.export, which is not available"
                            ) from None
@@ -152,7 +152,7 @@ def register(group: click.Group) -> None:
         import json
 
         from ..files import check_output_path, write_text
-        from ..prefilter import coeffs_document
+        from ..lighting.prefilter import coeffs_document
 
         if output:
             check_output_path(output, force)  # refuse before the work
@@ -196,9 +196,9 @@ def register(group: click.Group) -> None:
         """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
         import numpy as np
 
-        from ..images import check_image_output
-        from ..layouts import Env, get_layout, write_env
-        from ..prefilter import irradiance_map, reference_irradiance
+        from ..lighting.prefilter import irradiance_map, reference_irradiance
+        from ..probes.images import check_image_output
+        from ..probes.layouts import Env, get_layout, write_env
 
         check_image_output(output, force)
         src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
@@ -234,7 +234,7 @@ def register(group: click.Group) -> None:
         of the total intensity ∫L dω (R&H 2001 §3.1)."""
         import json
 
-        from ..prefilter import error_report
+        from ..lighting.prefilter import error_report
 
         src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
         with _progress_bar("reference irradiance") as update:
@@ -259,10 +259,10 @@ def register(group: click.Group) -> None:
         a side-by-side picture and the error table."""
         import numpy as np
 
-        from ..environments import procedural_env
         from ..files import check_output_path, write_json
-        from ..images import write_image
-        from ..prefilter import coeffs_document, error_report, irradiance_map, project
+        from ..lighting.prefilter import coeffs_document, error_report, irradiance_map, project
+        from ..probes.environments import procedural_env
+        from ..probes.images import write_image
         from .common import console
 
         out = Path(out_dir)

@@ -55,7 +55,7 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
         raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
                            "--coeffs FILE.json or --window X,Y,Z,APERTURE_DEG")
     if window is not None:
-        from ..zonal import circular_window
+        from ..sh.zonal import circular_window
 
         x, y, z, ap = _finite(parse_floats(window, 4, "window (x,y,z,aperture in degrees)"),
                               "window", window)
@@ -196,7 +196,7 @@ def register(group: click.Group) -> None:
                    size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
                    output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
-        from ..images import check_image_output
+        from ..probes.images import check_image_output
         from ..prt import load_transfer
         from ..prt.view import axis_angle, frame_radiance, render_frame
 
@@ -221,7 +221,7 @@ def register(group: click.Group) -> None:
             rot = axis_angle([x, y, z], deg)
         coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
         from ..prt.view import turntable as turntable_frames
-        from ..render import Camera
+        from ..scene.render import Camera
         from .common import progress
 
         w, h = parse_size(size)

@@ -46,7 +46,7 @@ def parse_window(text: str | None):
     if text.strip().lower() == "auto":
         return "auto"
     kind, _, s = text.partition(":")
-    from ..design import WINDOWS
+    from ..lighting.design import WINDOWS
 
     if kind not in WINDOWS or not s:
         raise ShprobeError(f"window {text!r}: expected 'auto' or KIND:STRENGTH with KIND one "
@@ -56,7 +56,7 @@ def parse_window(text: str | None):
 
 def apply_window_spec(coeffs, spec, echo=None):
     """Window ``coeffs`` per ``spec``; returns (coeffs, description)."""
-    from ..design import apply_window, auto_window, window_bias, window_factors
+    from ..lighting.design import apply_window, auto_window, window_bias, window_factors
     from ..sh import lmax_of
 
     if spec is None:
@@ -92,7 +92,7 @@ def camera_options(fn):
 
 
 def make_camera(size, azimuth, elevation, fov, ortho):
-    from ..render import Camera
+    from ..scene.render import Camera
 
     w, h = parse_size(size)
     return Camera(w, h, projection="orthographic" if ortho else "perspective",
@@ -100,7 +100,7 @@ def make_camera(size, azimuth, elevation, fov, ortho):
 
 
 def load_geometry(mesh, sphere):
-    from ..render import load_mesh
+    from ..scene.render import load_mesh
 
     if mesh and sphere:
         raise ShprobeError("give either --mesh MESH or --sphere, not both")
@@ -164,8 +164,8 @@ def register(group: click.Group) -> None:
         """Render a diffuse object lit by SH lighting (R&H 2001 §3.2): radiance =
         albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
         probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
-        from ..images import check_image_output
-        from ..render import render
+        from ..probes.images import check_image_output
+        from ..scene.render import render
 
         t0 = time.perf_counter()
         check_image_output(output, force)
@@ -214,8 +214,8 @@ def register(group: click.Group) -> None:
         import numpy as np
 
         from ..files import check_output_path
-        from ..images import write_image
-        from ..render import basis_images, basis_visual
+        from ..probes.images import write_image
+        from ..scene.render import basis_images, basis_visual
         from ..sh import check_lmax, num_coeffs, sh_lm
 
         if not mesh and not sphere:
@@ -291,10 +291,10 @@ def register(group: click.Group) -> None:
         window; write the coefficients."""
         import numpy as np
 
-        from .. import design
-        from ..export import export_coeffs, import_coeffs
         from ..files import check_output_path, write_text
-        from ..images import READ_EXTENSIONS
+        from ..lighting import design
+        from ..lighting.export import export_coeffs, import_coeffs
+        from ..probes.images import READ_EXTENSIONS
 
         check_output_path(output, force)
         base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, None,
@@ -380,7 +380,8 @@ def register(group: click.Group) -> None:
         """Certify min E(n) over the sphere (exact for lmax <= 2: trust-region dual of
         n^T M n, R&H eq. 11; numerical above) and window the lighting until E >= 0
         ('auto': the mildest of hann, lanczos, gaussian, laplacian by the L2 bias of E)."""
-        from ..design import (
+        from ..files import write_text
+        from ..lighting.design import (
             WINDOWS,
             apply_window,
             auto_window,
@@ -388,8 +389,7 @@ def register(group: click.Group) -> None:
             window_bias,
             window_factors,
         )
-        from ..export import export_coeffs
-        from ..files import write_text
+        from ..lighting.export import export_coeffs
 
         coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
         spec = parse_window(window)
@@ -437,8 +437,8 @@ def register(group: click.Group) -> None:
     def export_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, window, output, force):
         """Export lighting coefficients for shaders and engines (`--coeffs` reads every
         format back)."""
-        from ..export import export_coeffs
         from ..files import write_text
+        from ..lighting.export import export_coeffs
 
         coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
         coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))

@@ -76,7 +76,7 @@ def register(group: click.Group) -> None:
                   show_default=True)
     def sh_zonal(lmax: int, kind: str, aperture: float | None, fmt: str) -> None:
         """Print per-band factors: Â_l, or the window's 2π∫h P_l (total power 4π)."""
-        from ..zonal import clamped_cosine_factors, window_moments
+        from ..sh.zonal import clamped_cosine_factors, window_moments
 
         lmax = _lmax(lmax)
         if kind == "clamped-cosine":

@@ -86,7 +86,7 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
     if need_env and not probe:
         raise ShprobeError(f"this command needs a probe image, not {given[0]}")
     if probe:
-        from ..prefilter import project
+        from ..lighting.prefilter import project
         from .common import load_env_cli
 
         if isinstance(probe, list) and layout not in ("auto", "cube"):
@@ -96,11 +96,11 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
         return CoeffSource(project(env, 2 if lmax is None else lmax), name,
                            env.layout.name, env)
     if preset:
-        from ..presets import get_preset
+        from ..probes.presets import get_preset
 
         c, name, have = get_preset(preset), f"preset:{preset}", None
     else:
-        from ..export import import_coeffs
+        from ..lighting.export import import_coeffs
 
         c, name, have = import_coeffs(coeffs_file), coeffs_file, coeffs_file
         if c.shape[1] == 1:

@@ -51,7 +51,7 @@ def load_lighting(path, lmax: int = 16) -> Lighting:
         if c.ndim != 2 or c.shape[1] != 3:
             raise ShprobeError(f"SH coefficients must be (K, 3), got {c.shape}", p)
         return Lighting(None, None, None, c)
-    from ..layouts import load_env
+    from ..probes.layouts import load_env
 
     d, rad, sa = load_env(p).samples()
     rad = np.asarray(rad, dtype=np.float64)

@@ -110,7 +110,7 @@ def to_tangent_sh(sh_coeffs: ArrayLike, frames: ArrayLike) -> NDArray[np.float64
     if e.ndim == 1:
         e = e[:, None]
     fr = np.asarray(frames, dtype=np.float64)
-    from ..rotation import rotate
+    from ..sh.rotation import rotate
 
     return rotate(e, np.swapaxes(fr, -1, -2))
 
@@ -284,7 +284,7 @@ def render_normal_mapped(mesh, lighting, size: int = 256, bump_amplitude: float 
     expansion (lmax ≥ 2) when only coefficients were given. ``baked``: per-vertex coefficients
     from :func:`bake` / :func:`load_bake` for this mesh (with their frames) instead of baking
     here (H4-only bakes give no "H6" image)."""
-    from ..zonal import clamped_cosine_factors, convolve
+    from ..sh.zonal import clamped_cosine_factors, convolve
     from ._env import brute_force_irradiance
 
     v = np.asarray(mesh.vertices, dtype=np.float64)

@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..sh import degrees, num_coeffs, sh_basis
-from ..zonal import clamped_cosine_factors, convolve
+from ..sh.zonal import clamped_cosine_factors, convolve
 from .basis import hemisphere_quadrature
 from .rivals import QUAD, HemiBasis, all_bases, sh_at_nodes
 

@@ -8,8 +8,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..rotation import as_matrix, rotate
 from ..sh import lmax_of, num_coeffs
+from ..sh.rotation import as_matrix, rotate
 from .transfer import Transfer
 
 

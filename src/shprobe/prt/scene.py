@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..render import mesh_vertex_albedo
+from ..scene.render import mesh_vertex_albedo
 
 #: Albedo used where none is given.
 DEFAULT_ALBEDO = 0.8
@@ -83,7 +83,7 @@ def _load_mesh(item: Any):
     import trimesh
 
     if isinstance(item, str | os.PathLike):
-        from ..render import load_mesh
+        from ..scene.render import load_mesh
 
         return load_mesh(item)
     if isinstance(item, trimesh.Scene):

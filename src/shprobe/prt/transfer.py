@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from ..files import save_npz
 from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis
-from ..zonal import clamped_cosine_factors
+from ..sh.zonal import clamped_cosine_factors
 from .scene import Scene, load_scene, mesh_hash
 
 FORMAT = "shprobe-prt"

@@ -64,7 +64,7 @@ def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | No
     """
     import trimesh
 
-    from ..render import render_vertex_colors
+    from ..scene.render import render_vertex_colors
 
     rs = np.eye(3) if rotation is None else _as_matrix(rotation)
     radiance = frame_radiance(transfer, coeffs, rs, light_rotation, lmax, mode, bounces)

@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .sh import check_lmax, lmax_of, num_coeffs
+from ..errors import ShprobeError
+from .basis import check_lmax, lmax_of, num_coeffs
 
 #: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
 ORTHO_TOL = 1e-6

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .files import atomic_output, check_output_path
+from ..errors import ShprobeError
+from ..files import atomic_output, check_output_path
 
 #: Extensions read_image accepts.
 READ_EXTENSIONS = (".hdr", ".rgbe", ".pic", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg",

@@ -9,8 +9,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .sh import check_lmax, degrees, lmax_of
+from ..errors import ShprobeError
+from .basis import check_lmax, degrees, lmax_of
 
 
 def clamped_cosine_factors(lmax: int) -> NDArray[np.float64]:
@@ -131,7 +131,7 @@ def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floati
     Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis
     gives float32 coefficients (computed in float64).
     """
-    from .sh import sh_basis
+    from .basis import sh_basis
 
     mom = np.asarray(moments, dtype=np.float64)
     if mom.ndim != 1 or mom.size == 0:

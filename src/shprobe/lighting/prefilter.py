@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._version import __version__
-from .errors import ShprobeError
-from .layouts import Env, Layout, get_layout, load_env
-from .sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis
-from .zonal import clamped_cosine_factors, convolve
+from .._version import __version__
+from ..errors import ShprobeError
+from ..probes.layouts import Env, Layout, get_layout, load_env
+from ..sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis
+from ..sh.zonal import clamped_cosine_factors, convolve
 
 __all__ = [
     "RH_CONSTANTS",
@@ -99,7 +99,7 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
     """
     lmax = lmax_of(cp.shape[0])
     if lmax > 12:
-        from .rotation import rotate
+        from ..sh.rotation import rotate
 
         return np.asarray(rotate(cp, _Q.T), dtype=np.float64)
     out = np.empty_like(cp)
@@ -114,7 +114,7 @@ def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDA
                                                         NDArray[np.int64]]:
     """(trig (M, W) float32 for m = −lmax..lmax, row weights (H, K) = dω_row Λ_l|m|(θ_row),
     index of the trig row of each k)."""
-    from .layouts import LatLong
+    from ..probes.layouts import LatLong
 
     psi = LatLong.column_azimuth(w)
     m = np.arange(-lmax, lmax + 1)
@@ -344,7 +344,7 @@ def _sample_chunks(env: Env, subdivide: int, chunk: int
         raise ShprobeError(f"subdivide must be ≥ 1, got {subdivide}")
     rad = env.radiance
     if env.layout.name == "latlong":
-        from .layouts import LatLong
+        from ..probes.layouts import LatLong
 
         h, w = rad.shape[:2]
         hk, wk = h * k, w * k
@@ -438,7 +438,7 @@ class ErrorReport:
 
 
 def _normal_grid(h: int = 32) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    from .layouts import LatLong
+    from ..probes.layouts import LatLong
 
     lay = LatLong()
     grid = (h, 2 * h)
@@ -541,6 +541,6 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 
 
 def _kernels() -> dict[str, Any]:
-    from . import _prefilter_kernels as k  # numba, imported lazily
+    from . import _kernels as k  # numba, imported lazily
 
     return {"project_rgb": k.project_rgb_kernel, "brute": k.brute_kernel}

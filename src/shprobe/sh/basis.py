@@ -36,7 +36,7 @@ from typing import overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
+from ..errors import ShprobeError
 
 #: Largest degree shprobe accepts.
 LMAX_LIMIT = 1024
@@ -241,11 +241,11 @@ def sh_basis(
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
     if lmax <= 8:
-        from ._sh_unrolled import KERNELS
+        from ._unrolled import KERNELS
 
         KERNELS[lmax](flat, out.reshape(-1, K))
         return out
-    from ._sh_kernels import sh_rows
+    from ._kernels import sh_rows
 
     a, b = recurrence_tables(lmax)
     sh_rows(flat, lmax, a, b, _diag_table(lmax), out.reshape(-1, K))

@@ -28,9 +28,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .images import srgb_to_linear, tonemap
-from .sh import lmax_of
+from ..errors import ShprobeError
+from ..probes.images import srgb_to_linear, tonemap
+from ..sh import lmax_of
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -213,7 +213,7 @@ def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
     :func:`shprobe.prefilter.irradiance_matrix` of the coefficients zero-padded to lmax 2
     (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated)."""
-    from .prefilter import irradiance_matrix
+    from ..lighting.prefilter import irradiance_matrix
 
     return irradiance_matrix(_pad9(coeffs))
 
@@ -290,7 +290,7 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
         out = np.empty((flat.shape[0], c.shape[1]), dtype=dtype)
         _QUAD_EVAL[0](flat, np.ascontiguousarray(q), out)
     else:
-        from .prefilter import irradiance
+        from ..lighting.prefilter import irradiance
 
         out = irradiance(c, flat).astype(dtype)
     out = out.reshape(*lead, c.shape[1])
@@ -535,7 +535,7 @@ def _background(background: Any, dirs: NDArray, C: int) -> NDArray[np.float32]:
         return np.asarray(background(dirs), dtype=np.float32).reshape(-1, C)
     b = np.asarray(background, dtype=np.float32)
     if b.ndim == 3:
-        from .layouts import Env
+        from ..probes.layouts import Env
 
         return Env(b, "latlong").sample(dirs)[:, :C]
     return np.broadcast_to(b.reshape(1, -1), (dirs.shape[0], C)).astype(np.float32)
@@ -623,7 +623,7 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
     Rendering is linear in L, so for any lighting (K, C) the relighting identity
     image_c = Σ_k L_kc · basis_k holds (to float32 rounding) in both shading modes.
     """
-    from .sh import num_coeffs
+    from ..sh import num_coeffs
 
     K = num_coeffs(lmax)
     return render(mesh, np.eye(K), camera, mode=mode, albedo=albedo, background=None)
@@ -657,6 +657,6 @@ def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float =
                overwrite: bool = False) -> None:
     """Write a render with :func:`shprobe.images.write_image`: ``.png`` tone-mapped by
     :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear."""
-    from .images import write_image
+    from ..probes.images import write_image
 
     write_image(path, image, overwrite=overwrite, exposure=exposure)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ShprobeError
+from ..errors import ShprobeError
 
 _TABLES: dict[str, tuple[tuple[float, float, float], ...]] = {
     "grace": (  # Grace Cathedral

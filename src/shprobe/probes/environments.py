@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ShprobeError
+from ..errors import ShprobeError
 from .layouts import Env, LatLong
 
 #: Unit direction of the sun of :func:`procedural_env`.

@@ -51,8 +51,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .sh import degrees, lmax_of
+from ..errors import ShprobeError
+from ..sh import degrees, lmax_of
 
 FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
 
@@ -90,13 +90,13 @@ def cs_signs(lmax: int) -> NDArray[np.float64]:
 
 
 def _ahat(lmax: int) -> NDArray[np.float64]:
-    from .zonal import clamped_cosine_factors
+    from ..sh.zonal import clamped_cosine_factors
 
     return clamped_cosine_factors(lmax)[degrees(lmax)]
 
 
 def _as_kc(coeffs: ArrayLike) -> NDArray[np.float64]:
-    from .render import as_coeffs
+    from ..scene.render import as_coeffs
 
     c = as_coeffs(coeffs)
     if not np.all(np.isfinite(c)):
@@ -144,7 +144,7 @@ def _poly_consts() -> tuple[float, float, float, float, float]:
 
 
 def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
-    from .render import quadratic_form
+    from ..scene.render import quadratic_form
 
     M = quadratic_form(L9)  # (3, 4, 4)
     c1, c2, c3, c4, c5 = (_f(c) for c in _poly_consts())
@@ -230,7 +230,7 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
         light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
                                  "rotation": [0.0, 0.0, 0.0, 1.0],
                                  "irradianceCoefficients": E9.tolist()}
-        from ._version import __version__
+        from .._version import __version__
 
         doc = {"asset": {"version": "2.0", "generator": f"shprobe {__version__}"},
                "extensionsUsed": ["EXT_lights_image_based"],

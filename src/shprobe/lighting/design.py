@@ -33,10 +33,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .render import as_coeffs
-from .sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis, sh_index
-from .zonal import clamped_cosine_factors, convolve
+from ..errors import ShprobeError
+from ..scene.render import as_coeffs
+from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis, sh_index
+from ..sh.zonal import clamped_cosine_factors, convolve
 
 WINDOWS = ("hann", "lanczos", "gaussian", "laplacian")
 
@@ -163,7 +163,7 @@ def cone_light(axis: ArrayLike, aperture: float, radiance: Any = 1.0,
     """A circular window (disc light) of constant ``radiance`` and half-angle ``aperture`` ζ
     (radians, 0 < ζ ≤ π) around ``axis``: L_lm = radiance · (2π ∫ h P_l) · y_lm(axis)
     (Funk–Hecke), by the foundation's ``shprobe.zonal.circular_window`` (LH eq. 11)."""
-    from .zonal import circular_window
+    from ..sh.zonal import circular_window
 
     return np.asarray(circular_window(_unit(axis), float(aperture), check_lmax(lmax),
                                       radiance=_rgb(radiance)), dtype=np.float64)
@@ -195,7 +195,7 @@ def blend(items: Iterable[tuple[ArrayLike, float]]) -> NDArray[np.float64]:
 def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float64]:
     """The lighting turned by ``rotation`` (3×3 matrix): coefficients of L∘R⁻¹, via the
     foundation's Wigner matrices (``shprobe.rotation.rotate``, LH eq. 4–5)."""
-    from . import rotation as _rot
+    from ..sh import rotation as _rot
 
     if not hasattr(_rot, "rotate"):  # pragma: no cover - until foundation lands
         raise ShprobeError("rotation is not available in this build")
@@ -336,7 +336,7 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
     lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then local refinement
     (scipy L-BFGS-B in spherical angles) from the 8 best grid points.
     """
-    from .render import quadratic_form
+    from ..scene.render import quadratic_form
 
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
@@ -424,7 +424,7 @@ def auto_window(coeffs: ArrayLike, kinds: Sequence[str] = WINDOWS) -> WindowChoi
         def ok(x):
             return min_irradiance(x).nonnegative
     else:  # grid test during the search; the final choice is re-checked with refinement
-        from .zonal import clamped_cosine_factors as _a
+        from ..sh.zonal import clamped_cosine_factors as _a
 
         pts = _fibonacci(20000)
         Y = sh_basis(pts, lmax) * _a(lmax)[degrees(lmax)]

@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
+from ..errors import ShprobeError
 
 LAYOUT_NAMES = ("latlong", "angular", "mirrorball", "cube")
 

@@ -26,8 +26,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ShprobeError
-from .sh import lmax_of, num_coeffs
+from ..errors import ShprobeError
+from .basis import lmax_of, num_coeffs
 
 _SQRT_4PI = float(np.sqrt(4.0 * np.pi))
 

@@ -1,0 +1,30 @@
+"""Layer 1, SH maths: the real SH basis of any degree, zonal functions, Wigner rotation and
+the converters to other conventions. Imports nothing else of shprobe but ``errors``."""
+
+from .basis import (
+    LMAX_LIMIT,
+    check_lmax,
+    degrees,
+    lmax_of,
+    num_coeffs,
+    recurrence_tables,
+    sh_basis,
+    sh_basis_numpy,
+    sh_basis_scipy,
+    sh_index,
+    sh_lm,
+)
+
+__all__ = [
+    "LMAX_LIMIT",
+    "check_lmax",
+    "degrees",
+    "lmax_of",
+    "num_coeffs",
+    "recurrence_tables",
+    "sh_basis",
+    "sh_basis_numpy",
+    "sh_basis_scipy",
+    "sh_index",
+    "sh_lm",
+]
