@@ -19,12 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from shprobe.lighting.prefilter import (
-    _project_latlong,
-    irradiance_map,
-    project,
-    reference_irradiance,
-)
+from shprobe.lighting.irradiance import irradiance_map
+from shprobe.lighting.projection import _project_latlong, project
+from shprobe.lighting.reference import reference_irradiance
 from shprobe.probes.layouts import Env, get_layout
 from shprobe.sh import sh_basis
 

@@ -9,7 +9,8 @@ import pytest
 from PIL import Image
 
 from shprobe.cli.main import main
-from shprobe.lighting.prefilter import irradiance, irradiance_map, project
+from shprobe.lighting.irradiance import irradiance, irradiance_map
+from shprobe.lighting.projection import project
 from shprobe.probes.images import read_image, write_image
 from shprobe.probes.layouts import Env
 from shprobe.probes.presets import get_preset
@@ -200,13 +201,13 @@ def test_existing_output_is_refused_before_any_work(probe, tmp_path, capsys):
                                      ["render", "--sphere", "--size", "8"]])
 def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_path, capsys,
                                                          monkeypatch):
-    import shprobe.lighting.prefilter
+    import shprobe.lighting.reference
     import shprobe.scene.render
 
     def boom(*a, **k):
         raise AssertionError("work started before the output was checked")
 
-    monkeypatch.setattr(shprobe.lighting.prefilter, "reference_irradiance", boom)
+    monkeypatch.setattr(shprobe.lighting.reference, "reference_irradiance", boom)
     monkeypatch.setattr(shprobe.scene.render, "render", boom)
     path, _ = probe
     rc, _, err = run([command[0], path, *command[1:], "-o", tmp_path / "e.gif"], capsys)

@@ -7,12 +7,9 @@ import pytest
 
 from shprobe.errors import ShprobeError
 from shprobe.lighting.design import (
-    WINDOWS,
-    auto_window,
     blend,
     cone_light,
     directional_light,
-    min_irradiance,
     negate_band,
     negate_coeff,
     scale_band,
@@ -20,10 +17,15 @@ from shprobe.lighting.design import (
     set_band,
     set_coeff,
     sky_light,
+)
+from shprobe.lighting.irradiance import shade_irradiance
+from shprobe.lighting.windows import (
+    WINDOWS,
+    auto_window,
+    min_irradiance,
     window_bias,
     window_factors,
 )
-from shprobe.scene.render import shade_irradiance
 from shprobe.sh import sh_basis
 
 from .conftest import random_dirs

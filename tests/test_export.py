@@ -175,7 +175,7 @@ def test_every_command_reads_every_format_back(fmt, tmp_path, capsys):
     """`prefilter --format F -o FILE`, then `--coeffs FILE` in each command that takes it: the
     same lighting comes back (cs-phase signs and gltf/cmgen scalings undone)."""
     from shprobe.cli.main import main
-    from shprobe.lighting.prefilter import irradiance, irradiance_map
+    from shprobe.lighting.irradiance import irradiance, irradiance_map
     from shprobe.probes.images import read_image
     from shprobe.probes.presets import get_preset
 

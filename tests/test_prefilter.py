@@ -10,21 +10,17 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.lighting.prefilter import (
-    RH_CONSTANTS,
-    coeffs_document,
-    error_report,
+from shprobe.lighting.coeffs import RH_CONSTANTS
+from shprobe.lighting.document import coeffs_document, read_coeffs_json
+from shprobe.lighting.irradiance import (
     irradiance,
     irradiance_from_matrix,
     irradiance_map,
     irradiance_matrix,
     irradiance_quadratic,
-    project,
-    project_samples,
-    read_coeffs_json,
-    reference_irradiance,
-    total_intensity,
 )
+from shprobe.lighting.projection import project, project_samples, total_intensity
+from shprobe.lighting.reference import error_report, reference_irradiance
 from shprobe.probes.layouts import Env, get_layout
 from shprobe.sh import sh_basis
 
@@ -104,7 +100,7 @@ def test_latlong_separable_projection_equals_direct_sum(lmax):
     direct = (sh_basis(d, lmax) * dw[:, None]).T @ L.astype(np.float64)
     np.testing.assert_allclose(project(env, lmax), direct, atol=1e-6 * np.abs(direct).max())
     # the rows split over threads (done by default for large images) give the same sums
-    from shprobe.lighting.prefilter import _project_latlong
+    from shprobe.lighting.projection import _project_latlong
 
     for threads in (2, 3, 7):
         np.testing.assert_array_equal(_project_latlong(rad, lmax, threads),

@@ -99,12 +99,12 @@ def test_unshadowed_equals_rho_over_pi_irradiance():
 
 
 def test_unshadowed_matches_prefilter_irradiance():
-    from shprobe.lighting import prefilter
+    from shprobe import lighting
 
     m = trimesh.creation.icosphere(1)
     L = np.random.default_rng(5).normal(size=(9, 3))
     t = bake(m, mode="unshadowed", lmax=2, albedo=1.0)
-    want = prefilter.irradiance(L, t.normals) / np.pi
+    want = lighting.irradiance(L, t.normals) / np.pi
     np.testing.assert_allclose(relight(t, L), want, rtol=1e-5, atol=1e-6)
 
 

@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
+from shprobe.lighting.irradiance import quadratic_form, shade_irradiance
 from shprobe.scene.render import (
     Camera,
     load_mesh,
-    quadratic_form,
     render,
     render_vertex_colors,
     save_image,
-    shade_irradiance,
     sphere_mesh,
     tonemap,
 )

@@ -134,7 +134,7 @@ def test_cli_edit_lights_and_edits(tmp_path, capsys):
 
 def test_cli_edit_blends_a_probe_image(tmp_path, grace_path, ennis_path):
     """--blend PROBE:W projects the image: grace + 0.5·ennis."""
-    from shprobe.lighting.prefilter import project
+    from shprobe.lighting.projection import project
     from shprobe.probes.layouts import load_env
 
     out = tmp_path / "b.json"
@@ -152,7 +152,7 @@ def test_cli_window_ennis(tmp_path, ennis_path, capsys):
     assert "-" in before.split("=")[1].split("[")[0]  # a negative minimum before
     assert "-" not in after.split("=")[1].split("[")[0].replace("e-", "e")
     assert "chosen:" in text
-    from shprobe.lighting.design import min_irradiance
+    from shprobe.lighting.windows import min_irradiance
 
     assert min_irradiance(import_coeffs(out)).nonnegative
 
@@ -190,7 +190,7 @@ def test_bunny_loads(bunny_path):
 
 def test_cli_prefilter_export_feeds_render(tmp_path, grace_path):
     """`shprobe prefilter --format gltf` → `render --coeffs` uses the same lighting as the probe."""
-    from shprobe.lighting.prefilter import project
+    from shprobe.lighting.projection import project
     from shprobe.probes.layouts import load_env
 
     out = tmp_path / "g.gltf.json"

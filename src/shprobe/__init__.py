@@ -41,17 +41,17 @@ _EXPORTS: dict[str, str] = {
     "relight": "prt",
     "load_transfer": "prt",
     # probes in, irradiance out
-    "load_env": "lighting.prefilter",
-    "project": "lighting.prefilter",
-    "irradiance": "lighting.prefilter",
-    "irradiance_matrix": "lighting.prefilter",
-    "reference_irradiance": "lighting.prefilter",
-    "project_samples": "lighting.prefilter",
-    "irradiance_quadratic": "lighting.prefilter",
-    "irradiance_from_matrix": "lighting.prefilter",
-    "irradiance_map": "lighting.prefilter",
-    "error_report": "lighting.prefilter",
-    "read_coeffs_json": "lighting.prefilter",
+    "load_env": "probes.layouts",
+    "project": "lighting.projection",
+    "irradiance": "lighting.irradiance",
+    "irradiance_matrix": "lighting.irradiance",
+    "reference_irradiance": "lighting.reference",
+    "project_samples": "lighting.projection",
+    "irradiance_quadratic": "lighting.irradiance",
+    "irradiance_from_matrix": "lighting.irradiance",
+    "irradiance_map": "lighting.irradiance",
+    "error_report": "lighting.reference",
+    "read_coeffs_json": "lighting.document",
     "get_preset": "probes.presets",
     "PRESETS": "probes.presets",
     "procedural_env": "probes.environments",
@@ -70,9 +70,9 @@ _EXPORTS: dict[str, str] = {
     "Camera": "scene.render",
     "render_vertex_colors": "scene.render",
     "load_mesh": "scene.render",
-    "min_irradiance": "lighting.design",
-    "auto_window": "lighting.design",
-    "window_factors": "lighting.design",
+    "min_irradiance": "lighting.windows",
+    "auto_window": "lighting.windows",
+    "window_factors": "lighting.windows",
     "export_coeffs": "lighting.export",
     "import_coeffs": "lighting.export",
 }
@@ -96,17 +96,30 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
     from .hbasis import h_basis, sh_to_h_matrix
-    from .lighting.design import auto_window, min_irradiance, window_factors
+    from .lighting.document import read_coeffs_json
     from .lighting.export import export_coeffs, import_coeffs
-    from .lighting.prefilter import (
+    from .lighting.irradiance import (
         irradiance,
+        irradiance_from_matrix,
+        irradiance_map,
         irradiance_matrix,
-        load_env,
-        project,
-        reference_irradiance,
+        irradiance_quadratic,
     )
+    from .lighting.projection import project, project_samples
+    from .lighting.reference import error_report, reference_irradiance
+    from .lighting.windows import auto_window, min_irradiance, window_factors
+    from .probes.environments import procedural_env
     from .probes.images import read_image, write_image
-    from .probes.layouts import Env, detect_layout, env_from_function, get_layout, write_env
+    from .probes.layouts import (
+        Env,
+        detect_layout,
+        env_from_function,
+        get_layout,
+        load_env,
+        write_env,
+    )
+    from .probes.presets import PRESETS, get_preset
+    from .prt import bake, load_transfer, relight
     from .scene.render import Camera, load_mesh, render_vertex_colors
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d

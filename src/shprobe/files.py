@@ -18,6 +18,23 @@ import numpy as np
 from .errors import ShprobeError
 
 
+def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
+    """The UTF-8 text of an input file, or one line naming it (missing, a folder, unreadable,
+    not text)."""
+    p = os.fspath(path)
+    try:
+        with open(p, encoding="utf-8") as f:
+            return f.read()
+    except FileNotFoundError:
+        raise ShprobeError("no such file", p) from None
+    except IsADirectoryError:
+        raise ShprobeError("is a directory, not a file", p) from None
+    except UnicodeDecodeError:
+        raise ShprobeError(f"not a {what}", p) from None
+    except OSError as e:
+        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+
+
 def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
     """Refuse an existing file unless ``overwrite``; refuse a missing parent folder."""
     p = Path(path)

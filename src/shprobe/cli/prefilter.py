@@ -152,7 +152,7 @@ def register(group: click.Group) -> None:
         import json
 
         from ..files import check_output_path, write_text
-        from ..lighting.prefilter import coeffs_document
+        from ..lighting.document import coeffs_document
 
         if output:
             check_output_path(output, force)  # refuse before the work
@@ -196,7 +196,8 @@ def register(group: click.Group) -> None:
         """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
         import numpy as np
 
-        from ..lighting.prefilter import irradiance_map, reference_irradiance
+        from ..lighting.irradiance import irradiance_map
+        from ..lighting.reference import reference_irradiance
         from ..probes.images import check_image_output
         from ..probes.layouts import Env, get_layout, write_env
 
@@ -234,7 +235,7 @@ def register(group: click.Group) -> None:
         of the total intensity ∫L dω (R&H 2001 §3.1)."""
         import json
 
-        from ..lighting.prefilter import error_report
+        from ..lighting.reference import error_report
 
         src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
         with _progress_bar("reference irradiance") as update:
@@ -260,7 +261,10 @@ def register(group: click.Group) -> None:
         import numpy as np
 
         from ..files import check_output_path, write_json
-        from ..lighting.prefilter import coeffs_document, error_report, irradiance_map, project
+        from ..lighting.document import coeffs_document
+        from ..lighting.irradiance import irradiance_map
+        from ..lighting.projection import project
+        from ..lighting.reference import error_report
         from ..probes.environments import procedural_env
         from ..probes.images import write_image
         from .common import console

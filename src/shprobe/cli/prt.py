@@ -198,7 +198,8 @@ def register(group: click.Group) -> None:
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
         from ..probes.images import check_image_output
         from ..prt import load_transfer
-        from ..prt.view import axis_angle, frame_radiance, render_frame
+        from ..prt.view import frame_radiance, render_frame
+        from ..sh.rotation import from_axis_angle
 
         # the name as given (frames get _000 … suffixes; their existence is checked below)
         check_image_output(output, force or turntable is not None)
@@ -218,7 +219,7 @@ def register(group: click.Group) -> None:
         if rotate is not None:
             x, y, z, deg = _finite(parse_floats(rotate, 4, "rotation (x,y,z,degrees)"),
                                    "--rotate", rotate)
-            rot = axis_angle([x, y, z], deg)
+            rot = from_axis_angle([x, y, z], deg)
         coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
         from ..prt.view import turntable as turntable_frames
         from ..scene.render import Camera
@@ -242,7 +243,7 @@ def register(group: click.Group) -> None:
             check_image_output(p, force)
         if stops is None:  # one exposure for all frames: the light turning must show
             stops = auto_exposure([frame_radiance(
-                t, coeffs, rot, axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax,
+                t, coeffs, rot, from_axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax,
                 **model) for i in range(turntable)])
         frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam, **model)
         for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):

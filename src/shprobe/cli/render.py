@@ -46,7 +46,7 @@ def parse_window(text: str | None):
     if text.strip().lower() == "auto":
         return "auto"
     kind, _, s = text.partition(":")
-    from ..lighting.design import WINDOWS
+    from ..lighting.windows import WINDOWS
 
     if kind not in WINDOWS or not s:
         raise ShprobeError(f"window {text!r}: expected 'auto' or KIND:STRENGTH with KIND one "
@@ -56,7 +56,7 @@ def parse_window(text: str | None):
 
 def apply_window_spec(coeffs, spec, echo=None):
     """Window ``coeffs`` per ``spec``; returns (coeffs, description)."""
-    from ..lighting.design import apply_window, auto_window, window_bias, window_factors
+    from ..lighting.windows import apply_window, auto_window, window_bias, window_factors
     from ..sh import lmax_of
 
     if spec is None:
@@ -381,7 +381,8 @@ def register(group: click.Group) -> None:
         n^T M n, R&H eq. 11; numerical above) and window the lighting until E >= 0
         ('auto': the mildest of hann, lanczos, gaussian, laplacian by the L2 bias of E)."""
         from ..files import write_text
-        from ..lighting.design import (
+        from ..lighting.export import export_coeffs
+        from ..lighting.windows import (
             WINDOWS,
             apply_window,
             auto_window,
@@ -389,7 +390,6 @@ def register(group: click.Group) -> None:
             window_bias,
             window_factors,
         )
-        from ..lighting.export import export_coeffs
 
         coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
         spec = parse_window(window)

@@ -86,7 +86,7 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
     if need_env and not probe:
         raise ShprobeError(f"this command needs a probe image, not {given[0]}")
     if probe:
-        from ..lighting.prefilter import project
+        from ..lighting.projection import project
         from .common import load_env_cli
 
         if isinstance(probe, list) and layout not in ("auto", "cube"):

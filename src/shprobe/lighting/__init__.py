@@ -1,2 +1,56 @@
-"""Layer 3, lighting: the coefficient core, projection (R&H eq. 10), irradiance and the
-quadratic form (eq. 7, 11-13), brute-force reference, lighting design, windows and export."""
+"""Layer 3, lighting: the coefficient core (:mod:`.coeffs`, :mod:`.document`), projection
+(R&H eq. 10, :mod:`.projection`), irradiance and the quadratic form (eq. 7, 11–13,
+:mod:`.irradiance`), the brute-force reference and error report (:mod:`.reference`), lighting
+design (§3.3, :mod:`.design`), windows and the non-negativity certificate (:mod:`.windows`) and
+engine export / import (:mod:`.export`). Imports only ``probes``, ``sh`` and the base modules.
+"""
+
+from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs, labels, pad_coeffs
+from .document import coeffs_document, read_coeffs_json
+from .export import FORMATS, export_coeffs, import_coeffs
+from .irradiance import (
+    irradiance,
+    irradiance_coeffs,
+    irradiance_from_matrix,
+    irradiance_map,
+    irradiance_matrix,
+    irradiance_quadratic,
+    quadratic_form,
+    shade_irradiance,
+)
+from .projection import project, project_samples, total_intensity
+from .reference import ErrorReport, ErrorRow, error_report, reference_irradiance
+from .windows import WINDOWS, apply_window, auto_window, min_irradiance, window_factors
+
+__all__ = [
+    "FORMATS",
+    "RH_CONSTANTS",
+    "RH_LABELS",
+    "WINDOWS",
+    "ErrorReport",
+    "ErrorRow",
+    "apply_window",
+    "as_coeffs",
+    "auto_window",
+    "coeffs_document",
+    "error_report",
+    "export_coeffs",
+    "import_coeffs",
+    "irradiance",
+    "irradiance_coeffs",
+    "irradiance_from_matrix",
+    "irradiance_map",
+    "irradiance_matrix",
+    "irradiance_quadratic",
+    "labels",
+    "min_irradiance",
+    "pad_coeffs",
+    "project",
+    "project_samples",
+    "quadratic_form",
+    "read_coeffs_json",
+    "reference_irradiance",
+    "shade_irradiance",
+    "total_intensity",
+    "window_factors",
+]

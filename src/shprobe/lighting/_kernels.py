@@ -1,4 +1,5 @@
-"""numba kernels of :mod:`shprobe.prefilter` (imported lazily: numba is slow to import)."""
+"""numba kernels of the lighting layer: projection, brute-force irradiance and the quadratic
+form of the shading path (imported lazily: numba is slow to import)."""
 
 from __future__ import annotations
 
@@ -102,3 +103,17 @@ def project_rgb_kernel(d, v, w, lmax, a, b, nblk):
                 acc[i, 2] += y[i] * bb
         out[blk] = acc
     return out
+
+
+@numba.njit(cache=True, fastmath=False, nogil=True)
+def quad_eval(n, q, out):  # pragma: no cover - compiled
+    # q: (C, 10) = [xx, yy, zz, xy, xz, yz, x, y, z, 1] weights of E(n) = nᵀMn (R&H eq. 11)
+    for i in range(n.shape[0]):
+        x = np.float64(n[i, 0])
+        y = np.float64(n[i, 1])
+        z = np.float64(n[i, 2])
+        xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+        for c in range(q.shape[0]):
+            out[i, c] = (q[c, 0] * xx + q[c, 1] * yy + q[c, 2] * zz + q[c, 3] * xy
+                         + q[c, 4] * xz + q[c, 5] * yz + q[c, 6] * x + q[c, 7] * y
+                         + q[c, 8] * z + q[c, 9])

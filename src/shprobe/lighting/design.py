@@ -1,80 +1,42 @@
-"""Lighting design (R&H 2001 §3.3): editing coefficients, analytic lights, windowing and the non-
-negativity certificate.
+"""Lighting design (R&H 2001 §3.3): editing coefficients band by band or one by one, analytic
+lights (directional, cone, hemisphere), blending and rotation, and the edit pipeline that
+``shprobe edit`` and the viewer apply.
 
 All functions take lighting coefficients L_lm of shape (K, C) (or (K,)) and return new arrays;
-nothing is modified in place.
-
-Windows (factors w_l multiplying band l, ``strength`` s ≥ 0, s = 0 is no window):
-
-* ``hann``      w_l = ½(1 + cos(π l / h)) for l < h, else 0, with h = (lmax + 1) / s;
-* ``lanczos``   w_l = sinc(l / h) = sin(π l/h) / (π l/h) for l < h, else 0, h as above;
-* ``gaussian``  w_l = exp(−s · l(l + 1))  (heat-kernel smoothing);
-* ``laplacian`` w_l = 1 / (1 + s · l²(l + 1)²)  (Sloan 2008, "Stupid SH tricks": the g that
-  minimises ‖f − g‖² + λ‖Δg‖², with λ = s).
-
-Non-negativity certificate (:func:`min_irradiance`): for lmax ≤ 2, E(n) = nᵀAn + 2bᵀn + c on
-|n| = 1 (R&H eq. 11 split into blocks). For any μ below the smallest eigenvalue λ₁ of A,
-
-    E(n) = nᵀ(A − μI)n + 2bᵀn + c + μ ≥ d(μ) = c + μ − bᵀ(A − μI)⁻¹b,
-
-a rigorous lower bound (the Lagrangian dual of the trust-region problem, which has no duality
-gap). d is concave; its maximiser solves the secular equation Σ β_i² / (λ_i − μ)² = 1
-(β = Qᵀb), found by bisection; the primal point n = −(A − μI)⁻¹b (plus the λ₁ eigenvector in the
-"hard case" β₁ = 0) attains the bound. The certificate reports both: min E ∈ [lower, attained].
-For lmax > 2 the minimum is numerical (dense Fibonacci grid plus local refinement).
+nothing is modified in place. Windows and the non-negativity certificate are
+:mod:`shprobe.lighting.windows`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..scene.render import as_coeffs
-from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis, sh_index
-from ..sh.zonal import clamped_cosine_factors, convolve
-
-WINDOWS = ("hann", "lanczos", "gaussian", "laplacian")
+from ..sh import check_lmax, lmax_of, num_coeffs, sh_basis, sh_index
+from ..sh.rotation import one_rotation, rotate, unit_vectors
+from ..sh.zonal import circular_window
+from .coeffs import as_coeffs, pad_coeffs
 
 __all__ = [
-    "WINDOWS",
-    "IrradianceMinimum",
-    "WindowChoice",
-    "apply_window",
-    "as_coeffs",
-    "auto_window",
     "blend",
     "cone_light",
     "directional_light",
-    "min_irradiance",
     "negate_band",
     "negate_coeff",
-    "pad_coeffs",
     "rotate_lighting",
     "scale_band",
     "scale_coeff",
     "set_band",
     "set_coeff",
     "sky_light",
-    "window_bias",
-    "window_factors",
 ]
 
 
 # ----------------------------------------------------------------------------- editing
-
-
-def pad_coeffs(coeffs: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """Coefficients padded with zeros (or truncated) to degree ``lmax``."""
-    c = as_coeffs(coeffs)
-    out = np.zeros((num_coeffs(check_lmax(lmax)), c.shape[1]))
-    k = min(out.shape[0], c.shape[0])
-    out[:k] = c[:k]
-    return out
 
 
 def _value(value: Any, C: int) -> NDArray[np.float64]:
@@ -137,14 +99,6 @@ def negate_band(coeffs: ArrayLike, l: int) -> NDArray[np.float64]:
 # ----------------------------------------------------------------------------- analytic lights
 
 
-def _unit(v: ArrayLike) -> NDArray[np.float64]:
-    v = np.asarray(v, dtype=np.float64).reshape(3)
-    n = np.linalg.norm(v)
-    if not np.isfinite(n) or n == 0:
-        raise ShprobeError(f"direction must be a non-zero 3-vector, got {v}")
-    return v / n
-
-
 def _rgb(x: Any) -> NDArray[np.float64]:
     return np.atleast_1d(np.asarray(x, dtype=np.float64))
 
@@ -154,7 +108,7 @@ def directional_light(direction: ArrayLike, intensity: Any = 1.0,
     """A distant point source of irradiance ``intensity`` (per channel) arriving from
     ``direction``: L(ω) = I δ(ω, d), so L_lm = I y_lm(d). Its irradiance is
     E(n) ≈ I max(n·d, 0) (exactly so for lmax → ∞; R&H's 9 terms are the low-pass version)."""
-    y = sh_basis(_unit(direction), check_lmax(lmax))
+    y = sh_basis(unit_vectors(direction), check_lmax(lmax))
     return y[:, None] * _rgb(intensity)[None, :]
 
 
@@ -163,16 +117,14 @@ def cone_light(axis: ArrayLike, aperture: float, radiance: Any = 1.0,
     """A circular window (disc light) of constant ``radiance`` and half-angle ``aperture`` ζ
     (radians, 0 < ζ ≤ π) around ``axis``: L_lm = radiance · (2π ∫ h P_l) · y_lm(axis)
     (Funk–Hecke), by the foundation's ``shprobe.zonal.circular_window`` (LH eq. 11)."""
-    from ..sh.zonal import circular_window
-
-    return np.asarray(circular_window(_unit(axis), float(aperture), check_lmax(lmax),
+    return np.asarray(circular_window(unit_vectors(axis), float(aperture), check_lmax(lmax),
                                       radiance=_rgb(radiance)), dtype=np.float64)
 
 
 def sky_light(up: ArrayLike = (0.0, 1.0, 0.0), sky: Any = 1.0, ground: Any = 0.0,
               lmax: int = 2) -> NDArray[np.float64]:
     """Hemisphere light: radiance ``sky`` over the hemisphere around ``up``, ``ground`` below."""
-    u = _unit(up)
+    u = unit_vectors(up)
     return cone_light(u, np.pi / 2, sky, lmax) + cone_light(-u, np.pi / 2, ground, lmax)
 
 
@@ -195,256 +147,4 @@ def blend(items: Iterable[tuple[ArrayLike, float]]) -> NDArray[np.float64]:
 def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float64]:
     """The lighting turned by ``rotation`` (3×3 matrix): coefficients of L∘R⁻¹, via the
     foundation's Wigner matrices (``shprobe.rotation.rotate``, LH eq. 4–5)."""
-    from ..sh import rotation as _rot
-
-    if not hasattr(_rot, "rotate"):  # pragma: no cover - until foundation lands
-        raise ShprobeError("rotation is not available in this build")
-    return np.asarray(_rot.rotate(as_coeffs(coeffs), np.asarray(rotation, dtype=np.float64)))
-
-
-# ----------------------------------------------------------------------------- windows
-
-
-def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]:
-    """Window factors w_l, l = 0..lmax (see the module doc for the four kinds); w_0 = 1."""
-    lmax = check_lmax(lmax)
-    s = float(strength)
-    if not np.isfinite(s) or s < 0:
-        raise ShprobeError(f"window strength must be >= 0, got {strength}")
-    l = np.arange(lmax + 1, dtype=np.float64)
-    if kind in ("hann", "lanczos"):
-        if s == 0:
-            return np.ones(lmax + 1)
-        h = (lmax + 1) / s
-        x = l / h
-        w = 0.5 * (1 + np.cos(np.pi * x)) if kind == "hann" else np.sinc(x)
-        return np.where(x < 1, w, 0.0)
-    if kind == "gaussian":
-        return np.exp(-s * l * (l + 1))
-    if kind == "laplacian":
-        return 1.0 / (1.0 + s * (l * (l + 1)) ** 2)
-    raise ShprobeError(f"unknown window {kind!r}; choose from {', '.join(WINDOWS)}")
-
-
-def apply_window(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.float64]:
-    """L_lm · w_l."""
-    return np.asarray(convolve(as_coeffs(coeffs), factors), dtype=np.float64)
-
-
-def window_bias(coeffs: ArrayLike, factors: ArrayLike) -> float:
-    """Relative L2 change of the irradiance over the sphere caused by a window (Parseval):
-    √(Σ ((1 − w_l) Â_l L_lm)²) / √(Σ (Â_l L_lm)²), summed over channels."""
-    c = as_coeffs(coeffs)
-    lmax = lmax_of(c.shape[0])
-    E = convolve(c, clamped_cosine_factors(lmax))
-    dE = convolve(E, 1.0 - np.asarray(factors, dtype=np.float64)[: lmax + 1])
-    den = np.sqrt((E**2).sum())
-    return float(np.sqrt((dE**2).sum()) / den) if den > 0 else 0.0
-
-
-# ----------------------------------------------------------------------------- certificate
-
-
-@dataclass
-class IrradianceMinimum:
-    """min over the unit sphere of E(n), per channel.
-
-    ``minimum``: the smallest E found (attained at ``direction``); ``lower_bound``: a proven
-    lower bound (lmax ≤ 2: the Lagrangian dual value, equal to ``minimum`` to rounding;
-    higher lmax: NaN, the search is numerical); ``exact``: whether the bound is certified.
-    """
-
-    minimum: NDArray[np.float64]
-    lower_bound: NDArray[np.float64]
-    direction: NDArray[np.float64]
-    exact: bool
-    method: str
-
-    @property
-    def nonnegative(self) -> bool:
-        """True when E ≥ 0 everywhere on the sphere is established (lmax ≤ 2: certified)."""
-        bound = self.lower_bound if self.exact else self.minimum
-        return bool(np.all(bound >= 0.0))
-
-
-def _trust_region_min(A: NDArray, b: NDArray, c: float) -> tuple[float, float, NDArray]:
-    """(attained min, dual lower bound, argmin) of nᵀAn + 2bᵀn + c over |n| = 1."""
-    lam, Q = np.linalg.eigh(A)
-    beta = Q.T @ b
-    scale = max(1.0, float(np.abs(lam).max()), float(np.linalg.norm(b)), abs(c))
-    tiny = 1e-13 * scale
-
-    def g(mu: float) -> float:
-        return float(np.sum(beta**2 / (lam - mu) ** 2) - 1.0)
-
-    def dual(mu: float) -> float:
-        return float(c + mu - np.sum(beta**2 / (lam - mu)))
-
-    hi = lam[0] - tiny
-    cands: list[NDArray] = []
-    if g(hi) < 0:  # hard case: the bound is reached at μ = λ₁
-        mu = lam[0]
-        rest = np.zeros(3)
-        mask = np.abs(lam - mu) > tiny
-        rest[mask] = -beta[mask] / (lam[mask] - mu)
-        tau = np.sqrt(max(0.0, 1.0 - float(rest @ rest)))
-        for sgn in (1.0, -1.0):
-            z = rest.copy()
-            z[~mask] = 0.0
-            z[0] += sgn * tau
-            cands.append(Q @ z)
-        lower = dual(hi)
-    else:
-        lo = lam[0] - float(np.linalg.norm(b)) - tiny  # g(lo) ≤ 0
-        for _ in range(200):
-            mid = 0.5 * (lo + hi)
-            if mid <= lo or mid >= hi:
-                break
-            if g(mid) < 0:
-                lo = mid
-            else:
-                hi = mid
-        mu = lo
-        z = -beta / (lam - mu)
-        cands.append(Q @ z)
-        lower = max(dual(lo), dual(hi))
-    cands += [Q[:, i] * s for i in range(3) for s in (1.0, -1.0)]
-    best, arg = np.inf, cands[0]
-    for n in cands:
-        nn = np.linalg.norm(n)
-        if nn == 0:
-            continue
-        n = n / nn
-        v = float(n @ A @ n + 2 * b @ n + c)
-        if v < best:
-            best, arg = v, n
-    return best, min(lower, best), arg
-
-
-def _fibonacci(n: int) -> NDArray[np.float64]:
-    i = np.arange(n) + 0.5
-    z = 1 - 2 * i / n
-    r = np.sqrt(1 - z * z)
-    phi = np.pi * (1 + 5**0.5) * i
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
-
-
-def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
-    """Minimum of E(n) = Σ Â_l L_lm y_lm(n) over the unit sphere, per channel.
-
-    lmax ≤ 2: exact, by the trust-region dual of nᵀMn (R&H eq. 11) — see the module doc.
-    lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then local refinement
-    (scipy L-BFGS-B in spherical angles) from the 8 best grid points.
-    """
-    from ..scene.render import quadratic_form
-
-    c = as_coeffs(coeffs)
-    lmax = lmax_of(c.shape[0])
-    C = c.shape[1]
-    mins, lows, dirs = np.empty(C), np.empty(C), np.empty((C, 3))
-    if lmax <= 2:
-        M = quadratic_form(c)
-        for ch in range(C):
-            mins[ch], lows[ch], dirs[ch] = _trust_region_min(M[ch, :3, :3], M[ch, :3, 3],
-                                                             float(M[ch, 3, 3]))
-        return IrradianceMinimum(mins, lows, dirs, True, "trust-region dual (R&H eq. 11)")
-    from scipy.optimize import minimize
-
-    E_lm = convolve(c, clamped_cosine_factors(lmax))
-    pts = _fibonacci(max(int(grid), 100))
-    vals = sh_basis(pts, lmax) @ E_lm
-    for ch in range(C):
-        def f(tp, ch=ch):
-            st = np.sin(tp[0])
-            n = np.array([st * np.cos(tp[1]), st * np.sin(tp[1]), np.cos(tp[0])])
-            return float(sh_basis(n, lmax) @ E_lm[:, ch])
-
-        best, arg = np.inf, pts[0]
-        for i in np.argsort(vals[:, ch])[:8]:
-            p = pts[i]
-            x0 = [np.arccos(np.clip(p[2], -1, 1)), np.arctan2(p[1], p[0])]
-            r = minimize(f, x0, method="L-BFGS-B")
-            v = min(float(r.fun), float(vals[i, ch]))
-            if v < best:
-                best = v
-                st = np.sin(r.x[0])
-                arg = (np.array([st * np.cos(r.x[1]), st * np.sin(r.x[1]), np.cos(r.x[0])])
-                       if r.fun <= vals[i, ch] else p)
-        mins[ch], lows[ch], dirs[ch] = best, np.nan, arg
-    return IrradianceMinimum(mins, lows, dirs, False, f"grid {len(pts)} + L-BFGS-B")
-
-
-@dataclass
-class WindowChoice:
-    """Result of :func:`auto_window`: the window kind and strength chosen, its factors, the
-    minimum irradiance before and after, and the bias (relative L2 change of E) it costs.
-    ``kind`` is ``"none"`` when the lighting is already non-negative."""
-
-    kind: str
-    strength: float
-    factors: NDArray[np.float64]
-    before: IrradianceMinimum
-    after: IrradianceMinimum
-    bias: float
-    candidates: dict[str, tuple[float, float]]  # kind -> (strength, bias) of each kind tried
-
-
-def _threshold(c: NDArray, kind: str, lmax: int, ok) -> float | None:
-    """Smallest strength s of ``kind`` with ok(windowed) (scan, then bisection)."""
-    if kind in ("hann", "lanczos"):
-        grid = np.linspace(0, lmax + 1, 65)[1:]
-    else:
-        grid = np.concatenate([[0.0], np.geomspace(1e-6, 1e4, 64)])[1:]
-    prev = 0.0
-    for s in grid:
-        if ok(apply_window(c, window_factors(kind, lmax, s))):
-            lo, hi = prev, float(s)
-            for _ in range(40):
-                mid = 0.5 * (lo + hi)
-                if ok(apply_window(c, window_factors(kind, lmax, mid))):
-                    hi = mid
-                else:
-                    lo = mid
-            return hi
-        prev = float(s)
-    return None
-
-
-def auto_window(coeffs: ArrayLike, kinds: Sequence[str] = WINDOWS) -> WindowChoice:
-    """The mildest window making E(n) ≥ 0 on the whole sphere: for each kind the smallest
-    strength whose windowed lighting passes :func:`min_irradiance` (for lmax ≤ 2 the certified
-    lower bound must be ≥ 0), then the kind with the least :func:`window_bias`."""
-    c = as_coeffs(coeffs)
-    lmax = lmax_of(c.shape[0])
-    before = min_irradiance(c)
-    if before.nonnegative:
-        f = np.ones(lmax + 1)
-        return WindowChoice("none", 0.0, f, before, before, 0.0, {})
-    if lmax <= 2:
-        def ok(x):
-            return min_irradiance(x).nonnegative
-    else:  # grid test during the search; the final choice is re-checked with refinement
-        from ..sh.zonal import clamped_cosine_factors as _a
-
-        pts = _fibonacci(20000)
-        Y = sh_basis(pts, lmax) * _a(lmax)[degrees(lmax)]
-
-        def ok(x):
-            return bool((Y @ x).min() >= 0)
-    cands: dict[str, tuple[float, float]] = {}
-    for kind in kinds:
-        s = _threshold(c, kind, lmax, ok)
-        if s is None:
-            continue
-        if lmax > 2:  # make sure refinement agrees; strengthen a little if not
-            for _ in range(20):
-                if min_irradiance(apply_window(c, window_factors(kind, lmax, s))).nonnegative:
-                    break
-                s *= 1.05
-        cands[kind] = (s, window_bias(c, window_factors(kind, lmax, s)))
-    if not cands:
-        raise ShprobeError("no window makes this lighting non-negative (is L_00 negative?)")
-    kind = min(cands, key=lambda k: cands[k][1])
-    s, bias = cands[kind]
-    f = window_factors(kind, lmax, s)
-    return WindowChoice(kind, s, f, before, min_irradiance(apply_window(c, f)), bias, cands)
+    return np.asarray(rotate(as_coeffs(coeffs), one_rotation(rotation)), dtype=np.float64)

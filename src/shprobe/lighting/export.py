@@ -51,8 +51,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._version import __version__
 from ..errors import ShprobeError
+from ..files import read_text
 from ..sh import degrees, lmax_of
+from ..sh.conventions import cs_signs
+from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs, basis_constants
+from .document import coeffs_document, coeffs_from_document, parse_json
+from .irradiance import quadratic_form
 
 FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
 
@@ -64,44 +70,18 @@ SUFFIX = {"glsl": ".glsl", "hlsl": ".hlsl", "wgsl": ".wgsl", "json": ".json",
 __all__ = [
     "FORMATS",
     "SUFFIX",
-    "basis_constants",
-    "cs_signs",
     "export_coeffs",
     "import_coeffs",
     "parse_coeffs",
 ]
 
-_NAMES = ["L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"]
 _CH = "RGB"
-
-
-def basis_constants() -> NDArray[np.float64]:
-    """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k), exact."""
-    p = np.pi
-    k1, k2 = np.sqrt(3 / (4 * p)), np.sqrt(15 / (4 * p))
-    return np.array([0.5 / np.sqrt(p), k1, k1, k1, k2, k2, np.sqrt(5 / (16 * p)), k2,
-                     np.sqrt(15 / (16 * p))])
-
-
-def cs_signs(lmax: int) -> NDArray[np.float64]:
-    """(−1)^m for every flat index up to ``lmax``: R&H ↔ Condon–Shortley."""
-    m = np.concatenate([np.arange(-l, l + 1) for l in range(lmax + 1)])
-    return np.where(m % 2 == 0, 1.0, -1.0)
 
 
 def _ahat(lmax: int) -> NDArray[np.float64]:
     from ..sh.zonal import clamped_cosine_factors
 
     return clamped_cosine_factors(lmax)[degrees(lmax)]
-
-
-def _as_kc(coeffs: ArrayLike) -> NDArray[np.float64]:
-    from ..scene.render import as_coeffs
-
-    c = as_coeffs(coeffs)
-    if not np.all(np.isfinite(c)):
-        raise ShprobeError("coefficients contain NaN or infinity")
-    return c
 
 
 def _nine_rgb(c: NDArray, fmt: str) -> NDArray[np.float64]:
@@ -137,17 +117,9 @@ def _shader_header(fmt: str, source: str | None) -> list[str]:
     ]
 
 
-def _poly_consts() -> tuple[float, float, float, float, float]:
-    from .prefilter import RH_CONSTANTS
-
-    return RH_CONSTANTS
-
-
 def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
-    from ..scene.render import quadratic_form
-
     M = quadratic_form(L9)  # (3, 4, 4)
-    c1, c2, c3, c4, c5 = (_f(c) for c in _poly_consts())
+    c1, c2, c3, c4, c5 = (_f(c) for c in RH_CONSTANTS)
     if fmt == "glsl":
         mat = "const mat4 SHPROBE_M_{ch} = mat4({v});\n"
         arr_open, arr_close = "const vec3 SHPROBE_L[9] = vec3[9](\n", ");\n"
@@ -179,7 +151,7 @@ def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
         vec3, ", ".join(f"dot(p, {mul.format(ch=ch)})" for ch in _CH))
     out += arr_open
     out += "".join(f"    {vec3}({', '.join(_f(x) for x in L9[k])}){',' if k < 8 else ''}"
-                   f"  // {_NAMES[k]}\n" for k in range(9))
+                   f"  // {RH_LABELS[k]}\n" for k in range(9))
     out += arr_close
     out += "\n" + fn_open.format(name="shprobe_irradiance_poly") + " {\n"
     for name, val in zip(("c1", "c2", "c3", "c4", "c5"), (c1, c2, c3, c4, c5), strict=True):
@@ -198,15 +170,13 @@ def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
 def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str:
     """Text of ``coeffs`` (L_lm, (K, C) or (K,)) in format ``fmt`` (one of :data:`FORMATS`;
     see the module doc for what each stores). ``source`` is named in the output."""
-    c = _as_kc(coeffs)
+    c = as_coeffs(coeffs)
     if fmt not in FORMATS:
         raise ShprobeError(f"unknown export format {fmt!r}; choose from {', '.join(FORMATS)}")
     lmax = lmax_of(c.shape[0])
     if fmt in ("glsl", "hlsl", "wgsl"):
         return _shader(_nine_rgb(c, fmt), fmt, source)
     if fmt == "json":  # the document of `shprobe prefilter --format json`
-        from .prefilter import coeffs_document
-
         doc = coeffs_document(c, source=source)
         doc["quantity"] = ("coefficients: lighting (radiance) L_lm; irradiance_coefficients: "
                            "E_lm = A_l L_lm (E, not divided by pi); M: eq. 11-12 for E")
@@ -230,8 +200,6 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
         light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
                                  "rotation": [0.0, 0.0, 0.0, 1.0],
                                  "irradianceCoefficients": E9.tolist()}
-        from .._version import __version__
-
         doc = {"asset": {"version": "2.0", "generator": f"shprobe {__version__}"},
                "extensionsUsed": ["EXT_lights_image_based"],
                "extensions": {"EXT_lights_image_based": {"lights": [light]}},
@@ -248,7 +216,7 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
     if fmt == "cmgen":
         ck = _nine_rgb(c, fmt) * (_ahat(2) / np.pi * basis_constants())[:, None]
         out = "".join(f"({', '.join(format(x, '.15f').rjust(18) for x in ck[k])}); "
-                      f"// {_NAMES[k]}, irradiance, pre-scaled base\n" for k in range(9))
+                      f"// {RH_LABELS[k]}, irradiance, pre-scaled base\n" for k in range(9))
         return out + _header("//", [
             "shprobe cmgen export" + (f" of {source}" if source else ""),
             "Filament sh.txt: E(n)/pi = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz"
@@ -274,7 +242,7 @@ _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 def _from_M(M: NDArray) -> NDArray[np.float64]:
     """Invert R&H eq. 12: the 9 L_lm of one channel from its 4×4 M."""
-    c1, c2, c3, c4, c5 = _poly_consts()
+    c1, c2, c3, c4, c5 = RH_CONSTANTS
     L20 = M[2, 2] / c3
     return np.array([(M[3, 3] + c5 * L20) / c4, M[1, 3] / c2, M[2, 3] / c2, M[0, 3] / c2,
                      M[0, 1] / c1, M[1, 2] / c1, L20, M[0, 2] / c1, M[0, 0] / c1])
@@ -285,10 +253,7 @@ def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64
     where = name
     stripped = text.lstrip()
     if stripped.startswith("{"):
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise ShprobeError(f"not valid JSON: {e.msg} (line {e.lineno})", where) from None
+        doc = parse_json(text, where)
         return _parse_json(doc, where)
     if "SHPROBE_M_R" in text:
         fmt = ("hlsl" if "float4x4" in text else "wgsl" if "mat4x4<f32>" in text else "glsl")
@@ -319,30 +284,14 @@ def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64
                        "cs-phase, or a shprobe shader)", where)
 
 
-def _kc(arr: Any, where: Any, what: str) -> NDArray[np.float64]:
-    try:
-        a = np.asarray(arr, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ShprobeError(f"{what} is not a numeric array", where) from None
-    if a.ndim == 1:
-        a = a[:, None]
-    if a.ndim != 2 or not np.all(np.isfinite(a)):
-        raise ShprobeError(f"{what} must be a finite (K, C) array, got shape {a.shape}", where)
-    try:
-        lmax_of(a.shape[0])
-    except ShprobeError as e:
-        raise ShprobeError(f"{what}: {e.message}", where) from None
-    return a
-
-
 def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
     if not isinstance(doc, dict):
         raise ShprobeError("JSON coefficient file must hold an object", where)
     fmt = doc.get("format")
-    if fmt == "shprobe-coeffs":
-        return _kc(doc.get("coefficients"), where, "coefficients"), "json"
+    if fmt in (None, "shprobe-coeffs") and "coefficients" in doc:
+        return coeffs_from_document(doc, where), "json"
     if fmt == "condon-shortley":
-        c = _kc(doc.get("coefficients"), where, "coefficients")
+        c = as_coeffs(doc.get("coefficients"), where, "coefficients")
         return c * cs_signs(lmax_of(c.shape[0]))[:, None], "cs-phase"
     obj = doc.get("object")  # three.js LightProbe.toJSON(): {"metadata", "object": {"sh"}}
     if isinstance(obj, dict) and isinstance(obj.get("sh"), list):
@@ -364,13 +313,11 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
         lights = ext.get("lights") or ext.get("ibls") or []
         if not lights or "irradianceCoefficients" not in lights[0]:
             raise ShprobeError("EXT_lights_image_based has no irradianceCoefficients", where)
-        E = _kc(lights[0]["irradianceCoefficients"], where, "irradianceCoefficients")
+        E = as_coeffs(lights[0]["irradianceCoefficients"], where, "irradianceCoefficients")
         if E.shape != (9, 3):
             raise ShprobeError(f"irradianceCoefficients must be 9x3, got {E.shape}", where)
         E = E * float(lights[0].get("intensity", 1.0))
         return E / (_ahat(2) * cs_signs(2))[:, None], "gltf"
-    if "coefficients" in doc:  # a plain {"coefficients": [[...]]} file: shprobe convention
-        return _kc(doc["coefficients"], where, "coefficients"), "json"
     raise ShprobeError("JSON file holds no coefficients shprobe recognises", where)
 
 
@@ -378,11 +325,4 @@ def import_coeffs(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Read lighting coefficients L_lm (K, C) back from any export format (detected from the
     file's content)."""
     p = os.fspath(path)
-    try:
-        with open(p, encoding="utf-8") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise ShprobeError("no such file", p) from None
-    except UnicodeDecodeError:
-        raise ShprobeError("not a text coefficient file", p) from None
-    return parse_coeffs(text, p)[0]
+    return parse_coeffs(read_text(p, "text coefficient file"), p)[0]

@@ -9,16 +9,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..sh import lmax_of, num_coeffs
-from ..sh.rotation import as_matrix, rotate
+from ..sh.rotation import one_rotation, rotate
 from .transfer import Transfer
-
-
-def _as_matrix(rotation: ArrayLike) -> NDArray[np.float64]:
-    """One 3×3 rotation (matrix or (w, x, y, z) quaternion), checked."""
-    r = as_matrix(rotation)
-    if r.shape != (3, 3):
-        raise ShprobeError(f"need one rotation, got shape {r.shape}")
-    return r
 
 
 def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -35,7 +27,7 @@ def scene_lighting(coeffs: ArrayLike, rotation: ArrayLike | None = None) -> NDAr
     lmax_of(c.shape[0])
     if rotation is None:
         return c
-    return np.asarray(rotate(c, _as_matrix(rotation).T), dtype=np.float64)
+    return np.asarray(rotate(c, one_rotation(rotation).T), dtype=np.float64)
 
 
 def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLike | None = None,

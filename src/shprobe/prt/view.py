@@ -11,32 +11,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .relight import _as_matrix, relight
+from ..sh.rotation import from_axis_angle, one_rotation
+from .relight import relight
 from .transfer import Transfer
-
-
-def axis_angle(axis: ArrayLike, degrees: float) -> NDArray[np.float64]:
-    """Rotation matrix turning by ``degrees`` (right-handed) about ``axis`` (Rodrigues).
-
-    The axis must be a finite non-zero 3-vector (any length) and the angle finite.
-    """
-    from ..errors import ShprobeError
-
-    try:
-        a = np.asarray(axis, dtype=np.float64)
-        deg = float(degrees)
-    except (TypeError, ValueError):
-        raise ShprobeError(f"rotation needs a 3-vector axis and an angle, got {axis!r}, "
-                           f"{degrees!r}") from None
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.any(a != 0):
-        raise ShprobeError(f"rotation axis must be a finite non-zero 3-vector, got {axis!r}")
-    if not np.isfinite(deg):
-        raise ShprobeError(f"rotation angle must be finite, got {degrees!r}")
-    a = a / np.abs(a).max()  # no overflow in the norm for huge components
-    x, y, z = a / np.linalg.norm(a)
-    t = np.radians(deg)
-    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
-    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
 
 
 def frame_radiance(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | None = None,
@@ -46,8 +23,8 @@ def frame_radiance(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | 
     by ``light_rotation``: in the scene's frame the lighting is rotate(L, R_s⁻¹ R_l), i.e.
     ``relight`` with scene rotation R_l⁻¹ R_s (LH eq. 4–5). mode, bounces: the model, picked
     at run time (:meth:`Transfer.select`)."""
-    rs = np.eye(3) if rotation is None else _as_matrix(rotation)
-    rl = np.eye(3) if light_rotation is None else _as_matrix(light_rotation)
+    rs = np.eye(3) if rotation is None else one_rotation(rotation)
+    rl = np.eye(3) if light_rotation is None else one_rotation(light_rotation)
     return relight(transfer, coeffs, rotation=rl.T @ rs, lmax=lmax, mode=mode, bounces=bounces)
 
 
@@ -66,7 +43,7 @@ def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | No
 
     from ..scene.render import render_vertex_colors
 
-    rs = np.eye(3) if rotation is None else _as_matrix(rotation)
+    rs = np.eye(3) if rotation is None else one_rotation(rotation)
     radiance = frame_radiance(transfer, coeffs, rs, light_rotation, lmax, mode, bounces)
     mesh = trimesh.Trimesh(transfer.vertices @ rs.T, transfer.faces,
                            vertex_normals=transfer.normals @ rs.T, process=False)
@@ -80,5 +57,5 @@ def turntable(transfer: Transfer, coeffs: ArrayLike, frames: int,
     """``frames`` renders with the lighting turned by 360°·i/frames about ``axis`` (+Y) around
     the (fixed, optionally turned by ``rotation``) scene."""
     for i in range(int(frames)):
-        yield render_frame(transfer, coeffs, rotation, axis_angle(axis, 360.0 * i / frames),
+        yield render_frame(transfer, coeffs, rotation, from_axis_angle(axis, 360.0 * i / frames),
                            lmax=lmax, camera=camera, mode=mode, bounces=bounces)

@@ -21,7 +21,6 @@ azimuth turns the camera position from +Z towards +X about +Y, positive elevatio
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -29,8 +28,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..lighting.irradiance import shade_irradiance
 from ..probes.images import srgb_to_linear, tonemap
-from ..sh import lmax_of
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -39,18 +38,14 @@ __all__ = [
     "Camera",
     "Hits",
     "RenderResult",
-    "as_coeffs",
     "basis_images",
     "basis_visual",
     "load_mesh",
-    "quadratic_form",
     "relight",
     "render",
     "render_vertex_colors",
     "save_image",
-    "shade_irradiance",
     "sphere_mesh",
-    "tonemap",
     "trace",
 ]
 
@@ -204,97 +199,6 @@ def _bounding_sphere(mesh: trimesh.Trimesh | None) -> tuple[NDArray, float]:
     if not r > 0:
         raise ShprobeError("mesh has zero extent (all vertices coincide)")
     return c, r
-
-
-# ----------------------------------------------------------------------------- irradiance
-
-
-def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
-    :func:`shprobe.prefilter.irradiance_matrix` of the coefficients zero-padded to lmax 2
-    (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated)."""
-    from ..lighting.prefilter import irradiance_matrix
-
-    return irradiance_matrix(_pad9(coeffs))
-
-
-def as_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """A float64 (K, C) copy of coefficients; (K,) becomes (K, 1); K must be (lmax+1)²."""
-    c = np.array(coeffs, dtype=np.float64)
-    if c.ndim == 1:
-        c = c[:, None]
-    if c.ndim != 2:
-        raise ShprobeError(f"coefficients must be (K, C) or (K,), got shape {c.shape}")
-    lmax_of(c.shape[0])
-    return c
-
-
-def _pad9(coeffs: ArrayLike) -> NDArray[np.float64]:
-    c = as_coeffs(coeffs)
-    if c.shape[0] > 9:
-        raise ShprobeError(f"the quadratic form needs lmax <= 2, got lmax={lmax_of(c.shape[0])}")
-    out = np.zeros((9, c.shape[1]))
-    out[: c.shape[0]] = c
-    return out
-
-
-def _kernel():
-    import numba
-
-    @numba.njit(cache=True, fastmath=False, nogil=True)
-    def quad_eval(n, q, out):  # pragma: no cover - compiled
-        # q: (C, 10) = [xx, yy, zz, xy, xz, yz, x, y, z, 1] weights of E(n) = nᵀMn
-        for i in range(n.shape[0]):
-            x = np.float64(n[i, 0])
-            y = np.float64(n[i, 1])
-            z = np.float64(n[i, 2])
-            xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-            for c in range(q.shape[0]):
-                out[i, c] = (q[c, 0] * xx + q[c, 1] * yy + q[c, 2] * zz + q[c, 3] * xy
-                             + q[c, 4] * xz + q[c, 5] * yz + q[c, 6] * x + q[c, 7] * y
-                             + q[c, 8] * z + q[c, 9])
-
-    return quad_eval
-
-
-_QUAD_EVAL: list[Callable] = []
-
-
-def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
-                     dtype: Any = np.float32) -> NDArray[np.floating]:
-    """Irradiance E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7) at unit ``normals`` (..., 3).
-
-    ``coeffs`` are lighting coefficients L_lm, (K, C) or (K,). Returns (..., C) (or (...)
-    for 1-D coefficients). For lmax ≤ 2 the quadratic polynomial of eq. 11–13 is evaluated by
-    a numba kernel (one pass over the normals); higher lmax uses the SH basis.
-    """
-    c = np.asarray(coeffs, dtype=np.float64)
-    one = c.ndim == 1
-    if one:
-        c = c[:, None]
-    n = np.asarray(normals)
-    if n.shape[-1] != 3:
-        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
-    lead = n.shape[:-1]
-    flat = np.ascontiguousarray(n.reshape(-1, 3))
-    if flat.dtype not in (np.float32, np.float64):
-        flat = flat.astype(np.float64)
-    lmax = lmax_of(c.shape[0])
-    if lmax <= 2:
-        M = quadratic_form(c)
-        q = np.stack([M[:, 0, 0], M[:, 1, 1], M[:, 2, 2], 2 * M[:, 0, 1], 2 * M[:, 0, 2],
-                      2 * M[:, 1, 2], 2 * M[:, 0, 3], 2 * M[:, 1, 3], 2 * M[:, 2, 3],
-                      M[:, 3, 3]], axis=-1)
-        if not _QUAD_EVAL:
-            _QUAD_EVAL.append(_kernel())
-        out = np.empty((flat.shape[0], c.shape[1]), dtype=dtype)
-        _QUAD_EVAL[0](flat, np.ascontiguousarray(q), out)
-    else:
-        from ..lighting.prefilter import irradiance
-
-        out = irradiance(c, flat).astype(dtype)
-    out = out.reshape(*lead, c.shape[1])
-    return out[..., 0] if one else out
 
 
 # ----------------------------------------------------------------------------- ray casting

@@ -43,6 +43,48 @@ ROTATION_LMAX = 256
 WIGNER_D_MAX_BYTES = 2 << 30
 
 
+def unit_vectors(v: ArrayLike, what: str = "direction",
+                 zero: str = "refuse") -> NDArray[np.float64]:
+    """Unit vectors (..., 3) float64 from any non-zero finite vectors, without overflow (each is
+    scaled by its largest component first, so (1e200, 1e200, 0) works).
+
+    The one policy for zero-length input, ``zero``: ``"refuse"`` (a one-line error, the
+    default) or ``"keep"`` (zero vectors stay zero, e.g. pixels outside a layout's disc).
+    Non-finite vectors are always refused.
+    """
+    try:
+        d = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"{what} must be numeric (..., 3) vectors") from None
+    if d.ndim < 1 or d.shape[-1] != 3:
+        raise ShprobeError(f"{what} must have shape (..., 3), got {d.shape}")
+    if not np.all(np.isfinite(d)):
+        raise ShprobeError(f"{what} must be finite vectors")
+    big = np.abs(d).max(axis=-1, keepdims=True)
+    if zero == "refuse" and np.any(big == 0.0):
+        raise ShprobeError(f"{what} must be a non-zero vector")
+    s = d / np.where(big > 0, big, 1.0)
+    n = np.linalg.norm(s, axis=-1, keepdims=True)
+    return s / np.where(n > 0, n, 1.0)
+
+
+def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
+    """Rotation matrix turning by ``degrees`` (right-handed) about ``axis`` (Rodrigues):
+    R = I + sin t K + (1 − cos t) K², K the cross-product matrix of the unit axis."""
+    a = unit_vectors(axis, "rotation axis")
+    try:
+        t = np.radians(np.asarray(degrees, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise ShprobeError(f"rotation angle must be a number, got {degrees!r}") from None
+    if not np.all(np.isfinite(t)):
+        raise ShprobeError(f"rotation angle must be finite, got {degrees!r}")
+    K = np.zeros((*a.shape[:-1], 3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
+    K = K - np.swapaxes(K, -1, -2)
+    s, c = np.sin(t)[..., None, None], np.cos(t)[..., None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
 def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) from quaternions (..., 4) in (w, x, y, z) order.
 
@@ -105,6 +147,14 @@ def as_matrix(rotation: Any) -> NDArray[np.float64]:
         det = np.abs(np.linalg.det(R) - 1.0).max()
         _check_err(max(err, det))
     return R
+
+
+def one_rotation(rotation: Any) -> NDArray[np.float64]:
+    """One checked 3×3 rotation (matrix, (w, x, y, z) quaternion or scipy ``Rotation``)."""
+    r = as_matrix(rotation)
+    if r.shape != (3, 3):
+        raise ShprobeError(f"need one rotation, got shape {r.shape}")
+    return r
 
 
 def _matrices(rotation: Any) -> NDArray[np.float64]:

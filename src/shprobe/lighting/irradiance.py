@@ -1,0 +1,159 @@
+"""Irradiance from lighting coefficients (R&H 2001 eq. 7, 11–13), in one module: Â_l L_lm,
+E(n) for any lmax, the matrix M (eq. 11–12), the polynomial (eq. 13), the quadratic form as
+shading uses it, and irradiance maps on any layout.
+
+Normals: the functions evaluate the formulas at the vectors given; they are meant for unit
+normals (a non-unit n scales the l ≥ 1 terms). :func:`shade_irradiance` normalises its normals.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShprobeError
+from ..probes.layouts import Env, Layout, get_layout
+from ..sh import lmax_of, sh_basis
+from ..sh.zonal import clamped_cosine_factors, convolve
+from .coeffs import RH_CONSTANTS, as_coeffs, check_coeffs, nine
+
+__all__ = [
+    "irradiance",
+    "irradiance_coeffs",
+    "irradiance_from_matrix",
+    "irradiance_map",
+    "irradiance_matrix",
+    "irradiance_quadratic",
+    "quadratic_form",
+    "shade_irradiance",
+]
+
+
+def irradiance_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
+    """E_lm = Â_l L_lm (R&H eq. 7), same shape as ``coeffs``."""
+    c = check_coeffs(coeffs)
+    lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
+    return convolve(c, clamped_cosine_factors(lmax))
+
+
+def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
+    """E(n) = Σ_lm Â_l L_lm y_lm(n) (R&H eq. 7), any lmax.
+
+    ``coeffs`` (K, C) or (K,); ``normals`` (..., 3) unit vectors → (..., C) or (...,).
+    """
+    e = irradiance_coeffs(coeffs)
+    lmax = lmax_of(e.shape[0])
+    n = np.asarray(normals, dtype=np.float64)
+    if n.ndim < 1 or n.shape[-1] != 3:
+        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    y = sh_basis(n, lmax)
+    return y @ e
+
+
+def _nine(coeffs: ArrayLike) -> NDArray[np.float64]:
+    c = check_coeffs(coeffs)
+    if c.ndim == 1:
+        c = c[:, None]
+    if c.shape[-2] < 9:
+        raise ShprobeError(f"eq. 11–13 need lmax ≥ 2 (9 coefficients), got {c.shape[-2]}")
+    return c[..., :9, :]
+
+
+def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
+    """M of R&H eq. 11–12 per channel, (..., C, 4, 4), with E(n) = nᵀ M n, n = (x, y, z, 1).
+
+    Uses L_lm for l ≤ 2 (higher bands are ignored). Our signs and order are R&H's, so M is
+    their matrix verbatim.
+    """
+    c1, c2, c3, c4, c5 = RH_CONSTANTS
+    L = np.moveaxis(_nine(coeffs), -2, 0)  # (9, ..., C)
+    L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = L
+    m = np.empty((*L00.shape, 4, 4))
+    m[..., 0, :] = np.stack([c1 * L22, c1 * L2m2, c1 * L21, c2 * L11], axis=-1)
+    m[..., 1, :] = np.stack([c1 * L2m2, -c1 * L22, c1 * L2m1, c2 * L1m1], axis=-1)
+    m[..., 2, :] = np.stack([c1 * L21, c1 * L2m1, c3 * L20, c2 * L10], axis=-1)
+    m[..., 3, :] = np.stack([c2 * L11, c2 * L1m1, c2 * L10, c4 * L00 - c5 * L20], axis=-1)
+    return m
+
+
+def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
+    """E = nᵀ M n with n = (x, y, z, 1) (R&H eq. 11); ``m`` (C, 4, 4) → (..., C)."""
+    mm = np.asarray(m, dtype=np.float64)
+    if mm.shape[-2:] != (4, 4):
+        raise ShprobeError(f"M must have shape (..., 4, 4), got {mm.shape}")
+    n = np.asarray(normals, dtype=np.float64)
+    n4 = np.concatenate([n, np.ones((*n.shape[:-1], 1))], axis=-1)
+    return np.einsum("...i,cij,...j->...c", n4, mm.reshape(-1, 4, 4), n4)
+
+
+def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
+    """The expanded polynomial of R&H eq. 13 → (..., C)."""
+    c1, c2, c3, c4, c5 = RH_CONSTANTS
+    L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = _nine(coeffs)
+    n = np.asarray(normals, dtype=np.float64)[..., None]
+    x, y, z = n[..., 0, :], n[..., 1, :], n[..., 2, :]
+    return (c1 * L22 * (x * x - y * y) + c3 * L20 * z * z + c4 * L00 - c5 * L20
+            + 2.0 * c1 * (L2m2 * x * y + L21 * x * z + L2m1 * y * z)
+            + 2.0 * c2 * (L11 * x + L1m1 * y + L10 * z))
+
+
+def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
+                   size: int | tuple[int, int] = 128) -> Env:
+    """An irradiance environment map E(n) (eq. 7) on the grid of any layout → Env.
+
+    ``size`` as in ``Layout.grid_shape`` (lat-long H or (W, H); angular / mirror ball N; cube
+    face N). ``layout='angular'`` gives the view of R&H Fig. 3 (centre +Z, rim −Z). Pixels
+    outside an angular disc are 0.
+    """
+    lay = get_layout(layout)
+    grid = lay.grid_shape(size)
+    c = check_coeffs(coeffs)
+    if c.ndim == 1:
+        c = np.repeat(c[:, None], 3, axis=1)
+    dirs = lay.pixel_directions(grid)
+    valid = lay.valid_mask(grid)
+    e = np.zeros((*grid, c.shape[-1]), dtype=np.float32)
+    e[valid] = irradiance(c, dirs[valid])
+    return Env(e, lay)
+
+
+def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
+    """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
+    :func:`irradiance_matrix` of the coefficients zero-padded to lmax 2 (so lmax 0 and 1 are
+    accepted; lmax > 2 is refused rather than truncated)."""
+    return irradiance_matrix(nine(coeffs))
+
+
+def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
+                     dtype: Any = np.float32) -> NDArray[np.floating]:
+    """Irradiance E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7) at ``normals`` (..., 3), the shading
+    path of the renderer.
+
+    ``coeffs`` are lighting coefficients L_lm, (K, C) or (K,). Returns (..., C) (or (...)
+    for 1-D coefficients). For lmax ≤ 2 the quadratic polynomial of eq. 11–13 is evaluated by
+    a numba kernel (one pass over the normals); higher lmax uses the SH basis.
+    """
+    one = np.ndim(coeffs) == 1
+    c = as_coeffs(coeffs, finite=False)
+    n = np.asarray(normals)
+    if n.ndim < 1 or n.shape[-1] != 3:
+        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    lead = n.shape[:-1]
+    flat = np.ascontiguousarray(n.reshape(-1, 3))
+    if flat.dtype not in (np.float32, np.float64):
+        flat = flat.astype(np.float64)
+    if lmax_of(c.shape[0]) <= 2:
+        M = quadratic_form(c)
+        q = np.stack([M[:, 0, 0], M[:, 1, 1], M[:, 2, 2], 2 * M[:, 0, 1], 2 * M[:, 0, 2],
+                      2 * M[:, 1, 2], 2 * M[:, 0, 3], 2 * M[:, 1, 3], 2 * M[:, 2, 3],
+                      M[:, 3, 3]], axis=-1)
+        from ._kernels import quad_eval  # numba, imported lazily
+
+        out = np.empty((flat.shape[0], c.shape[1]), dtype=dtype)
+        quad_eval(flat, np.ascontiguousarray(q), out)
+    else:
+        out = irradiance(c, flat).astype(dtype)
+    out = out.reshape(*lead, c.shape[1])
+    return out[..., 0] if one else out

@@ -1,0 +1,170 @@
+"""The brute-force reference and R&H's error report.
+
+- :func:`reference_irradiance` — Σ_pixels L max(0, n·ω) dω, O(T·S), numba, chunked.
+- :func:`reference_irradiance_map` — the same on the grid of any layout.
+- :func:`error_report` — R&H's metric (§3.1): |E_SH − E_ref| as a fraction of ∫L dω.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShprobeError
+from ..probes.layouts import Env, LatLong
+from ..sh import check_lmax, num_coeffs
+from .irradiance import irradiance
+from .projection import _kernels, project, total_intensity
+
+__all__ = ["ErrorReport", "ErrorRow", "error_report", "reference_irradiance"]
+
+
+def _sample_chunks(env: Env, subdivide: int, chunk: int
+                   ) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """(dirs (S, 3), L·dω (S, 3)) in chunks of about ``chunk`` samples; each pixel split into
+    ``subdivide``² sub-pixels of constant radiance with their exact solid angles."""
+    k = int(subdivide)
+    if k < 1:
+        raise ShprobeError(f"subdivide must be ≥ 1, got {subdivide}")
+    rad = env.radiance
+    if env.layout.name == "latlong":
+        h, w = rad.shape[:2]
+        hk, wk = h * k, w * k
+        ct, st = LatLong.row_cos_theta(hk), LatLong.row_sin_theta(hk)
+        cx, cz = LatLong.column_xz(wk)
+        dw = LatLong.row_solid_angle(hk, wk)
+        rows = max(1, chunk // wk)
+        for j0 in range(0, hk, rows):
+            j1 = min(hk, j0 + rows)
+            nr = j1 - j0
+            d = np.empty((nr, wk, 3))
+            d[..., 0] = st[j0:j1, None] * cx[None]
+            d[..., 1] = ct[j0:j1, None]
+            d[..., 2] = st[j0:j1, None] * cz[None]
+            src = np.repeat(rad[np.arange(j0, j1) // k], k, axis=1).astype(np.float64)
+            yield d.reshape(-1, 3), (src * dw[j0:j1, None, None]).reshape(-1, 3)
+        return
+    if k > 1:
+        rad = np.repeat(np.repeat(rad, k, axis=-3), k, axis=-2)
+        env = Env(rad, env.layout, env.path)
+    dirs, vals, dws = env.samples()
+    for s0 in range(0, dirs.shape[0], chunk):
+        s1 = s0 + chunk
+        yield dirs[s0:s1], vals[s0:s1].astype(np.float64) * dws[s0:s1, None]
+
+
+def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
+                         subdivide: int = 1, progress=None) -> NDArray[np.float64]:
+    """Brute-force irradiance Σ_pixels L(ω) max(0, n·ω) dω for any normals (..., 3) → (..., 3).
+
+    O(T·S); a numba kernel parallel over normals, fed ``chunk`` samples at a time so memory
+    stays bounded. ``subdivide=k`` splits every pixel into k×k sub-pixels (exact sub-solid
+    angles, constant radiance) to check convergence; lat-long builds them chunk by chunk, the
+    other layouts build their k²-times larger pixel tables whole (memory O(k²·S)).
+    ``progress(done, total)`` is called with
+    the normal–sample pairs done so far, every ~2²³ pairs, when given.
+    """
+    n = np.asarray(normals, dtype=np.float64)
+    if n.ndim < 1 or n.shape[-1] != 3:
+        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    flat = np.ascontiguousarray(n.reshape(-1, 3))
+    t = flat.shape[0]
+    out = np.zeros((t, 3))
+    kern = _kernels()["brute"]
+    total = t * int(np.prod(env.grid)) * int(subdivide) ** 2
+    done = 0
+    for d, lw in _sample_chunks(env, subdivide, int(chunk)):
+        dT, lwT = np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T)
+        block = max(256, (1 << 23) // max(1, d.shape[0]))  # normals per call
+        for i in range(0, t, block):
+            kern(flat[i:i + block], dT, lwT, out[i:i + block])
+            done += min(block, t - i) * d.shape[0]
+            if progress is not None:
+                progress(min(done, total), total)
+    return out.reshape(*n.shape[:-1], 3)
+
+
+# ----------------------------------------------------------------------------- error report
+
+
+@dataclass(frozen=True)
+class ErrorRow:
+    """Errors of the order-lmax SH irradiance against the brute-force reference.
+
+    ``mean_frac`` / ``max_frac``: mean and max |E_SH − E_ref| / ∫L dω (R&H's metric; per
+    channel, mean weighted by the normals' solid angles, max over normals and channels);
+    ``mean_rel``: mean |ΔE| / E_ref over normals with E_ref > 0; ``smape``: mean
+    2|ΔE| / (|E_SH| + |E_ref|).
+    """
+
+    lmax: int
+    mean_frac: float
+    max_frac: float
+    mean_rel: float
+    smape: float
+
+
+@dataclass(frozen=True)
+class ErrorReport:
+    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of normals."""
+
+    rows: tuple[ErrorRow, ...]
+    total_intensity: NDArray[np.float64]
+    n_normals: int
+
+    def row(self, lmax: int) -> ErrorRow:
+        for r in self.rows:
+            if r.lmax == lmax:
+                return r
+        raise KeyError(lmax)
+
+
+def _normal_grid(h: int = 32) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    lay = LatLong()
+    grid = (h, 2 * h)
+    return lay.pixel_directions(grid).reshape(-1, 3), lay.solid_angles(grid).reshape(-1)
+
+
+def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
+                 normals: ArrayLike | None = None, reference: ArrayLike | None = None,
+                 progress=None, normal_grid: int = 32) -> ErrorReport:
+    """R&H's error metric (§3.1) for each lmax: SH irradiance vs :func:`reference_irradiance`.
+
+    ``normals`` default: the pixel centres of a (2N)×N lat-long grid, N = ``normal_grid``,
+    weighted by their solid angles (given normals are weighted equally). ``reference`` may
+    pass a precomputed E_ref.
+    """
+    if normals is None:
+        nrm, wts = _normal_grid(normal_grid)
+    else:
+        nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        wts = np.ones(nrm.shape[0])
+    wts = wts / wts.sum()
+    ref = (reference_irradiance(env, nrm, progress=progress) if reference is None
+           else np.asarray(reference, dtype=np.float64).reshape(-1, 3))
+    tot = total_intensity(env)
+    if not np.all(tot > 0):
+        raise ShprobeError("the environment has a channel with zero total intensity", env.path)
+    lmax_values = tuple(check_lmax(int(x)) for x in lmax_values)
+    coeffs = project(env, max(lmax_values))
+    rows = []
+    for lm in lmax_values:
+        e = irradiance(coeffs[: num_coeffs(lm)], nrm)
+        err = np.abs(e - ref)
+        frac = err / tot
+        pos = ref > 0
+        rel = np.where(pos, err / np.where(pos, ref, 1.0), 0.0)
+        denom = np.abs(e) + np.abs(ref)
+        sm = np.where(denom > 0, 2.0 * err / np.where(denom > 0, denom, 1.0), 0.0)
+        wpos = wts[:, None] * pos
+        rows.append(ErrorRow(
+            lmax=lm,
+            mean_frac=float((wts[:, None] * frac).sum() / 3.0),
+            max_frac=float(frac.max()),
+            mean_rel=float((wpos * rel).sum() / max(wpos.sum(), 1e-300)),
+            smape=float((wts[:, None] * sm).sum() / 3.0),
+        ))
+    return ErrorReport(tuple(rows), tot, nrm.shape[0])
