@@ -126,7 +126,7 @@ def test_error_command(probe, capsys):
 @pytest.mark.filterwarnings("ignore:.*8/16-bit")
 def test_demo_writes_everything_once(tmp_path, capsys):
     out = tmp_path / "demo"
-    rc, stdout, _ = run(["demo", "--out", out, "--size", "32"], capsys)
+    rc, stdout, _ = run(["demo", "--out", out, "--size", "64"], capsys)
     assert rc == 0
     assert "L2-2" in stdout and "sMAPE" in stdout
     names = {"probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
@@ -134,7 +134,7 @@ def test_demo_writes_everything_once(tmp_path, capsys):
     assert {p.name for p in out.iterdir()} == names
     assert read_image(out / "side_by_side.png").shape == (32, 128, 3)
     stamp = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
-    rc, _, err = run(["demo", "--out", out, "--size", "32"], capsys)
+    rc, _, err = run(["demo", "--out", out, "--size", "64"], capsys)
     one_line_error(rc, err)
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamp
     rc, _, _ = run(["demo", "--out", out, "--size", "32", "--force"], capsys)

@@ -337,7 +337,8 @@ def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
     import click
     from click.testing import CliRunner
 
-    from shprobe.cli.common import LAYOUT_CHOICES, clamp_option, layout_option, load_env_cli
+    from shprobe.cli.common import LAYOUT_CHOICES, clamp_option, layout_option
+    from shprobe.cli.sources import resolve_coeffs
     from shprobe.probes.images import write_image
     from shprobe.probes.layouts import LAYOUTS
 
@@ -348,7 +349,7 @@ def test_cli_layout_option_and_ldr_warning(tmp_path, capsys):
     @layout_option
     @clamp_option
     def cmd(probe, layout, clamp):
-        env = load_env_cli(probe, layout, clamp)
+        env = resolve_coeffs(probe, layout=layout, clamp=clamp).env
         click.echo(f"{env.layout.name} {env.grid}")
 
     write_image(tmp_path / "p.png", np.full((8, 8, 3), 0.5, np.float32))

@@ -58,7 +58,7 @@ def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
     from shprobe.sh.zonal import circular_window
 
     out = tmp_path / "x.pfm"
-    assert main(["prt", "render", str(sphere_transfer), "--window", "1,0,0,60", "--size",
+    assert main(["prt", "render", str(sphere_transfer), "--cone", "1,0,0:60", "--size",
                  "65x65", "--elevation", "0", "-o", str(out)]) == 0
     img = read_image(out, clamp=True)[..., 0]  # SH ringing: negatives -> 0
     n = 65
@@ -74,9 +74,9 @@ def test_rendered_sphere_lit_from_the_window_side(tmp_path, sphere_transfer):
 def test_turntable_frame_is_the_window_turned_by_hand(tmp_path, sphere_transfer):
     """Frame i turns the lighting by 360°·i/N about +Y: frame 1 of 4 under a window on +X is the
     still render of the window on R_y(90°)·X = −Z (LH §3.2 window about R a; no Wigner)."""
-    assert main(["prt", "render", str(sphere_transfer), "--window", "1,0,0,40", "--size",
+    assert main(["prt", "render", str(sphere_transfer), "--cone", "1,0,0:40", "--size",
                  "48x40", "--turntable", "4", "-o", str(tmp_path / "f.pfm")]) == 0
-    assert main(["prt", "render", str(sphere_transfer), "--window", "0,0,-1,40", "--size",
+    assert main(["prt", "render", str(sphere_transfer), "--cone", "0,0,-1:40", "--size",
                  "48x40", "-o", str(tmp_path / "still.pfm")]) == 0
     frame = read_image(tmp_path / "f_001.pfm", clamp=True)
     still = read_image(tmp_path / "still.pfm", clamp=True)
@@ -90,13 +90,13 @@ def test_auto_exposure_neither_blown_out_nor_dark(tmp_path, sphere_transfer, cap
 
     png = tmp_path / "w.png"
     # a 30° window of total power 4π: radiance ≈ 15, far above white at exposure 0
-    assert main(["prt", "render", str(sphere_transfer), "--window", "0,1,0,30", "--size",
+    assert main(["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30", "--size",
                  "64x64", "-o", str(png)]) == 0
     img = np.asarray(Image.open(png)).max(axis=2)
     lit = img[img > 0]
     assert 180 <= lit.max() <= 255
     assert (lit == 255).mean() < 0.02
-    one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--window", "0,1,0,30",
+    one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
                             "--exposure", "nan", "-o", str(tmp_path / "n.png")], "exposure")
 
 
@@ -105,7 +105,7 @@ def test_auto_exposure_neither_blown_out_nor_dark(tmp_path, sphere_transfer, cap
 
 def test_render_checks_output_format_first(tmp_path, sphere_transfer, capsys):
     for args in ([], ["--turntable", "2"]):
-        one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--window", "0,1,0,30",
+        one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
                                 *args, "-o", str(tmp_path / "x.bmp")], "x.bmp", ".bmp")
     assert list(tmp_path.glob("x*")) == []
 
@@ -127,7 +127,7 @@ def test_render_layout_option_reaches_the_probe(tmp_path, sphere_transfer, capsy
 def test_bad_transfer_files_are_one_line(tmp_path, capsys, content):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(content)
-    one_line_error(capsys, ["prt", "render", str(bad), "--window", "0,1,0,30", "-o",
+    one_line_error(capsys, ["prt", "render", str(bad), "--cone", "0,1,0:30", "-o",
                             str(tmp_path / "x.png")], "bad.npz", "not a transfer file")
     other = tmp_path / "other.npz"
     np.savez(other, a=np.zeros(3))
@@ -139,7 +139,7 @@ def test_truncated_transfer_file(tmp_path, sphere_transfer, capsys):
     data = sphere_transfer.read_bytes()
     cut = tmp_path / "cut.npz"
     cut.write_bytes(data[: len(data) // 2])
-    one_line_error(capsys, ["prt", "render", str(cut), "--window", "0,1,0,30", "-o",
+    one_line_error(capsys, ["prt", "render", str(cut), "--cone", "0,1,0:30", "-o",
                             str(tmp_path / "x.png")], "cut.npz")
 
 
@@ -157,7 +157,7 @@ def test_hash_check_with_ground_and_several_meshes(tmp_path, capsys):
         load_transfer(out, scene=[a])
     with pytest.raises(ShprobeError, match="baked for mesh"):
         load_transfer(out, scene=[b, a])
-    one_line_error(capsys, ["prt", "render", str(out), "--window", "0,1,0,30", "--scene",
+    one_line_error(capsys, ["prt", "render", str(out), "--cone", "0,1,0:30", "--scene",
                             str(a), "-o", str(tmp_path / "x.png")], "baked for mesh")
 
 

@@ -67,7 +67,7 @@ def test_render_refuses_transfer_of_another_mesh(tmp_path, sphere_obj, capsys):
     assert main(["prt", "bake", str(sphere_obj), "--mode", "unshadowed", "-o", str(out)]) == 0
     other = tmp_path / "other.obj"
     trimesh.creation.icosphere(subdivisions=1).export(other)
-    fails_with_one_line(capsys, ["prt", "render", str(out), "--window", "0,1,0,30", "--scene",
+    fails_with_one_line(capsys, ["prt", "render", str(out), "--cone", "0,1,0:30", "--scene",
                                  str(other), "-o", str(tmp_path / "x.png")],
                         str(out), "baked for mesh")
     assert not (tmp_path / "x.png").exists()
@@ -78,13 +78,13 @@ def test_render_window_and_turntable(tmp_path, sphere_obj):
     assert main(["prt", "bake", str(sphere_obj), "--mode", "shadowed", "--lmax", "6",
                  "--samples", "64", "-o", str(out)]) == 0
     png = tmp_path / "w.png"
-    assert main(["prt", "render", str(out), "--window", "0,1,0,25", "--size", "64x48",
-                 "--lmax", "4", "--rotate", "1,0,0,30", "-o", str(png)]) == 0
+    assert main(["prt", "render", str(out), "--cone", "0,1,0:25", "--size", "64x48",
+                 "--lmax", "4", "--rotate", "1,0,0:30", "-o", str(png)]) == 0
     from PIL import Image
 
     img = np.asarray(Image.open(png))
     assert img.shape == (48, 64, 3) and img.max() > 0
-    assert main(["prt", "render", str(out), "--window", "1,0,0,25", "--size", "32x32",
+    assert main(["prt", "render", str(out), "--cone", "1,0,0:25", "--size", "32x32",
                  "--turntable", "3", "-o", str(tmp_path / "f.png")]) == 0
     frames = [np.asarray(Image.open(tmp_path / f"f_{i:03d}.png")) for i in range(3)]
     assert not np.array_equal(frames[0], frames[1])  # the light moved
@@ -131,7 +131,7 @@ def test_render_picks_the_model_at_run_time(tmp_path, sphere_obj, capsys):
 
     def render(path, *args):
         out = tmp_path / f"r{len(list(tmp_path.glob('r*.pfm')))}.pfm"
-        assert main(["prt", "render", str(path), "--window", "0,1,0,60", "--size", "40x40",
+        assert main(["prt", "render", str(path), "--cone", "0,1,0:60", "--size", "40x40",
                      "--elevation", "10", *args, "-o", str(out)]) == 0
         return read_image(out)
 
@@ -146,7 +146,7 @@ def test_render_picks_the_model_at_run_time(tmp_path, sphere_obj, capsys):
                          (files["shadowed"], ["--mode", "interreflected"], "baked shadowed"),
                          (ir, ["--bounces", "3"], "2 bounces"),
                          (ir, ["--mode", "shadowed", "--bounces", "1"], "interreflected")):
-        fails_with_one_line(capsys, ["prt", "render", str(f), "--window", "0,1,0,60", *args,
+        fails_with_one_line(capsys, ["prt", "render", str(f), "--cone", "0,1,0:60", *args,
                                      "-o", str(tmp_path / "no.png")], str(f), msg)
     assert not (tmp_path / "no.png").exists()
 
@@ -192,10 +192,10 @@ def test_bake_cli_albedo_per_mesh(tmp_path, capsys):
                                  str(tmp_path / "b.npz")], "r,g,b")
 
 
-@pytest.mark.parametrize("args", [["--preset", "grace", "--rotate", "0,1,0,inf"],
-                                  ["--preset", "grace", "--rotate", "nan,1,0,30"],
-                                  ["--window", "inf,1,0,30"],
-                                  ["--window", "0,1,0,nan"],
+@pytest.mark.parametrize("args", [["--preset", "grace", "--rotate", "0,1,0:inf"],
+                                  ["--preset", "grace", "--rotate", "nan,1,0:30"],
+                                  ["--cone", "inf,1,0:30"],
+                                  ["--cone", "0,1,0:nan"],
                                   ["--preset", "grace", "--azimuth", "nan"],
                                   ["--preset", "grace", "--elevation", "inf"]])
 def test_render_refuses_non_finite_numbers_in_one_line(tmp_path, sphere_obj, capfd, args):
@@ -216,8 +216,8 @@ def test_render_huge_axis_is_normalised_without_overflow(tmp_path, sphere_obj, c
                  str(t)]) == 0
     capfd.readouterr()
     for name, axis in (("a", "1e308,1e308,0"), ("b", "1,1,0")):
-        assert main(["prt", "render", str(t), "--window", f"{axis},40", "--rotate",
-                     f"{axis},30", "--size", "24x24", "-o", str(tmp_path / f"{name}.pfm")]) == 0
+        assert main(["prt", "render", str(t), "--cone", f"{axis}:40", "--rotate",
+                     f"{axis}:30", "--size", "24x24", "-o", str(tmp_path / f"{name}.pfm")]) == 0
     assert "Warning" not in capfd.readouterr().err
     np.testing.assert_array_equal(read_image(tmp_path / "a.pfm", clamp=True),
                                   read_image(tmp_path / "b.pfm", clamp=True))

@@ -36,34 +36,66 @@ def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
 
 
 def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
-    """Refuse an existing file unless ``overwrite``; refuse a missing parent folder."""
+    """Refuse, before any work, an output that could not be written: an existing file (or
+    link, even a dangling one) unless ``overwrite``, a folder, a parent that is a file or a
+    folder that is not writable. Missing parent folders are fine: they are made when the file
+    is written (every command makes its output folders the same way)."""
     p = Path(path)
     if p.is_dir():
         raise ShprobeError("is a directory, not a file", p)
-    if p.exists() and not overwrite:
+    if os.path.lexists(p) and not overwrite:
         raise ShprobeError("already exists (pass --force / overwrite=True to replace it)", p)
-    if not p.parent.exists():
-        raise ShprobeError(f"folder {p.parent} does not exist", p)
+    if len(p.name.encode()) > 255:
+        raise ShprobeError("file name is longer than 255 bytes", p)
+    parent = p.parent
+    while not parent.exists():
+        if parent == parent.parent:
+            break
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ShprobeError(f"{parent} is not a folder", p)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ShprobeError(f"folder {parent} is not writable", p)
     return p
 
 
 @contextmanager
 def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` (same suffix); rename it to ``path`` on success.
+    """Yield a temporary path beside ``path`` (same suffix); move it to ``path`` on success.
 
-    On any error the temporary file is removed and ``path`` is left as it was.
+    Missing parent folders are made. Without ``overwrite`` the move is a hard link that fails
+    if ``path`` appeared meanwhile (no race with another writer); with it, an atomic rename.
+    On any error — or SIGTERM / SIGHUP in the CLI, which raise SystemExit — the temporary
+    file is removed and ``path`` is left as it was. Errors name ``path``, not the temporary.
     """
     p = check_output_path(path, overwrite)
-    tmp = p.with_name(f".{p.stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{p.suffix}")
     try:
-        yield tmp
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ShprobeError(f"cannot make folder {p.parent}: {e.strerror or e}", p) from None
+    tmp = p.with_name(f".shprobe-{os.getpid()}-{secrets.token_hex(4)}.tmp{p.suffix}")
+    try:
+        try:
+            yield tmp
+        except OSError as e:  # e.g. no space left on device: name the target
+            raise ShprobeError(f"cannot write: {e.strerror or e}", p) from None
         if not tmp.exists():
             raise ShprobeError("nothing was written", p)
-        if p.exists() and not overwrite:  # appeared meanwhile
-            raise ShprobeError("already exists (pass --force / overwrite=True to replace it)", p)
-        os.replace(tmp, p)
+        if overwrite:
+            os.replace(tmp, p)
+        else:
+            try:
+                os.link(tmp, p)
+            except FileExistsError:
+                raise ShprobeError("already exists (pass --force / overwrite=True to replace "
+                                   "it)", p) from None
+            except OSError:  # a file system without hard links: check, then rename
+                if os.path.lexists(p):
+                    raise ShprobeError("already exists (pass --force / overwrite=True to "
+                                       "replace it)", p) from None
+                os.replace(tmp, p)
     finally:
-        if tmp.exists():
+        if os.path.lexists(tmp):
             tmp.unlink()
 
 
@@ -80,7 +112,14 @@ def write_json(path: str | os.PathLike[str], obj: Any, overwrite: bool = False) 
 
 
 def save_npz(path: str | os.PathLike[str], overwrite: bool = False, **arrays: Any) -> Path:
-    """``np.savez_compressed`` atomically."""
+    """``np.savez_compressed`` atomically, to a ``.npz`` name only (so a bake never replaces,
+    say, the mesh it was made from); non-finite float arrays are refused."""
+    if Path(path).suffix.lower() != ".npz":
+        raise ShprobeError("an .npz output must be named *.npz", path)
+    for k, a in arrays.items():
+        a = np.asarray(a)
+        if a.dtype.kind in "fc" and not np.all(np.isfinite(a)):
+            raise ShprobeError(f"refusing to write non-finite values ({k})", path)
     with atomic_output(path, overwrite) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays)
     return Path(path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 import click
@@ -40,27 +41,69 @@ def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[f
     return vals
 
 
-def unit_vector(values: list[float], text: str, what: str = "direction"):
-    """Three floats → a unit vector (numpy array); one-line error for non-finite or zero
-    vectors. Scaled by the largest component first, so (1e200, 1e200, 0) does not overflow."""
+def parse_vector(text: str, what: str = "direction"):
+    """'x,y,z' → a unit vector (numpy array), via :func:`shprobe.sh.rotation.unit_vectors`
+    (overflow-safe; zero and non-finite vectors refused in one line)."""
+    from ..sh.rotation import unit_vectors
+
+    v = parse_floats(text, 3, what)
+    try:
+        return unit_vectors(v, what)
+    except ShprobeError as e:
+        raise ShprobeError(f"{what} {text!r}: {e.message}") from None
+
+
+#: The forms every ``--rotate`` accepts (edit, render, prt render, hbasis render).
+ROTATE_HELP = ("Rotation AX,AY,AZ:DEGREES (right-hand rule about the axis), "
+               "euler:ALPHA,BETA,GAMMA (ZYZ, degrees) or quat:W,X,Y,Z (scalar first).")
+
+
+def parse_rotation(text: str):
+    """One ``--rotate`` value (:data:`ROTATE_HELP`) → a checked 3×3 rotation matrix."""
     import numpy as np
 
-    v = np.asarray(values, dtype=np.float64)
-    big = float(np.abs(v).max()) if v.size else 0.0
-    if not np.all(np.isfinite(v)) or big == 0.0:
-        raise ShprobeError(f"{what} {text!r} must be a finite, non-zero vector")
-    v = v / big
-    return v / np.linalg.norm(v)
+    from ..sh.rotation import from_axis_angle, from_euler_zyz, from_quaternion, one_rotation
 
-
-def parse_size(text: str) -> tuple[int, int]:
-    """Parse 'WxH' into (W, H)."""
+    kind, sep, rest = text.partition(":")
+    if sep and kind.strip().lower() == "euler":
+        a, b, g = np.radians(parse_floats(rest, 3, "ZYZ Euler angles"))
+        return one_rotation(from_euler_zyz(a, b, g))
+    if sep and kind.strip().lower() == "quat":
+        return one_rotation(from_quaternion(parse_floats(rest, 4, "quaternion (w,x,y,z)")))
+    if not sep or not rest:
+        raise ShprobeError(f"rotation {text!r}: expected AX,AY,AZ:DEGREES (e.g. 0,1,0:90), "
+                           "euler:A,B,G or quat:W,X,Y,Z")
+    axis = parse_floats(kind, 3, "rotation axis")
     try:
-        w, h = (int(t) for t in text.lower().split("x"))
+        return from_axis_angle(axis, parse_floats(rest, 1, "rotation angle")[0])
+    except ShprobeError as e:
+        raise ShprobeError(f"rotation {text!r}: {e.message}") from None
+
+
+#: Largest image side any command makes (a refusal, not an allocation, above it).
+MAX_SIDE = 16384
+
+
+def parse_size(text: str, layout: str | None = None) -> tuple[int, int]:
+    """The one ``--size`` grammar → (W, H): 'WxH' everywhere; a bare 'N' is N×N for camera
+    images and square layouts, and N×N/2 for lat-long (its 2:1 aspect). Sides are capped at
+    :data:`MAX_SIDE`."""
+    t = text.strip().lower()
+    try:
+        if "x" in t:
+            w, h = (int(v) for v in t.split("x"))
+        else:
+            w = int(t)
+            h = w // 2 if layout == "latlong" else w
     except ValueError:
-        raise ShprobeError(f"cannot parse size {text!r}: expected WxH, e.g. 256x128") from None
+        raise ShprobeError(f"cannot parse size {text!r}: expected WxH or N, e.g. 256x128"
+                           ) from None
     if w <= 0 or h <= 0:
         raise ShprobeError(f"size {text!r} must be positive")
+    if max(w, h) > MAX_SIDE:
+        raise ShprobeError(f"size {text!r} is over the limit of {MAX_SIDE} pixels a side")
+    if layout not in (None, "latlong") and w != h:
+        raise ShprobeError(f"the {layout} layout is square: --size N or NxN, got {text}")
     return w, h
 
 
@@ -86,20 +129,19 @@ clamp_option = click.option(
 )
 
 
-def load_env_cli(path: str | list[str], layout: str = "auto", clamp: bool = False):
-    """``shprobe.layouts.load_env`` for commands: an LDR image gives one warning line on
-    stderr (not a Python warning)."""
+@contextmanager
+def ldr_warnings_as_lines() -> Iterator[None]:
+    """An LDR probe's :class:`shprobe.probes.images.LDRWarning` as one line on stderr (not a
+    Python warning); other warnings pass through."""
     import warnings
 
     from ..probes.images import LDRWarning
-    from ..probes.layouts import load_env
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LDRWarning)
-        env = load_env(path, layout=None if layout == "auto" else layout, clamp=clamp)
+        yield
     for w in caught:
         if issubclass(w.category, LDRWarning):
             click.echo(f"shprobe: warning: {w.message}", err=True)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return env

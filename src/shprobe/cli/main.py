@@ -33,8 +33,26 @@ def _err(msg: str) -> None:
     click.echo(f"shprobe: error: {msg}", err=True)
 
 
+def _on_signal(signum: int, frame) -> None:
+    raise SystemExit(128 + signum)  # unwinds: temporary outputs are removed on the way
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; bad input gives one line on stderr and a non-zero exit, no traceback."""
+    """Run the CLI; bad input gives one line on stderr and a non-zero exit, no traceback.
+
+    SIGTERM and SIGHUP unwind like Ctrl-C, so no temporary file is left behind; an unexpected
+    exception is one line too, with a request to report it (SHPROBE_DEBUG=1 shows the
+    traceback).
+    """
+    import os
+    import signal
+
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            try:
+                signal.signal(sig, _on_signal)
+            except ValueError:  # not the main thread (e.g. called from a worker)
+                pass
     try:
         rv = cli.main(args=argv, prog_name="shprobe", standalone_mode=False)
     except click.exceptions.Exit as e:
@@ -61,6 +79,16 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         _err("interrupted")
         return 130
+    except MemoryError:
+        _err("out of memory (try a smaller size or degree)")
+        return 1
+    except Exception as e:  # a bug: still one line, and how to report it
+        if os.environ.get("SHPROBE_DEBUG"):
+            raise
+        msg = str(e).splitlines()[0] if str(e) else ""
+        _err(f"internal error {type(e).__name__}{': ' + msg if msg else ''} — please report "
+             "it (run with SHPROBE_DEBUG=1 for the traceback)")
+        return 70
     return rv if isinstance(rv, int) else 0
 
 

@@ -99,35 +99,15 @@ def error_document(report, source: str | None) -> dict:
     }
 
 
-def _parse_size(text: str | None, layout: str) -> int | tuple[int, int]:
-    """'WxH' or 'N' → layout size argument; defaults per layout."""
+def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
+    """--size (the one grammar, :func:`shprobe.cli.common.parse_size`) → the layout's size
+    argument; defaults 256x128 (lat-long), 64 (cube face), 256 (discs)."""
     from .common import parse_size
 
     if text is None:
         return {"latlong": (256, 128), "cube": 64}.get(layout, 256)
-    if "x" not in text.lower():
-        try:
-            n = int(text)
-        except ValueError:
-            raise ShprobeError(f"cannot parse size {text!r}: expected WxH or N") from None
-        if n <= 0:
-            raise ShprobeError(f"size {text!r} must be positive")
-        return n
-    w, h = parse_size(text)
-    if layout == "latlong":
-        return (w, h)
-    if w != h:
-        raise ShprobeError(f"the {layout} layout is square: --size N or NxN, got {text}")
-    return w
-
-
-def _export(coeffs, fmt: str, source: str) -> str:
-    try:
-        from ..lighting.export import export_coeffs
-    except ImportError:
-        raise ShprobeError(f"--format {fmt} needs shprobe.export, which is not available"
-                           ) from None
-    return export_coeffs(coeffs, fmt, source=source)
+    w, h = parse_size(text, layout)
+    return (w, h) if layout == "latlong" else w
 
 
 def register(group: click.Group) -> None:
@@ -170,7 +150,9 @@ def register(group: click.Group) -> None:
             text = json.dumps(coeffs_document(src.coeffs, src.source, src.layout), indent=2)
             text += "\n"
         else:
-            text = _export(src.coeffs, fmt, src.source)
+            from ..lighting.export import export_coeffs
+
+            text = export_coeffs(src.coeffs, fmt, source=src.source)
         if output:
             write_text(output, text, force)
         else:
@@ -183,7 +165,8 @@ def register(group: click.Group) -> None:
     @click.option("--out-layout", type=click.Choice(OUT_LAYOUTS), default="same",
                   show_default=True, help="Layout of the map (same: the probe's; lat-long for "
                   "presets). 'angular' gives the view of R&H Fig. 3.")
-    @click.option("--size", help="WxH (lat-long) or N (angular, mirror ball, cube face).")
+    @click.option("--size", help="WxH, or N: NxN/2 for lat-long, NxN for angular, mirror ball "
+                  "and cube faces (the size of one face). Default 256x128 / 256 / 64.")
     @click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True)
     @click.option("--method", type=click.Choice(("sh", "brute")), default="sh",
                   show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
@@ -194,30 +177,23 @@ def register(group: click.Group) -> None:
     def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout, size,
                        lmax, method, exposure, force):
         """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
-        import numpy as np
 
         from ..lighting.irradiance import irradiance_map
-        from ..lighting.reference import reference_irradiance
+        from ..lighting.reference import reference_irradiance_map
         from ..probes.images import check_image_output
-        from ..probes.layouts import Env, get_layout, write_env
+        from ..probes.layouts import get_layout, write_env
 
         check_image_output(output, force)
         src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
                              need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")
         lay = get_layout(name)
-        sz = _parse_size(size, lay.name)
+        sz = _grid_size(size, lay.name)
         if method == "sh":
             emap = irradiance_map(src.coeffs, lay, sz)
         else:
-            grid = lay.grid_shape(sz)
-            dirs = lay.pixel_directions(grid)
-            valid = lay.valid_mask(grid)
-            e = np.zeros((*grid, 3), dtype=np.float32)
             with _progress_bar("brute-force irradiance") as update:
-                e[valid] = reference_irradiance(src.env, dirs[valid], chunk=1 << 16,
-                                                progress=update)
-            emap = Env(e, lay)
+                emap = reference_irradiance_map(src.env, lay, sz, progress=update)
         write_env(output, emap, overwrite=force, exposure=exposure)
         click.echo(f"wrote {output} ({lay.name} {'x'.join(map(str, emap.grid[::-1]))}, "
                    f"{method}, lmax {lmax})", err=True)
@@ -252,8 +228,8 @@ def register(group: click.Group) -> None:
     @group.command("demo")
     @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="shprobe-demo",
                   show_default=True, help="Folder for the pictures (created if missing).")
-    @click.option("--size", type=click.IntRange(8, 2048), default=128, show_default=True,
-                  help="Height of the procedural lat-long environment.")
+    @click.option("--size", default="256x128", show_default=True,
+                  help="Size WxH (or N for NxN/2) of the procedural lat-long environment.")
     @force_option
     def demo_cmd(out_dir, size, force):
         """The main job with no files: a procedural sky → SH coefficients → irradiance map,
@@ -274,15 +250,15 @@ def register(group: click.Group) -> None:
             raise ShprobeError("exists and is not a folder", out)
         names = ["probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
                  "coefficients.json"]
-        out.mkdir(parents=True, exist_ok=True)
         for n in names:  # refuse before writing anything
             check_output_path(out / n, force)
-        env = procedural_env(2 * size, size)
+        w, h = _grid_size(size, "latlong")
+        env = procedural_env(w, h)
         coeffs = project(env, 2)
         con = console()
         con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
                                       "(R&H 2001 Fig. 2 layout)"))
-        emap = irradiance_map(coeffs, "latlong", (2 * size, size))
+        emap = irradiance_map(coeffs, "latlong", (w, h))
         side = np.concatenate([env.radiance, emap.radiance / np.pi], axis=1)
         write_image(out / "probe.exr", env.radiance, overwrite=force)
         write_image(out / "irradiance.exr", emap.radiance, overwrite=force)

@@ -9,7 +9,17 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option, parse_floats, parse_size, unit_vector
+from .common import (
+    ROTATE_HELP,
+    clamp_option,
+    force_option,
+    layout_option,
+    parse_floats,
+    parse_rotation,
+    parse_size,
+    parse_vector,
+)
+from .sources import PRESET_NAMES
 
 
 def _albedo_value(text: str):
@@ -42,34 +52,22 @@ def _finite(values: list[float], what: str, text: str) -> list[float]:
     return values
 
 
-def lighting(probe: str | None, preset: str | None, window: str | None, lmax: int,
+def lighting(probe: str | None, preset: str | None, cone: str | None, lmax: int,
              coeffs_file: str | None = None, layout: str = "auto", clamp: bool = False):
-    """Lighting coefficients (K, 3) or (K,) from exactly one source: a probe (read in
-    ``layout`` with ``clamp``, projected to ``lmax``), an R&H preset or a coefficient JSON file
-    (their own degree, ≤ 2 for presets), or the LH §3.2 window "x,y,z,aperture_deg" (LH
-    normalisation, total power 4π)."""
-    import numpy as np
-
-    given = [s for s in (probe, preset, window, coeffs_file) if s is not None]
-    if len(given) != 1:
-        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
-                           "--coeffs FILE.json or --window X,Y,Z,APERTURE_DEG")
-    if window is not None:
-        from ..sh.zonal import circular_window
-
-        x, y, z, ap = _finite(parse_floats(window, 4, "window (x,y,z,aperture in degrees)"),
-                              "window", window)
-        if not 0 < ap <= 180:
-            raise ShprobeError(f"window aperture must be in (0, 180] degrees, got {ap}")
-        return circular_window(unit_vector([x, y, z], window, "window axis"), np.radians(ap),
-                               lmax)
-    if probe is not None and not Path(probe).is_file():
-        raise ShprobeError("no such probe file", probe)
+    """Lighting coefficients (K, 3) from exactly one source: a probe (projected to ``lmax``),
+    an R&H preset or a coefficient file (their own degree), or ``--cone DX,DY,DZ:APERTURE``,
+    the LH §3.2 circular window (LH normalisation, total power 4π)."""
     from .sources import resolve_coeffs
 
-    src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
-                         lmax=lmax if probe else None)
-    return np.asarray(src.coeffs, dtype=np.float64)
+    cone_arg = None
+    if cone is not None:
+        axis, sep, ap = cone.partition(":")
+        if not sep:
+            raise ShprobeError(f"--cone {cone!r}: expected DX,DY,DZ:APERTURE_DEG, e.g. 0,1,0:30")
+        cone_arg = (parse_vector(axis, "cone axis"),
+                    _finite(parse_floats(ap, 1, "cone aperture"), "--cone", cone)[0])
+    return resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
+                          lmax=lmax if (probe or cone) else None, cone=cone_arg).coeffs
 
 
 def auto_exposure(radiance, target: float = 0.8) -> float:
@@ -159,13 +157,16 @@ def register(group: click.Group) -> None:
     @prt.command("render")
     @click.argument("transfer", type=click.Path(dir_okay=False))
     @click.argument("probe", required=False, type=click.Path(dir_okay=False))
-    @click.option("--preset", default=None, help="R&H 2001 lighting preset by name.")
+    @click.option("--preset", type=click.Choice(PRESET_NAMES), default=None,
+                  help="Use an R&H 2001 Fig. 2 table instead of a probe.")
     @click.option("--coeffs", "coeffs_file", default=None, type=click.Path(dir_okay=False),
-                  help="Lighting coefficients from a JSON file (shprobe prefilter --format json).")
-    @click.option("--window", default=None, metavar="X,Y,Z,APERTURE",
-                  help="LH §3.2 circular light window: axis and aperture (degrees).")
-    @click.option("--rotate", default=None, metavar="X,Y,Z,DEG",
-                  help="Turn the scene relative to the lighting (axis, degrees).")
+                  help="Read lighting coefficients from a file in any `--format` that "
+                       "`shprobe prefilter` writes.")
+    @click.option("--cone", default=None, metavar="DX,DY,DZ:APERTURE",
+                  help="Light by the LH §3.2 circular window (a disc light) about the axis, "
+                       "aperture in degrees, total power 4π.")
+    @click.option("--rotate", default=None,
+                  help="Turn the scene relative to the lighting. " + ROTATE_HELP)
     @click.option("--lmax", type=int, default=None,
                   help="SH degree used (default: the transfer's; no re-bake).")
     @click.option("--mode", type=click.Choice(["unshadowed", "shadowed", "interreflected"]),
@@ -192,10 +193,10 @@ def register(group: click.Group) -> None:
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Image: .png (tone-mapped) or .exr .hdr .pfm .tif (linear).")
     @force_option
-    def render_cmd(transfer, probe, preset, coeffs_file, window, rotate, lmax, mode, bounces,
+    def render_cmd(transfer, probe, preset, coeffs_file, cone, rotate, lmax, mode, bounces,
                    size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
                    output, force):
-        """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
+        """Relight TRANSFER under PROBE (or --preset / --coeffs / --cone) and render it."""
         from ..probes.images import check_image_output
         from ..prt import load_transfer
         from ..prt.view import frame_radiance, render_frame
@@ -215,12 +216,8 @@ def register(group: click.Group) -> None:
             raise ShprobeError(e.message, transfer) from None
         for value, name in ((azimuth, "--azimuth"), (elevation, "--elevation")):
             _finite([value], name, str(value))
-        rot = None
-        if rotate is not None:
-            x, y, z, deg = _finite(parse_floats(rotate, 4, "rotation (x,y,z,degrees)"),
-                                   "--rotate", rotate)
-            rot = from_axis_angle([x, y, z], deg)
-        coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
+        rot = None if rotate is None else parse_rotation(rotate)
+        coeffs = lighting(probe, preset, cone, use, coeffs_file, layout, clamp)
         from ..prt.view import turntable as turntable_frames
         from ..scene.render import Camera
         from .common import progress

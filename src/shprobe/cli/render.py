@@ -11,7 +11,14 @@ from typing import Any
 import click
 
 from ..errors import ShprobeError
-from .common import force_option, parse_floats, parse_size
+from .common import (
+    ROTATE_HELP,
+    force_option,
+    parse_floats,
+    parse_rotation,
+    parse_size,
+    parse_vector,
+)
 from .sources import coeff_source_options, resolve_coeffs
 
 FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
@@ -31,12 +38,10 @@ def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
                 required=True) -> tuple[Any, str, Any]:
     """(coefficients (K, C), name, Env or None) from the source options
     (:func:`shprobe.cli.sources.resolve_coeffs`)."""
-    import numpy as np
-
     if not required and not (probe or preset or coeffs_file):
         return None, "", None
     src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
-    return np.asarray(src.coeffs), src.source, src.env
+    return src.coeffs, src.source, src.env
 
 
 def parse_window(text: str | None):
@@ -54,22 +59,15 @@ def parse_window(text: str | None):
     return kind, parse_floats(s, 1, "window strength")[0]
 
 
-def apply_window_spec(coeffs, spec, echo=None):
-    """Window ``coeffs`` per ``spec``; returns (coeffs, description)."""
-    from ..lighting.windows import apply_window, auto_window, window_bias, window_factors
-    from ..sh import lmax_of
+def edit(coeffs, lmax: int, window: str | None = None, rotations=(), weight: float = 1.0,
+         **edits):
+    """:func:`shprobe.lighting.design.edit_lighting` with the CLI's rotation and window
+    strings parsed; returns (coeffs, description of the window step or None)."""
+    from ..lighting.design import Edits, edit_lighting
 
-    if spec is None:
-        return coeffs, None
-    if spec == "auto":
-        ch = auto_window(coeffs)
-        desc = (f"window auto -> {ch.kind}" + (f" strength {ch.strength:.4g}" if ch.strength
-                                                else "") + f", bias {100 * ch.bias:.2f}% (L2 of E)")
-        return apply_window(coeffs, ch.factors), desc
-    kind, s = spec
-    f = window_factors(kind, lmax_of(coeffs.shape[0]), s)
-    return apply_window(coeffs, f), (f"window {kind} strength {s:g}, bias "
-                                     f"{100 * window_bias(coeffs, f):.2f}% (L2 of E)")
+    res = edit_lighting(coeffs, Edits(rotations=[parse_rotation(r) for r in rotations],
+                                      window=parse_window(window), **edits), lmax, weight)
+    return res.coeffs, res.window
 
 
 def camera_options(fn):
@@ -107,30 +105,13 @@ def load_geometry(mesh, sphere):
     return None if (sphere or not mesh) else load_mesh(mesh)
 
 
-def _rotation(text: str):
-    """'ax,ay,az:DEGREES' → 3×3 rotation matrix (Rodrigues)."""
-    import numpy as np
-
-    axis, _, deg = text.partition(":")
-    a = np.array(parse_floats(axis, 3, "rotation axis"))
-    if not deg or np.linalg.norm(a) == 0:
-        raise ShprobeError(f"rotation {text!r}: expected AX,AY,AZ:DEGREES, e.g. 0,1,0:90")
-    a = a / np.linalg.norm(a)
-    t = np.radians(parse_floats(deg, 1, "rotation angle")[0])
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
-
-
 def _lm(text: str) -> tuple[int, int]:
     v = parse_floats(text, 2, "coefficient 'l,m'")
     return int(v[0]), int(v[1])
 
 
-def _kv(text: str, what: str) -> tuple[str, str]:
-    k, sep, v = text.partition("=")
-    if not sep:
-        raise ShprobeError(f"{what} {text!r}: expected KEY=VALUE")
-    return k, v
+def _band(text: str) -> int:
+    return int(parse_floats(text, 1, "band l")[0])
 
 
 # ----------------------------------------------------------------------------- commands
@@ -153,14 +134,16 @@ def register(group: click.Group) -> None:
     @click.option("--exposure", default=0.0, show_default=True,
                   help="PNG tone map: x 2^EXPOSURE, clamp, sRGB.")
     @click.option("--window", "window", default=None, help=WINDOW_HELP)
+    @click.option("--rotate", multiple=True, help="Turn the lighting. " + ROTATE_HELP
+                  + " Repeatable.")
     @click.option("--lmax", default=2, show_default=True, help="SH degree of the lighting.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Output image: .png (tone-mapped) or .exr/.hdr/.pfm (linear).")
     @click.option("--exr", type=click.Path(dir_okay=False), help="Also write linear EXR here.")
     @force_option
     def render_cmd(probe, layout, clamp, preset, coeffs_file, mesh, sphere, size, azimuth,
-                   elevation, fov, ortho, mode, albedo, background, exposure, window, lmax,
-                   output, exr, force):
+                   elevation, fov, ortho, mode, albedo, background, exposure, window, rotate,
+                   lmax, output, exr, force):
         """Render a diffuse object lit by SH lighting (R&H 2001 §3.2): radiance =
         albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
         probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
@@ -172,7 +155,7 @@ def register(group: click.Group) -> None:
         if exr:
             check_image_output(exr, force)
         coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
-        coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))
+        coeffs, wdesc = edit(coeffs, lmax, window, rotate)
         geo = load_geometry(mesh, sphere)
         cam = make_camera(size, azimuth, elevation, fov, ortho)
         if background is None:
@@ -225,14 +208,12 @@ def register(group: click.Group) -> None:
             raise ShprobeError("exists and is not a folder", out)
         stems = [out / "basis_l{}_m{:+d}".format(*sh_lm(k))
                  for k in range(num_coeffs(check_lmax(lmax)))]
-        if out.is_dir():  # every output refused before any work
-            for p in [*(st.with_suffix(e) for st in stems for e in (".exr", ".png")),
-                      out / "basis.png"]:
-                check_output_path(p, force)
+        for p in [*(st.with_suffix(e) for st in stems for e in (".exr", ".png")),
+                  out / "basis.png"]:  # every output refused before any work
+            check_output_path(p, force)
         geo = load_geometry(mesh, sphere)
         cam = make_camera(size, azimuth, elevation, fov, ortho)
         res = basis_images(geo, cam, lmax=lmax, mode=mode)
-        out.mkdir(parents=True, exist_ok=True)
         B = res.image
         scale = float(np.abs(B).max())
         tiles = []
@@ -277,7 +258,7 @@ def register(group: click.Group) -> None:
     @click.option("--scale-band", multiple=True, help="L=FACTOR (0 removes the band).")
     @click.option("--negate-band", multiple=True, type=int, help="L.")
     @click.option("--rotate", "rotations", multiple=True,
-                  help="Turn the lighting by AX,AY,AZ:DEGREES (right-hand rule). Repeatable.")
+                  help="Turn the lighting. " + ROTATE_HELP + " Repeatable.")
     @click.option("--window", "window", default=None, help=WINDOW_HELP)
     @click.option("--format", "fmt", type=click.Choice(FORMATS), default="json",
                   show_default=True, help="Output format (see `shprobe export`).")
@@ -289,18 +270,16 @@ def register(group: click.Group) -> None:
         """Lighting design (R&H 2001 §3.3): start from a source (or from darkness), then, in
         this order: blend, add lights, set/scale/negate coefficients and bands, rotate,
         window; write the coefficients."""
-        import numpy as np
 
         from ..files import check_output_path, write_text
-        from ..lighting import design
-        from ..lighting.export import export_coeffs, import_coeffs
+        from ..lighting.export import export_coeffs
         from ..probes.images import READ_EXTENSIONS
+        from ..sh import lmax_of
 
         check_output_path(output, force)
         base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, None,
                                     required=False)
-        L = np.zeros(((lmax + 1) ** 2, 3)) if base is None else \
-            design.pad_coeffs(base, lmax) * weight
+        mixes = []
         for b in blends:
             head, _, w = b.rpartition(":")
             if not head:
@@ -310,63 +289,51 @@ def register(group: click.Group) -> None:
             elif Path(head).suffix.lower() in READ_EXTENSIONS:  # a probe image
                 c, _, _ = load_source(head, None, None, layout, clamp, lmax)
             else:
-                c = import_coeffs(head)
-            L = design.blend([(L, 1.0), (design.pad_coeffs(c, lmax),
-                                         parse_floats(w, 1, "blend weight")[0])])
+                c, _, _ = load_source(None, None, head, lmax=None)
+            mixes.append((c, parse_floats(w, 1, "blend weight")[0]))
 
-        def lm(text: str, what: str) -> tuple[int, int]:
-            l, m = _lm(text)
-            if l > lmax:
-                raise ShprobeError(f"{what} {text!r}: l = {l} is above --lmax {lmax}")
-            return l, m
+        def colour(text: str, what: str):
+            return parse_floats(text or "1", None, what)
 
-        def band(text: str, what: str) -> int:
-            return lm(f"{text},0", what)[0]
-
-        for d in directional:
-            dirs, _, rgb = d.partition(":")
-            L = L + design.directional_light(parse_floats(dirs, 3, "direction"),
-                                             parse_floats(rgb or "1", None, "colour"), lmax)
+        cones = []
         for c in cone:
             parts = c.split(":")
             if len(parts) != 3:
                 raise ShprobeError(f"--cone {c!r}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
-            ap = parse_floats(parts[1], 1, "aperture")[0]
-            if not 0 < ap <= 180:
-                raise ShprobeError(f"--cone {c!r}: aperture must be in (0, 180] degrees")
-            L = L + design.cone_light(parse_floats(parts[0], 3, "direction"), np.radians(ap),
-                                      parse_floats(parts[2], None, "colour"), lmax)
+            cones.append((parse_vector(parts[0]), parse_floats(parts[1], 1, "aperture")[0],
+                          colour(parts[2], "colour")))
+        sky_edit = None
         if sky:
             parts = sky.split(":")
-            L = L + design.sky_light(
-                parse_floats(parts[2], 3, "up") if len(parts) > 2 else (0, 1, 0),
-                parse_floats(parts[0], None, "sky colour"),
-                parse_floats(parts[1], None, "ground colour") if len(parts) > 1 else 0.0,
-                lmax)
-        for s in sets:
-            k, v = _kv(s, "--set")
-            L = design.set_coeff(L, *lm(k, "--set"), parse_floats(v, None, "value"))
-        for s in scales:
-            k, v = _kv(s, "--scale")
-            L = design.scale_coeff(L, *lm(k, "--scale"), parse_floats(v, None, "factor"))
-        for s in negates:
-            L = design.negate_coeff(L, *lm(s, "--negate"))
-        for s in set_band:
-            k, v = _kv(s, "--set-band")
-            L = design.set_band(L, band(k, "--set-band"), parse_floats(v, None, "value"))
-        for s in scale_band:
-            k, v = _kv(s, "--scale-band")
-            L = design.scale_band(L, band(k, "--scale-band"), parse_floats(v, None, "factor"))
-        for b in negate_band:
-            L = design.negate_band(L, band(str(b), "--negate-band"))
-        for r in rotations:
-            L = design.rotate_lighting(L, _rotation(r))
-        L, wdesc = apply_window_spec(L, parse_window(window))
+            sky_edit = (colour(parts[0], "sky colour"),
+                        colour(parts[1], "ground colour") if len(parts) > 1 else 0.0,
+                        parse_vector(parts[2], "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
+
+        def kv(text: str, what: str, value: str) -> tuple[Any, list[float]]:
+            k, sep, v = text.partition("=")
+            if not sep:
+                raise ShprobeError(f"{what} {text!r}: expected KEY=VALUE")
+            return k, parse_floats(v, None, value)
+
+        L, wdesc = edit(base, lmax, window, rotations, weight=weight, blends=mixes,
+                        directional=[(parse_vector(d.partition(":")[0]),
+                                      colour(d.partition(":")[2], "colour"))
+                                     for d in directional],
+                        cones=cones, sky=sky_edit,
+                        sets=[(_lm(k), v) for k, v in (kv(s, "--set", "value") for s in sets)],
+                        scales=[(_lm(k), v) for k, v in (kv(s, "--scale", "factor")
+                                                          for s in scales)],
+                        negates=[_lm(s) for s in negates],
+                        set_bands=[(_band(k), v) for k, v in (kv(s, "--set-band", "value")
+                                                              for s in set_band)],
+                        scale_bands=[(_band(k), v) for k, v in (kv(s, "--scale-band", "factor")
+                                                                for s in scale_band)],
+                        negate_bands=list(negate_band))
         write_text(output, export_coeffs(L, fmt, source=name or "shprobe edit"),
                    overwrite=force)
         if wdesc:
             click.echo(wdesc)
-        click.echo(f"{output}: {fmt}, lmax {design.lmax_of(L.shape[0])}, "
+        click.echo(f"{output}: {fmt}, lmax {lmax_of(L.shape[0])}, "
                    f"from {name or 'darkness'}")
 
     @group.command("window")
@@ -441,7 +408,7 @@ def register(group: click.Group) -> None:
         from ..lighting.export import export_coeffs
 
         coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
-        coeffs, wdesc = apply_window_spec(coeffs, parse_window(window))
+        coeffs, wdesc = edit(coeffs, lmax, window)
         text = export_coeffs(coeffs, fmt, source=name)
         if output:
             write_text(output, text, overwrite=force)

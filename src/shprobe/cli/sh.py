@@ -8,7 +8,7 @@ import math
 import click
 
 from ..errors import ShprobeError
-from .common import parse_floats, unit_vector
+from .common import parse_vector
 
 
 def _lmax(value: int) -> int:
@@ -46,7 +46,7 @@ def register(group: click.Group) -> None:
         lmax = _lmax(lmax)
         vecs = []
         for text in dirs:
-            vecs.append(unit_vector(parse_floats(text, 3, "direction"), text))
+            vecs.append(parse_vector(text))
         d = np.array(vecs)
         y = sh_basis(d, lmax)
         if fmt == "json":

@@ -1,4 +1,5 @@
-"""Coefficient sources shared by commands: a probe image, an R&H preset or a JSON file.
+"""The lighting-source options shared by commands (PROBE | --preset | --coeffs), resolved by the
+library's one resolver, :func:`shprobe.lighting.source.resolve_lighting`.
 
 Use :func:`coeff_source_options` on a click command and :func:`resolve_coeffs` in its body::
 
@@ -12,28 +13,15 @@ Use :func:`coeff_source_options` on a click command and :func:`resolve_coeffs` i
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import click
-import numpy as np
-from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .common import clamp_option, layout_option
+from ..lighting.source import Lighting
+from .common import clamp_option, layout_option, ldr_warnings_as_lines
 
 PRESET_NAMES = ("grace", "eucalyptus", "stpeters")
-
-
-@dataclass(frozen=True)
-class CoeffSource:
-    """Resolved lighting: ``coeffs`` (K, 3); ``source`` a name for humans and JSON; ``layout``
-    the probe's layout name (None for presets and JSON); ``env`` the loaded probe (or None)."""
-
-    coeffs: NDArray[np.float64]
-    source: str
-    layout: str | None = None
-    env: Any = None
 
 
 def _probe_paths(ctx: click.Context, param: click.Parameter, value: tuple[str, ...]
@@ -67,50 +55,25 @@ def coeff_source_options(fn: Callable) -> Callable:
 
 def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = None,
                    coeffs_file: str | None = None, layout: str = "auto",
-                   lmax: int | None = 2, clamp: bool = False, need_env: bool = False
-                   ) -> CoeffSource:
-    """Exactly one of ``probe`` / ``preset`` / ``coeffs_file`` → coefficients.
+                   lmax: int | None = 2, clamp: bool = False, need_env: bool = False,
+                   cone: tuple[Any, float] | None = None) -> Lighting:
+    """:func:`shprobe.lighting.source.resolve_lighting` for commands: the option names in the
+    messages, and an LDR probe's warning as one line on stderr."""
+    from ..lighting.source import resolve_lighting
 
-    A probe is projected to ``lmax`` (R&H eq. 10). A preset (lmax 2) or coefficient file (any
-    export format, :func:`shprobe.export.import_coeffs`; one channel is repeated to RGB) is cut
-    to ``lmax`` when that is lower, and refused when it is higher. ``lmax=None`` keeps a preset's
-    or file's own degree (a probe then uses 2). ``need_env`` refuses sources without a probe.
-    """
-    from ..sh import lmax_of, num_coeffs
-
-    given = [n for n, v in (("PROBE", probe), ("--preset", preset), ("--coeffs", coeffs_file))
-             if v]
-    if len(given) != 1:
-        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME or "
-                           f"--coeffs FILE.json (got {', '.join(given) or 'none'})")
-    if need_env and not probe:
-        raise ShprobeError(f"this command needs a probe image, not {given[0]}")
-    if probe:
-        from ..lighting.projection import project
-        from .common import load_env_cli
-
-        if isinstance(probe, list) and layout not in ("auto", "cube"):
-            raise ShprobeError(f"six face images make a cube map, not --layout {layout}")
-        env = load_env_cli(probe, "auto" if isinstance(probe, list) else layout, clamp)
-        name = probe if isinstance(probe, str) else f"{probe[0]} … {probe[-1]} (cube faces)"
-        return CoeffSource(project(env, 2 if lmax is None else lmax), name,
-                           env.layout.name, env)
-    if preset:
-        from ..probes.presets import get_preset
-
-        c, name, have = get_preset(preset), f"preset:{preset}", None
-    else:
-        from ..lighting.export import import_coeffs
-
-        c, name, have = import_coeffs(coeffs_file), coeffs_file, coeffs_file
-        if c.shape[1] == 1:
-            c = np.repeat(c, 3, axis=1)
-    if lmax is not None:
-        own = lmax_of(c.shape[0])
-        if lmax > own:
-            raise ShprobeError(f"has coefficients up to lmax={own}, not {lmax}", have or name)
-        c = c[: num_coeffs(lmax)]
-    return CoeffSource(c, name)
+    try:
+        with ldr_warnings_as_lines():
+            return resolve_lighting(probe, preset, coeffs_file, cone, layout, lmax, clamp,
+                                    need_env)
+    except ShprobeError as e:
+        if e.message.startswith("give exactly one lighting source"):
+            raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
+                               "--coeffs FILE" + (" or --cone X,Y,Z,APERTURE" if cone else "")
+                               + e.message[e.message.index(" (got"):]) from None
+        if e.message.startswith("this needs a probe image"):
+            raise ShprobeError("this command needs a probe image, not "
+                               + e.message.rsplit("not ", 1)[1]) from None
+        raise
 
 
-__all__ = ["CoeffSource", "coeff_source_options", "resolve_coeffs"]
+__all__ = ["coeff_source_options", "resolve_coeffs"]

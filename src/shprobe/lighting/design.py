@@ -9,7 +9,8 @@ nothing is modified in place. Windows and the non-negativity certificate are
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,9 +23,12 @@ from ..sh.zonal import circular_window
 from .coeffs import as_coeffs, pad_coeffs
 
 __all__ = [
+    "Edited",
+    "Edits",
     "blend",
     "cone_light",
     "directional_light",
+    "edit_lighting",
     "negate_band",
     "negate_coeff",
     "rotate_lighting",
@@ -148,3 +152,98 @@ def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float6
     """The lighting turned by ``rotation`` (3×3 matrix): coefficients of L∘R⁻¹, via the
     foundation's Wigner matrices (``shprobe.rotation.rotate``, LH eq. 4–5)."""
     return np.asarray(rotate(as_coeffs(coeffs), one_rotation(rotation)), dtype=np.float64)
+
+
+# ----------------------------------------------------------------------------- the edit pipeline
+
+
+@dataclass(frozen=True)
+class Edits:
+    """Lighting edits in the order :func:`edit_lighting` applies them (``shprobe edit``, the
+    viewer): blend, add lights, set/scale/negate coefficients, then bands, rotate, window.
+
+    ``blends``: (coefficients, weight); ``directional``: (direction, rgb irradiance);
+    ``cones``: (axis, aperture in degrees, rgb radiance); ``sky``: (sky rgb, ground rgb, up);
+    ``sets`` / ``scales``: ((l, m), value or factor); ``negates``: (l, m); ``set_bands`` /
+    ``scale_bands``: (l, value or factor); ``negate_bands``: l; ``rotations``: 3×3 matrices
+    (or anything :func:`shprobe.sh.rotation.one_rotation` takes); ``window``: None, 'auto' or
+    (kind, strength).
+    """
+
+    blends: Sequence[tuple[ArrayLike, float]] = ()
+    directional: Sequence[tuple[ArrayLike, Any]] = ()
+    cones: Sequence[tuple[ArrayLike, float, Any]] = ()
+    sky: tuple[Any, Any, ArrayLike] | None = None
+    sets: Sequence[tuple[tuple[int, int], Any]] = ()
+    scales: Sequence[tuple[tuple[int, int], Any]] = ()
+    negates: Sequence[tuple[int, int]] = ()
+    set_bands: Sequence[tuple[int, Any]] = ()
+    scale_bands: Sequence[tuple[int, Any]] = ()
+    negate_bands: Sequence[int] = ()
+    rotations: Sequence[Any] = ()
+    window: str | tuple[str, float] | None = None
+
+
+@dataclass(frozen=True)
+class Edited:
+    """Result of :func:`edit_lighting`: the coefficients and what the window step did."""
+
+    coeffs: NDArray[np.float64]
+    window: str | None = None
+
+    def __repr__(self) -> str:
+        return (f"Edited(lmax={lmax_of(self.coeffs.shape[0])}, "
+                f"channels={self.coeffs.shape[1]}, window={self.window!r})")
+
+
+def edit_lighting(base: ArrayLike | None, edits: Edits, lmax: int = 2,
+                  weight: float = 1.0) -> Edited:
+    """Apply ``edits`` to ``base`` (L_lm, or None: start from darkness) at degree ``lmax``
+    (the base is cut or zero-padded; an edit above ``lmax`` is refused, not grown into)."""
+    from .windows import apply_window, auto_window, window_bias, window_factors
+
+    lmax = check_lmax(lmax)
+    L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax) * weight
+
+    def fits(l: int, what: str) -> int:
+        if not 0 <= int(l) <= lmax:
+            raise ShprobeError(f"{what}: l = {l} is outside 0..{lmax} (the edit's lmax)")
+        return int(l)
+
+    for c, w in edits.blends:
+        L = blend([(L, 1.0), (pad_coeffs(c, lmax), float(w))])
+    for d, rgb in edits.directional:
+        L = L + directional_light(d, rgb, lmax)
+    for axis, ap, rgb in edits.cones:
+        if not 0 < float(ap) <= 180:
+            raise ShprobeError(f"cone aperture must be in (0, 180] degrees, got {ap}")
+        L = L + cone_light(axis, np.radians(float(ap)), rgb, lmax)
+    if edits.sky is not None:
+        sky, ground, up = edits.sky
+        L = L + sky_light(up, sky, ground, lmax)
+    for (l, m), v in edits.sets:
+        L = set_coeff(L, fits(l, "set"), m, v)
+    for (l, m), f in edits.scales:
+        L = scale_coeff(L, fits(l, "scale"), m, f)
+    for l, m in edits.negates:
+        L = negate_coeff(L, fits(l, "negate"), m)
+    for l, v in edits.set_bands:
+        L = set_band(L, fits(l, "set band"), v)
+    for l, f in edits.scale_bands:
+        L = scale_band(L, fits(l, "scale band"), f)
+    for l in edits.negate_bands:
+        L = negate_band(L, fits(l, "negate band"))
+    for r in edits.rotations:
+        L = rotate_lighting(L, r)
+    spec = edits.window
+    if spec is None:
+        return Edited(L)
+    if spec == "auto":
+        ch = auto_window(L)
+        desc = (f"window auto -> {ch.kind}" + (f" strength {ch.strength:.4g}" if ch.strength
+                                                else "") + f", bias {100 * ch.bias:.2f}% (L2 of E)")
+        return Edited(apply_window(L, ch.factors), desc)
+    kind, s = spec
+    f = window_factors(kind, lmax, s)
+    return Edited(apply_window(L, f), f"window {kind} strength {s:g}, bias "
+                                      f"{100 * window_bias(L, f):.2f}% (L2 of E)")

@@ -14,12 +14,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..probes.layouts import Env, LatLong
+from ..probes.layouts import Env, LatLong, Layout, get_layout
 from ..sh import check_lmax, num_coeffs
 from .irradiance import irradiance
 from .projection import _kernels, project, total_intensity
 
-__all__ = ["ErrorReport", "ErrorRow", "error_report", "reference_irradiance"]
+__all__ = [
+    "ErrorReport",
+    "ErrorRow",
+    "error_report",
+    "reference_irradiance",
+    "reference_irradiance_map",
+]
 
 
 def _sample_chunks(env: Env, subdivide: int, chunk: int
@@ -168,3 +174,17 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
             smape=float((wts[:, None] * sm).sum() / 3.0),
         ))
     return ErrorReport(tuple(rows), tot, nrm.shape[0])
+
+
+def reference_irradiance_map(env: Env, layout: str | Layout = "latlong",
+                             size: int | tuple[int, int] = 128, progress=None) -> Env:
+    """The brute-force irradiance map: :func:`reference_irradiance` at every pixel of a grid of
+    any layout (``size`` as in :func:`shprobe.lighting.irradiance.irradiance_map`) → Env;
+    pixels outside a disc layout are 0."""
+    lay = get_layout(layout)
+    grid = lay.grid_shape(size)
+    dirs = lay.pixel_directions(grid)
+    valid = lay.valid_mask(grid)
+    e = np.zeros((*grid, 3), dtype=np.float32)
+    e[valid] = reference_irradiance(env, dirs[valid], chunk=1 << 16, progress=progress)
+    return Env(e, lay)

@@ -1,0 +1,99 @@
+"""Where the lighting comes from: one resolver for a probe image (or six cube faces), an R&H
+preset, a coefficient file in any export format, or an analytic cone light. Every command, the
+viewer and the batch call :func:`resolve_lighting`."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ShprobeError
+from ..probes.layouts import Env, load_env
+from ..probes.presets import get_preset
+from ..sh import check_lmax, lmax_of, num_coeffs
+from ..sh.rotation import unit_vectors
+from ..sh.zonal import circular_window
+from .export import import_coeffs
+from .projection import project
+
+__all__ = ["Lighting", "resolve_lighting"]
+
+ProbeArg = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Resolved lighting: ``coeffs`` (K, 3) L_lm; ``source`` a name for people and documents;
+    ``layout`` the probe's layout name (None without a probe); ``env`` the probe (or None)."""
+
+    coeffs: NDArray[np.float64]
+    source: str
+    layout: str | None = None
+    env: Env | None = None
+
+    def __repr__(self) -> str:
+        return (f"Lighting({self.source!r}, lmax={lmax_of(self.coeffs.shape[0])}"
+                + (f", layout={self.layout!r}" if self.layout else "") + ")")
+
+
+def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
+                     coeffs: str | os.PathLike[str] | None = None,
+                     cone: tuple[Any, float] | None = None, layout: str | None = None,
+                     lmax: int | None = 2, clamp: bool = False,
+                     need_env: bool = False) -> Lighting:
+    """Exactly one of ``probe`` / ``preset`` / ``coeffs`` (a file) / ``cone`` → coefficients.
+
+    A probe (a path, or six cube-face paths +X −X +Y −Y +Z −Z) is read in ``layout`` (None or
+    'auto': detected) and projected to ``lmax`` (R&H eq. 10). A preset (lmax 2) or coefficient
+    file (any export format; one channel is repeated to RGB) is cut to ``lmax`` when that is
+    lower, and refused when it is higher; ``lmax=None`` keeps its own degree (a probe then uses
+    2). ``cone`` = (axis, aperture in degrees) is the LH §3.2 circular window (LH eq. 11, their
+    normalisation: total power 4π) at ``lmax`` (default 2). ``need_env`` refuses sources
+    without a probe image.
+    """
+    given = [n for n, v in (("a probe", probe), ("a preset", preset),
+                            ("a coefficient file", coeffs), ("a cone light", cone))
+             if v is not None and v != "" and v != []]
+    if len(given) != 1:
+        raise ShprobeError("give exactly one lighting source: a probe, a preset, a coefficient "
+                           f"file or a cone light (got {', '.join(given) or 'none'})")
+    if need_env and probe is None:
+        raise ShprobeError(f"this needs a probe image, not {given[0]}")
+    if probe is not None:
+        faces = not isinstance(probe, str | os.PathLike)
+        if faces and layout not in (None, "auto", "cube"):
+            raise ShprobeError(f"six face images make a cube map, not layout {layout}")
+        env = load_env(probe, layout=None if faces or layout == "auto" else layout,
+                       clamp=clamp)
+        paths = [os.fspath(p) for p in probe] if faces else [os.fspath(probe)]
+        name = paths[0] if not faces else f"{paths[0]} … {paths[-1]} (cube faces)"
+        return Lighting(project(env, 2 if lmax is None else lmax), name, env.layout.name, env)
+    if cone is not None:
+        axis, aperture = cone
+        ap = float(aperture)
+        if not 0 < ap <= 180:
+            raise ShprobeError(f"cone aperture must be in (0, 180] degrees, got {aperture}")
+        c = circular_window(unit_vectors(axis, "cone axis"), np.radians(ap),
+                            check_lmax(2 if lmax is None else lmax))
+        return Lighting(np.repeat(np.asarray(c, dtype=np.float64)[:, None], 3, axis=1),
+                        f"cone {ap:g}°")
+    if preset is not None:
+        c, name, where = get_preset(preset), f"preset:{preset}", None
+    else:
+        where = os.fspath(coeffs)
+        c, name = import_coeffs(where), where
+        if c.shape[1] == 1:
+            c = np.repeat(c, 3, axis=1)
+        elif c.shape[1] != 3:
+            raise ShprobeError(f"lighting needs 1 or 3 channels, got {c.shape[1]}", where)
+    if lmax is not None:
+        own = lmax_of(c.shape[0])
+        if check_lmax(lmax) > own:
+            raise ShprobeError(f"has coefficients up to lmax={own}, not {lmax}", where or name)
+        c = c[: num_coeffs(lmax)]
+    return Lighting(np.asarray(c, dtype=np.float64), name)
