@@ -56,6 +56,13 @@ def test_zonal_clamped_cosine(capsys):
                                atol=5e-7)
 
 
+def test_zonal_runs_bare_as_the_readme_shows(capsys):
+    rc, out, _ = run(["sh", "zonal"], capsys)
+    rows = out.strip().splitlines()[1:]
+    assert rc == 0 and len(rows) == 9  # l = 0..8
+    assert abs(float(rows[2].split()[1]) - np.pi / 4) < 1e-8  # Â_2 = π/4 (R&H eq. 9)
+
+
 def test_zonal_window(capsys):
     rc, out, _ = run(["sh", "zonal", "--lmax", "3", "--kind", "window", "--aperture", "180"],
                      capsys)

@@ -66,7 +66,7 @@ def register(group: click.Group) -> None:
         _echo_table(header, rows)
 
     @sh.command("zonal")
-    @click.option("--lmax", type=int, required=True, help="Largest degree l.")
+    @click.option("--lmax", type=int, default=8, show_default=True, help="Largest degree l.")
     @click.option("--kind", type=click.Choice(["clamped-cosine", "window"]),
                   default="clamped-cosine", show_default=True,
                   help="clamped-cosine: Â_l (R&H eq. 8); window: LH §3.2 circular window.")
@@ -75,7 +75,9 @@ def register(group: click.Group) -> None:
     @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table",
                   show_default=True)
     def sh_zonal(lmax: int, kind: str, aperture: float | None, fmt: str) -> None:
-        """Print per-band factors: Â_l, or the window's 2π∫h P_l (total power 4π)."""
+        """Print per-band factors: Â_l, or the window's 2π∫h P_l (total power 4π).
+
+        Â_l vanishes for odd l > 1 (R&H eq. 9): the clamped cosine keeps bands 0, 1, 2, 4, …"""
         from ..sh.zonal import clamped_cosine_factors, window_moments
 
         lmax = _lmax(lmax)
