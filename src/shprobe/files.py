@@ -123,3 +123,44 @@ def save_npz(path: str | os.PathLike[str], overwrite: bool = False, **arrays: An
     with atomic_output(path, overwrite) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays)
     return Path(path)
+
+
+def load_npz(path: str | os.PathLike[str], names: Any = None,
+             what: str = "file") -> dict[str, np.ndarray]:
+    """Arrays of an ``.npz`` archive, read safely: every member's header (shape, dtype) is read
+    and the total inflated size checked against the memory limit *before* anything is
+    inflated (a small compressed file cannot expand to gigabytes unasked); object arrays are
+    refused (no pickles); a missing, truncated or corrupt archive is one line naming it.
+    ``names`` limits the arrays read (all by default; a missing one is not an error here)."""
+    import zipfile
+
+    from .limits import check_memory
+
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise ShprobeError(f"no such {what}", p)
+    if not zipfile.is_zipfile(p):
+        raise ShprobeError(f"not a {what} (not an .npz archive: empty, truncated or another "
+                           "format)", p)
+    try:
+        with zipfile.ZipFile(p) as z:
+            members = {n[:-4]: n for n in z.namelist() if n.endswith(".npy")}
+            want = list(members) if names is None else [n for n in names if n in members]
+            total = 0
+            for n in want:
+                with z.open(members[n]) as f:
+                    fmt = np.lib.format
+                    read = (fmt.read_array_header_1_0 if fmt.read_magic(f) == (1, 0)
+                            else fmt.read_array_header_2_0)
+                    shape, _, dtype = read(f)
+                if dtype.hasobject:
+                    raise ShprobeError(f"array {n!r} holds Python objects (refused)", p)
+                total += int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+            check_memory(total, f"reading the arrays of this {what}", p)
+            with np.load(p, allow_pickle=False) as d:
+                return {n: d[n] for n in want}
+    except ShprobeError:
+        raise
+    except Exception as e:  # zipfile / numpy raise many types on damaged archives
+        raise ShprobeError(f"cannot read {what} (truncated or corrupt): "
+                           f"{' '.join(str(e).split())[:200]}", p) from None

@@ -107,13 +107,25 @@ def project_rgb_kernel(d, v, w, lmax, a, b, nblk):
 
 @numba.njit(cache=True, fastmath=False, nogil=True)
 def quad_eval(n, q, out):  # pragma: no cover - compiled
-    # q: (C, 10) = [xx, yy, zz, xy, xz, yz, x, y, z, 1] weights of E(n) = nᵀMn (R&H eq. 11)
+    # q: (C, 10) = [xx, yy, zz, xy, xz, yz, x, y, z, 1] weights of E(n) = nᵀMn (R&H eq. 11),
+    # at n/|n|; returns the number of zero or non-finite normals (their rows are 0)
+    bad = 0
     for i in range(n.shape[0]):
         x = np.float64(n[i, 0])
         y = np.float64(n[i, 1])
         z = np.float64(n[i, 2])
+        r2 = x * x + y * y + z * z
+        if not (r2 > 0.0 and r2 < np.inf):
+            bad += 1
+            for c in range(q.shape[0]):
+                out[i, c] = 0.0
+            continue
+        if abs(r2 - 1.0) > 1e-12:
+            s = 1.0 / math.sqrt(r2)
+            x, y, z = x * s, y * s, z * s
         xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
         for c in range(q.shape[0]):
             out[i, c] = (q[c, 0] * xx + q[c, 1] * yy + q[c, 2] * zz + q[c, 3] * xy
                          + q[c, 4] * xz + q[c, 5] * yz + q[c, 6] * x + q[c, 7] * y
                          + q[c, 8] * z + q[c, 9])
+    return bad

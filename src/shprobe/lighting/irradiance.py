@@ -2,8 +2,9 @@
 E(n) for any lmax, the matrix M (eq. 11–12), the polynomial (eq. 13), the quadratic form as
 shading uses it, and irradiance maps on any layout.
 
-Normals: the functions evaluate the formulas at the vectors given; they are meant for unit
-normals (a non-unit n scales the l ≥ 1 terms). :func:`shade_irradiance` normalises its normals.
+Normals, the one policy of every function here and of :func:`shprobe.lighting.reference.
+reference_irradiance`: a normal is a direction, so it is normalised first (a non-unit n gives
+the irradiance of n/|n|); a zero or non-finite normal has no direction and is refused.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 from ..probes.layouts import Env, Layout, get_layout
 from ..sh import lmax_of, sh_basis
+from ..sh.rotation import unit_vectors
 from ..sh.zonal import clamped_cosine_factors, convolve
 from .coeffs import RH_CONSTANTS, as_coeffs, check_coeffs, nine
 
@@ -28,6 +31,7 @@ __all__ = [
     "irradiance_quadratic",
     "quadratic_form",
     "shade_irradiance",
+    "unit_normals",
 ]
 
 
@@ -45,11 +49,19 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
     """
     e = irradiance_coeffs(coeffs)
     lmax = lmax_of(e.shape[0])
-    n = np.asarray(normals, dtype=np.float64)
-    if n.ndim < 1 or n.shape[-1] != 3:
-        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    n = unit_normals(normals)
+    check_memory(8.0 * n.size / 3 * (e.shape[0] + 2 * (e.shape[-1] if e.ndim > 1 else 1)),
+                 f"irradiance at {n.size // 3} normals, lmax {lmax}")
     y = sh_basis(n, lmax)
     return y @ e
+
+
+def unit_normals(normals: ArrayLike) -> NDArray[np.float64]:
+    """Normals (..., 3) as unit vectors by the module's policy (zero / non-finite refused)."""
+    a = np.asarray(normals)
+    if a.dtype.kind == "c":
+        raise ShprobeError("normals must be real vectors, got complex values")
+    return unit_vectors(a, "normals")
 
 
 def _nine(coeffs: ArrayLike) -> NDArray[np.float64]:
@@ -83,7 +95,7 @@ def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float
     mm = np.asarray(m, dtype=np.float64)
     if mm.shape[-2:] != (4, 4):
         raise ShprobeError(f"M must have shape (..., 4, 4), got {mm.shape}")
-    n = np.asarray(normals, dtype=np.float64)
+    n = unit_normals(normals)
     n4 = np.concatenate([n, np.ones((*n.shape[:-1], 1))], axis=-1)
     return np.einsum("...i,cij,...j->...c", n4, mm.reshape(-1, 4, 4), n4)
 
@@ -92,7 +104,7 @@ def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.fl
     """The expanded polynomial of R&H eq. 13 → (..., C)."""
     c1, c2, c3, c4, c5 = RH_CONSTANTS
     L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = _nine(coeffs)
-    n = np.asarray(normals, dtype=np.float64)[..., None]
+    n = unit_normals(normals)[..., None]
     x, y, z = n[..., 0, :], n[..., 1, :], n[..., 2, :]
     return (c1 * L22 * (x * x - y * y) + c3 * L20 * z * z + c4 * L00 - c5 * L20
             + 2.0 * c1 * (L2m2 * x * y + L21 * x * z + L2m1 * y * z)
@@ -112,6 +124,9 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
     c = check_coeffs(coeffs)
     if c.ndim == 1:
         c = np.repeat(c[:, None], 3, axis=1)
+    px = int(np.prod(grid))
+    check_memory(px * (8.0 * (c.shape[-2] + 4) + 4.0 * c.shape[-1]),
+                 f"an irradiance map of {px} pixels at lmax {lmax_of(c.shape[-2])}")
     dirs = lay.pixel_directions(grid)
     valid = lay.valid_mask(grid)
     e = np.zeros((*grid, c.shape[-1]), dtype=np.float32)
@@ -133,7 +148,8 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
 
     ``coeffs`` are lighting coefficients L_lm, (K, C) or (K,). Returns (..., C) (or (...)
     for 1-D coefficients). For lmax ≤ 2 the quadratic polynomial of eq. 11–13 is evaluated by
-    a numba kernel (one pass over the normals); higher lmax uses the SH basis.
+    a numba kernel (one pass over the normals, each normalised on the fly); higher lmax uses
+    the SH basis.
     """
     one = np.ndim(coeffs) == 1
     c = as_coeffs(coeffs, finite=False)
@@ -152,7 +168,9 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
         from ._kernels import quad_eval  # numba, imported lazily
 
         out = np.empty((flat.shape[0], c.shape[1]), dtype=dtype)
-        quad_eval(flat, np.ascontiguousarray(q), out)
+        bad = quad_eval(flat, np.ascontiguousarray(q), out)
+        if bad:
+            raise ShprobeError(f"{bad} of {flat.shape[0]} normals are zero or not finite")
     else:
         out = irradiance(c, flat).astype(dtype)
     out = out.reshape(*lead, c.shape[1])

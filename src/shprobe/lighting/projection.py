@@ -19,10 +19,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 from ..probes.layouts import Env, LatLong
 from ..sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis
+from ..sh.rotation import ROTATION_LMAX
 
-__all__ = ["project", "project_samples", "total_intensity"]
+__all__ = ["project", "project_samples", "projection_bytes", "total_intensity"]
 
 # Frame whose pole is +Y: ω' = Q ω = (z, x, y) (a cyclic permutation, so a proper rotation).
 _Q = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -170,12 +172,35 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
     lmax = check_lmax(lmax)
     if not isinstance(env, Env):
         raise ShprobeError("project() needs an Env (see shprobe.load_env)")
+    if env.layout.name == "latlong" and lmax > ROTATION_LMAX:
+        raise ShprobeError(f"lat-long projection goes to lmax {ROTATION_LMAX} (its frame turn "
+                           f"is a Wigner rotation), not {lmax}", env.path)
+    check_memory(projection_bytes(env.grid, env.layout.name, lmax, env.radiance.shape[-1]),
+                 f"projecting a {'x'.join(map(str, env.grid[::-1]))} {env.layout.name} map to "
+                 f"lmax {lmax}", env.path)
     if env.layout.name == "latlong":
-        return _project_latlong(env.radiance, lmax)
-    d = np.ascontiguousarray(env.directions(), dtype=np.float64).reshape(-1, 3)
-    dw = np.ascontiguousarray(env.solid_angles(), dtype=np.float64).reshape(-1)
-    rad = env.radiance.reshape(-1, env.radiance.shape[-1])
-    return _project_kernel(d, rad, dw, lmax)
+        c = _project_latlong(env.radiance, lmax)
+    else:
+        d = np.ascontiguousarray(env.directions(), dtype=np.float64).reshape(-1, 3)
+        dw = np.ascontiguousarray(env.solid_angles(), dtype=np.float64).reshape(-1)
+        rad = env.radiance.reshape(-1, env.radiance.shape[-1])
+        c = _project_kernel(d, rad, dw, lmax)
+    if not np.all(np.isfinite(c)):  # e.g. pixels near float32's largest value overflowing
+        raise ShprobeError("the projection overflowed (radiance too large to sum): "
+                           "rescale the probe", env.path)
+    return c
+
+
+def projection_bytes(grid: tuple[int, ...], layout: str, lmax: int, channels: int = 3) -> float:
+    """Estimated working memory of :func:`project` beyond the image itself, in bytes."""
+    K, M = (lmax + 1) ** 2, 2 * lmax + 1
+    if layout == "latlong":
+        h, w = grid[:2]
+        # trig table (M, W) f32, row weights and pole basis (H, K) f64 ×2, per-row products
+        # (H, M, C) f32, their float64 gather (H, K, C)
+        return 4.0 * M * w + 16.0 * h * K + 4.0 * h * M * channels + 8.0 * h * K * channels
+    px = float(np.prod(grid))
+    return px * (24 + 8 + 8 * channels) + 8.0 * K * (K + 64 * channels)
 
 
 def total_intensity(env: Env) -> NDArray[np.float64]:

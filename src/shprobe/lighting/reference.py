@@ -14,9 +14,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 from ..probes.layouts import Env, LatLong, Layout, get_layout
 from ..sh import check_lmax, num_coeffs
-from .irradiance import irradiance
+from .irradiance import irradiance, unit_normals
 from .projection import _kernels, project, total_intensity
 
 __all__ = [
@@ -70,12 +71,18 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     stays bounded. ``subdivide=k`` splits every pixel into k×k sub-pixels (exact sub-solid
     angles, constant radiance) to check convergence; lat-long builds them chunk by chunk, the
     other layouts build their k²-times larger pixel tables whole (memory O(k²·S)).
-    ``progress(done, total)`` is called with
-    the normal–sample pairs done so far, every ~2²³ pairs, when given.
+    ``progress(done, total)`` is called with the normal–sample pairs done so far, every ~2²³
+    pairs, when given. Normals follow :mod:`shprobe.lighting.irradiance`'s policy (normalised;
+    zero or non-finite refused).
     """
-    n = np.asarray(normals, dtype=np.float64)
-    if n.ndim < 1 or n.shape[-1] != 3:
-        raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    n = unit_normals(normals)
+    k = subdivide
+    if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
+        raise ShprobeError(f"subdivide must be an integer >= 1, got {subdivide!r}")
+    pixels = int(np.prod(env.grid))
+    if env.layout.name != "latlong":  # the k²-times larger pixel tables are built whole
+        check_memory(pixels * int(k) ** 2 * 8.0 * 8, f"subdivide={k} on a {env.layout.name} "
+                     f"map of {pixels} pixels", env.path)
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     t = flat.shape[0]
     out = np.zeros((t, 3))

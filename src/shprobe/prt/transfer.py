@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import os
-import zipfile
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
@@ -31,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..files import save_npz
+from ..files import load_npz, save_npz
 from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis
 from ..sh.zonal import clamped_cosine_factors
 from .scene import Scene, load_scene, mesh_hash
@@ -209,32 +208,32 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     file baked for another mesh (hash mismatch).
     """
     p = Path(path)
-    if not p.is_file():
-        raise ShprobeError("no such transfer file", p)
-    if not zipfile.is_zipfile(p):
-        raise ShprobeError("not a transfer file (not an .npz archive; empty, truncated or "
-                           "another format)", p)
-    try:
-        with np.load(p, allow_pickle=False) as d:
-            missing = [k for k in _GEOMETRY if k not in d.files]
-            if missing:
-                raise ShprobeError("not a shprobe transfer file (no "
-                                   + ", ".join(missing) + " array)", p)
-            meta = _metadata(d["metadata"], p)
-            version = meta.get("version")
-            if version not in _ARRAYS:
-                raise ShprobeError(f"transfer file format {version!r} is not supported "
-                                   f"(this shprobe reads formats 1 and 2)", p)
-            missing = [k for k in _ARRAYS[version] if k not in d.files]
-            if missing:
-                raise ShprobeError("not a shprobe transfer file (no "
-                                   + ", ".join(missing) + " array)", p)
-            arrays = {k: d[k] for k in _GEOMETRY[:-1] + _ARRAYS[version]}
-    except ShprobeError:
-        raise
-    except Exception as e:
-        raise ShprobeError(f"cannot read transfer file (truncated or corrupt): "
-                           f"{' '.join(str(e).split())[:200]}", p) from None
+    d = load_npz(p, what="transfer file")
+    missing = [k for k in _GEOMETRY if k not in d]
+    if missing:
+        raise ShprobeError("not a shprobe transfer file (no " + ", ".join(missing) + " array)",
+                           p)
+    meta = _metadata(d["metadata"], p)
+    version = meta.get("version")
+    if version not in _ARRAYS:
+        raise ShprobeError(f"transfer file format {version!r} is not supported "
+                           f"(this shprobe reads formats 1 and 2)", p)
+    missing = [k for k in _ARRAYS[version] if k not in d]
+    if missing:
+        raise ShprobeError("not a shprobe transfer file (no " + ", ".join(missing) + " array)",
+                           p)
+    arrays = {k: d[k] for k in _GEOMETRY[:-1] + _ARRAYS[version]}
+    for k, a in arrays.items():
+        if a.dtype.kind not in "biuf":
+            raise ShprobeError(f"array {k!r} is not numeric ({a.dtype})", p)
+        if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+            raise ShprobeError(f"array {k!r} holds NaN or infinity (corrupt file)", p)
+    v, f = arrays["vertices"], arrays["faces"]
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+        raise ShprobeError(f"mesh arrays have shapes {v.shape} and {f.shape}, not (V, 3) and "
+                           "(F, 3) (corrupt file)", p)
+    if f.size and (f.dtype.kind == "f" or f.min() < 0 or f.max() >= v.shape[0]):
+        raise ShprobeError("face indices out of range (corrupt file)", p)
     mode = meta.get("mode")
     if mode not in MODES:
         raise ShprobeError(f"unknown transfer mode {mode!r}", p)

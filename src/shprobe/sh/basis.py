@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 
 #: Largest degree shprobe accepts.
 LMAX_LIMIT = 1024
@@ -99,8 +100,13 @@ def degrees(lmax: int) -> NDArray[np.int64]:
 
 
 def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
-    """Validate a degree argument."""
-    if isinstance(lmax, bool) or int(lmax) != lmax:
+    """Validate a degree argument: an integer (or integral number) in 0..``limit``; anything
+    else (None, NaN, inf, 2.5, a string, an array) is one :class:`ShprobeError`."""
+    try:
+        ok = not isinstance(lmax, bool | str | bytes) and float(lmax) == int(lmax)
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
         raise ShprobeError(f"SH degree must be an integer, got {lmax!r}")
     lmax = int(lmax)
     if lmax < 0 or lmax > limit:
@@ -231,6 +237,8 @@ def sh_basis(
     K = num_coeffs(lmax)
     shape = (*d.shape[:-1], K)
     if out is None:
+        check_memory(float(np.prod(shape)) * d.dtype.itemsize,
+                     f"SH values of {int(np.prod(shape[:-1]))} directions to lmax {lmax}")
         out = np.empty(shape, dtype=d.dtype)
     elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != d.dtype
           or not out.flags.c_contiguous or not out.flags.writeable):

@@ -1,0 +1,74 @@
+"""Cost estimates before work: every command and public function that could allocate a lot
+estimates the bytes it needs from its arguments and file headers and refuses, in one line
+naming the estimate and the limit, what would not fit.
+
+The limit is the machine's available memory (``/proc/meminfo`` MemAvailable, else total
+physical memory) less a margin, or ``SHPROBE_MAX_MEMORY`` (bytes, or with a K/M/G/T suffix;
+the CLI's ``--max-memory`` sets it) when that is lower. Work that is naturally chunked stays
+under :data:`CHUNK_BYTES` per chunk instead of being refused.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from typing import Any
+
+from .errors import ShprobeError
+
+__all__ = ["CHUNK_BYTES", "check_memory", "format_bytes", "memory_limit", "parse_bytes"]
+
+#: Working-set target of one chunk of chunked work (samples, rows, normals).
+CHUNK_BYTES = 64 << 20
+
+_UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+
+
+def parse_bytes(text: str) -> int:
+    """'512M', '2G', '1.5GiB', '1000000' → bytes."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
+    if not m:
+        raise ShprobeError(f"cannot parse memory size {text!r}: expected e.g. 512M or 4G")
+    return int(float(m.group(1)) * _UNITS[m.group(2).upper()])
+
+
+def format_bytes(n: float) -> str:
+    """Bytes for people: 1.5 GB, 300 MB, 12 kB."""
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if abs(n) >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{int(n)} B"
+
+
+def _available() -> int:
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 8 << 30
+
+
+def memory_limit() -> int:
+    """Bytes one operation may allocate: 80 % of the available memory, or
+    ``SHPROBE_MAX_MEMORY`` when set and lower."""
+    limit = int(0.8 * _available())
+    env = os.environ.get("SHPROBE_MAX_MEMORY")
+    if env:
+        limit = min(limit, parse_bytes(env))
+    return limit
+
+
+def check_memory(nbytes: float, what: str, where: Any = None) -> None:
+    """Refuse ``what`` when its estimated ``nbytes`` exceed :func:`memory_limit`."""
+    limit = memory_limit()
+    if nbytes > limit:
+        raise ShprobeError(
+            f"{what} would need about {format_bytes(nbytes)}, over the limit of "
+            f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
+            where)
