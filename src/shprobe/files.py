@@ -41,12 +41,12 @@ def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> 
     folder that is not writable. Missing parent folders are fine: they are made when the file
     is written (every command makes its output folders the same way)."""
     p = Path(path)
+    if len(os.fsencode(p.name)) > 255:
+        raise ShprobeError("file name is longer than 255 bytes", p)
     if p.is_dir():
         raise ShprobeError("is a directory, not a file", p)
     if os.path.lexists(p) and not overwrite:
         raise ShprobeError("already exists (pass --force / overwrite=True to replace it)", p)
-    if len(p.name.encode()) > 255:
-        raise ShprobeError("file name is longer than 255 bytes", p)
     parent = p.parent
     while not parent.exists():
         if parent == parent.parent:

@@ -284,7 +284,36 @@ def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64
                        "cs-phase, or a shprobe shader)", where)
 
 
+def _number(x: Any, what: str, where: Any) -> float:
+    """A finite JSON number (not a bool, string or structure)."""
+    if isinstance(x, bool) or not isinstance(x, int | float):
+        raise ShprobeError(f"{what} must be a number, got {type(x).__name__}", where)
+    try:
+        v = float(x)
+    except OverflowError:
+        v = float("inf")
+    if not np.isfinite(v):
+        raise ShprobeError(f"{what} must be finite", where)
+    return v
+
+
+def _flat27(x: Any, what: str, where: Any) -> NDArray[np.float64]:
+    if not isinstance(x, list):
+        raise ShprobeError(f"{what} must be a list of 27 numbers", where)
+    try:
+        flat = np.array(x, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        raise ShprobeError(f"{what} must be 27 numbers", where) from None
+    if not np.all(np.isfinite(flat)):
+        raise ShprobeError(f"{what} must be finite numbers", where)
+    if flat.size != 27:
+        raise ShprobeError(f"{what} must be 27 numbers, got {flat.size}", where)
+    return flat
+
+
 def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
+    """Every JSON format shprobe writes or reads, each field type-checked (a structure of the
+    wrong type is one line, never an internal error)."""
     if not isinstance(doc, dict):
         raise ShprobeError("JSON coefficient file must hold an object", where)
     fmt = doc.get("format")
@@ -294,29 +323,27 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
         c = as_coeffs(doc.get("coefficients"), where, "coefficients")
         return c * cs_signs(lmax_of(c.shape[0]))[:, None], "cs-phase"
     obj = doc.get("object")  # three.js LightProbe.toJSON(): {"metadata", "object": {"sh"}}
-    if isinstance(obj, dict) and isinstance(obj.get("sh"), list):
-        try:
-            flat = np.asarray(obj["sh"], dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError):
-            raise ShprobeError("three.js LightProbe sh is not numeric", where) from None
-        if flat.size != 27 or not np.all(np.isfinite(flat)):
-            raise ShprobeError("three.js LightProbe sh must be 27 finite numbers", where)
-        return flat.reshape(9, 3) * float(obj.get("intensity", 1.0)), "three"
-    if fmt == "three.SphericalHarmonics3" or (
-            isinstance(doc.get("sh"), list) and len(doc["sh"]) == 27):
-        flat = np.asarray(doc.get("coefficients", doc.get("sh")), dtype=np.float64)
-        if flat.size != 27:
-            raise ShprobeError("three.js coefficients must be 27 numbers", where)
+    if isinstance(obj, dict) and "sh" in obj:
+        flat = _flat27(obj["sh"], "three.js LightProbe sh", where)
+        scale = _number(obj.get("intensity", 1.0), "three.js LightProbe intensity", where)
+        return flat.reshape(9, 3) * scale, "three"
+    if fmt == "three.SphericalHarmonics3" or (isinstance(doc.get("sh"), list)
+                                               and len(doc["sh"]) == 27):
+        flat = _flat27(doc.get("coefficients", doc.get("sh")), "three.js coefficients", where)
         return flat.reshape(9, 3), "three"
-    ext = doc.get("extensions", {}).get("EXT_lights_image_based")
-    if isinstance(ext, dict):
+    exts = doc.get("extensions")
+    ext = exts.get("EXT_lights_image_based") if isinstance(exts, dict) else None
+    if ext is not None:
+        if not isinstance(ext, dict):
+            raise ShprobeError("EXT_lights_image_based must be an object", where)
         lights = ext.get("lights") or ext.get("ibls") or []
-        if not lights or "irradianceCoefficients" not in lights[0]:
+        if (not isinstance(lights, list) or not lights or not isinstance(lights[0], dict)
+                or "irradianceCoefficients" not in lights[0]):
             raise ShprobeError("EXT_lights_image_based has no irradianceCoefficients", where)
         E = as_coeffs(lights[0]["irradianceCoefficients"], where, "irradianceCoefficients")
         if E.shape != (9, 3):
             raise ShprobeError(f"irradianceCoefficients must be 9x3, got {E.shape}", where)
-        E = E * float(lights[0].get("intensity", 1.0))
+        E = E * _number(lights[0].get("intensity", 1.0), "light intensity", where)
         return E / (_ahat(2) * cs_signs(2))[:, None], "gltf"
     raise ShprobeError("JSON file holds no coefficients shprobe recognises", where)
 

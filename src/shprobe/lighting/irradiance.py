@@ -156,6 +156,8 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
     n = np.asarray(normals)
     if n.ndim < 1 or n.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {n.shape}")
+    if n.dtype.kind not in "fiu":
+        raise ShprobeError(f"normals must be real numbers, got {n.dtype}")
     lead = n.shape[:-1]
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     if flat.dtype not in (np.float32, np.float64):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 from functools import lru_cache
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -149,7 +148,8 @@ def _project_kernel(d: NDArray, v: NDArray, wt: NDArray, lmax: int) -> NDArray[n
     a, b = recurrence_tables(lmax)
     a, b = np.ascontiguousarray(a), np.ascontiguousarray(b)
     nblk = max(1, min(64, d.shape[0] // 4096))
-    kern = _kernels()["project_rgb"]
+    from ._kernels import project_rgb_kernel as kern  # numba, imported lazily
+
     nc = v.shape[1]
     if nc == 3:
         return kern(d, v, wt, lmax, a, b, nblk).sum(axis=0)
@@ -208,9 +208,3 @@ def total_intensity(env: Env) -> NDArray[np.float64]:
     dw = env.solid_angles()
     rad = env.radiance.reshape(-1, env.radiance.shape[-1]).astype(np.float64)
     return dw.reshape(-1) @ rad
-
-
-def _kernels() -> dict[str, Any]:
-    from . import _kernels as k  # numba, imported lazily
-
-    return {"project_rgb": k.project_rgb_kernel, "brute": k.brute_kernel}

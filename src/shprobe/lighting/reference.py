@@ -18,7 +18,7 @@ from ..limits import check_memory
 from ..probes.layouts import Env, LatLong, Layout, get_layout
 from ..sh import check_lmax, num_coeffs
 from .irradiance import irradiance, unit_normals
-from .projection import _kernels, project, total_intensity
+from .projection import project, total_intensity
 
 __all__ = [
     "ErrorReport",
@@ -86,7 +86,8 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     t = flat.shape[0]
     out = np.zeros((t, 3))
-    kern = _kernels()["brute"]
+    from ._kernels import brute_kernel as kern  # numba, imported lazily
+
     total = t * int(np.prod(env.grid)) * int(subdivide) ** 2
     done = 0
     for d, lw in _sample_chunks(env, subdivide, int(chunk)):

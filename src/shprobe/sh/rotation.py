@@ -187,13 +187,6 @@ def _lmax_of(K: int) -> int:
 
 
 @cache
-def _kernels():
-    """The numba kernel module, imported on first use (an import statement costs ~1 µs)."""
-    from . import _rotation_kernels
-
-    return _rotation_kernels
-
-
 @cache
 def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """J = d(π/2) for l ≤ lmax (P, Q quadrant tables, read-only): prefixes of the tables of
@@ -208,17 +201,25 @@ def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 
 @cache
 def _j_full(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    P, Q = _kernels().d_tables(0.0, 1.0, lmax)
+    from ._rotation_kernels import d_tables  # numba, imported lazily
+
+    P, Q = d_tables(0.0, 1.0, lmax)
     P.flags.writeable = False
     Q.flags.writeable = False
     return P, Q
 
 
 def _run_rotate(Rk: NDArray[np.float64], ck: NDArray[np.float64], lmax: int):
-    """Kernel dispatch: closed form for lmax ≤ 2, the J-table path above."""
-    if lmax <= 2:
-        return _kernels().rotate_low_batch(Rk, ck, lmax)
-    return _kernels().rotate_batch(Rk, ck, lmax, *_j_tables(lmax))
+    """Kernel dispatch: closed form for lmax ≤ 2, the J-table path above. A degenerate matrix
+    (e.g. all zeros) that divides by zero in the kernel is refused like any non-rotation."""
+    from ._rotation_kernels import rotate_batch, rotate_low_batch  # numba, imported lazily
+
+    try:
+        if lmax <= 2:
+            return rotate_low_batch(Rk, ck, lmax)
+        return rotate_batch(Rk, ck, lmax, *_j_tables(lmax))
+    except ZeroDivisionError:
+        raise ShprobeError("rotation matrix is not a rotation (degenerate)") from None
 
 
 def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
@@ -240,7 +241,12 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
             f"wigner_d at lmax={lmax} would be {size / 2**30:.1f} GiB of dense (K, K) "
             f"matrices (limit {WIGNER_D_MAX_BYTES / 2**30:.0f} GiB); rotate() applies the "
             "rotation block by block without forming them")
-    out, err = _kernels().wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))
+    from ._rotation_kernels import wigner_full  # numba, imported lazily
+
+    try:
+        out, err = wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))
+    except ZeroDivisionError:
+        raise ShprobeError("rotation matrix is not a rotation (degenerate)") from None
     if R.size:
         _check_err(err)
     K = num_coeffs(lmax)
