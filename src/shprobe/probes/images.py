@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..files import atomic_output, check_output_path
+from ..limits import check_memory
 
 #: Extensions read_image accepts.
 READ_EXTENSIONS = (".hdr", ".rgbe", ".pic", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg",
@@ -103,6 +104,20 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     return check_pixels(img, p, clamp)
 
 
+def check_declared_size(p: Path, width: int, height: int, channels: int, min_bytes: int = 0,
+                        have: int | None = None) -> None:
+    """Believe an image header only as far as the file and the memory allow: the pixel data
+    cannot be shorter than ``min_bytes`` (a lower bound for the format), and decoding it to
+    float32 (with the copies reading makes) must fit :func:`shprobe.limits.check_memory` —
+    both checked before anything is allocated."""
+    have = p.stat().st_size if have is None else have
+    if have < min_bytes:
+        raise ShprobeError(f"header declares {width}x{height} pixels but the file holds only "
+                           f"{have} bytes of pixel data (truncated or corrupt)", p)
+    check_memory(float(width) * height * (4.0 * channels + 24.0),
+                 f"decoding a {width}x{height} image", p)
+
+
 def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
     import OpenImageIO as oiio
 
@@ -117,6 +132,9 @@ def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
             spec = inp.spec()
             if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
                 raise ShprobeError("image has zero size", p)
+            rgbe = p.suffix.lower() in (".hdr", ".rgbe", ".pic")
+            check_declared_size(p, spec.width, spec.height, spec.nchannels,
+                                min_bytes=4 * spec.height if rgbe else 0)
             fmt = str(spec.format)
             data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
             if data is None or inp.has_error:
@@ -218,10 +236,17 @@ def _read_pfm(p: Path) -> NDArray[np.float32]:
     m = _PFM_HEADER.match(raw[:256])
     if m is None:
         raise ShprobeError("not a PFM file (bad header)", p)
-    kind, w, h, scale = m.group(1), int(m.group(2)), int(m.group(3)), float(m.group(4))
+    kind, w, h = m.group(1), int(m.group(2)), int(m.group(3))
+    try:
+        scale = float(m.group(4))
+    except ValueError:
+        scale = float("nan")
+    if not np.isfinite(scale) or scale == 0:
+        raise ShprobeError(f"bad PFM scale line {m.group(4).decode('ascii', 'replace')!r}", p)
     if w == 0 or h == 0:
         raise ShprobeError("image has zero size", p)
     c = 3 if kind == b"PF" else 1
+    check_declared_size(p, w, h, c, min_bytes=4 * w * h * c, have=len(raw))
     dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
     n = w * h * c
     body = raw[m.end():]
@@ -264,6 +289,7 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     n1, n2 = int(n1), int(n2)
     if n1 == 0 or n2 == 0:
         raise ShprobeError("image has zero size", p)
+    check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - nl - 1)
     body = np.frombuffer(raw, dtype=np.uint8, offset=nl + 1)
     rgbe = np.zeros((n1, n2, 4), dtype=np.uint8)
     status = _rgbe_decode()(body, rgbe)
