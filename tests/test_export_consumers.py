@@ -267,3 +267,26 @@ def test_shaders_on_the_gpu(browser_results, fn):
     if fn == "webgpu":  # the bare export compiles without a message (error or warning)
         for name in lightings():
             assert res[name]["messages"] == [], res[name]["messages"]
+
+
+def test_babylon_specular_cube(browser_results):
+    """The specular cube maps (RGBD PNGs, every mip, faces +X ... -Z) as Babylon.js decoded them
+    into its float cube texture hold E/π (clamped at 0) of the glTF direction
+    (x, y, −z) of each texel's cube direction — the same frame as the harmonics. 8-bit RGBD
+    with gamma 1/2.2: within 1 % of the peak; the same faces upside down are far off."""
+    from shprobe.lighting.export import cube_face_dirs
+
+    r = browser_results["babylon", True]["cases"]
+    for name, L in lightings().items():
+        cube = r[name]["cube"]
+        levels = len(cube) // 6
+        worst = 0.0
+        for level in range(levels):
+            size = 8 >> level
+            dirs = cube_face_dirs(size)
+            ref = np.maximum(irradiance(L, dirs * np.array([1.0, 1.0, -1.0])), 0.0) / np.pi
+            got = np.array(cube[6 * level: 6 * level + 6], float).reshape(6, size, size, 4)
+            worst = max(worst, rel(got[..., :3], ref))
+            if level == 0:
+                assert rel(got[:, ::-1, :, :3], ref) > 0.05  # upside down is noticed
+        assert record("Babylon.js specular cube (RGBD)", name, worst) <= 1e-2

@@ -67,8 +67,14 @@ export async function babylon(cases, normals, rightHanded) {
       harm.push(...evalHarmonics(sh, r.x, r.y, r.z).map((e) => e * Math.PI));
       pol.push(...evalPolynomial(poly, r.x, r.y, r.z).map((e) => e * Math.PI));
     }
+    // the specular cube as Babylon decoded it (RGBD PNG -> float texture), every mip and face
+    const cube = [];
+    const mips = JSON.parse(c.text).extensions.EXT_lights_image_based.lights[0].specularImages;
+    for (let level = 0; level < mips.length; level++) {
+      for (let f = 0; f < 6; f++) cube.push(Array.from(await tex.readPixels(f, level)));
+    }
     out.cases[c.name] = {
-      harmonics: harm, polynomial: pol, level: tex.level, root: Array.from(W.m),
+      harmonics: harm, polynomial: pol, cube, level: tex.level, root: Array.from(W.m),
       reflection: Array.from(R.m), oppositeZ, invertY, name: tex.name,
     };
     scene.dispose();

@@ -20,12 +20,16 @@ three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array 
            applies Â_l in ``getIrradianceAt`` / the shader: so this is L, unchanged.
            Import also takes ``LightProbe.toJSON()`` (``object.sh`` × ``object.intensity``).
 gltf       ``EXT_lights_image_based`` light with ``irradianceCoefficients`` (9×3): irradiance
-           E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated) — the spec
-           text fixes neither; this is how its reference implementation, Babylon.js, reads
-           them (CS-signed basis constants, then ``convertIrradianceToLambertianRadiance``
-           divides by π). A minimal glTF document (``asset``, a scene referring to the
-           light); the extension's required specular cube maps are not produced, so merge
-           the light into an asset that has them.
+           E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated), in the
+           cube-map frame where the cube direction (x, y, z) is the glTF direction
+           (x, y, −z) — the spec text fixes none of this; it is how its reference
+           implementation, Babylon.js, reads them (CS-signed basis constants,
+           ``convertIrradianceToLambertianRadiance`` ÷π, and ``REFLECTIONMAP_OPPOSITEZ``),
+           proved against Babylon itself in ``tests/test_export_consumers.py``. The
+           extension's required specular cube (``specularImages``, ``specularImageSize``)
+           holds E/π of the same coefficients (8×8, 4 mips, RGBD PNG data URIs, bottom row
+           first), a stand-in for a GGX-prefiltered map. The scene has no nodes: merge the
+           light into an asset.
 cmgen      Filament's ``sh.txt`` ("irradiance, pre-scaled base"): 9 RGB triples c_k such that
            E(n)/π = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz + c6 (3z² − 1) + c7 zx
            + c8 (x² − y²) (Filament's ``Irradiance_SphericalHarmonics``): Â_l/π and the basis
@@ -289,7 +293,9 @@ def _gltf(L9: NDArray[np.float64], source: str | None) -> str:
         row = []
         for face in faces:
             world = face * np.array([1.0, 1.0, -1.0])  # cube frame → glTF world
-            png = _png_rgba8(_rgbd8(irradiance(L9, world) / np.pi))
+            # stored bottom row first ("flipped", as the extension says for glTF texture
+            # space): Babylon.js uploads it so that memory row 0 is the face's top (tc = −1)
+            png = _png_rgba8(_rgbd8(irradiance(L9, world) / np.pi)[::-1])
             row.append(len(images))
             images.append({"uri": "data:image/png;base64,"
                            + base64.b64encode(png).decode("ascii")})
