@@ -203,15 +203,23 @@ def browser_results():
         for rh in (False, True):
             res["babylon", rh] = page.evaluate(
                 "([c, n, rh]) => window.consumers.babylon(c, n, rh)", [gltf, n, rh])
-        for fmt, fn, flip in (("glsl", "webgl2", r"SHPROBE_M_R = mat4\("),
-                              ("wgsl", "webgpu", r"SHPROBE_M_R = mat4x4<f32>\(")):
-            res[fn] = {}
-            for c in cases(fmt, flip):
+        hlsl = hlsl_as_glsl_es(cases("hlsl", r"SHPROBE_M_R = float4x4\("))
+        for fmt, fn, flip, complete in (
+                ("glsl", "webgl2", r"SHPROBE_M_R = mat4\(", False),
+                ("wgsl", "webgpu", r"SHPROBE_M_R = mat4x4<f32>\(", False),
+                ("hlsl", "webgl2", None, True)):
+            key = fn if fmt != "hlsl" else "hlsl-webgl2"
+            res[key] = {}
+            if complete and isinstance(hlsl, str):
+                res[key] = {"skip": hlsl}
+                continue
+            for c in (hlsl if complete else cases(fmt, flip)):
                 try:
-                    res[fn][c["name"]] = page.evaluate(
-                        f"([s, n]) => window.consumers.{fn}(s, n)", [c["text"], n])
+                    res[key][c["name"]] = page.evaluate(
+                        f"([s, n, f]) => window.consumers.{fn}(s, n, f)",
+                        [c["text"], n, complete])
                 except Exception as e:  # reported by the test that needs it
-                    res[fn][c["name"]] = {"error": str(e)}
+                    res[key][c["name"]] = {"error": str(e)}
         res["console"] = list(page.shprobe_console)
     return res
 
@@ -246,12 +254,52 @@ def test_babylon_polynomial_path(browser_results):
         assert rel(r[name]["polynomial"], twice) <= 1e-4
 
 
-@pytest.mark.parametrize("fn", ["webgl2", "webgpu"])
+HLSL_MAIN = """
+Texture2D<float4> normals : register(t0);
+struct ShprobeOut { float4 irr : SV_Target0; float4 poly : SV_Target1; float4 nrm : SV_Target2; };
+ShprobeOut main(float4 pos : SV_Position) {
+    float3 n = normals.Load(int3(int2(pos.xy), 0)).xyz;
+    ShprobeOut o;
+    o.irr = float4(shprobe_irradiance(n), 1.0);
+    o.poly = float4(shprobe_irradiance_poly(n), 1.0);
+    o.nrm = float4(n, 1.0);
+    return o;
+}
+"""
+
+
+def hlsl_as_glsl_es(hlsl_cases: list[dict[str, str]]) -> list[dict[str, str]] | str:
+    """Each HLSL export with a pixel-shader entry, compiled by glslang's HLSL front end to
+    SPIR-V and turned into GLSL ES 3.00 by SPIRV-Cross, for WebGL2 to run; or why not."""
+    import tempfile
+
+    glslang, cross = shutil.which("glslangValidator"), shutil.which("spirv-cross")
+    if glslang is None or cross is None:
+        return "glslangValidator / spirv-cross not installed (.ci/run installs both)"
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        for c in hlsl_cases:
+            src, spv = Path(d) / f"{c['name']}.hlsl", Path(d) / f"{c['name']}.spv"
+            src.write_text(c["text"] + HLSL_MAIN)
+            r = subprocess.run([glslang, "-D", "-V", "-S", "frag", "-e", "main", "-o", str(spv),
+                                str(src)], capture_output=True, text=True, timeout=120)
+            assert r.returncode == 0, r.stdout + r.stderr
+            r = subprocess.run([cross, "--es", "--version", "300", str(spv)],
+                               capture_output=True, text=True, timeout=120)
+            assert r.returncode == 0, r.stderr
+            out.append({"name": c["name"], "text": r.stdout})
+    return out
+
+
+@pytest.mark.parametrize("fn", ["webgl2", "webgpu", "hlsl-webgl2"])
 def test_shaders_on_the_gpu(browser_results, fn):
-    """GLSL export compiled by WebGL2 (GLSL ES 3.00, ANGLE on SwiftShader) and WGSL by
-    Chromium's WebGPU (Tint, SwiftShader adapter): both functions run over the normals; the
-    normals each invocation used are read back and E computed at those (float32) normals."""
+    """GLSL export compiled by WebGL2 (GLSL ES 3.00, ANGLE on SwiftShader), WGSL by Chromium's
+    WebGPU (Tint, SwiftShader adapter), HLSL by glslang's HLSL front end → SPIR-V →
+    SPIRV-Cross → WebGL2: both functions run over the normals; the normals each invocation
+    used are read back and E computed at those (float32) normals."""
     res = browser_results[fn]
+    if "skip" in res:
+        pytest.skip(res["skip"])
     for name in res:
         assert "error" not in res[name], res[name]
     for key in ("irradiance", "poly"):

@@ -6,8 +6,10 @@
 //     spherical harmonics the way its PBR shader does (harmonicsFunctions.fx,
 //     pbrBlockReflection.fx): world normal -> reflection matrix -> REFLECTIONMAP_OPPOSITEZ /
 //     INVERTCUBICMAP -> polynomial.
-//   webgl2(glsl, normals): each GLSL export compiled as GLSL ES 3.00 by WebGL2 and run in a
-//     fragment shader over a float framebuffer; the normal each fragment used is read back too.
+//   webgl2(glsl, normals, complete): each GLSL export compiled as GLSL ES 3.00 by WebGL2 and run
+//     in a fragment shader over a float framebuffer; the normal each fragment used is read back
+//     too. complete = true takes a whole fragment shader (the HLSL export after glslang's HLSL
+//     front end and SPIRV-Cross).
 //   webgpu(wgsl, normals): each WGSL export compiled by Chromium's WebGPU (Tint):
 //     getCompilationInfo of the bare export, then run in a compute shader.
 import { Engine } from "@babylonjs/core/Engines/engine.js";
@@ -91,7 +93,9 @@ function glCompile(gl, type, src) {
   return s;
 }
 
-export function webgl2(glsl, normals) {
+export function webgl2(glsl, normals, complete = false) {
+  // complete: `glsl` is a whole GLSL ES 3.00 fragment shader (the HLSL export cross-compiled),
+  // writing irradiance, poly and the normal to locations 0, 1, 2; its one sampler is the normals
   const N = normals.length / 3, Wd = 64, H = Math.ceil(N / Wd);
   const canvas = document.createElement("canvas");
   const gl = canvas.getContext("webgl2");
@@ -103,7 +107,7 @@ export function webgl2(glsl, normals) {
   const vs = glCompile(gl, gl.VERTEX_SHADER, `#version 300 es
 void main() { vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
   gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0); }`);
-  const fs = glCompile(gl, gl.FRAGMENT_SHADER, `#version 300 es
+  const fs = glCompile(gl, gl.FRAGMENT_SHADER, complete ? glsl : `#version 300 es
 precision highp float;
 precision highp int;
 uniform highp sampler2D normals;
@@ -141,7 +145,10 @@ void main() {
   gl.useProgram(prog);
   gl.activeTexture(gl.TEXTURE0);
   gl.bindTexture(gl.TEXTURE_2D, tex);
-  gl.uniform1i(gl.getUniformLocation(prog, "normals"), 0);
+  for (let u = 0; u < gl.getProgramParameter(prog, gl.ACTIVE_UNIFORMS); u++) {
+    const a = gl.getActiveUniform(prog, u);
+    if (a.type === gl.SAMPLER_2D) gl.uniform1i(gl.getUniformLocation(prog, a.name), 0);
+  }
   gl.drawArrays(gl.TRIANGLES, 0, 3);
   const read = (i) => {
     gl.readBuffer(gl.COLOR_ATTACHMENT0 + i);
