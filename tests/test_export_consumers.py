@@ -320,7 +320,7 @@ def test_babylon_specular_cube(browser_results):
     into its float cube texture hold E/π (clamped at 0) of the glTF direction
     (x, y, −z) of each texel's cube direction — the same frame as the harmonics. 8-bit RGBD
     with gamma 1/2.2: within 1 % of the peak; the same faces upside down are far off."""
-    from shprobe.lighting.export import cube_face_dirs
+    from shprobe.probes.layouts import get_layout
 
     r = browser_results["babylon", True]["cases"]
     for name, L in lightings().items():
@@ -329,7 +329,7 @@ def test_babylon_specular_cube(browser_results):
         worst = 0.0
         for level in range(levels):
             size = 8 >> level
-            dirs = cube_face_dirs(size)
+            dirs = get_layout("cube").pixel_directions((6, size, size))
             ref = np.maximum(irradiance(L, dirs * np.array([1.0, 1.0, -1.0])), 0.0) / np.pi
             got = np.array(cube[6 * level: 6 * level + 6], float).reshape(6, size, size, 4)
             worst = max(worst, rel(got[..., :3], ref))

@@ -257,19 +257,6 @@ def _rgbd8(rgb: NDArray[np.float64]) -> NDArray[np.uint8]:
     return np.round(out * 255.0).astype(np.uint8)
 
 
-def cube_face_dirs(size: int) -> NDArray[np.float64]:
-    """(6, size, size, 3) unit directions of the texel centres of the faces +X, −X, +Y, −Y,
-    +Z, −Z in the standard (OpenGL / KTX) cube-map orientation, first row at the top."""
-    t = (np.arange(size) + 0.5) / size * 2.0 - 1.0
-    sc, tc = np.meshgrid(t, t)  # sc along the row, tc down the rows
-    one = np.ones_like(sc)
-    faces = np.stack([
-        np.stack([one, -tc, -sc], -1), np.stack([-one, -tc, sc], -1),
-        np.stack([sc, one, tc], -1), np.stack([sc, -one, -tc], -1),
-        np.stack([sc, -tc, one], -1), np.stack([-sc, -tc, -one], -1)])
-    return faces / np.linalg.norm(faces, axis=-1, keepdims=True)
-
-
 #: z → −z on the l ≤ 2 coefficients: −1 where y_lm is odd in z (k = 2, 5, 7)
 _ZFLIP = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 
@@ -283,13 +270,15 @@ def _gltf_factors() -> NDArray[np.float64]:
 def _gltf(L9: NDArray[np.float64], source: str | None) -> str:
     import base64
 
+    from ..probes.layouts import get_layout
     from .irradiance import irradiance
 
     E9 = L9 * _gltf_factors()[:, None]
     images: list[dict[str, str]] = []
     spec: list[list[int]] = []
     for level in range(_SPEC_MIPS):
-        faces = cube_face_dirs(_SPEC_SIZE >> level)
+        size = _SPEC_SIZE >> level  # faces +X −X +Y −Y +Z −Z, OpenGL orientation, row 0 on top
+        faces = get_layout("cube").pixel_directions((6, size, size))
         row = []
         for face in faces:
             world = face * np.array([1.0, 1.0, -1.0])  # cube frame → glTF world
