@@ -102,7 +102,9 @@ def test_three_js_convention():
 
 
 def test_gltf_convention_as_babylon_reads_it():
-    """Babylon: CS-signed basis constants, irradiance coefficients, then ÷π for radiance."""
+    """Babylon: CS-signed basis constants, irradiance coefficients, then ÷π for radiance, in
+    the cube-map frame where the glTF direction (x, y, z) is looked up at (x, y, −z)
+    (proved against Babylon.js itself in test_export_consumers.py)."""
     doc = json.loads(export_coeffs(L9, "gltf"))
     E = np.array(doc["extensions"]["EXT_lights_image_based"]["lights"][0]
                  ["irradianceCoefficients"])
@@ -110,7 +112,8 @@ def test_gltf_convention_as_babylon_reads_it():
     s3, s15 = np.sqrt(3 / (4 * np.pi)), np.sqrt(15 / (4 * np.pi))
     K_cs = np.array([np.sqrt(1 / (4 * np.pi)), -s3, s3, -s3, s15, -s15,
                      np.sqrt(5 / (16 * np.pi)), -s15, np.sqrt(15 / (16 * np.pi))])
-    np.testing.assert_allclose((poly9(DIRS) * K_cs) @ E, E_true(L9, DIRS), atol=1e-12)
+    cube = DIRS * np.array([1.0, 1.0, -1.0])
+    np.testing.assert_allclose((poly9(cube) * K_cs) @ E, E_true(L9, DIRS), atol=1e-12)
 
 
 def test_cmgen_convention_is_E_over_pi_polynomial():

@@ -20,12 +20,16 @@ three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array 
            applies Â_l in ``getIrradianceAt`` / the shader: so this is L, unchanged.
            Import also takes ``LightProbe.toJSON()`` (``object.sh`` × ``object.intensity``).
 gltf       ``EXT_lights_image_based`` light with ``irradianceCoefficients`` (9×3): irradiance
-           E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated) — the spec
-           text fixes neither; this is how its reference implementation, Babylon.js, reads
-           them (CS-signed basis constants, then ``convertIrradianceToLambertianRadiance``
-           divides by π). A minimal glTF document (``asset``, a scene referring to the
-           light); the extension's required specular cube maps are not produced, so merge
-           the light into an asset that has them.
+           E_lm = Â_l L_lm (not /π) with Condon–Shortley signs (odd m negated), in the
+           cube-map frame where the cube direction (x, y, z) is the glTF direction
+           (x, y, −z) — the spec text fixes none of this; it is how its reference
+           implementation, Babylon.js, reads them (CS-signed basis constants,
+           ``convertIrradianceToLambertianRadiance`` ÷π, and ``REFLECTIONMAP_OPPOSITEZ``),
+           proved against Babylon itself in ``tests/test_export_consumers.py``. The
+           extension's required specular cube (``specularImages``, ``specularImageSize``)
+           holds E/π of the same coefficients (8×8, 4 mips, RGBD PNG data URIs, bottom row
+           first), a stand-in for a GGX-prefiltered map. The scene has no nodes: merge the
+           light into an asset.
 cmgen      Filament's ``sh.txt`` ("irradiance, pre-scaled base"): 9 RGB triples c_k such that
            E(n)/π = c0 + c1 y + c2 z + c3 x + c4 yx + c5 yz + c6 (3z² − 1) + c7 zx
            + c8 (x² − y²) (Filament's ``Irradiance_SphericalHarmonics``): Â_l/π and the basis
@@ -196,23 +200,7 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
             doc["source"] = source
         return json.dumps(doc, indent=2) + "\n"
     if fmt == "gltf":
-        E9 = _nine_rgb(c, fmt) * (_ahat(2) * cs_signs(2))[:, None]
-        light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
-                                 "rotation": [0.0, 0.0, 0.0, 1.0],
-                                 "irradianceCoefficients": E9.tolist()}
-        doc = {"asset": {"version": "2.0", "generator": f"shprobe {__version__}"},
-               "extensionsUsed": ["EXT_lights_image_based"],
-               "extensions": {"EXT_lights_image_based": {"lights": [light]}},
-               "scene": 0,
-               "scenes": [{"nodes": [], "extensions": {"EXT_lights_image_based": {"light": 0}}}],
-               "extras": {"shprobe": {
-                   "convention": "Condon-Shortley signs (odd m negated), order k = l(l+1)+m,"
-                                 " world +Y up (as read by Babylon.js)",
-                   "quantity": "irradiance coefficients E_lm = A_l L_lm, not divided by pi",
-                   "note": "a light to merge into an asset: the extension's required "
-                           "specularImages / specularImageSize (prefiltered cube maps) are "
-                           "not produced"}}}
-        return json.dumps(doc, indent=2) + "\n"
+        return _gltf(_nine_rgb(c, fmt), source)
     if fmt == "cmgen":
         ck = _nine_rgb(c, fmt) * (_ahat(2) / np.pi * basis_constants())[:, None]
         out = "".join(f"({', '.join(format(x, '.15f').rjust(18) for x in ck[k])}); "
@@ -232,6 +220,93 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
            "coefficients": (c * cs_signs(lmax)[:, None]).tolist()}
     if source:
         doc["source"] = source
+    return json.dumps(doc, indent=2) + "\n"
+
+
+# ----------------------------------------------------------------------------- glTF
+
+#: EXT_lights_image_based: edge of mip 0 of the specular cube and the number of mips written
+_SPEC_SIZE, _SPEC_MIPS = 8, 4
+#: Babylon.js RGBD: the largest range D may encode (``rgbdMaxRange``, helperFunctions.fx)
+_RGBD_MAX_RANGE = 255.0
+
+
+def _png_rgba8(img: NDArray[np.uint8]) -> bytes:
+    """A PNG (colour type 6, 8 bits, no interlace, filter 0) of an (H, W, 4) uint8 image."""
+    import struct
+    import zlib
+
+    h, w = img.shape[:2]
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+    raw = b"".join(b"\x00" + img[r].tobytes() for r in range(h))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def _rgbd8(rgb: NDArray[np.float64]) -> NDArray[np.uint8]:
+    """HDR linear RGB (..., 3) → RGBD bytes (..., 4) as Babylon.js ``toRGBD`` packs them
+    (D = floor(255 / max(rgb)) / 255 clamped to [1/255, 1], rgb·D in gamma 1/2.2)."""
+    v = np.maximum(rgb, 0.0)
+    mx = np.maximum(v.max(axis=-1, keepdims=True), 1e-9)
+    d = np.clip(np.floor(np.maximum(_RGBD_MAX_RANGE / mx, 1.0)) / 255.0, 1 / 255.0, 1.0)
+    out = np.concatenate([np.clip(v * d, 0.0, 1.0) ** (1 / 2.2), d], axis=-1)
+    return np.round(out * 255.0).astype(np.uint8)
+
+
+#: z → −z on the l ≤ 2 coefficients: −1 where y_lm is odd in z (k = 2, 5, 7)
+_ZFLIP = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+
+
+def _gltf_factors() -> NDArray[np.float64]:
+    """E_lm → ``irradianceCoefficients``: Â_l, Condon–Shortley signs, and the cube-map frame
+    (Babylon.js looks its environment up at (x, y, −z) for the glTF direction (x, y, z))."""
+    return _ahat(2) * cs_signs(2) * _ZFLIP
+
+
+def _gltf(L9: NDArray[np.float64], source: str | None) -> str:
+    import base64
+
+    from ..probes.layouts import get_layout
+    from .irradiance import irradiance
+
+    E9 = L9 * _gltf_factors()[:, None]
+    images: list[dict[str, str]] = []
+    spec: list[list[int]] = []
+    for level in range(_SPEC_MIPS):
+        size = _SPEC_SIZE >> level  # faces +X −X +Y −Y +Z −Z, OpenGL orientation, row 0 on top
+        faces = get_layout("cube").pixel_directions((6, size, size))
+        row = []
+        for face in faces:
+            world = face * np.array([1.0, 1.0, -1.0])  # cube frame → glTF world
+            # stored bottom row first ("flipped", as the extension says for glTF texture
+            # space): Babylon.js uploads it so that memory row 0 is the face's top (tc = −1)
+            png = _png_rgba8(_rgbd8(irradiance(L9, world) / np.pi)[::-1])
+            row.append(len(images))
+            images.append({"uri": "data:image/png;base64,"
+                           + base64.b64encode(png).decode("ascii")})
+        spec.append(row)
+    light: dict[str, Any] = {"name": source or "shprobe", "intensity": 1.0,
+                             "rotation": [0.0, 0.0, 0.0, 1.0],
+                             "irradianceCoefficients": E9.tolist(),
+                             "specularImageSize": _SPEC_SIZE, "specularImages": spec}
+    doc = {"asset": {"version": "2.0", "generator": f"shprobe {__version__}"},
+           "extensionsUsed": ["EXT_lights_image_based"],
+           "extensions": {"EXT_lights_image_based": {"lights": [light]}},
+           "images": images,
+           "scene": 0,
+           "scenes": [{"extensions": {"EXT_lights_image_based": {"light": 0}}}],
+           "extras": {"shprobe": {
+               "convention": "Condon-Shortley signs (odd m negated), order k = l(l+1)+m, in "
+                             "the cube-map frame: cube direction (x, y, z) is the glTF "
+                             "direction (x, y, -z), as Babylon.js reads them",
+               "quantity": "irradiance coefficients E_lm = A_l L_lm, not divided by pi",
+               "specular": "specularImages hold the diffuse radiance E/pi of the same "
+                           "coefficients (RGBD PNG, every mip): a stand-in, not a GGX-"
+                           "prefiltered environment; replace them for glossy materials"}}}
     return json.dumps(doc, indent=2) + "\n"
 
 
@@ -344,7 +419,7 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
         if E.shape != (9, 3):
             raise ShprobeError(f"irradianceCoefficients must be 9x3, got {E.shape}", where)
         E = E * _number(lights[0].get("intensity", 1.0), "light intensity", where)
-        return E / (_ahat(2) * cs_signs(2))[:, None], "gltf"
+        return E / _gltf_factors()[:, None], "gltf"
     raise ShprobeError("JSON file holds no coefficients shprobe recognises", where)
 
 
