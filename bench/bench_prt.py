@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from shprobe.prt import Transfer, bake, load_scene, relight, sample_directions
-from shprobe.prt.bake import OFFSET_FRACTION, RayCaster
+from shprobe.prt.bake import OFFSET_FRACTION
+from shprobe.scene import RayCaster
 
 HERE = Path(__file__).resolve().parent
 
@@ -71,20 +72,21 @@ def main() -> None:
     scene = load_scene(args.mesh, ground=True)
     o, d = bake_rays(scene, args.samples, 0)
     n_rays = len(o)
-    caster = RayCaster(scene)
+    caster = RayCaster(scene.vertices, scene.faces)
+    ol = caster.local(o)  # the bake maps its ray origins into the caster's frame once, too
     half = n_rays // 2
-    parts = [(o[:half], d[:half]), (o[half:], d[half:])]
+    parts = [(ol[:half], d[:half]), (ol[half:], d[half:])]
     from concurrent.futures import ThreadPoolExecutor
 
     ex = ThreadPoolExecutor(2)
     runs = {
         "shprobe shadowed bake, 1 thread": lambda: bake(
             scene, mode="shadowed", lmax=args.lmax, samples=args.samples, seed=0, threads=1),
-        "embreex run(OCCLUDED) on the same rays, 1 thread": lambda: caster.occluded(o, d),
+        "embreex run(OCCLUDED) on the same rays, 1 thread": lambda: caster.occluded_local(ol, d),
         "shprobe shadowed bake, 2 threads": lambda: bake(
             scene, mode="shadowed", lmax=args.lmax, samples=args.samples, seed=0, threads=2),
         "embreex run(OCCLUDED) on the same rays, 2 threads":
-            lambda: list(ex.map(lambda p: caster.occluded(*p), parts)),
+            lambda: list(ex.map(lambda p: caster.occluded_local(*p), parts)),
     }
     # interleaved rounds, best of each: the machine is shared, so load hits all alike
     wall = {k: float("inf") for k in runs}
@@ -94,7 +96,7 @@ def main() -> None:
             w, c, _ = best(fn, 1)
             wall[k], cpu[k] = min(wall[k], w), min(cpu[k], c)
     ex.shutdown()
-    hit = caster.occluded(o, d)
+    hit = caster.occluded_local(ol, d)
     rows = [(k, wall[k], cpu[k], n_rays) for k in runs]
 
     import trimesh

@@ -72,15 +72,6 @@ def lighting(probe: str | None, preset: str | None, window: str | None, lmax: in
     return np.asarray(src.coeffs, dtype=np.float64)
 
 
-def auto_exposure(radiance, target: float = 0.8) -> float:
-    """Exposure in stops that maps the 99th percentile of the largest channel of the given
-    per-vertex radiance (..., V, 3) to ``target`` (0 when there is no light)."""
-    import numpy as np
-
-    peak = float(np.percentile(np.max(np.asarray(radiance), axis=-1), 99.0))
-    return float(np.log2(target / peak)) if np.isfinite(peak) and peak > 0 else 0.0
-
-
 def _exposure(text: str) -> float | None:
     """``auto`` → None; otherwise a finite number of stops."""
     import math
@@ -196,7 +187,7 @@ def register(group: click.Group) -> None:
                    size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
                    output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --window) and render it."""
-        from ..probes.images import check_image_output
+        from ..probes.images import auto_exposure, check_image_output
         from ..prt import load_transfer
         from ..prt.view import frame_radiance, render_frame
         from ..sh.rotation import from_axis_angle
@@ -222,7 +213,7 @@ def register(group: click.Group) -> None:
             rot = from_axis_angle([x, y, z], deg)
         coeffs = lighting(probe, preset, window, use, coeffs_file, layout, clamp)
         from ..prt.view import turntable as turntable_frames
-        from ..scene.render import Camera
+        from ..scene.camera import Camera
         from .common import progress
 
         w, h = parse_size(size)
