@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from shprobe.prt import Transfer, bake, load_scene, relight, sample_directions
-from shprobe.prt.bake import OFFSET_FRACTION
+from shprobe.prt.bake import OFFSET_FRACTION, random_rotation
 from shprobe.scene import RayCaster
 
 HERE = Path(__file__).resolve().parent
@@ -48,14 +48,6 @@ def bake_rays(scene, samples, seed):
     cos = scene.normals.astype(np.float32) @ d.T
     vi, dj = np.nonzero(cos > 0)
     return p[vi], d[dj]
-
-
-def rotation(rng):
-    q = rng.normal(size=4)
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def main() -> None:
@@ -142,7 +134,7 @@ def main() -> None:
     T = rng.normal(size=(V, k)).astype(np.float32)
     Tc = rng.normal(size=(V, k, 3)).astype(np.float32)
     L = rng.normal(size=(k, 3))
-    R = rotation(rng)
+    R = random_rotation(rng)
     normals = rng.normal(size=(V, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     # a Transfer as an interreflected bake of V vertices with 2 bounces leaves it

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from ..scene.raycast import RayCaster
 from ..sh import check_lmax, num_coeffs, sh_basis
+from ..sh.rotation import from_quaternion
 from .scene import Scene, load_scene
 from .transfer import (
     MODES,
@@ -47,7 +48,7 @@ from .transfer import (
     unshadowed_transfer,
 )
 
-__all__ = ["RayCaster", "bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
+__all__ = ["bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17
@@ -58,14 +59,8 @@ ProgressFn = Callable[..., Iterable[Any]]
 
 
 def random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
-    """A uniformly distributed rotation matrix (unit quaternion from 4 normals)."""
-    q = rng.normal(size=4)
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    """A uniformly distributed rotation matrix (a unit quaternion from 4 normals)."""
+    return from_quaternion(rng.normal(size=4))
 
 
 def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:

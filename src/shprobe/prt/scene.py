@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..scene.mesh import as_mesh, mesh_hash, mesh_vertex_albedo
+from ..sh.rotation import unit_vectors
 
 __all__ = ["DEFAULT_ALBEDO", "Scene", "ground_plane", "load_scene", "mesh_hash"]
 
@@ -51,9 +52,7 @@ class Scene:
     def face_normals(self) -> NDArray[np.float64]:
         """Unit geometric normals (F, 3) from the winding (counter-clockwise = front)."""
         v = self.vertices[self.faces]
-        n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-        ln = np.linalg.norm(n, axis=1, keepdims=True)
-        return n / np.where(ln > 0, ln, 1.0)
+        return unit_vectors(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), zero="keep")
 
     def to_trimesh(self):
         """The scene as one ``trimesh.Trimesh`` (for the renderer)."""
