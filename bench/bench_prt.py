@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from shprobe.prt import Transfer, bake, load_scene, relight, sample_directions
-from shprobe.prt.bake import OFFSET_FRACTION, RayCaster
+from shprobe.prt.bake import OFFSET_FRACTION, random_rotation
+from shprobe.scene import RayCaster
 
 HERE = Path(__file__).resolve().parent
 
@@ -49,14 +50,6 @@ def bake_rays(scene, samples, seed):
     return p[vi], d[dj]
 
 
-def rotation(rng):
-    q = rng.normal(size=4)
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     default_mesh = os.environ.get("SHPROBE_TEST_DATA", str(HERE.parent.parent / "shared"))
@@ -71,20 +64,21 @@ def main() -> None:
     scene = load_scene(args.mesh, ground=True)
     o, d = bake_rays(scene, args.samples, 0)
     n_rays = len(o)
-    caster = RayCaster(scene)
+    caster = RayCaster(scene.vertices, scene.faces)
+    ol = caster.local(o)  # the bake maps its ray origins into the caster's frame once, too
     half = n_rays // 2
-    parts = [(o[:half], d[:half]), (o[half:], d[half:])]
+    parts = [(ol[:half], d[:half]), (ol[half:], d[half:])]
     from concurrent.futures import ThreadPoolExecutor
 
     ex = ThreadPoolExecutor(2)
     runs = {
         "shprobe shadowed bake, 1 thread": lambda: bake(
             scene, mode="shadowed", lmax=args.lmax, samples=args.samples, seed=0, threads=1),
-        "embreex run(OCCLUDED) on the same rays, 1 thread": lambda: caster.occluded(o, d),
+        "embreex run(OCCLUDED) on the same rays, 1 thread": lambda: caster.occluded_local(ol, d),
         "shprobe shadowed bake, 2 threads": lambda: bake(
             scene, mode="shadowed", lmax=args.lmax, samples=args.samples, seed=0, threads=2),
         "embreex run(OCCLUDED) on the same rays, 2 threads":
-            lambda: list(ex.map(lambda p: caster.occluded(*p), parts)),
+            lambda: list(ex.map(lambda p: caster.occluded_local(*p), parts)),
     }
     # interleaved rounds, best of each: the machine is shared, so load hits all alike
     wall = {k: float("inf") for k in runs}
@@ -94,7 +88,7 @@ def main() -> None:
             w, c, _ = best(fn, 1)
             wall[k], cpu[k] = min(wall[k], w), min(cpu[k], c)
     ex.shutdown()
-    hit = caster.occluded(o, d)
+    hit = caster.occluded_local(ol, d)
     rows = [(k, wall[k], cpu[k], n_rays) for k in runs]
 
     import trimesh
@@ -140,7 +134,7 @@ def main() -> None:
     T = rng.normal(size=(V, k)).astype(np.float32)
     Tc = rng.normal(size=(V, k, 3)).astype(np.float32)
     L = rng.normal(size=(k, 3))
-    R = rotation(rng)
+    R = random_rotation(rng)
     normals = rng.normal(size=(V, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     # a Transfer as an interreflected bake of V vertices with 2 bounces leaves it

@@ -28,7 +28,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
 from shprobe.lighting.irradiance import shade_irradiance  # noqa: E402
-from shprobe.scene.render import Camera, load_mesh, render, trace  # noqa: E402
+from shprobe.scene import Camera, load_mesh, render, trace  # noqa: E402
 from shprobe.sh import sh_basis  # noqa: E402
 from shprobe.sh.zonal import clamped_cosine_factors, convolve  # noqa: E402
 

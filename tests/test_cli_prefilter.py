@@ -201,14 +201,18 @@ def test_existing_output_is_refused_before_any_work(probe, tmp_path, capsys):
                                      ["render", "--sphere", "--size", "8"]])
 def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_path, capsys,
                                                          monkeypatch):
+    import importlib
+
     import shprobe.lighting.reference
-    import shprobe.scene.render
+
+    render_module = importlib.import_module("shprobe.scene.render")  # shprobe.scene.render is
+    # the function (shprobe.scene re-exports it), the module is patched
 
     def boom(*a, **k):
         raise AssertionError("work started before the output was checked")
 
     monkeypatch.setattr(shprobe.lighting.reference, "reference_irradiance", boom)
-    monkeypatch.setattr(shprobe.scene.render, "render", boom)
+    monkeypatch.setattr(render_module, "render", boom)
     path, _ = probe
     rc, _, err = run([command[0], path, *command[1:], "-o", tmp_path / "e.gif"], capsys)
     one_line_error(rc, err)

@@ -139,13 +139,17 @@ def test_bump_normals_are_unit_and_tilt():
 
 
 def test_probe_sh_matches_brute_force(grace_path):
-    from shprobe.hbasis._env import brute_force_irradiance, load_lighting
+    """The shared lighting pipeline the H-basis now uses: the probe's SH (l ≤ 16, project) against
+    the brute-force reference (reference_irradiance)."""
+    from shprobe.lighting import project, reference_irradiance
+    from shprobe.probes.layouts import load_env
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
-    L = load_lighting(grace_path, 16)
+    env = load_env(grace_path)
+    L = project(env, 16)
     n = random_dirs(40, seed=12)
-    ref = brute_force_irradiance(L, n)
-    e = convolve(L.sh, clamped_cosine_factors(16))
+    ref = reference_irradiance(env, n)
+    e = convolve(L, clamped_cosine_factors(16))
     assert np.sqrt(np.mean((sh_basis(n, 16) @ e - ref) ** 2)) / ref.mean() < 0.02
     # R&H: 9 coefficients give an irradiance error of a few percent
     rel9 = np.sqrt(np.mean((sh_basis(n, 2) @ e[:9] - ref) ** 2)) / ref.mean()
@@ -159,11 +163,12 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     assert z["h"].shape[1:] == (6, 3) and z["frames"].shape[1:] == (3, 3)
     _orthonormal_right_handed(z["frames"])
     # the file's coefficients are T_h applied to the frame-rotated irradiance
-    from shprobe.hbasis._env import load_lighting
+    from shprobe.lighting import project
+    from shprobe.probes.layouts import load_env
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
-    L = load_lighting(grace_path, 4)
-    e = convolve(L.sh, clamped_cosine_factors(4))
+    L = project(load_env(grace_path), 16)[:25]  # the bake keeps l ≤ 16, uses bands ≤ 4
+    e = convolve(L, clamped_cosine_factors(4))
     want = bake(e, z["frames"][:20]).h
     np.testing.assert_allclose(z["h"][:20], want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
     assert main(["hbasis", "bake", str(bunny_path), str(grace_path), "-o", str(out)]) == 1
@@ -188,7 +193,7 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
                  "--size", "48"]) == 0
     text3 = capsys.readouterr().out
     assert "SH (l ≤ 16) of the baked probe" in text3 and "| H6 |" in text3
-    np.testing.assert_allclose(z["L"], load_lighting(grace_path, 16).sh, rtol=1e-12)
+    np.testing.assert_allclose(z["L"], project(load_env(grace_path), 16), rtol=1e-12)
     # an H4 bake renders without the H6 panel
     out4 = tmp_path / "c4.npz"
     assert main(["hbasis", "bake", str(bunny_path), str(grace_path), "-o", str(out4),
@@ -251,8 +256,7 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
     import trimesh
     from PIL import Image
 
-    from shprobe.hbasis._env import load_lighting
-    from shprobe.hbasis.normalmap import read_normal_map, render_normal_mapped
+    from shprobe.hbasis.normalmap import read_lighting, read_normal_map, render_normal_mapped
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     g = np.linspace(-1, 1, 5)
@@ -276,24 +280,24 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
     L = rng.normal(size=(9, 3))
     L[0] += 6
     np.save(tmp_path / "L.npy", L)
-    light = load_lighting(tmp_path / "L.npy")
+    light = read_lighting(tmp_path / "L.npy")
     res = render_normal_mapped(mesh, light, size=16, normal_map=nmap)
     t = nmap[0, 0]
     world = np.array([t[0], -t[1] if mirror else t[1], t[2]])
     e = convolve(L, clamped_cosine_factors(2))
     expect = sh_basis(world, 2) @ e
-    ref = res.images["reference"][res.mask]
+    ref = res.irradiance[res.mask]
     assert res.mask.mean() > 0.5
     np.testing.assert_allclose(ref, np.broadcast_to(expect, ref.shape), rtol=1e-10)
     # l ≤ 2 lighting: SH9 is exact, and H6 is its hemispherical projection
-    np.testing.assert_allclose(res.images["SH9"][res.mask], ref, rtol=1e-10)
-    assert res.rel_rms["SH9"] < 1e-10
+    np.testing.assert_allclose(res.layers["SH9"][res.mask], ref, rtol=1e-10)
+    assert res.info["rel_rms"]["SH9"] < 1e-10
     # H6 at the looked-up tangent normal (green flipped on the mirrored chart), one flat frame
     fr = tangent_frames(verts, np.array(faces), uvs=uv)
     np.testing.assert_allclose(fr.handedness, -1 if mirror else 1)
     vt = np.array([t[0], -t[1] if mirror else t[1], t[2]])
     h6 = shade_h(bake(e, fr.matrix[:1]).h[0], vt)
-    np.testing.assert_allclose(res.images["H6"][res.mask], np.broadcast_to(h6, ref.shape),
+    np.testing.assert_allclose(res.layers["H6"][res.mask], np.broadcast_to(h6, ref.shape),
                                rtol=1e-10)
 
 
@@ -302,17 +306,18 @@ def test_render_pixels_match_independent_projection(bunny_path, probe):
     """Rendered pixels of `hbasis render` against an independent per-pixel computation that
     uses neither SH, rotation nor T_h: brute-force irradiance straight from the probe's pixels,
     projected onto H6 by quadrature in each vertex's frame (and in each pixel's own frame)."""
-    from shprobe.hbasis._env import load_lighting
-    from shprobe.hbasis.normalmap import load_mesh, render_normal_mapped
+    from shprobe.hbasis.normalmap import render_normal_mapped
+    from shprobe.lighting import project
     from shprobe.probes.layouts import load_env
+    from shprobe.scene import load_mesh
 
     from .conftest import data_file
 
     path = data_file("probes", f"{probe}.hdr")
     mesh = load_mesh(bunny_path)
-    light = load_lighting(path, 16)
-    res = render_normal_mapped(mesh, light, size=40)
-    d, rad, sa = load_env(path).samples()
+    env = load_env(path)
+    res = render_normal_mapped(mesh, env, size=40)
+    d, rad, sa = env.samples()
     ld = np.asarray(rad, dtype=np.float64) * sa[:, None]
 
     def irr(n):  # E(n) = Σ_pixels L max(n·ω, 0) dω
@@ -321,22 +326,26 @@ def test_render_pixels_match_independent_projection(bunny_path, probe):
     u, wu, _, _ = theta_quadrature_hemisphere(16, 32)
     hu = h_basis(u) * wu[:, None]
     rng = np.random.default_rng(3)
-    pick = rng.choice(len(res.pixel_index), 12, replace=False)
-    pix = res.pixel_index[pick]
-    e_true = irr(res.world_normals[pick])
-    np.testing.assert_allclose(res.images["reference"].reshape(-1, 3)[pix], e_true, rtol=1e-10)
-    rendered = res.images["H6"].reshape(-1, 3)[pix]
-    hv = h_basis(res.tangent_normals[pick])
+    hit_pixels = np.flatnonzero(res.mask)  # flat pixel index of each hit, row-major
+    pick = rng.choice(len(hit_pixels), 12, replace=False)
+    pix = hit_pixels[pick]
+    world_normals = res.normals.reshape(-1, 3)[pix]
+    e_true = irr(world_normals)
+    np.testing.assert_allclose(res.irradiance.reshape(-1, 3)[pix], e_true, rtol=1e-10)
+    rendered = res.layers["H6"].reshape(-1, 3)[pix]
+    hv = h_basis(res.layers["tangent_normals"].reshape(-1, 3)[pix])
     frames = tangent_frames(mesh.vertices, mesh.faces, np.asarray(mesh.vertex_normals)).matrix
-    faces = np.asarray(mesh.faces)[res.triangles[pick]]
-    e = convolve(light.sh, clamped_cosine_factors(16))
+    faces = np.asarray(mesh.faces)[res.face.reshape(-1)[pix]]
+    bary = res.bary.reshape(-1, 3)[pix].astype(np.float64)
+    pixel_frames = res.layers["frames"].reshape(-1, 3, 3)[pix]
+    e = convolve(project(env, 16), clamped_cosine_factors(16))
     # what the bake leaves out (bands 5..16 of E) bounds the coefficient difference per vertex
     dropped = np.sqrt(np.sum(e[25:] ** 2, axis=0))
     indep_interp, indep_pixel = [], []
-    for k, p in enumerate(pick):
-        coeffs = sum(res.bary[p, j] * (hu.T @ irr(u @ frames[faces[k, j]].T)) for j in range(3))
+    for k in range(len(pick)):
+        coeffs = sum(bary[k, j] * (hu.T @ irr(u @ frames[faces[k, j]].T)) for j in range(3))
         indep_interp.append(hv[k] @ coeffs)
-        indep_pixel.append(hv[k] @ (hu.T @ irr(u @ res.pixel_frames[p].T)))
+        indep_pixel.append(hv[k] @ (hu.T @ irr(u @ pixel_frames[k].T)))
     indep_interp, indep_pixel = np.array(indep_interp), np.array(indep_pixel)
     # 1. the renderer interpolates exactly the per-vertex H6 projections, up to the bands ≥ 5
     #    its bake drops: |H(v)·Δh| ≤ ‖H(v)‖ ‖E − E_≤4‖
@@ -348,4 +357,4 @@ def test_render_pixels_match_independent_projection(bunny_path, probe):
     basis_err = np.sqrt(np.mean((indep_pixel - e_true) ** 2)) / scale
     render_err = np.sqrt(np.mean((rendered - e_true) ** 2)) / scale
     assert 0.8 * basis_err <= render_err <= 1.25 * basis_err
-    assert res.rel_rms["H6"] <= 1.5 * basis_err
+    assert res.info["rel_rms"]["H6"] <= 1.5 * basis_err

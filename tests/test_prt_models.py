@@ -321,7 +321,7 @@ def test_threads_set_the_workers_and_not_the_result(monkeypatch):
     state = {"active": 0, "peak": 0, "barrier": None}
     lock = threading.Lock()
     local = threading.local()
-    inner = bake_module.RayCaster.intersect
+    inner = bake_module.RayCaster.first_hit_local
 
     def spy(self, o, d):
         with lock:
@@ -337,7 +337,7 @@ def test_threads_set_the_workers_and_not_the_result(monkeypatch):
             with lock:
                 state["active"] -= 1
 
-    monkeypatch.setattr(bake_module.RayCaster, "intersect", spy)
+    monkeypatch.setattr(bake_module.RayCaster, "first_hit_local", spy)
     meshes, albedo, _ = box_scene(res=12)
     kw = dict(mode="interreflected", lmax=2, samples=128, bounces=2, mesh_albedo=albedo, seed=3)
     one = bake(meshes, threads=1, **kw)

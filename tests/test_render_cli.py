@@ -10,7 +10,7 @@ import pytest
 
 from shprobe.cli.main import main
 from shprobe.lighting.export import import_coeffs
-from shprobe.scene.render import Camera, basis_images, load_mesh, relight, render, sphere_mesh
+from shprobe.scene import Camera, basis_images, load_mesh, relight, render, sphere_mesh
 
 
 def _L(seed=3):

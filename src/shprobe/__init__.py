@@ -67,9 +67,9 @@ _EXPORTS: dict[str, str] = {
     "detect_layout": "probes.layouts",
     "write_env": "probes.layouts",
     # rendering, lighting design, export
-    "Camera": "scene.render",
+    "Camera": "scene.camera",
     "render_vertex_colors": "scene.render",
-    "load_mesh": "scene.render",
+    "load_mesh": "scene.mesh",
     "min_irradiance": "lighting.windows",
     "auto_window": "lighting.windows",
     "window_factors": "lighting.windows",
@@ -120,7 +120,9 @@ if TYPE_CHECKING:  # pragma: no cover
     )
     from .probes.presets import PRESETS, get_preset
     from .prt import bake, load_transfer, relight
-    from .scene.render import Camera, load_mesh, render_vertex_colors
+    from .scene.camera import Camera
+    from .scene.mesh import load_mesh
+    from .scene.render import render_vertex_colors
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh.zonal import (

@@ -46,12 +46,6 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None
     console(stderr=True).print(f"wrote {outdir}/hbasis_study.md, .csv, .png")
 
 
-def _lighting(probe: Path, lmax: int):
-    from ..hbasis._env import load_lighting
-
-    return load_lighting(probe, lmax)
-
-
 @hbasis_group.command("bake")
 @click.argument("mesh", type=click.Path(path_type=Path))
 @click.argument("probe", type=click.Path(path_type=Path))
@@ -65,44 +59,16 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     """Bake per-vertex tangent-space H coefficients of MESH under PROBE (lat-long image, or
     .npy/.npz SH radiance coefficients (K, 3)). The .npz also keeps the mesh's hash and the
     probe's radiance SH L (l ≤ 16), so `hbasis render MESH FILE.npz` can use it directly."""
-    import numpy as np
-
-    from ..files import check_output_path, save_npz
-    from ..hbasis.basis import sh_to_h_matrix
-    from ..hbasis.normalmap import bake, load_mesh, mesh_uvs, tangent_frames
-    from ..prt.scene import mesh_hash
-    from ..sh import lmax_of, num_coeffs
-    from ..sh.zonal import clamped_cosine_factors, convolve
+    from ..files import check_output_path
+    from ..hbasis.normalmap import bake_mesh, read_lighting, save_bake
+    from ..scene.mesh import load_mesh
 
     check_output_path(output, force)
-    if not mesh.is_file():
-        raise ShprobeError("no such file", mesh)
     m = load_mesh(mesh)
-    light = _lighting(probe, 16)
-    lm = lmax_of(light.sh.shape[0])
-    e = convolve(light.sh, clamped_cosine_factors(lm))
-    fr = tangent_frames(m.vertices, m.faces, np.asarray(m.vertex_normals), mesh_uvs(m))
-    n = 6 if basis == "h6" else 4
-    bk = bake(e[: num_coeffs(min(bands, lm))], fr.matrix, n=n, lmax=bands)
-    save_npz(output, overwrite=force, h=bk.h, sh9=bk.sh, frames=fr.matrix,
-             handedness=fr.handedness.astype(np.int8),
-             t_h=sh_to_h_matrix(min(bands, lm), n), basis=np.array(basis.upper()),
-             bands=np.array(min(bands, lm)), L=light.sh,
-             mesh_hash=np.array(mesh_hash(m.vertices, m.faces)))
-    console(stderr=True).print(f"wrote {output}: {len(m.vertices)} vertices × {n} × 3")
-
-
-def _is_bake(path: Path) -> bool:
-    """True for an .npz written by `hbasis bake` (it has arrays h and frames)."""
-    import numpy as np
-
-    if path.suffix.lower() != ".npz" or not path.is_file():
-        return False
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return "h" in z.files and "frames" in z.files
-    except (OSError, ValueError, EOFError):
-        return False
+    bk = bake_mesh(m, read_lighting(probe), n=6 if basis == "h6" else 4, bands=bands)
+    save_bake(output, bk, overwrite=force)
+    console(stderr=True).print(f"wrote {output}: {len(m.vertices)} vertices × "
+                               f"{bk.h.shape[1]} × 3")
 
 
 @hbasis_group.command("render")
@@ -129,40 +95,39 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
     PROBE may also be a `hbasis bake` .npz: its coefficients are used (as with --coeffs) and
     the reference is its stored radiance SH expansion (l ≤ 16) instead of brute force.
     """
-    from PIL import Image
+    import numpy as np
 
-    from ..files import atomic_output, check_output_path
+    from ..files import check_output_path
     from ..hbasis.normalmap import (
+        is_bake,
         load_bake,
-        load_mesh,
-        panel_image,
+        read_lighting,
         read_normal_map,
         render_normal_mapped,
+        save_panel,
     )
+    from ..scene.mesh import load_mesh
 
     if output.suffix.lower() != ".png":
         raise ShprobeError("the comparison panel is written as .png", output)
     check_output_path(output, force)
-    if not mesh.is_file():
-        raise ShprobeError("no such file", mesh)
     m = load_mesh(mesh)
-    if coeffs is None and _is_bake(probe):
+    if coeffs is None and is_bake(probe):
         coeffs = probe
     baked = None if coeffs is None else load_bake(coeffs, m)
     nmap = None if normal_map is None else read_normal_map(normal_map)
-    light = _lighting(probe, 16)
+    light = read_lighting(probe)
     res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
                                baked=baked)
-    with atomic_output(output, overwrite=force) as tmp:
-        Image.fromarray(panel_image(res, gain)).save(tmp, format="PNG")
-    if light.dirs is not None:
+    save_panel(output, res, gain, overwrite=force)
+    if not isinstance(light, np.ndarray):
         ref = "brute force"
     elif coeffs == probe:
         ref = "SH (l ≤ 16) of the baked probe"
     else:
         ref = "the SH expansion of PROBE"
     click.echo(f"| basis | relative RMS error vs {ref} |\n| --- | ---: |")
-    for k, v in res.rel_rms.items():
+    for k, v in res.info["rel_rms"].items():
         click.echo(f"| {k} | {v:.4f} |")
     console(stderr=True).print(f"wrote {output}")
 

@@ -70,15 +70,6 @@ def lighting(probe: str | None, preset: str | None, cone: str | None, lmax: int,
                           lmax=lmax if (probe or cone) else None, cone=cone_arg).coeffs
 
 
-def auto_exposure(radiance, target: float = 0.8) -> float:
-    """Exposure in stops that maps the 99th percentile of the largest channel of the given
-    per-vertex radiance (..., V, 3) to ``target`` (0 when there is no light)."""
-    import numpy as np
-
-    peak = float(np.percentile(np.max(np.asarray(radiance), axis=-1), 99.0))
-    return float(np.log2(target / peak)) if np.isfinite(peak) and peak > 0 else 0.0
-
-
 def _exposure(text: str) -> float | None:
     """``auto`` → None; otherwise a finite number of stops."""
     import math
@@ -197,7 +188,7 @@ def register(group: click.Group) -> None:
                    size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
                    output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --cone) and render it."""
-        from ..probes.images import check_image_output
+        from ..probes.images import auto_exposure, check_image_output
         from ..prt import load_transfer
         from ..prt.view import frame_radiance, render_frame
         from ..sh.rotation import from_axis_angle
@@ -219,7 +210,7 @@ def register(group: click.Group) -> None:
         rot = None if rotate is None else parse_rotation(rotate)
         coeffs = lighting(probe, preset, cone, use, coeffs_file, layout, clamp)
         from ..prt.view import turntable as turntable_frames
-        from ..scene.render import Camera
+        from ..scene.camera import Camera
         from .common import progress
 
         w, h = parse_size(size)

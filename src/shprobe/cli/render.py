@@ -90,7 +90,7 @@ def camera_options(fn):
 
 
 def make_camera(size, azimuth, elevation, fov, ortho):
-    from ..scene.render import Camera
+    from ..scene.camera import Camera
 
     w, h = parse_size(size)
     return Camera(w, h, projection="orthographic" if ortho else "perspective",
@@ -98,7 +98,7 @@ def make_camera(size, azimuth, elevation, fov, ortho):
 
 
 def load_geometry(mesh, sphere):
-    from ..scene.render import load_mesh
+    from ..scene.mesh import load_mesh
 
     if mesh and sphere:
         raise ShprobeError("give either --mesh MESH or --sphere, not both")

@@ -3,7 +3,8 @@
 * :mod:`.basis` — H4/H6 (eq. 8–13), T_h (SH → H), hemispherical quadrature and projection.
 * :mod:`.rivals` — HL2, HSH, Makhotkin, Zernike, least-squares SH: one ``HemiBasis`` interface.
 * :mod:`.study` — the Fig. 3 IMSE study.
-* :mod:`.normalmap` — tangent frames, per-vertex bake, normal-mapped shading.
+* :mod:`.normalmap` — tangent frames, per-vertex bake (``bake_mesh``, ``save_bake`` /
+  ``load_bake``), normal-mapped rendering through the scene layer.
 
 Conventions: docs/hbasis.md.
 """

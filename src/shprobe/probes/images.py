@@ -431,10 +431,23 @@ def _rgbe_decode():
 
 
 def tonemap(rgb: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
-    """Linear RGB → 8-bit sRGB: scale by 2**exposure, clamp to [0, 1], sRGB OETF, round."""
+    """Linear RGB → 8-bit sRGB: scale by 2**exposure, clamp to [0, 1], sRGB OETF, round.
+
+    The one tone map: every PNG shprobe writes goes through it (:func:`write_image`)."""
     v = np.asarray(rgb, dtype=np.float32) * np.float32(2.0 ** exposure)
     v = np.nan_to_num(v, nan=0.0, posinf=1.0, neginf=0.0)
     return np.round(linear_to_srgb(v) * 255.0).astype(np.uint8)
+
+
+def auto_exposure(radiance: ArrayLike, target: float = 0.8) -> float:
+    """Exposure in stops for :func:`tonemap` that maps the 99th percentile of the largest
+    channel of ``radiance`` (..., 3) to ``target`` (0 when there is no light): bright enough to
+    see, with at most ~1 % of the values clipped."""
+    a = np.asarray(radiance, dtype=np.float64)
+    if a.size == 0:
+        return 0.0
+    peak = float(np.percentile(np.max(a, axis=-1), 99.0))
+    return float(np.log2(target / peak)) if np.isfinite(peak) and peak > 0 else 0.0
 
 
 def check_image_output(path: str | os.PathLike[str], overwrite: bool = False) -> Path:

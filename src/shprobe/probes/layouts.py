@@ -128,7 +128,7 @@ def _unit(dirs: ArrayLike) -> NDArray[np.float64]:
 
 def _bilinear(img: NDArray, x: NDArray, y: NDArray, wrap_x: bool) -> NDArray[np.float32]:
     """Bilinear lookup at continuous pixel coords (centres at +0.5); y clamped, x wrapped or
-    clamped. ``img`` is (H, W, C)."""
+    clamped. ``img`` is (H, W, C); float32 out (float64 for a float64 image)."""
     h, w = img.shape[:2]
     fx = x - 0.5
     fy = np.clip(y - 0.5, 0.0, h - 1.0)
@@ -147,7 +147,7 @@ def _bilinear(img: NDArray, x: NDArray, y: NDArray, wrap_x: bool) -> NDArray[np.
         tx = (fx - x0)[..., None]
     top = img[y0, x0] * (1 - tx) + img[y0, x1] * tx
     bot = img[y1, x0] * (1 - tx) + img[y1, x1] * tx
-    return (top * (1 - ty) + bot * ty).astype(np.float32)
+    return (top * (1 - ty) + bot * ty).astype(np.promote_types(img.dtype, np.float32))
 
 
 def _grid2(grid_shape: Sequence[int]) -> tuple[int, int]:

@@ -28,14 +28,15 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..scene.raycast import RayCaster
 from ..sh import check_lmax, num_coeffs, sh_basis
+from ..sh.rotation import from_quaternion
 from .scene import Scene, load_scene
 from .transfer import (
     MODES,
@@ -47,7 +48,7 @@ from .transfer import (
     unshadowed_transfer,
 )
 
-__all__ = ["RayCaster", "bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
+__all__ = ["bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17
@@ -58,14 +59,8 @@ ProgressFn = Callable[..., Iterable[Any]]
 
 
 def random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
-    """A uniformly distributed rotation matrix (unit quaternion from 4 normals)."""
-    q = rng.normal(size=4)
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    """A uniformly distributed rotation matrix (a unit quaternion from 4 normals)."""
+    return from_quaternion(rng.normal(size=4))
 
 
 def sample_directions(n: int, seed: int = 0) -> NDArray[np.float64]:
@@ -89,58 +84,6 @@ def check_threads(threads: Any) -> int:
     if threads is None:
         return max(1, os.cpu_count() or 1)
     return check_int(threads, 1, "threads")
-
-
-class RayCaster:
-    """Embree (embreex) scene over a :class:`Scene`'s triangles."""
-
-    def __init__(self, scene: Scene) -> None:
-        from embreex import mesh_construction, rtcore_scene
-
-        self._scene = rtcore_scene.EmbreeScene()
-        mesh_construction.TriangleMesh(self._scene, scene.vertices.astype(np.float32),
-                                       scene.faces.astype(np.int32))
-
-    def occluded(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]) -> NDArray:
-        """True where the ray hits anything (any-hit query)."""
-        return self._scene.run(origins, dirs, query="OCCLUDED") != -1
-
-    def intersect(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]):
-        """Closest hit: (primitive id or −1, u, v) with hit = (1−u−v)p0 + u p1 + v p2."""
-        r = self._scene.run(origins, dirs, output=1)
-        return r["primID"], r["u"], r["v"]
-
-
-@lru_cache(maxsize=1)
-def _kernels():
-    """Numba kernels (compiled once, cached on disk): hemisphere ray set, visibility sum."""
-    import numba
-
-    @numba.njit(cache=True, nogil=True)
-    def hemisphere_rays(p, n, dirs, o, d, cw, vid, did):
-        m = 0
-        for v in range(p.shape[0]):
-            for j in range(dirs.shape[0]):
-                c = n[v, 0] * dirs[j, 0] + n[v, 1] * dirs[j, 1] + n[v, 2] * dirs[j, 2]
-                if c > 0:
-                    for a in range(3):
-                        o[m, a] = p[v, a]
-                        d[m, a] = dirs[j, a]
-                    cw[m] = c
-                    vid[m] = v
-                    did[m] = j
-                    m += 1
-        return m
-
-    @numba.njit(cache=True, nogil=True)
-    def add_visible(free, vid, did, cw, yw, out):
-        for r in range(free.shape[0]):
-            if free[r]:
-                v, j, c = vid[r], did[r], cw[r]
-                for k in range(yw.shape[1]):
-                    out[v, k] += c * yw[j, k]
-
-    return hemisphere_rays, add_visible
 
 
 def _chunks(n_vertices: int, samples: int) -> list[tuple[int, int]]:
@@ -241,17 +184,18 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     dirs = sample_directions(samples, seed)
     dirs32 = dirs.astype(np.float32)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
-    caster = RayCaster(sc)
+    caster = RayCaster(sc.vertices, sc.faces)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
-    p32 = (sc.vertices + eps * sc.normals).astype(np.float32)
+    p32 = caster.local(sc.vertices + eps * sc.normals)  # ray origins in the caster's frame
     n32 = sc.normals.astype(np.float32)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
     from scipy.sparse import coo_matrix
 
-    kernels = _kernels()
+    from ._kernels import add_visible, hemisphere_rays
+
     k = yw.shape[1]
 
     def work(span: tuple[int, int]):
@@ -262,15 +206,15 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
         cw = np.empty(cap, np.float32)
         vid = np.empty(cap, np.int64)
         did = np.empty(cap, np.int64)
-        m = kernels[0](p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
+        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
         o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
         proj = np.zeros((i1 - i0, k))
         if not gather:
-            free = ~caster.occluded(o, d)
-            kernels[1](free, vid, did, cw, yw, proj)
+            free = ~caster.occluded_local(o, d)
+            add_visible(free, vid, did, cw, yw, proj)
             return proj, None
-        prim, u, v = caster.intersect(o, d)
-        kernels[1](prim < 0, vid, did, cw, yw, proj)
+        prim, u, v = caster.first_hit_local(o, d)
+        add_visible(prim < 0, vid, did, cw, yw, proj)
         hit = np.flatnonzero(prim >= 0)
         front = np.einsum("ij,ij->i", d[hit], fnormals[prim[hit]]) < 0
         sel = hit[front]

@@ -7,7 +7,6 @@ never reused for another mesh (Lisle & Huang 2007 §4: scene switchable at run t
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -17,7 +16,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..scene.render import mesh_vertex_albedo
+from ..scene.mesh import as_mesh, mesh_hash, mesh_vertex_albedo
+from ..sh.rotation import unit_vectors
+
+__all__ = ["DEFAULT_ALBEDO", "Scene", "ground_plane", "load_scene", "mesh_hash"]
 
 #: Albedo used where none is given.
 DEFAULT_ALBEDO = 0.8
@@ -50,9 +52,7 @@ class Scene:
     def face_normals(self) -> NDArray[np.float64]:
         """Unit geometric normals (F, 3) from the winding (counter-clockwise = front)."""
         v = self.vertices[self.faces]
-        n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-        ln = np.linalg.norm(n, axis=1, keepdims=True)
-        return n / np.where(ln > 0, ln, 1.0)
+        return unit_vectors(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), zero="keep")
 
     def to_trimesh(self):
         """The scene as one ``trimesh.Trimesh`` (for the renderer)."""
@@ -60,39 +60,6 @@ class Scene:
 
         return trimesh.Trimesh(self.vertices, self.faces, vertex_normals=self.normals,
                                process=False)
-
-
-def mesh_hash(vertices: ArrayLike, faces: ArrayLike) -> str:
-    """SHA-256 (hex) of the vertices (as float32) and the faces (as int64), little-endian.
-
-    float32 so that the hash ignores float64 noise below what a mesh file stores; any moved
-    vertex or changed face gives another hash.
-    """
-    h = hashlib.sha256()
-    v = np.ascontiguousarray(np.asarray(vertices, dtype="<f4"))
-    f = np.ascontiguousarray(np.asarray(faces, dtype="<i8"))
-    h.update(str(v.shape).encode())
-    h.update(v.tobytes())
-    h.update(str(f.shape).encode())
-    h.update(f.tobytes())
-    return h.hexdigest()
-
-
-def _load_mesh(item: Any):
-    """A trimesh.Trimesh from a path or a trimesh object (Scene objects are concatenated)."""
-    import trimesh
-
-    if isinstance(item, str | os.PathLike):
-        from ..scene.render import load_mesh
-
-        return load_mesh(item)
-    if isinstance(item, trimesh.Scene):
-        item = item.to_geometry() if hasattr(item, "to_geometry") else item.dump(concatenate=True)
-    if isinstance(item, trimesh.Trimesh):
-        if len(item.faces) == 0:
-            raise ShprobeError("mesh has no triangles")
-        return item
-    raise ShprobeError(f"cannot use {type(item).__name__} as a mesh (path or trimesh object)")
 
 
 def ground_plane(center_xz: ArrayLike, size: float, y: float, resolution: int = 64):
@@ -167,7 +134,7 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
       per-vertex values (V_i,), (V_i, 1) or (V_i, 3).
 
     Default (neither, or a None entry): the mesh's own colour when it has one (texture at the
-    vertex UVs, vertex, face or material colours: :func:`shprobe.render.mesh_vertex_albedo`),
+    vertex UVs, vertex, face or material colours: :func:`shprobe.scene.mesh.mesh_vertex_albedo`),
     else ρ = 0.8. ground: add a square plane under
     the scene (at the lowest y of the meshes, ``ground_size`` times the larger horizontal
     extent, normal +Y) with ``ground_albedo`` (a number or RGB; default ``albedo``, else 0.8).
@@ -191,7 +158,7 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
     items = list(scene) if isinstance(scene, list | tuple) else [scene]
     if not items:
         raise ShprobeError("the scene has no meshes")
-    meshes = [_load_mesh(it) for it in items]
+    meshes = [as_mesh(it) for it in items]
     if mesh_albedo is not None:
         if isinstance(mesh_albedo, str) or not isinstance(mesh_albedo, Sequence):
             raise ShprobeError("mesh_albedo must be a list with one entry per mesh")

@@ -1,6 +1,6 @@
 """Pictures of relit transfer: one frame, or a turntable of the lighting turning around the
 object (Lisle & Huang 2007 §4: model, degree and probe switchable at run time, no re-bake).
-Uses the per-vertex renderer ``shprobe.render.render_vertex_colors``.
+Uses the per-vertex renderer ``shprobe.scene.render_vertex_colors``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Renderer (R&H 2001 §3.2): checked against closed-form sphere geometry and the SH sum."""
+"""Scene renderer (R&H 2001 §3.2): checked against closed-form sphere geometry and the SH
+sum; the camera's orbit and framing."""
 
 from __future__ import annotations
 
@@ -7,14 +8,14 @@ import pytest
 
 from shprobe.errors import ShprobeError
 from shprobe.lighting.irradiance import quadratic_form, shade_irradiance
-from shprobe.scene.render import (
+from shprobe.probes.images import tonemap
+from shprobe.scene import (
     Camera,
     load_mesh,
     render,
     render_vertex_colors,
     save_image,
     sphere_mesh,
-    tonemap,
 )
 from shprobe.sh import sh_basis
 from shprobe.sh.rotation import rotate
@@ -209,15 +210,6 @@ def test_background_is_environment_lookup():
         (~res2.mask).sum(), 1)), rtol=1e-6)
 
 
-def test_tonemap_operator():
-    v = np.array([[[0.0, 0.1, 0.5]]])
-    out = tonemap(v, exposure=1.0)
-    lin = np.clip(v * 2, 0, 1)
-    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
-    np.testing.assert_array_equal(out, np.round(srgb * 255).astype(np.uint8))
-    assert out[0, 0, 2] == 255
-
-
 def test_bunny_renders_without_holes(bunny_path, tmp_path):
     from PIL import Image
     from scipy import ndimage
@@ -240,26 +232,6 @@ def test_bunny_renders_without_holes(bunny_path, tmp_path):
     np.testing.assert_array_equal(im, tonemap(res.image))
 
 
-def test_load_mesh_formats_and_errors(tmp_path):
-    import trimesh
-
-    a = trimesh.creation.box()
-    b = trimesh.creation.icosphere(1)
-    b.apply_translation([3, 0, 0])
-    scene = trimesh.Scene([a, b])
-    scene.export(tmp_path / "s.glb")
-    m = load_mesh(tmp_path / "s.glb")
-    assert len(m.faces) == len(a.faces) + len(b.faces)
-    b.export(tmp_path / "s.ply")
-    assert len(load_mesh(tmp_path / "s.ply").faces) == len(b.faces)
-    (tmp_path / "bad.obj").write_text("this is not a mesh\n")
-    (tmp_path / "bad.glb").write_bytes(b"glTF\x00garbage")
-    for name in ("bad.obj", "bad.glb", "missing.ply"):
-        with pytest.raises(ShprobeError) as e:
-            load_mesh(tmp_path / name)
-        assert name in str(e.value) and "\n" not in str(e.value)
-
-
 def test_rotation_equivalence():
     """Rotating the lighting by R equals rotating the normals by R⁻¹ (R&H §3.2)."""
     from scipy.spatial.transform import Rotation
@@ -273,65 +245,3 @@ def test_rotation_equivalence():
     # E of the original lighting at R⁻¹ n: rotate normals the inverse way
     expect = shade_irradiance(L, n @ R, dtype=np.float64) / np.pi
     np.testing.assert_allclose(res.image[res.mask], expect, rtol=1e-4, atol=1e-5)
-
-
-def test_material_and_face_colours_from_disk(tmp_path):
-    """Untextured albedo from the file: OBJ ``Kd``, glTF ``baseColorFactor`` (both linear),
-    PLY face colours (8-bit sRGB); files written by hand except the GLB."""
-    import trimesh
-    from trimesh.visual import TextureVisuals
-    from trimesh.visual.material import PBRMaterial
-
-    L = lighting()
-    cam = Camera(16, 16, projection="orthographic", ortho_height=1.0)
-    white = render(_quad(), L, cam)
-    quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
-    (tmp_path / "k.mtl").write_text("newmtl m\nKd 0.8 0.4 0.2\n")
-    (tmp_path / "k.obj").write_text(f"mtllib k.mtl\n{quad}usemtl m\nf 1 2 3\nf 1 3 4\n")
-    res = render(load_mesh(tmp_path / "k.obj"), L, cam)
-    np.testing.assert_allclose(res.image[white.mask], white.image[white.mask] * [0.8, 0.4, 0.2],
-                               rtol=1e-2)
-    g = trimesh.Trimesh(_quad().vertices, _quad().faces, process=False)
-    g.visual = TextureVisuals(material=PBRMaterial(baseColorFactor=[0.2, 1.0, 0.6, 1.0]))
-    g.export(tmp_path / "g.glb")
-    res = render(load_mesh(tmp_path / "g.glb"), L, cam)
-    np.testing.assert_allclose(res.image[white.mask], white.image[white.mask] * [0.2, 1.0, 0.6],
-                               rtol=1e-2)
-    (tmp_path / "f.ply").write_text(
-        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-        "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-        "-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2 255 0 0\n3 0 2 3 0 0 255\n")
-    res = render(load_mesh(tmp_path / "f.ply"), L, cam)
-    # face 0 (lower right of the diagonal) red, face 1 (upper left) blue
-    assert res.image[12, 14, 0] > 0.5 * white.image[12, 14, 0] and res.image[12, 14, 2] == 0
-    assert res.image[2, 1, 2] > 0.5 * white.image[2, 1, 2] and res.image[2, 1, 0] == 0
-
-
-def test_textured_obj_and_coloured_ply_from_disk(tmp_path):
-    """Albedo taken from the file: an OBJ + MTL + PNG texture, a PLY with vertex colours."""
-    import trimesh
-    from PIL import Image
-
-    img = np.zeros((4, 4, 3), np.uint8)
-    img[:, :2] = [255, 0, 0]  # left half red
-    img[:, 2:] = [0, 0, 255]  # right half blue
-    Image.fromarray(img).save(tmp_path / "tex.png")
-    (tmp_path / "q.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd tex.png\n")
-    (tmp_path / "q.obj").write_text(
-        "mtllib q.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
-        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
-    L = lighting()
-    cam = Camera(16, 16, projection="orthographic", ortho_height=1.0)
-    res = render(load_mesh(tmp_path / "q.obj"), L, cam)
-    white = render(_quad(), L, cam)
-    np.testing.assert_allclose(res.image[:, :4, 0], white.image[:, :4, 0], rtol=1e-4)
-    assert np.all(res.image[:, :4, 1:] < 1e-6) and np.all(res.image[:, -4:, :2] < 1e-6)
-    # PLY with per-vertex colours: uniform mid grey (sRGB 128 → linear 0.2158)
-    m = trimesh.creation.icosphere(2)
-    m.visual.vertex_colors = np.tile([128, 128, 128, 255], (len(m.vertices), 1))
-    m.export(tmp_path / "c.ply")
-    res = render(load_mesh(tmp_path / "c.ply"), L, Camera(20, 20))
-    plain = render(load_mesh(tmp_path / "c.ply"), L, Camera(20, 20), albedo=1.0)
-    lin = ((128 / 255 + 0.055) / 1.055) ** 2.4
-    np.testing.assert_allclose(res.image[res.mask], lin * plain.image[res.mask], rtol=1e-4)
