@@ -73,16 +73,7 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     """
     p = Path(path)
     ext = p.suffix.lower()
-    if ext not in READ_EXTENSIONS:
-        raise ShprobeError(
-            f"unknown image extension {ext or '(none)'!r}; expected one of "
-            + " ".join(READ_EXTENSIONS), p)
-    if not p.exists():
-        raise ShprobeError("no such file", p)
-    if p.is_dir():
-        raise ShprobeError("is a directory, not an image", p)
-    if p.stat().st_size == 0:
-        raise ShprobeError("file is empty", p)
+    _check_readable(p, ext)
     ldr = False
     if ext == ".pfm":
         img = _read_pfm(p)
@@ -101,6 +92,20 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
         warnings.warn(f"{p}: 8/16-bit image decoded from sRGB to linear — display values are "
                       "not radiance", LDRWarning, stacklevel=2)
     return check_pixels(img, p, clamp)
+
+
+def _check_readable(p: Path, ext: str) -> None:
+    """One line for an unknown extension, a missing file, a folder or an empty file."""
+    if ext not in READ_EXTENSIONS:
+        raise ShprobeError(
+            f"unknown image extension {ext or '(none)'!r}; expected one of "
+            + " ".join(READ_EXTENSIONS), p)
+    if not p.exists():
+        raise ShprobeError("no such file", p)
+    if p.is_dir():
+        raise ShprobeError("is a directory, not an image", p)
+    if p.stat().st_size == 0:
+        raise ShprobeError("file is empty", p)
 
 
 def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
@@ -205,6 +210,179 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
     big = float(finite.max()) if finite.size else 0.0
     out = np.nan_to_num(img, nan=0.0, posinf=max(big, 0.0), neginf=0.0)
     return np.maximum(out, 0.0).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- streaming
+
+
+#: Default size of one block of rows read by :class:`ImageRows` (decoded float32 RGB).
+BLOCK_BYTES = 16 << 20
+
+
+class ImageRows:
+    """An image read in blocks of whole rows, straight from the file, in bounded memory.
+
+    ``with ImageRows(path) as im:`` gives ``im.width`` and ``im.height`` from the header
+    alone; ``for y0, block in im.blocks():`` yields ``(y0, (rows, W, 3) float32)`` top to
+    bottom, decoded exactly as :func:`read_image` decodes the whole image (RGBE half step,
+    sRGB → linear for 8/16-bit files with one :class:`LDRWarning`, grey → RGB, alpha dropped,
+    NaN/Inf/negative refused unless ``clamp``). OpenImageIO reads scanline and tiled files a
+    block at a time (tiled files a row of tiles at a time); PFM is memory-mapped. Peak memory
+    is one block (``block_bytes``, default 16 MB) plus the reader's own buffers, whatever the
+    image size.
+
+    Two cases are not bounded: Radiance files that OpenImageIO refuses (old-style RLE) are
+    decoded whole by :func:`read_rgbe` and handed out in blocks; and with ``clamp`` a +Inf
+    pixel becomes the largest finite value *of its block* (the whole image's in
+    :func:`read_image`).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], clamp: bool = False,
+                 block_bytes: int = BLOCK_BYTES) -> None:
+        self.path = Path(path)
+        self.clamp = clamp
+        self.block_bytes = int(block_bytes)
+        self._inp = None
+        self._whole: NDArray[np.float32] | None = None
+        self._pfm: tuple[np.memmap, int] | None = None
+        self._fmt = ""
+        self._ldr = False
+        self._srgb = False
+        self._nch = 3
+        self._y = 0
+        self._x = 0
+        self._tile = 0
+        p = self.path
+        ext = p.suffix.lower()
+        _check_readable(p, ext)
+        self._rgbe = ext in (".hdr", ".rgbe", ".pic")
+        if ext == ".pfm":
+            self.height, self.width = self._open_pfm()
+        else:
+            self.height, self.width = self._open_oiio()
+
+    # opening ------------------------------------------------------------------
+    def _open_pfm(self) -> tuple[int, int]:
+        p = self.path
+        with open(p, "rb") as f:
+            head = f.read(256)
+        m = _PFM_HEADER.match(head)
+        if m is None:
+            raise ShprobeError("not a PFM file (bad header)", p)
+        kind, w, h, scale = m.group(1), int(m.group(2)), int(m.group(3)), float(m.group(4))
+        if w == 0 or h == 0:
+            raise ShprobeError("image has zero size", p)
+        c = 3 if kind == b"PF" else 1
+        n = w * h * c
+        if p.stat().st_size - m.end() < 4 * n:
+            raise ShprobeError(f"truncated PFM: {p.stat().st_size - m.end()} of {4 * n} data "
+                               "bytes", p)
+        dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
+        mm = np.memmap(p, dtype=dt, mode="r", offset=m.end(), shape=(h, w, c))
+        self._pfm = (mm, c)
+        return h, w
+
+    def _open_oiio(self) -> tuple[int, int]:
+        import OpenImageIO as oiio
+
+        p = self.path
+        config = oiio.ImageSpec()
+        config.attribute("oiio:UnassociatedAlpha", 1)
+        with _c_stderr() as c_messages:
+            inp = oiio.ImageInput.open(str(p), config)
+            if inp is None:
+                msg = _oneline(oiio.geterror() or c_messages()) or "corrupt"
+                if self._rgbe:  # old-style RLE and other files OIIO refuses
+                    self._whole = read_rgbe(p)
+                    return self._whole.shape[0], self._whole.shape[1]
+                raise ShprobeError("cannot read image: " + msg, p)
+        spec = inp.spec()
+        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+            inp.close()
+            raise ShprobeError("image has zero size", p)
+        self._inp = inp
+        self._y, self._x = spec.y, spec.x
+        self._tile = int(spec.tile_height) if spec.tile_width else 0
+        self._nch = spec.nchannels
+        self._fmt = str(spec.format)
+        cs = str(spec.getattribute("oiio:ColorSpace") or "").lower()
+        self._ldr = self._fmt in ("uint8", "uint16", "int8", "int16", "uint32", "int32")
+        self._srgb = self._ldr and not ("lin" in cs and "srgb" not in cs)
+        return spec.height, spec.width
+
+    # reading --------------------------------------------------------------------
+    def rows_per_block(self) -> int:
+        """Rows in one block: ``block_bytes`` of float32 RGB (at least one row, or one row of
+        tiles)."""
+        return self._align(max(1, min(self.height, self.block_bytes // max(1, 12 * self.width))))
+
+    def _align(self, n: int) -> int:
+        t = self._tile
+        return n if t <= 1 else -(-n // t) * t
+
+    def blocks(self, rows: int | None = None) -> Iterator[tuple[int, NDArray[np.float32]]]:
+        """Yield ``(y0, block)`` top to bottom, ``block`` ``(rows, W, 3) float32``."""
+        n = self._align(int(rows)) if rows else self.rows_per_block()
+        if self._ldr:
+            warnings.warn(f"{self.path}: 8/16-bit image decoded from sRGB to linear — display "
+                          "values are not radiance", LDRWarning, stacklevel=2)
+        for y0 in range(0, self.height, n):
+            y1 = min(self.height, y0 + n)
+            yield y0, check_pixels(self._read(y0, y1), self.path, self.clamp)
+
+    def _read(self, y0: int, y1: int) -> NDArray[np.float32]:
+        p = self.path
+        if self._whole is not None:
+            return self._whole[y0:y1]
+        if self._pfm is not None:
+            mm, _ = self._pfm
+            h = self.height  # bottom-up rows: image rows y0..y1 are file rows h-y1..h-y0
+            return _to_rgb(np.asarray(mm[h - y1:h - y0][::-1], dtype=np.float32), p)
+        import OpenImageIO as oiio
+
+        inp = self._inp
+        with _c_stderr() as c_messages:
+            if self._tile:  # a row of tiles (y0 is a multiple of the tile height)
+                data = inp.read_tiles(0, 0, self._x, self._x + self.width, self._y + y0,
+                                      self._y + y1, 0, 1, 0, self._nch, oiio.FLOAT)
+            else:
+                data = inp.read_scanlines(0, 0, self._y + y0, self._y + y1, 0, 0, self._nch,
+                                          oiio.FLOAT)
+            if data is None or inp.has_error:
+                raise ShprobeError("cannot read image (truncated or corrupt): "
+                                   + _oneline(inp.geterror() or c_messages()), p)
+        data = np.asarray(data, dtype=np.float32)
+        if data.ndim == 2:  # one channel
+            data = data.reshape(y1 - y0, self.width, -1)
+        if self._srgb:
+            data = srgb_to_linear(data)
+        if self._rgbe:
+            data = _rgbe_half_step(data)
+        return _to_rgb(data, p)
+
+    def close(self) -> None:
+        """Release the file."""
+        if self._inp is not None:
+            self._inp.close()
+            self._inp = None
+        self._pfm = None
+        self._whole = None
+
+    def __enter__(self) -> ImageRows:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"ImageRows({str(self.path)!r}, {self.width}x{self.height})"
+
+
+def image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
+    """(width, height) of an image file from its header (no pixels decoded, except for
+    Radiance files OpenImageIO cannot open)."""
+    with ImageRows(path) as im:
+        return im.width, im.height
 
 
 # ----------------------------------------------------------------------------- PFM
