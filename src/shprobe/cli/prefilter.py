@@ -130,6 +130,32 @@ def _export(coeffs, fmt: str, source: str) -> str:
     return export_coeffs(coeffs, fmt, source=source)
 
 
+#: `prefilter` streams lat-long and cube images whose decoded float32 RGB would exceed this.
+STREAM_ABOVE_BYTES = 256 << 20
+
+
+def _streamed(probe: str, layout: str, lmax: int, clamp: bool):
+    """A big lat-long or cube probe projected block by block straight from the file
+    (shprobe.lighting.project_file, bounded memory); None for other probes."""
+    import warnings
+
+    from ..lighting.projection import project_file
+    from ..probes.images import LDRWarning, image_size
+    from .sources import CoeffSource
+
+    if layout in ("angular", "mirrorball"):
+        return None
+    w, h = image_size(probe)
+    if 12 * w * h <= STREAM_ABOVE_BYTES:
+        return None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LDRWarning)
+        fp = project_file(probe, lmax, layout, clamp)
+    for m in caught:
+        click.echo(f"shprobe: warning: {m.message}", err=True)
+    return CoeffSource(fp.coeffs, probe, fp.layout)
+
+
 def register(group: click.Group) -> None:
     """Add ``prefilter``, ``irradiance``, ``error`` and ``demo`` to the top-level group."""
 
@@ -156,7 +182,8 @@ def register(group: click.Group) -> None:
 
         if output:
             check_output_path(output, force)  # refuse before the work
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
+        src = (_streamed(probe, layout, lmax, clamp) if isinstance(probe, str) else None
+               ) or resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
         if fmt == "table":
             if output:
                 write_text(output, coeff_text(src.coeffs), force)
