@@ -133,6 +133,7 @@ class _WarmPlugin:
     """Dask worker plugin: warm numba in every worker, including ones started later."""
 
     name = "shprobe-warm"
+    idempotent = True  # registered once per cluster, not again by every batch
 
     def setup(self, worker: Any) -> None:
         _warm()
@@ -200,7 +201,8 @@ def _plugin():
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               output: str | os.PathLike[str] | None = None, *, lmax: int = 2,
               layout: str = "auto", clamp: bool = False, reference: int | None = None,
-              thumbnail: int = 0, scheduler: str | None = None, workers: int | None = None,
+              thumbnail: int = 0, window: bool = True, scheduler: str | None = None,
+              workers: int | None = None,
               client: Any = None, force: bool = False, flush_rows: int = 256,
               flush_seconds: float = 30.0, progress: Progress | None = None,
               block_bytes: int = 16 << 20):
@@ -220,7 +222,8 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
 
     options = BatchOptions(lmax=int(lmax), clamp=bool(clamp),
                            reference=None if not reference else int(reference),
-                           thumbnail=int(thumbnail or 0), block_bytes=int(block_bytes))
+                           thumbnail=int(thumbnail or 0), window=bool(window),
+                           block_bytes=int(block_bytes))
     from ..sh import check_lmax
 
     check_lmax(options.lmax)

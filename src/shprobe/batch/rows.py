@@ -61,7 +61,7 @@ COLUMNS: dict[str, tuple[str, str, str]] = {
                        "for lmax <= 2, the numerical minimum above"),
     "min_irradiance_certified": ("bool", "", "min_irradiance is a proven lower bound"),
     "window": ("string", "", "window `auto` would choose: none | hann | lanczos | gaussian "
-               "| laplacian"),
+               "| laplacian (null with --no-window)"),
     "window_strength": ("float64", "", "its strength (0 for none)"),
     "reference_grid": ("int32", "", "N of the 2N x N normal grid of the reference (null "
                        "without --reference)"),
@@ -109,10 +109,13 @@ def schema(meta: dict[str, Any] | None = None):
 class BatchOptions:
     """What each row computes: ``lmax``; ``clamp`` bad pixels instead of failing;
     ``reference`` N adds the exact-irradiance error on a 2N×N normal grid; ``thumbnail``
-    width in pixels (0: none); ``block_bytes`` of one streamed block of rows."""
+    width in pixels (0: none); ``window`` False leaves the auto-window columns null (they
+    cost more than decoding a 2k probe when a window is needed); ``block_bytes`` of one
+    streamed block of rows."""
 
     lmax: int = 2
     clamp: bool = False
+    window: bool = True
     reference: int | None = None
     thumbnail: int = 0
     block_bytes: int = 16 << 20
@@ -246,8 +249,9 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
         row["min_irradiance_certified"] = bool(mn.exact)
         row["min_irradiance"] = (mn.lower_bound if mn.exact else mn.minimum).tolist()
         try:
-            win = auto_window(c2)
-            row["window"], row["window_strength"] = win.kind, float(win.strength)
+            win = auto_window(c2) if opt.window else None
+            if win is not None:
+                row["window"], row["window_strength"] = win.kind, float(win.strength)
         except ShprobeError:  # no window helps (L_00 ≤ 0): leave the columns null
             pass
         if opt.reference:

@@ -23,14 +23,17 @@ def register(group: click.Group) -> None:
                        "2GRID x GRID normal grid (slow: a hemispherical integral per normal).")
     @click.option("--thumbnails", "thumbnail", type=click.IntRange(0, 1024), default=0,
                   metavar="WIDTH", help="Add a tone-mapped PNG thumbnail WIDTH pixels wide.")
+    @click.option("--window/--no-window", default=True, show_default=True,
+                  help="Add the window `auto` would choose (--no-window: skip it; it costs more "
+                       "than decoding a 2k probe when the lighting needs one).")
     @click.option("--scheduler", envvar="DASK_SCHEDULER_ADDRESS", metavar="tcp://HOST:PORT",
                   help="Run on this Dask scheduler (default $DASK_SCHEDULER_ADDRESS, else a "
                        "local cluster); 'inline' runs in this process.")
     @click.option("--workers", "-j", type=click.IntRange(1, 1024),
                   help="Worker processes of the local cluster (default: one per core).")
     @force_option
-    def batch_cmd(inputs, output, lmax, layout, clamp, reference, thumbnail, scheduler, workers,
-                  force):
+    def batch_cmd(inputs, output, lmax, layout, clamp, reference, thumbnail, window, scheduler,
+                  workers, force):
         """Prefilter a library of probes into one Parquet table, one row per probe.
 
         INPUTS are image files, folders (searched recursively), globs ('**' recursive) or lists
@@ -45,7 +48,8 @@ def register(group: click.Group) -> None:
         con = console(stderr=True)
         with _bar(con) as update:
             table = run_batch(inputs, output, lmax=lmax, layout=layout, clamp=clamp,
-                              reference=reference, thumbnail=thumbnail, scheduler=scheduler,
+                              reference=reference, thumbnail=thumbnail, window=window,
+                              scheduler=scheduler,
                               workers=workers, force=force, progress=update)
         bad = table.num_rows - table.column("error").null_count
         click.echo(f"wrote {output}: {table.num_rows} probes, {bad} failed"
