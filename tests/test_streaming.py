@@ -89,7 +89,7 @@ def test_bad_pixels_and_truncation_are_one_line(tmp_path):
     write_image(e, _image(256, 512))
     raw = e.read_bytes()
     e.write_bytes(raw[: len(raw) // 2])
-    with pytest.raises(ShprobeError, match="cut.exr") as exc:
+    with pytest.raises(ShprobeError, match=r"cut\.exr") as exc:
         _stream(e, 16)
     assert "\n" not in str(exc.value)
 
@@ -188,3 +188,42 @@ def test_prefilter_streams_big_probes(tmp_path, capsys, monkeypatch):
     assert called
     assert streamed["layout"] == "latlong"
     np.testing.assert_allclose(streamed["coefficients"], whole["coefficients"], atol=1e-12)
+
+
+_HDR_HEAD = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n"
+
+
+def test_rgbe_decoder_agrees_with_openimageio(tmp_path):
+    """shprobe's fused RGBE decoder (read_image's .hdr path) against OpenImageIO's decode plus
+    Radiance's half step, on new-style RLE written by OpenImageIO, whole and streamed with a
+    read buffer smaller than a block (resumed mid-file)."""
+    from pathlib import Path
+
+    from shprobe.probes.images import _read_oiio, _rgbe_half_step, read_rgbe
+
+    img = _image(61, 122, 4) ** 3 * 100  # a wide dynamic range
+    p = tmp_path / "a.hdr"
+    write_image(p, img)
+    ref = _rgbe_half_step(_read_oiio(Path(p))[0])[..., :3]
+    assert np.array_equal(read_rgbe(p), ref)
+    assert np.array_equal(read_image(p), ref)
+    got, n = _stream(p, 3)  # 3-row blocks: 4 KB reads, each ending inside a scanline
+    assert n == 21 and np.array_equal(got, ref)
+
+
+def test_rgbe_streaming_old_rle_flipped_and_truncated(tmp_path):
+    px, row1 = [128, 64, 32, 129], [10, 20, 30, 128] * 4
+    old = tmp_path / "old.hdr"
+    old.write_bytes(_HDR_HEAD + b"-Y 2 +X 4\n" + bytes([*px, 1, 1, 1, 3, *row1]))
+    got, n = _stream(old, 1)
+    assert n == 2 and np.array_equal(got, read_image(old))
+    flip = tmp_path / "flip.hdr"
+    flip.write_bytes(_HDR_HEAD + b"+Y 2 +X 1\n" + bytes([128, 0, 0, 128, 200, 0, 0, 128]))
+    got, _ = _stream(flip, 1)
+    assert np.array_equal(got, read_image(flip)) and got[0, 0, 0] > got[1, 0, 0]
+    cut = tmp_path / "cut.hdr"
+    write_image(cut, _image(64, 128))
+    raw = cut.read_bytes()
+    cut.write_bytes(raw[: len(raw) // 2])
+    with pytest.raises(ShprobeError, match=r"cut\.hdr: truncated or corrupt"):
+        _stream(cut, 4)

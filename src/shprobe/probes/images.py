@@ -78,15 +78,16 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     if ext == ".pfm":
         img = _read_pfm(p)
     else:
-        rgbe = ext in (".hdr", ".rgbe", ".pic")
-        try:
+        if ext in (".hdr", ".rgbe", ".pic"):
+            try:  # shprobe's decoder first: one compiled pass, the (m + 0.5) step built in
+                img = read_rgbe(p)
+            except ShprobeError as own:
+                try:  # what it refuses (other FORMATs) OpenImageIO may still read
+                    img = _rgbe_half_step(_read_oiio(p)[0])
+                except ShprobeError:
+                    raise own from None
+        else:
             img, ldr = _read_oiio(p)
-            if rgbe:
-                img = _rgbe_half_step(img)
-        except ShprobeError:
-            if not rgbe:
-                raise
-            img = read_rgbe(p)  # old-style RLE and other cases OIIO refuses
     img = _to_rgb(img, p)
     if ldr:
         warnings.warn(f"{p}: 8/16-bit image decoded from sRGB to linear — display values are "
@@ -256,8 +257,14 @@ class ImageRows:
         ext = p.suffix.lower()
         _check_readable(p, ext)
         self._rgbe = ext in (".hdr", ".rgbe", ".pic")
+        self._rgbe_f = None
         if ext == ".pfm":
             self.height, self.width = self._open_pfm()
+        elif self._rgbe:
+            try:
+                self.height, self.width = self._open_rgbe()
+            except ShprobeError:
+                self.height, self.width = self._open_oiio()
         else:
             self.height, self.width = self._open_oiio()
 
@@ -281,6 +288,44 @@ class ImageRows:
         mm = np.memmap(p, dtype=dt, mode="r", offset=m.end(), shape=(h, w, c))
         self._pfm = (mm, c)
         return h, w
+
+    def _open_rgbe(self) -> tuple[int, int]:
+        """shprobe's RGBE decoder, fed from the file a few MB at a time (top-down files;
+        other orientations are decoded whole)."""
+        p = self.path
+        with open(p, "rb") as f:
+            head = f.read(1 << 16)
+        s1, a1, s2, n1, n2, offset = _rgbe_header(p, head)
+        if (s1, a1, s2) != (b"-", b"Y", b"+"):
+            self._whole = read_rgbe(p)
+            return self._whole.shape[0], self._whole.shape[1]
+        self._rgbe_f = open(p, "rb")  # closed by close()
+        self._rgbe_f.seek(offset)
+        self._buf = np.zeros(0, np.uint8)
+        self._pos = 0
+        self._next = 0
+        return n1, n2
+
+    def _read_rgbe(self, y0: int, y1: int) -> NDArray[np.float32]:
+        if y0 != self._next:
+            raise ShprobeError("RGBE rows must be read in order", self.path)
+        out = np.empty((y1 - y0, self.width, 3), np.float32)
+        done = 0
+        chunk = max(4096, min(1 << 22, self.block_bytes // 4))
+        while done < out.shape[0]:
+            status, rows, self._pos = _rgbe_rows(self._buf, self._pos, out[done:])
+            done += rows
+            if status == 2:
+                raise ShprobeError("truncated or corrupt .hdr pixel data", self.path)
+            if status == 1:
+                more = self._rgbe_f.read(chunk)
+                if not more:
+                    raise ShprobeError("truncated or corrupt .hdr pixel data", self.path)
+                self._buf = np.concatenate([self._buf[self._pos:],
+                                            np.frombuffer(more, np.uint8)])
+                self._pos = 0
+        self._next = y1
+        return out
 
     def _open_oiio(self) -> tuple[int, int]:
         import OpenImageIO as oiio
@@ -334,6 +379,8 @@ class ImageRows:
         p = self.path
         if self._whole is not None:
             return self._whole[y0:y1]
+        if self._rgbe_f is not None:
+            return self._read_rgbe(y0, y1)
         if self._pfm is not None:
             mm, _ = self._pfm
             h = self.height  # bottom-up rows: image rows y0..y1 are file rows h-y1..h-y0
@@ -365,6 +412,9 @@ class ImageRows:
         if self._inp is not None:
             self._inp.close()
             self._inp = None
+        if self._rgbe_f is not None:
+            self._rgbe_f.close()
+            self._rgbe_f = None
         self._pfm = None
         self._whole = None
 
@@ -422,10 +472,9 @@ def _write_pfm(path: Path, rgb: NDArray[np.float32]) -> None:
 _RGBE_SIZE = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
 
 
-def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
-    """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``."""
-    p = Path(path)
-    raw = p.read_bytes()
+def _rgbe_header(p: Path, raw: bytes) -> tuple[bytes, bytes, bytes, int, int, int]:
+    """(s1, a1, s2, n1, n2, offset of the pixel data) of a Radiance header in ``raw`` (the
+    file's first bytes); scanlines run along the second axis, ``n1`` of them."""
     if not (raw.startswith(b"#?") or raw.startswith(b"FORMAT")):
         raise ShprobeError("not a Radiance .hdr file (no '#?' signature)", p)
     end = raw.find(b"\n\n")
@@ -442,12 +491,27 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     n1, n2 = int(n1), int(n2)
     if n1 == 0 or n2 == 0:
         raise ShprobeError("image has zero size", p)
-    body = np.frombuffer(raw, dtype=np.uint8, offset=nl + 1)
-    rgbe = np.zeros((n1, n2, 4), dtype=np.uint8)
-    status = _rgbe_decode()(body, rgbe)
-    if status != 0:
+    return s1, a1, s2, n1, n2, nl + 1
+
+
+def _rgbe_rows(buf: NDArray[np.uint8], pos: int, out: NDArray[np.float32]
+               ) -> tuple[int, int, int]:
+    from ._kernels_rgbe import decode_rgbe  # numba, imported lazily
+
+    status, rows, end = decode_rgbe(buf, pos, out, _rgbe_scale())
+    return int(status), int(rows), int(end)
+
+
+def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+    """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``:
+    (m + 0.5) · 2^(e − 136), as Radiance's colr_color, in one compiled pass per scanline."""
+    p = Path(path)
+    raw = p.read_bytes()
+    s1, a1, s2, n1, n2, offset = _rgbe_header(p, raw)
+    body = np.frombuffer(raw, dtype=np.uint8, offset=offset)
+    img = np.empty((n1, n2, 3), dtype=np.float32)
+    if _rgbe_rows(body, 0, img)[0] != 0:
         raise ShprobeError("truncated or corrupt .hdr pixel data", p)
-    img = rgbe_to_float(rgbe)
     # scanline order: first axis is the slow one
     if a1 == b"X":
         img = img.transpose(1, 0, 2)
@@ -508,75 +572,12 @@ def _half_step_kernel():
 
 
 @lru_cache(maxsize=1)
-def _rgbe_decode():
-    import numba
-
-    @numba.njit(cache=True)
-    def decode(buf, out):  # pragma: no cover - compiled
-        h, w = out.shape[0], out.shape[1]
-        pos = 0
-        n = buf.shape[0]
-        for y in range(h):
-            if pos + 4 > n:
-                return 1
-            if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
-                    and buf[pos + 2] < 128):
-                # new-style RLE: four channel planes
-                if buf[pos + 2] * 256 + buf[pos + 3] != w:
-                    return 2
-                pos += 4
-                for c in range(4):
-                    x = 0
-                    while x < w:
-                        if pos >= n:
-                            return 1
-                        cnt = int(buf[pos])
-                        pos += 1
-                        if cnt > 128:
-                            cnt -= 128
-                            if x + cnt > w or pos >= n:
-                                return 2
-                            v = buf[pos]
-                            pos += 1
-                            for k in range(cnt):
-                                out[y, x + k, c] = v
-                        else:
-                            if cnt == 0 or x + cnt > w or pos + cnt > n:
-                                return 2
-                            for k in range(cnt):
-                                out[y, x + k, c] = buf[pos + k]
-                            pos += cnt
-                        x += cnt
-            else:
-                # flat pixels, with old-style repeat markers (1, 1, 1, n)
-                x = 0
-                shift = 0
-                while x < w:
-                    if pos + 4 > n:
-                        return 1
-                    r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
-                    pos += 4
-                    if r == 1 and g == 1 and b == 1:
-                        if x == 0:
-                            return 2
-                        cnt = int(e) << shift
-                        if x + cnt > w:
-                            return 2
-                        for k in range(cnt):
-                            for c in range(4):
-                                out[y, x + k, c] = out[y, x - 1, c]
-                        x += cnt
-                        shift += 8
-                    else:
-                        out[y, x, 0] = r
-                        out[y, x, 1] = g
-                        out[y, x, 2] = b
-                        out[y, x, 3] = e
-                        x += 1
-                        shift = 0
-        return 0
-
-    return decode
+def _rgbe_scale() -> NDArray[np.float32]:
+    """2^(e − 136) for each exponent byte e as float32, 0 for e = 0 (as :func:`rgbe_to_float`)."""
+    t = rgbe_to_float(np.stack([np.zeros(256, np.uint8)] * 3 + [np.arange(256, dtype=np.uint8)],
+                               axis=-1))[:, 0] / np.float32(0.5)
+    t.flags.writeable = False
+    return t
 
 
 # ----------------------------------------------------------------------------- writing
