@@ -273,19 +273,8 @@ class ImageRows:
         p = self.path
         with open(p, "rb") as f:
             head = f.read(256)
-        m = _PFM_HEADER.match(head)
-        if m is None:
-            raise ShprobeError("not a PFM file (bad header)", p)
-        kind, w, h, scale = m.group(1), int(m.group(2)), int(m.group(3)), float(m.group(4))
-        if w == 0 or h == 0:
-            raise ShprobeError("image has zero size", p)
-        c = 3 if kind == b"PF" else 1
-        n = w * h * c
-        if p.stat().st_size - m.end() < 4 * n:
-            raise ShprobeError(f"truncated PFM: {p.stat().st_size - m.end()} of {4 * n} data "
-                               "bytes", p)
-        dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
-        mm = np.memmap(p, dtype=dt, mode="r", offset=m.end(), shape=(h, w, c))
+        h, w, c, dt, offset = _pfm_header(p, head, p.stat().st_size)
+        mm = np.memmap(p, dtype=dt, mode="r", offset=offset, shape=(h, w, c))
         self._pfm = (mm, c)
         return h, w
 
@@ -441,9 +430,9 @@ def image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
 _PFM_HEADER = re.compile(rb"\A(P[Ff])\s+(\d+)\s+(\d+)\s+([-+0-9.eE]+)\s")
 
 
-def _read_pfm(p: Path) -> NDArray[np.float32]:
-    raw = p.read_bytes()
-    m = _PFM_HEADER.match(raw[:256])
+def _pfm_header(p: Path, head: bytes, size: int) -> tuple[int, int, int, np.dtype, int]:
+    """(H, W, channels, dtype, data offset) of a PFM file from its first bytes and size."""
+    m = _PFM_HEADER.match(head[:256])
     if m is None:
         raise ShprobeError("not a PFM file (bad header)", p)
     kind, w, h, scale = m.group(1), int(m.group(2)), int(m.group(3)), float(m.group(4))
@@ -452,9 +441,16 @@ def _read_pfm(p: Path) -> NDArray[np.float32]:
     c = 3 if kind == b"PF" else 1
     dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
     n = w * h * c
-    body = raw[m.end():]
-    if len(body) < 4 * n:
-        raise ShprobeError(f"truncated PFM: {len(body)} of {4 * n} data bytes", p)
+    if size - m.end() < 4 * n:
+        raise ShprobeError(f"truncated PFM: {size - m.end()} of {4 * n} data bytes", p)
+    return h, w, c, dt, m.end()
+
+
+def _read_pfm(p: Path) -> NDArray[np.float32]:
+    raw = p.read_bytes()
+    h, w, c, dt, offset = _pfm_header(p, raw, len(raw))
+    n = w * h * c
+    body = raw[offset:]
     data = np.frombuffer(body, dtype=dt, count=n).reshape(h, w, c)
     return np.ascontiguousarray(data[::-1], dtype=np.float32)  # bottom-up -> top-down
 
