@@ -38,7 +38,7 @@ LUMA = (0.2126, 0.7152, 0.0722)
 COLUMNS: dict[str, tuple[str, str, str]] = {
     "path": ("string", "", "absolute path of the probe file"),
     "size_bytes": ("int64", "bytes", "file size"),
-    "content_hash": ("string", "", "BLAKE2b-128 of the file bytes, hex (resume key)"),
+    "content_hash": ("string", "", "SHA-256 of the file bytes, hex (resume key)"),
     "layout": ("string", "", "latlong | angular | mirrorball | cube (detected or given)"),
     "width": ("int32", "pixels", "image width as stored in the file"),
     "height": ("int32", "pixels", "image height as stored in the file"),
@@ -124,12 +124,18 @@ class BatchOptions:
         """The options a table's rows depend on (resume refuses a table made with others)."""
         d = asdict(self)
         d.pop("block_bytes")
-        return d
+        return d | {"hash": HASH}
+
+
+#: The content hash. SHA-256 rather than BLAKE2b: with the SHA extensions of current x86 and
+#: ARM cores it runs at ~1.4 GB/s against BLAKE2b's ~0.75 GB/s (bench/bench_batch.py's box),
+#: and hashing is a fifth of a batch row's CPU time for a 2k .hdr probe.
+HASH = "sha256"
 
 
 def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """BLAKE2b-128 of a file's bytes, hex."""
-    h = hashlib.blake2b(digest_size=16)
+    """SHA-256 of a file's bytes, hex."""
+    h = hashlib.new(HASH)
     with open(path, "rb") as f:
         while b := f.read(chunk):
             h.update(b)
