@@ -239,7 +239,9 @@ def bench_big(d: Path, w: int, h: int) -> list[str]:
     big = d / f"big{w}x{h}.exr"
     if not big.exists():
         t = time.perf_counter()
-        write_big(big, w, h)
+        tmp = big.with_name(".tmp-" + big.name)
+        write_big(tmp, w, h)
+        tmp.replace(big)  # a run cut short leaves no half-written probe behind
         print(f"(wrote {big.name}: {big.stat().st_size / 2**20:.0f} MiB in "
               f"{time.perf_counter() - t:.0f} s)", file=sys.stderr)
     streamed = ("import sys, numpy as np; from shprobe.lighting.projection import project_file; "
