@@ -7,23 +7,44 @@ weighted samples.
   about +Y, so the sum is done in the frame ω' = (z, x, y) whose pole is +Y and turned back by
   one fixed per-band rotation. Other layouts sum over their samples (one numba pass).
 - :func:`project_samples` — Σ_s v_s y(d_s) w_s for any samples, no (S, K) temporary.
+- :func:`project_file` — the same sum streamed from an image file a block of rows at a time
+  (lat-long and cube crosses / strips), so memory does not grow with the image.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from ..probes.layouts import Env, LatLong
+from ..probes.layouts import (
+    _CUBE_AXES,
+    CUBE_ARRANGEMENTS,
+    Cube,
+    Env,
+    LatLong,
+    cube_arrangement,
+    detect_layout,
+    get_layout,
+)
 from ..sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis
 from ..sh.rotation import ROTATION_LMAX
 
-__all__ = ["project", "project_samples", "projection_bytes", "total_intensity"]
+__all__ = [
+    "FileProjection",
+    "project",
+    "project_file",
+    "project_samples",
+    "projection_bytes",
+    "total_intensity",
+]
 
 # Frame whose pole is +Y: ω' = Q ω = (z, x, y) (a cyclic permutation, so a proper rotation).
 _Q = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -208,3 +229,119 @@ def total_intensity(env: Env) -> NDArray[np.float64]:
     dw = env.solid_angles()
     rad = env.radiance.reshape(-1, env.radiance.shape[-1]).astype(np.float64)
     return dw.reshape(-1) @ rad
+
+
+# ----------------------------------------------------------------------------- streaming
+
+
+@dataclass(frozen=True)
+class FileProjection:
+    """Result of :func:`project_file`: ``coeffs`` (K, 3) float64, the ``layout`` name, the
+    image file's ``width`` × ``height`` and whether it was ``streamed`` (False: the layout
+    has no streaming path and the image was read whole)."""
+
+    coeffs: NDArray[np.float64]
+    layout: str
+    width: int
+    height: int
+    streamed: bool
+
+    def __repr__(self) -> str:
+        return (f"FileProjection({self.layout} {self.width}x{self.height}, "
+                f"lmax {lmax_of(self.coeffs.shape[0])}, streamed={self.streamed})")
+
+
+def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None = None,
+                 clamp: bool = False, block_bytes: int | None = None,
+                 on_block: Callable[[int, NDArray[np.float32]], None] | None = None
+                 ) -> FileProjection:
+    """:func:`project` of an image file, streamed: the file is read a block of rows at a time
+    (:class:`shprobe.probes.images.ImageRows`) and each block's share of R&H eq. 10 is added
+    up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
+    image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding.
+
+    Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row
+    block at a time); cube crosses and strips sum each face's rows as they pass (directions
+    and exact texel solid angles made per block). Angular maps and mirror balls have no
+    streaming path: the image is read whole (``streamed=False``). ``on_block(y0, block)`` sees
+    every decoded block of image rows (e.g. to build a thumbnail in the same pass).
+    """
+    from ..probes.images import BLOCK_BYTES, ImageRows
+
+    lmax = check_lmax(lmax)
+    with ImageRows(path, clamp=clamp, block_bytes=block_bytes or BLOCK_BYTES) as im:
+        w, h = im.width, im.height
+        name = (get_layout(layout).name if layout not in (None, "auto")
+                else detect_layout((h, w), path))
+        if name == "latlong":
+            coeffs = _stream_latlong(im, lmax, on_block)
+        elif name == "cube":
+            coeffs = _stream_cube(im, lmax, on_block)
+        else:
+            from ..probes.layouts import env_from_image
+
+            img = np.empty((h, w, 3), np.float32)
+            for y0, blk in im.blocks():
+                img[y0:y0 + blk.shape[0]] = blk
+                if on_block is not None:
+                    on_block(y0, blk)
+            return FileProjection(project(env_from_image(img, name, path), lmax), name, w, h,
+                                  False)
+    return FileProjection(coeffs, name, w, h, True)
+
+
+def _stream_latlong(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
+    h, w = LatLong().check_grid((im.height, im.width), im.path)
+    trig, weights, mrow = _latlong_tables(h, w, lmax)
+    cp = np.zeros((weights.shape[1], 3))
+    for y0, blk in im.blocks():
+        f = np.matmul(trig[None], blk)  # (rows, M, C) float32, as _project_latlong
+        cp += np.einsum("hk,hkc->kc", weights[y0:y0 + blk.shape[0]],
+                        f[:, mrow, :].astype(np.float64))
+        if on_block is not None:
+            on_block(y0, blk)
+    return _from_pole_y(cp)
+
+
+def cube_face_rows(face: int, n: int, j0: int, j1: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Directions ``(j1−j0, N, 3)`` and exact solid angles ``(j1−j0, N)`` of texel rows
+    j0..j1 of one cube face: :meth:`Cube.pixel_directions` and :meth:`Cube.solid_angles`
+    (same formulas, see :mod:`shprobe.probes.layouts`) for a band of rows only."""
+    c = -1.0 + 2.0 * (np.arange(n) + 0.5) / n
+    tc = c[j0:j1]
+    u = 1.0 / np.sqrt(1.0 + c[None, :] ** 2 + tc[:, None] ** 2)
+    ax = _CUBE_AXES[face]
+    d = (u[..., None] * ax[0] + (c[None, :] * u)[..., None] * ax[1]
+         + (tc[:, None] * u)[..., None] * ax[2])
+    e = -1.0 + 2.0 * np.arange(n + 1) / n
+    er = e[j0:j1 + 1]
+    a = np.arctan2(er[:, None] * e[None, :], np.sqrt(er[:, None] ** 2 + e[None, :] ** 2 + 1))
+    dw = a[1:, 1:] - a[1:, :-1] - a[:-1, 1:] + a[:-1, :-1]
+    return d, dw
+
+
+def _stream_cube(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
+    arr = cube_arrangement((im.height, im.width), im.path)
+    (fw, _), pos = CUBE_ARRANGEMENTS[arr]
+    n = im.width // fw
+    Cube().check_grid((6, n, n), im.path)
+    out = np.zeros((num_coeffs(lmax), 3))
+    for y0, blk in im.blocks():
+        y1 = y0 + blk.shape[0]
+        for k, (col, row, rot) in enumerate(pos):
+            a, b = max(y0, row * n), min(y1, (row + 1) * n)
+            if a >= b:
+                continue
+            px = blk[a - y0:b - y0, col * n:(col + 1) * n]
+            j0, j1 = a - row * n, b - row * n
+            if rot:  # the face is turned by 180°: image row j is face row n−1−j, reversed
+                px = px[::-1, ::-1]
+                j0, j1 = n - j1, n - j0
+            d, dw = cube_face_rows(k, n, j0, j1)
+            out += _project_kernel(np.ascontiguousarray(d.reshape(-1, 3)),
+                                   np.ascontiguousarray(px.reshape(-1, 3), dtype=np.float64),
+                                   np.ascontiguousarray(dw.reshape(-1)), lmax)
+        if on_block is not None:
+            on_block(y0, blk)
+    return out

@@ -19,9 +19,9 @@ from ..sh import check_lmax, lmax_of, num_coeffs
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import circular_window
 from .export import import_coeffs
-from .projection import project
+from .projection import project, project_file
 
-__all__ = ["Lighting", "resolve_lighting"]
+__all__ = ["STREAM_ABOVE_BYTES", "Lighting", "resolve_lighting"]
 
 ProbeArg = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 
@@ -41,6 +41,24 @@ class Lighting:
                 + (f", layout={self.layout!r}" if self.layout else "") + ")")
 
 
+#: Probes whose decoded float32 RGB would exceed this are streamed (when the image itself is
+#: not needed).
+STREAM_ABOVE_BYTES = 256 << 20
+
+
+def _streamed(probe: str | os.PathLike[str], layout: str | None, lmax: int | None,
+              clamp: bool) -> Lighting | None:
+    from ..probes.images import image_size
+
+    if layout in ("angular", "mirrorball") or not os.path.isfile(probe):
+        return None
+    w, h = image_size(probe)
+    if 12 * w * h <= STREAM_ABOVE_BYTES:
+        return None
+    fp = project_file(probe, 2 if lmax is None else lmax, layout, clamp)
+    return Lighting(fp.coeffs, os.fspath(probe), fp.layout)
+
+
 def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
                      coeffs: str | os.PathLike[str] | None = None,
                      cone: tuple[Any, float] | None = None, layout: str | None = None,
@@ -55,6 +73,10 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
     2). ``cone`` = (axis, aperture in degrees) is the LH §3.2 circular window (LH eq. 11, their
     normalisation: total power 4π) at ``lmax`` (default 2). ``need_env`` refuses sources
     without a probe image.
+
+    A lat-long or cube probe whose decoded image would pass :data:`STREAM_ABOVE_BYTES` is
+    projected block by block straight from the file (:func:`~shprobe.lighting.projection.
+    project_file`, bounded memory) unless ``need_env`` asks for the image itself.
     """
     given = [n for n, v in (("a probe", probe), ("a preset", preset),
                             ("a coefficient file", coeffs), ("a cone light", cone))
@@ -64,6 +86,10 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
                            f"file or a cone light (got {', '.join(given) or 'none'})")
     if need_env and probe is None:
         raise ShprobeError(f"this needs a probe image, not {given[0]}")
+    if probe is not None and not need_env and isinstance(probe, str | os.PathLike):
+        streamed = _streamed(probe, layout, lmax, clamp)
+        if streamed is not None:
+            return streamed
     if probe is not None:
         faces = not isinstance(probe, str | os.PathLike)
         if faces and layout not in (None, "auto", "cube"):

@@ -120,8 +120,10 @@ def _trust_region_min(A: NDArray, b: NDArray, c: float) -> tuple[float, float, N
     scale = max(1.0, float(np.abs(lam).max()), float(np.linalg.norm(b)), abs(c))
     tiny = 1e-13 * scale
 
+    (l0, l1, l2), (q0, q1, q2) = lam.tolist(), (beta**2).tolist()  # floats: bisection is hot
+
     def g(mu: float) -> float:
-        return float(np.sum(beta**2 / (lam - mu) ** 2) - 1.0)
+        return q0 / (l0 - mu) ** 2 + q1 / (l1 - mu) ** 2 + q2 / (l2 - mu) ** 2 - 1.0
 
     def dual(mu: float) -> float:
         return float(c + mu - np.sum(beta**2 / (lam - mu)))

@@ -74,6 +74,30 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     """
     p = Path(path)
     ext = p.suffix.lower()
+    _check_readable(p, ext)
+    ldr = False
+    if ext == ".pfm":
+        img = _read_pfm(p)
+    else:
+        if ext in (".hdr", ".rgbe", ".pic"):
+            try:  # shprobe's decoder first: one compiled pass, the (m + 0.5) step built in
+                img = read_rgbe(p)
+            except ShprobeError as own:
+                try:  # what it refuses (other FORMATs) OpenImageIO may still read
+                    img = _rgbe_half_step(_read_oiio(p)[0])
+                except ShprobeError:
+                    raise own from None
+        else:
+            img, ldr = _read_oiio(p)
+    img = _to_rgb(img, p)
+    if ldr:
+        warnings.warn(f"{p}: 8/16-bit image decoded from sRGB to linear — display values are "
+                      "not radiance", LDRWarning, stacklevel=2)
+    return check_pixels(img, p, clamp)
+
+
+def _check_readable(p: Path, ext: str) -> None:
+    """One line for an unknown extension, a missing file, a folder or an empty file."""
     if ext not in READ_EXTENSIONS:
         raise ShprobeError(
             f"unknown image extension {ext or '(none)'!r}; expected one of "
@@ -84,38 +108,22 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
         raise ShprobeError("is a directory, not an image", p)
     if p.stat().st_size == 0:
         raise ShprobeError("file is empty", p)
-    ldr = False
-    if ext == ".pfm":
-        img = _read_pfm(p)
-    else:
-        rgbe = ext in (".hdr", ".rgbe", ".pic")
-        try:
-            img, ldr = _read_oiio(p)
-            if rgbe:
-                img = _rgbe_half_step(img)
-        except ShprobeError:
-            if not rgbe:
-                raise
-            img = read_rgbe(p)  # old-style RLE and other cases OIIO refuses
-    img = _to_rgb(img, p)
-    if ldr:
-        warnings.warn(f"{p}: 8/16-bit image decoded from sRGB to linear — display values are "
-                      "not radiance", LDRWarning, stacklevel=2)
-    return check_pixels(img, p, clamp)
 
 
 def check_declared_size(p: Path, width: int, height: int, channels: int, min_bytes: int = 0,
-                        have: int | None = None) -> None:
+                        have: int | None = None, whole: bool = True) -> None:
     """Believe an image header only as far as the file and the memory allow: the pixel data
     cannot be shorter than ``min_bytes`` (a lower bound for the format), and decoding it to
     float32 (with the copies reading makes) must fit :func:`shprobe.limits.check_memory` —
-    both checked before anything is allocated."""
+    both checked before anything is allocated (the memory only when the image is read
+    ``whole``)."""
     have = p.stat().st_size if have is None else have
     if have < min_bytes:
         raise ShprobeError(f"header declares {width}x{height} pixels but the file holds only "
                            f"{have} bytes of pixel data (truncated or corrupt)", p)
-    check_memory(float(width) * height * (4.0 * channels + 24.0),
-                 f"decoding a {width}x{height} image", p)
+    if whole:  # streamed reads hold a block of rows, not the image
+        check_memory(float(width) * height * (4.0 * channels + 24.0),
+                     f"decoding a {width}x{height} image", p)
 
 
 def _read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
@@ -225,15 +233,228 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
     return np.maximum(out, 0.0).astype(np.float32)
 
 
+# ----------------------------------------------------------------------------- streaming
+
+
+#: Default size of one block of rows read by :class:`ImageRows` (decoded float32 RGB).
+BLOCK_BYTES = 16 << 20
+
+
+class ImageRows:
+    """An image read in blocks of whole rows, straight from the file, in bounded memory.
+
+    ``with ImageRows(path) as im:`` gives ``im.width`` and ``im.height`` from the header
+    alone; ``for y0, block in im.blocks():`` yields ``(y0, (rows, W, 3) float32)`` top to
+    bottom, decoded exactly as :func:`read_image` decodes the whole image (RGBE half step,
+    sRGB → linear for 8/16-bit files with one :class:`LDRWarning`, grey → RGB, alpha dropped,
+    NaN/Inf/negative refused unless ``clamp``). OpenImageIO reads scanline and tiled files a
+    block at a time (tiled files a row of tiles at a time); PFM is memory-mapped. Peak memory
+    is one block (``block_bytes``, default 16 MB) plus the reader's own buffers, whatever the
+    image size.
+
+    Two cases are not bounded: Radiance files that OpenImageIO refuses (old-style RLE) are
+    decoded whole by :func:`read_rgbe` and handed out in blocks; and with ``clamp`` a +Inf
+    pixel becomes the largest finite value *of its block* (the whole image's in
+    :func:`read_image`).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], clamp: bool = False,
+                 block_bytes: int = BLOCK_BYTES) -> None:
+        self.path = Path(path)
+        self.clamp = clamp
+        self.block_bytes = int(block_bytes)
+        self._inp = None
+        self._whole: NDArray[np.float32] | None = None
+        self._pfm: tuple[np.memmap, int] | None = None
+        self._fmt = ""
+        self._ldr = False
+        self._srgb = False
+        self._nch = 3
+        self._y = 0
+        self._x = 0
+        self._tile = 0
+        p = self.path
+        ext = p.suffix.lower()
+        _check_readable(p, ext)
+        self._rgbe = ext in (".hdr", ".rgbe", ".pic")
+        self._rgbe_f = None
+        if ext == ".pfm":
+            self.height, self.width = self._open_pfm()
+        elif self._rgbe:
+            try:
+                self.height, self.width = self._open_rgbe()
+            except ShprobeError:
+                self.height, self.width = self._open_oiio()
+        else:
+            self.height, self.width = self._open_oiio()
+
+    # opening ------------------------------------------------------------------
+    def _open_pfm(self) -> tuple[int, int]:
+        p = self.path
+        with open(p, "rb") as f:
+            head = f.read(256)
+        h, w, c, dt, offset = _pfm_header(p, head, p.stat().st_size)
+        mm = np.memmap(p, dtype=dt, mode="r", offset=offset, shape=(h, w, c))
+        self._pfm = (mm, c)
+        return h, w
+
+    def _open_rgbe(self) -> tuple[int, int]:
+        """shprobe's RGBE decoder, fed from the file a few MB at a time (top-down files;
+        other orientations are decoded whole)."""
+        p = self.path
+        with open(p, "rb") as f:
+            head = f.read(1 << 16)
+        s1, a1, s2, n1, n2, offset = _rgbe_header(p, head)
+        check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=p.stat().st_size - offset,
+                            whole=False)
+        if (s1, a1, s2) != (b"-", b"Y", b"+"):
+            self._whole = read_rgbe(p)
+            return self._whole.shape[0], self._whole.shape[1]
+        self._rgbe_f = open(p, "rb")  # closed by close()
+        self._rgbe_f.seek(offset)
+        self._buf = np.zeros(0, np.uint8)
+        self._pos = 0
+        self._next = 0
+        return n1, n2
+
+    def _read_rgbe(self, y0: int, y1: int) -> NDArray[np.float32]:
+        if y0 != self._next:
+            raise ShprobeError("RGBE rows must be read in order", self.path)
+        out = np.empty((y1 - y0, self.width, 3), np.float32)
+        done = 0
+        chunk = max(4096, min(1 << 22, self.block_bytes // 4))
+        while done < out.shape[0]:
+            status, rows, self._pos = _rgbe_rows(self._buf, self._pos, out[done:])
+            done += rows
+            if status == 2:
+                raise ShprobeError("truncated or corrupt .hdr pixel data", self.path)
+            if status == 1:
+                more = self._rgbe_f.read(chunk)
+                if not more:
+                    raise ShprobeError("truncated or corrupt .hdr pixel data", self.path)
+                self._buf = np.concatenate([self._buf[self._pos:],
+                                            np.frombuffer(more, np.uint8)])
+                self._pos = 0
+        self._next = y1
+        return out
+
+    def _open_oiio(self) -> tuple[int, int]:
+        import OpenImageIO as oiio
+
+        p = self.path
+        config = oiio.ImageSpec()
+        config.attribute("oiio:UnassociatedAlpha", 1)
+        with _c_stderr() as c_messages:
+            inp = oiio.ImageInput.open(str(p), config)
+            if inp is None:
+                msg = _oneline(oiio.geterror() or c_messages()) or "corrupt"
+                if self._rgbe:  # old-style RLE and other files OIIO refuses
+                    self._whole = read_rgbe(p)
+                    return self._whole.shape[0], self._whole.shape[1]
+                raise ShprobeError("cannot read image: " + msg, p)
+        spec = inp.spec()
+        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+            inp.close()
+            raise ShprobeError("image has zero size", p)
+        self._inp = inp
+        self._y, self._x = spec.y, spec.x
+        self._tile = int(spec.tile_height) if spec.tile_width else 0
+        self._nch = spec.nchannels
+        self._fmt = str(spec.format)
+        cs = str(spec.getattribute("oiio:ColorSpace") or "").lower()
+        self._ldr = self._fmt in ("uint8", "uint16", "int8", "int16", "uint32", "int32")
+        self._srgb = self._ldr and not ("lin" in cs and "srgb" not in cs)
+        return spec.height, spec.width
+
+    # reading --------------------------------------------------------------------
+    def rows_per_block(self) -> int:
+        """Rows in one block: ``block_bytes`` of float32 RGB (at least one row, or one row of
+        tiles)."""
+        return self._align(max(1, min(self.height, self.block_bytes // max(1, 12 * self.width))))
+
+    def _align(self, n: int) -> int:
+        t = self._tile
+        return n if t <= 1 else -(-n // t) * t
+
+    def blocks(self, rows: int | None = None) -> Iterator[tuple[int, NDArray[np.float32]]]:
+        """Yield ``(y0, block)`` top to bottom, ``block`` ``(rows, W, 3) float32``."""
+        n = self._align(int(rows)) if rows else self.rows_per_block()
+        if self._ldr:
+            warnings.warn(f"{self.path}: 8/16-bit image decoded from sRGB to linear — display "
+                          "values are not radiance", LDRWarning, stacklevel=2)
+        for y0 in range(0, self.height, n):
+            y1 = min(self.height, y0 + n)
+            yield y0, check_pixels(self._read(y0, y1), self.path, self.clamp)
+
+    def _read(self, y0: int, y1: int) -> NDArray[np.float32]:
+        p = self.path
+        if self._whole is not None:
+            return self._whole[y0:y1]
+        if self._rgbe_f is not None:
+            return self._read_rgbe(y0, y1)
+        if self._pfm is not None:
+            mm, _ = self._pfm
+            h = self.height  # bottom-up rows: image rows y0..y1 are file rows h-y1..h-y0
+            return _to_rgb(np.asarray(mm[h - y1:h - y0][::-1], dtype=np.float32), p)
+        import OpenImageIO as oiio
+
+        inp = self._inp
+        with _c_stderr() as c_messages:
+            if self._tile:  # a row of tiles (y0 is a multiple of the tile height)
+                data = inp.read_tiles(0, 0, self._x, self._x + self.width, self._y + y0,
+                                      self._y + y1, 0, 1, 0, self._nch, oiio.FLOAT)
+            else:
+                data = inp.read_scanlines(0, 0, self._y + y0, self._y + y1, 0, 0, self._nch,
+                                          oiio.FLOAT)
+            if data is None or inp.has_error:
+                raise ShprobeError("cannot read image (truncated or corrupt): "
+                                   + _oneline(inp.geterror() or c_messages()), p)
+        data = np.asarray(data, dtype=np.float32)
+        if data.ndim == 2:  # one channel
+            data = data.reshape(y1 - y0, self.width, -1)
+        if self._srgb:
+            data = srgb_to_linear(data)
+        if self._rgbe:
+            data = _rgbe_half_step(data)
+        return _to_rgb(data, p)
+
+    def close(self) -> None:
+        """Release the file."""
+        if self._inp is not None:
+            self._inp.close()
+            self._inp = None
+        if self._rgbe_f is not None:
+            self._rgbe_f.close()
+            self._rgbe_f = None
+        self._pfm = None
+        self._whole = None
+
+    def __enter__(self) -> ImageRows:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"ImageRows({str(self.path)!r}, {self.width}x{self.height})"
+
+
+def image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
+    """(width, height) of an image file from its header (no pixels decoded, except for
+    Radiance files OpenImageIO cannot open)."""
+    with ImageRows(path) as im:
+        return im.width, im.height
+
+
 # ----------------------------------------------------------------------------- PFM
 
 
 _PFM_HEADER = re.compile(rb"\A(P[Ff])\s+(\d+)\s+(\d+)\s+([-+0-9.eE]+)\s")
 
 
-def _read_pfm(p: Path) -> NDArray[np.float32]:
-    raw = p.read_bytes()
-    m = _PFM_HEADER.match(raw[:256])
+def _pfm_header(p: Path, head: bytes, size: int) -> tuple[int, int, int, np.dtype, int]:
+    """(H, W, channels, dtype, data offset) of a PFM file from its first bytes and size."""
+    m = _PFM_HEADER.match(head[:256])
     if m is None:
         raise ShprobeError("not a PFM file (bad header)", p)
     kind, w, h = m.group(1), int(m.group(2)), int(m.group(3))
@@ -246,12 +467,19 @@ def _read_pfm(p: Path) -> NDArray[np.float32]:
     if w == 0 or h == 0:
         raise ShprobeError("image has zero size", p)
     c = 3 if kind == b"PF" else 1
-    check_declared_size(p, w, h, c, min_bytes=4 * w * h * c, have=len(raw))
     dt = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
     n = w * h * c
-    body = raw[m.end():]
-    if len(body) < 4 * n:
-        raise ShprobeError(f"truncated PFM: {len(body)} of {4 * n} data bytes", p)
+    if size - m.end() < 4 * n:
+        raise ShprobeError(f"truncated PFM: {size - m.end()} of {4 * n} data bytes", p)
+    return h, w, c, dt, m.end()
+
+
+def _read_pfm(p: Path) -> NDArray[np.float32]:
+    raw = p.read_bytes()
+    h, w, c, dt, offset = _pfm_header(p, raw, len(raw))
+    check_declared_size(p, w, h, c, have=len(raw))
+    n = w * h * c
+    body = raw[offset:]
     data = np.frombuffer(body, dtype=dt, count=n).reshape(h, w, c)
     return np.ascontiguousarray(data[::-1], dtype=np.float32)  # bottom-up -> top-down
 
@@ -269,10 +497,9 @@ def _write_pfm(path: Path, rgb: NDArray[np.float32]) -> None:
 _RGBE_SIZE = re.compile(rb"([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)")
 
 
-def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
-    """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``."""
-    p = Path(path)
-    raw = p.read_bytes()
+def _rgbe_header(p: Path, raw: bytes) -> tuple[bytes, bytes, bytes, int, int, int]:
+    """(s1, a1, s2, n1, n2, offset of the pixel data) of a Radiance header in ``raw`` (the
+    file's first bytes); scanlines run along the second axis, ``n1`` of them."""
     if not (raw.startswith(b"#?") or raw.startswith(b"FORMAT")):
         raise ShprobeError("not a Radiance .hdr file (no '#?' signature)", p)
     end = raw.find(b"\n\n")
@@ -289,13 +516,28 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     n1, n2 = int(n1), int(n2)
     if n1 == 0 or n2 == 0:
         raise ShprobeError("image has zero size", p)
-    check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - nl - 1)
-    body = np.frombuffer(raw, dtype=np.uint8, offset=nl + 1)
-    rgbe = np.zeros((n1, n2, 4), dtype=np.uint8)
-    status = _rgbe_decode()(body, rgbe)
-    if status != 0:
+    return s1, a1, s2, n1, n2, nl + 1
+
+
+def _rgbe_rows(buf: NDArray[np.uint8], pos: int, out: NDArray[np.float32]
+               ) -> tuple[int, int, int]:
+    from ._kernels_rgbe import decode_rgbe  # numba, imported lazily
+
+    status, rows, end = decode_rgbe(buf, pos, out, _rgbe_scale())
+    return int(status), int(rows), int(end)
+
+
+def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+    """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``:
+    (m + 0.5) · 2^(e − 136), as Radiance's colr_color, in one compiled pass per scanline."""
+    p = Path(path)
+    raw = p.read_bytes()
+    s1, a1, s2, n1, n2, offset = _rgbe_header(p, raw)
+    check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - offset)
+    body = np.frombuffer(raw, dtype=np.uint8, offset=offset)
+    img = np.empty((n1, n2, 3), dtype=np.float32)
+    if _rgbe_rows(body, 0, img)[0] != 0:
         raise ShprobeError("truncated or corrupt .hdr pixel data", p)
-    img = rgbe_to_float(rgbe)
     # scanline order: first axis is the slow one
     if a1 == b"X":
         img = img.transpose(1, 0, 2)
@@ -325,106 +567,19 @@ def _rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
     # 2^k from the float32 exponent field E of the largest channel: m_max in [128, 256)
     # means 2^(E−127) = 2^(k+7), so the half step is 2^(E−135)
     table = np.ldexp(np.float32(1.0), np.arange(256) - 135).astype(np.float32)
-    _half_step_kernel()(flat, flat.view(np.int32), table)
+    from ._kernels_rgbe import half_step  # numba, imported lazily
+
+    half_step(flat, flat.view(np.int32), table)
     return img
 
 
 @lru_cache(maxsize=1)
-def _half_step_kernel():
-    import math
-
-    import numba
-
-    @numba.njit(cache=True)
-    def kernel(px, bits, table):  # pragma: no cover - compiled
-        for i in range(px.shape[0]):
-            best = 0
-            for c in range(1, px.shape[1]):
-                if px[i, c] > px[i, best]:
-                    best = c
-            v = px[i, best]
-            if v > 0:
-                e = (bits[i, best] >> 23) & 0xFF
-                if e > 0:
-                    step = table[e]
-                else:  # subnormal float32
-                    step = np.float32(math.ldexp(0.5, math.frexp(v)[1] - 8))
-                for c in range(px.shape[1]):
-                    px[i, c] += step
-
-    return kernel
-
-
-@lru_cache(maxsize=1)
-def _rgbe_decode():
-    import numba
-
-    @numba.njit(cache=True)
-    def decode(buf, out):  # pragma: no cover - compiled
-        h, w = out.shape[0], out.shape[1]
-        pos = 0
-        n = buf.shape[0]
-        for y in range(h):
-            if pos + 4 > n:
-                return 1
-            if (8 <= w < 32768 and buf[pos] == 2 and buf[pos + 1] == 2
-                    and buf[pos + 2] < 128):
-                # new-style RLE: four channel planes
-                if buf[pos + 2] * 256 + buf[pos + 3] != w:
-                    return 2
-                pos += 4
-                for c in range(4):
-                    x = 0
-                    while x < w:
-                        if pos >= n:
-                            return 1
-                        cnt = int(buf[pos])
-                        pos += 1
-                        if cnt > 128:
-                            cnt -= 128
-                            if x + cnt > w or pos >= n:
-                                return 2
-                            v = buf[pos]
-                            pos += 1
-                            for k in range(cnt):
-                                out[y, x + k, c] = v
-                        else:
-                            if cnt == 0 or x + cnt > w or pos + cnt > n:
-                                return 2
-                            for k in range(cnt):
-                                out[y, x + k, c] = buf[pos + k]
-                            pos += cnt
-                        x += cnt
-            else:
-                # flat pixels, with old-style repeat markers (1, 1, 1, n)
-                x = 0
-                shift = 0
-                while x < w:
-                    if pos + 4 > n:
-                        return 1
-                    r, g, b, e = buf[pos], buf[pos + 1], buf[pos + 2], buf[pos + 3]
-                    pos += 4
-                    if r == 1 and g == 1 and b == 1:
-                        if x == 0:
-                            return 2
-                        cnt = int(e) << shift
-                        if x + cnt > w:
-                            return 2
-                        for k in range(cnt):
-                            for c in range(4):
-                                out[y, x + k, c] = out[y, x - 1, c]
-                        x += cnt
-                        shift += 8
-                    else:
-                        out[y, x, 0] = r
-                        out[y, x, 1] = g
-                        out[y, x, 2] = b
-                        out[y, x, 3] = e
-                        x += 1
-                        shift = 0
-        return 0
-
-    return decode
+def _rgbe_scale() -> NDArray[np.float32]:
+    """2^(e − 136) for each exponent byte e as float32, 0 for e = 0 (as :func:`rgbe_to_float`)."""
+    t = rgbe_to_float(np.stack([np.zeros(256, np.uint8)] * 3 + [np.arange(256, dtype=np.uint8)],
+                               axis=-1))[:, 0] / np.float32(0.5)
+    t.flags.writeable = False
+    return t
 
 
 # ----------------------------------------------------------------------------- writing

@@ -1,0 +1,308 @@
+"""The batch engine: probes → rows on Dask (a local cluster, an existing one, or in-process),
+written to Parquet in atomically committed parts, resumable by content hash.
+
+Output ``T.parquet``: while a batch runs, finished rows are written every ``flush_rows`` rows
+(or ``flush_seconds``) as ``T.parquet.parts/part-*.parquet``, each written to a temporary
+name and renamed (a part is whole or absent). When every probe is done the parts and any
+previous ``T.parquet`` are merged into ``T.parquet`` (again temp + rename) and the parts
+folder is removed. Re-running with the same output reads the table and any parts left by an
+interrupted run, skips every file whose content hash already has a successful row (failed
+rows are tried again) and computes the rest. Ctrl-C, or a crash, loses at most the rows not
+yet flushed; a worker that dies has its probes recomputed by Dask on another worker.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import secrets
+import shutil
+import time
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+from ..errors import ShprobeError
+from ..files import atomic_output, check_output_path
+from .inputs import expand_inputs
+from .rows import COLUMNS, BatchOptions, empty_row, probe_row, schema
+
+__all__ = ["parts_dir", "read_table", "run_batch"]
+
+#: Progress callback: (done, total) after each probe.
+Progress = Callable[[int, int], None]
+
+
+def parts_dir(output: str | os.PathLike[str]) -> Path:
+    """Folder of the parts of ``output`` while a batch runs: ``<output>.parts``."""
+    p = Path(output)
+    return p.with_name(p.name + ".parts")
+
+
+def table_meta(table: Any) -> dict[str, Any]:
+    """The ``shprobe`` JSON metadata of a batch table ({} if absent)."""
+    raw = (table.schema.metadata or {}).get(b"shprobe")
+    return json.loads(raw) if raw else {}
+
+
+def read_table(path: str | os.PathLike[str]):
+    """A batch table (pyarrow.Table) with its metadata; one line for a file that is not one."""
+    import pyarrow.parquet as pq
+
+    try:
+        t = pq.read_table(path)
+    except FileNotFoundError:
+        raise ShprobeError("no such file", path) from None
+    except Exception as e:
+        raise ShprobeError(f"not a Parquet table: {' '.join(str(e).split())[:200]}",
+                           path) from None
+    if "options" not in table_meta(t) or "content_hash" not in t.column_names:
+        raise ShprobeError("not a shprobe batch table", path)
+    return t
+
+
+def _rows_table(rows: list[dict[str, Any]], meta: dict[str, Any]):
+    import pyarrow as pa
+
+    clean = [{k: r.get(k) for k in COLUMNS} for r in rows]
+    return pa.Table.from_pylist(clean, schema=schema(meta))
+
+
+def _write_part(folder: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) -> Path:
+    import pyarrow.parquet as pq
+
+    folder.mkdir(exist_ok=True)
+    p = folder / f"part-{time.time_ns():020d}-{os.getpid()}-{secrets.token_hex(3)}.parquet"
+    with atomic_output(p) as tmp:
+        pq.write_table(_rows_table(rows, meta), tmp)
+    return p
+
+
+def _existing_rows(output: Path, meta: dict[str, Any]) -> list[dict[str, Any]]:
+    """Rows of a previous table and of parts left by an interrupted run (refused when they
+    were made with other options)."""
+    import pyarrow.parquet as pq
+
+    tables = []
+    if output.exists():
+        tables.append((output, read_table(output)))
+    folder = parts_dir(output)
+    if folder.is_dir():
+        for p in sorted(folder.glob("part-*.parquet")):
+            try:
+                tables.append((p, pq.read_table(p)))
+            except Exception:  # a part is renamed into place whole; anything else is not ours
+                continue
+    rows: list[dict[str, Any]] = []
+    for p, t in tables:
+        have = table_meta(t).get("options")
+        if have != meta["options"]:
+            raise ShprobeError(f"was made with other options ({have}, now {meta['options']}); "
+                               "choose another output or pass --force to start afresh", p)
+        rows += t.to_pylist()
+    return rows
+
+
+def _merge(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per path, the last one given winning; sorted by path."""
+    by_path: dict[str, dict[str, Any]] = {}
+    for r in rows:
+        by_path[r["path"]] = r
+    return [by_path[k] for k in sorted(by_path)]
+
+
+def _warm() -> None:
+    """Compile / load the numba kernels a row uses, so the first probe pays no start-up."""
+    import numpy as np
+
+    from ..lighting import auto_window, min_irradiance
+    from ..lighting.projection import _project_kernel
+    from ..probes.images import _rgbe_half_step
+    from ..probes.presets import get_preset
+
+    _rgbe_half_step(np.ones((2, 2, 3), np.float32))
+    _project_kernel(np.array([[0.0, 0.0, 1.0]]), np.ones((1, 3)), np.ones(1), 2)
+    c = get_preset("grace")
+    min_irradiance(c)
+    auto_window(c)
+    import pyarrow  # noqa: F401  (the driver reads rows as Arrow; warm the import too)
+
+
+class _WarmPlugin:
+    """Dask worker plugin: warm numba in every worker, including ones started later."""
+
+    name = "shprobe-warm"
+    idempotent = True  # registered once per cluster, not again by every batch
+
+    def setup(self, worker: Any) -> None:
+        _warm()
+
+
+def _task(path: str, layout: str, options: BatchOptions, done: frozenset[str]) -> dict:
+    return probe_row(path, layout, options, done)
+
+
+def _local_cluster(workers: int | None):
+    from distributed import LocalCluster
+
+    n = int(workers) if workers else (os.cpu_count() or 1)
+    return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
+                        dashboard_address=None, host="127.0.0.1",
+                        silence_logs=logging.ERROR)
+
+
+def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
+    _warm()
+    for path, layout in jobs:
+        yield probe_row(path, layout, options, done)
+
+
+def _run_dask(jobs, options, done, client) -> Iterator[dict[str, Any]]:
+    from distributed import as_completed
+
+    try:
+        client.register_plugin(_plugin())
+    except Exception:  # an old scheduler without plugins: workers warm on their first task
+        pass
+    done_f = client.scatter(done, broadcast=True) if done else done
+    path_of = {}
+    for i, (path, layout) in enumerate(jobs):
+        f = client.submit(_task, path, layout, options, done_f, pure=False,
+                          key=f"shprobe-probe-{i}-{secrets.token_hex(4)}")
+        path_of[f] = path
+    left = set(path_of)
+    try:
+        for f in as_completed(list(path_of)):
+            left.discard(f)
+            path = path_of.pop(f)
+            try:
+                row = f.result()
+            except Exception as e:  # the task itself never raises: a worker died too often
+                row = empty_row(path) | {
+                    "error": f"{path}: worker failed: {type(e).__name__}: "
+                             + " ".join(str(e).split())[:300]}
+            f.release()
+            yield row
+    finally:
+        if left:
+            client.cancel(list(left), force=True)
+
+
+def _plugin():
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class WarmPlugin(_WarmPlugin, WorkerPlugin):
+        pass
+
+    return WarmPlugin()
+
+
+def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
+              output: str | os.PathLike[str] | None = None, *, lmax: int = 2,
+              layout: str = "auto", clamp: bool = False, reference: int | None = None,
+              thumbnail: int = 0, window: bool = True, scheduler: str | None = None,
+              workers: int | None = None,
+              client: Any = None, force: bool = False, flush_rows: int = 256,
+              flush_seconds: float = 30.0, progress: Progress | None = None,
+              block_bytes: int = 16 << 20):
+    """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
+    it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
+
+    Engine: ``client`` (a ``distributed.Client``) if given; else ``scheduler``: ``"inline"``
+    runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS`` when
+    ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
+    processes (default: one per core) × 1 thread is started and closed again.
+
+    ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
+    doc). An existing table made with other options is refused unless ``force``, which
+    starts afresh.
+    """
+    import numpy as np  # noqa: F401  (fail early if the stack is broken)
+
+    options = BatchOptions(lmax=int(lmax), clamp=bool(clamp),
+                           reference=None if not reference else int(reference),
+                           thumbnail=int(thumbnail or 0), window=bool(window),
+                           block_bytes=int(block_bytes))
+    from ..sh import check_lmax
+
+    check_lmax(options.lmax)
+    meta = {"options": options.key()}
+    out = None
+    old: list[dict[str, Any]] = []
+    if output is not None:
+        out = Path(output)
+        if out.suffix.lower() != ".parquet":
+            raise ShprobeError("the batch table must be a .parquet file", out)
+        check_output_path(out, overwrite=True)
+        if force:
+            shutil.rmtree(parts_dir(out), ignore_errors=True)
+        else:
+            old = _existing_rows(out, meta)
+    jobs = expand_inputs(inputs, layout)
+    good = {r["content_hash"]: r for r in old if r.get("error") is None and r.get("content_hash")}
+    done = frozenset(good)
+    total = len(jobs)
+    fresh: list[dict[str, Any]] = []
+    pending: list[dict[str, Any]] = []
+    last = time.monotonic()
+    n_done = 0
+    if progress:
+        progress(0, total)
+
+    def flush() -> None:
+        nonlocal last
+        if out is not None and pending:
+            _write_part(parts_dir(out), pending, meta)
+        pending.clear()
+        last = time.monotonic()
+
+    own = None
+    try:
+        if client is None and scheduler != "inline":
+            addr = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+            from distributed import Client
+
+            if addr:
+                client = own = Client(addr, timeout="30s")
+            else:
+                cluster = _local_cluster(workers)
+                client = own = Client(cluster)
+                own._shprobe_cluster = cluster  # closed below
+        rows = (_run_inline(jobs, options, done) if client is None
+                else _run_dask(jobs, options, done, client))
+        for row in rows:
+            if row.pop("skipped", False):
+                src = good[row["content_hash"]]
+                if src["path"] != row["path"]:  # same content under another path: copy
+                    row = dict(src) | {"path": row["path"], "size_bytes": row["size_bytes"],
+                                       "seconds": 0.0}
+                    fresh.append(row)
+                    pending.append(row)
+            else:
+                fresh.append(row)
+                pending.append(row)
+            n_done += 1
+            if progress:
+                progress(n_done, total)
+            if len(pending) >= flush_rows or time.monotonic() - last >= flush_seconds:
+                flush()
+        flush()
+    except BaseException:
+        flush()  # Ctrl-C or a crash: keep what is finished
+        raise
+    finally:
+        if own is not None:
+            cluster = getattr(own, "_shprobe_cluster", None)
+            own.close()
+            if cluster is not None:
+                cluster.close()
+    merged = _merge(old + fresh)
+    table = _rows_table(merged, meta)
+    if out is not None:
+        import pyarrow.parquet as pq
+
+        with atomic_output(out, overwrite=True) as tmp:
+            pq.write_table(table, tmp)
+        shutil.rmtree(parts_dir(out), ignore_errors=True)
+    return table
