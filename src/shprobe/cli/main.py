@@ -12,6 +12,7 @@ from . import hbasis as _hbasis
 from . import prefilter as _prefilter
 from . import prt as _prt
 from . import render as _render
+from . import report as _report
 from . import sh as _sh
 
 
@@ -25,7 +26,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _report):
     _mod.register(cli)
 
 
