@@ -16,8 +16,8 @@ Three kinds of panel (:class:`Panel`):
     colour bar in the panel's units.
 
 Exposure rule (:func:`exposure_for`): the exposure in stops that maps the ``percentile``-th
-percentile of the per-pixel largest channel to display white, so at most (100 − percentile) %
-of the pixels clip; rounded down to 1/10 stop. (The lead will unify this with the tone map in
+percentile of the per-pixel largest channel to display white, rounded down to 1/10 stop and
+lowered further while more than (100 − percentile) % of the pixels would show as 255. (The lead will unify this with the tone map in
 :mod:`shprobe.probes.images`.)
 
 A written figure is an 8-bit RGB PNG whose ``shprobe:panels`` text chunk lists each panel's
@@ -49,13 +49,16 @@ _HEADER_H = 26
 _LEGEND_H = 28
 _DPI = 100
 _FONT = 8.5
+#: The smallest linear value an 8-bit sRGB PNG shows as 255 (sRGB 254.5 / 255).
+_WHITE = ((254.5 / 255 + 0.055) / 1.055) ** 2.4
 
 
 def exposure_for(values: ArrayLike, percentile: float = 99.0,
                  mask: ArrayLike | None = None) -> float:
     """Automatic exposure (stops) for a linear RGB image ``(..., 3)``: the ``percentile``-th
-    percentile p of each pixel's largest channel is mapped to display white (2^e · p = 1), so
-    at most (100 − percentile) % of the pixels clip; rounded down to 0.1 stop. ``mask``
+    percentile p of each pixel's largest channel is mapped to display white (2^e · p = 1),
+    rounded down to 0.1 stop, then lowered by 0.1 stop while more than (100 − percentile) %
+    of the pixels would reach 8-bit 255 (ties in flat regions). ``mask``
     (boolean, the image's leading shape) picks the pixels that count (e.g. an object's). An
     all-zero image gives 0."""
     v = np.asarray(values, dtype=np.float64)
@@ -71,15 +74,21 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
         p = float(v.max())
     if not p > 0:
         return 0.0
-    return float(np.floor(-np.log2(p) * 10.0) / 10.0)
+    e = float(np.floor(-np.log2(p) * 10.0) / 10.0)
+    allowed = (100.0 - percentile) / 100.0
+    for _ in range(200):  # ties at the percentile (flat regions): step down until it holds
+        if float((v * 2.0 ** e >= _WHITE).mean()) <= allowed:
+            break
+        e = round(e - 0.1, 1)
+    return e
 
 
 def clipped_fraction(values: ArrayLike, exposure: float) -> float:
     """Fraction of pixels of a linear RGB image ``(..., 3)`` with a channel that reaches
-    display white at ``exposure`` (stops)."""
+    display white (8-bit 255) at ``exposure`` (stops)."""
     v = np.asarray(values, dtype=np.float64)
     m = v[..., :3].max(axis=-1) * 2.0 ** exposure
-    return float((m >= 1.0).mean()) if m.size else 0.0
+    return float((m >= _WHITE).mean()) if m.size else 0.0
 
 
 @dataclass
