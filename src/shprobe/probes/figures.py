@@ -17,8 +17,8 @@ Three kinds of panel (:class:`Panel`):
 
 Exposure rule (:func:`exposure_for`): the exposure in stops that maps the ``percentile``-th
 percentile of the per-pixel largest channel to display white, rounded down to 1/10 stop and
-lowered further while more than (100 − percentile) % of the pixels would show as 255. (The lead will unify this with the tone map in
-:mod:`shprobe.probes.images`.)
+lowered further while more than (100 − percentile) % of the pixels would show as 255. (To be
+unified with the tone map in :mod:`shprobe.probes.images`.)
 
 A written figure is an 8-bit RGB PNG whose ``shprobe:panels`` text chunk lists each panel's
 title and its image and title boxes in pixels (x0, y0, x1, y1), so tests and tools can find
