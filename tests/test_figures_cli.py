@@ -63,6 +63,24 @@ def test_irradiance_png_of_every_shared_probe_does_not_clip(probe, tmp_path, cap
     assert clipped(out) > 0.5
 
 
+@pytest.mark.parametrize("probe", shared_probes(), ids=lambda p: getattr(p, "stem", "none"))
+def test_probe_figure_of_every_shared_probe_does_not_clip(probe, tmp_path):
+    """The probe as the report and the demo draw it: a radiance panel at the automatic
+    exposure, read back from the PNG."""
+    from shprobe.probes.figures import Panel, write_figure
+    from shprobe.probes.layouts import load_env
+
+    env = load_env(probe)
+    fig = write_figure(tmp_path / "p.png", [Panel(env.radiance, probe.name, units="L")])
+    with Image.open(tmp_path / "p.png") as im:
+        px = np.asarray(im.convert("RGB"))
+    x0, y0, x1, y1 = fig.panels[0].image_box
+    tile = px[y0:y1, x0:x1]
+    assert tile.shape[:2] == env.grid  # shown 1:1 (256x128)
+    assert (tile.max(axis=-1) == 255).mean() <= 0.01
+    assert tile.mean() > 10  # and not black either
+
+
 def test_bad_exposure_is_refused_before_the_work(tmp_path, capsys):
     assert main(["irradiance", "--preset", "grace", "-o", str(tmp_path / "a.png"),
                  "--exposure", "bright"]) == 1
