@@ -112,7 +112,7 @@ def test_basis_sheet_has_nine_labelled_panels_and_a_sign_legend(tmp_path, capsys
 
 
 def test_error_table_says_why_odd_rows_repeat(capsys):
-    from shprobe.cli.prefilter import error_note
+    from shprobe.report.probe import error_note
 
     assert error_note(3) == "= lmax 2 (Â_3 = 0)" and error_note(5).startswith("= lmax 4")
     assert error_note(1) == error_note(2) == error_note(4) == ""

@@ -72,6 +72,8 @@ def error_table(report, title: str | None = None):
     """A rich table of an :class:`~shprobe.prefilter.ErrorReport`."""
     from rich.table import Table
 
+    from ..report.probe import error_note
+
     t = Table()
     for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE", "note"):
         t.add_column(name, justify="right" if name != "note" else "left")
@@ -80,13 +82,6 @@ def error_table(report, title: str | None = None):
                   f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %", error_note(r.lmax))
     return _titled(t, title)
 
-
-def error_note(lmax: int) -> str:
-    """Why a row repeats the one above: Â_l = 0 for odd l > 1 (R&H eq. 9), so degree l adds
-    nothing to the irradiance and lmax = l equals lmax = l − 1."""
-    if lmax >= 3 and lmax % 2 == 1:
-        return f"= lmax {lmax - 1} (Â_{lmax} = 0)"
-    return ""
 
 
 def _titled(table, title: str | None):

@@ -64,6 +64,15 @@ def _latlong_view(env: Env, width: int = 512) -> NDArray[np.float32]:
     return env.sample(dirs)
 
 
+def error_note(lmax: int) -> str:
+    """The note of an error-table row that repeats the one above: Â_l = 0 for odd l > 1
+    (R&H eq. 9), so degree l adds nothing to the irradiance and lmax = l equals lmax = l − 1
+    (used by this page and by ``shprobe error``)."""
+    if lmax >= 3 and lmax % 2 == 1:
+        return f"= lmax {lmax - 1} (Â_{lmax} = 0)"
+    return ""
+
+
 def _img(fig: Figure, alt: str) -> str:
     data = base64.b64encode(fig.png_bytes()).decode("ascii")
     h, w = fig.pixels.shape[:2]
@@ -84,7 +93,7 @@ def _vec(v) -> str:
 
 
 def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
-                 map_height: int = 64, render_size: int = 256,
+                 map_height: int = 32, render_size: int = 256,
                  step: Callable[[str], None] | None = None,
                  progress: Callable[[int, int], None] | None = None) -> ProbeReport:
     """Build the report of ``env``.
@@ -121,8 +130,11 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     e_probe = exposure_for(view)
     figs["probe"] = figure([Panel(view, f"{source} ({env.layout.name} "
                                   f"{'x'.join(map(str, env.grid[::-1]))})",
-                                  units="radiance L (relative)", exposure=e_probe)],
-                           display_width=512)
+                                  units="radiance L (relative)", exposure=e_probe),
+                            Panel(view, "the same, 4 stops brighter (shadows; highlights "
+                                  "clip)", units="radiance L (relative)",
+                                  exposure=e_probe + 4.0)],
+                           display_width=min(512, max(256, view.shape[1])))
 
     say("exact irradiance (brute force)")
     ref = reference_irradiance_map(env, "latlong", (2 * h, h), progress=progress)
@@ -158,11 +170,10 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     figs["basis"] = figure(rows, shared_colorbar=True, display_width=min(r, 160),
                            title=f"irradiance basis images of {obj} (R&H Fig. 4)")
     say(f"render of {obj}")
-    res = render(mesh, L, cam, background=env)
+    res = render(mesh, L, cam, background=None)
     e_obj = exposure_for(res.image[res.mask]) if res.mask.any() else exposure_for(res.image)
     figs["render"] = figure([Panel(res.image, f"{obj} under {source} (9 coefficients)",
-                                   units="radiance ρE/π; background: the probe",
-                                   exposure=e_obj)],
+                                   units="radiance ρE/π", exposure=e_obj)],
                             display_width=max(288, min(r, 384)))
 
     say("writing the page")
@@ -174,8 +185,7 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
             k += 1
     err_rows = []
     for row in rep.rows:
-        note = (f"= lmax {row.lmax - 1} (Â_{row.lmax} = 0)"
-                if row.lmax >= 3 and row.lmax % 2 else "")
+        note = error_note(row.lmax)
         err_rows.append([str(row.lmax), f"{100 * row.mean_frac:.3f} %",
                          f"{100 * row.max_frac:.3f} %", f"{100 * row.mean_rel:.3f} %",
                          f"{100 * row.smape:.3f} %", note])
