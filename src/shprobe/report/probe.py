@@ -9,7 +9,8 @@ script, no network) with
 - the coefficient table in the layout of R&H Fig. 2 and the matrices M of eq. 11–12;
 - the non-negativity certificate of E (:func:`shprobe.lighting.windows.min_irradiance`) and
   the window ``auto`` chooses (:func:`shprobe.lighting.windows.auto_window`);
-- the nine irradiance basis images of a mesh (R&H Fig. 4) and a render of it under the probe.
+- the nine irradiance basis images of a mesh (R&H Fig. 4) and a render of it under the probe
+  (beside one with the auto window when E goes negative).
 
 Every picture is a labelled figure (:mod:`shprobe.probes.figures`).
 """
@@ -131,9 +132,8 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     figs["probe"] = figure([Panel(view, f"{source} ({env.layout.name} "
                                   f"{'x'.join(map(str, env.grid[::-1]))})",
                                   units="radiance L (relative)", exposure=e_probe),
-                            Panel(view, "the same, 4 stops brighter (shadows; highlights "
-                                  "clip)", units="radiance L (relative)",
-                                  exposure=e_probe + 4.0)],
+                            Panel(view, "the same, +4 EV (the shadows)",
+                                  units="radiance L (relative)", exposure=e_probe + 4.0)],
                            display_width=min(512, max(256, view.shape[1])))
 
     say("exact irradiance (brute force)")
@@ -172,9 +172,15 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     say(f"render of {obj}")
     res = render(mesh, L, cam, background=None)
     e_obj = exposure_for(res.image[res.mask]) if res.mask.any() else exposure_for(res.image)
-    figs["render"] = figure([Panel(res.image, f"{obj} under {source} (9 coefficients)",
-                                   units="radiance ρE/π", exposure=e_obj)],
-                            display_width=max(288, min(r, 384)))
+    shots = [Panel(res.image, f"{obj} under {source} (9 coefficients)",
+                   units="radiance ρE/π", exposure=e_obj)]
+    if win.kind != "none":  # the ringing next to its cure, at one exposure
+        from ..lighting.windows import apply_window
+
+        fixed = render(mesh, apply_window(L, win.factors), cam, background=None)
+        shots.append(Panel(fixed.image, f"with the {win.kind} window (auto)",
+                           units="radiance ρE/π", exposure=e_obj))
+    figs["render"] = figure(shots, display_width=max(288, min(r, 384)))
 
     say("writing the page")
     coeff_rows = []
