@@ -211,7 +211,8 @@ def register(group: click.Group) -> None:
             from ..probes.layouts import Env
 
             shown = Env(emap.radiance / np.pi, emap.layout)
-            stops = exposure_for(shown.radiance) if fixed is None else fixed
+            stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))
+                     if fixed is None else fixed)  # pixels outside a disc do not count
             note = f", E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}"
         else:
             stops = 0.0
