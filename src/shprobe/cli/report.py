@@ -23,7 +23,7 @@ def register(group: click.Group) -> None:
                   help="Mesh for the basis images and the render (default: the unit sphere).")
     @click.option("--render-size", type=click.IntRange(16, 2048), default=256,
                   show_default=True, help="Side of the basis images and the render, pixels.")
-    @click.option("--map-size", type=click.IntRange(2, 1024), default=32, show_default=True,
+    @click.option("--map-size", type=click.IntRange(2, 256), default=32, show_default=True,
                   help="N: the irradiance maps are 2N×N lat-long; the exact map and the error "
                        "table use the same 2N² normals (32: the normals of `shprobe error`).")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),

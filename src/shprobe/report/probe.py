@@ -114,8 +114,8 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     from ..sh import sh_lm
 
     h = int(map_height)
-    if not 2 <= h <= 1024:
-        raise ShprobeError(f"map height {h} must be 2..1024")
+    if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
+        raise ShprobeError(f"map height {h} must be 2..256")
     r = int(render_size)
     if not 16 <= r <= MAX_RENDER:
         raise ShprobeError(f"render size {r} must be 16..{MAX_RENDER}")
