@@ -132,7 +132,10 @@ def test_demo_writes_everything_once(tmp_path, capsys):
     names = {"probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
              "coefficients.json"}
     assert {p.name for p in out.iterdir()} == names
-    assert read_image(out / "side_by_side.png").shape == (32, 128, 3)
+    from shprobe.probes.figures import read_panels  # a labelled figure: test_figures_cli
+
+    assert [p["image_box"][2] - p["image_box"][0] for p in
+            read_panels(out / "side_by_side.png")["panels"]] == [160, 160]
     stamp = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     rc, _, err = run(["demo", "--out", out, "--size", "64"], capsys)
     one_line_error(rc, err)

@@ -13,6 +13,7 @@ from . import hbasis as _hbasis
 from . import prefilter as _prefilter
 from . import prt as _prt
 from . import render as _render
+from . import report as _report
 from . import sh as _sh
 
 
@@ -26,7 +27,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _batch):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _report, _batch):
     _mod.register(cli)
 
 

@@ -9,6 +9,7 @@ import click
 
 from ..errors import ShprobeError
 from .common import force_option
+from .prt import _exposure
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.export).
@@ -71,13 +72,16 @@ def error_table(report, title: str | None = None):
     """A rich table of an :class:`~shprobe.prefilter.ErrorReport`."""
     from rich.table import Table
 
+    from ..report.probe import error_note
+
     t = Table()
-    for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE"):
-        t.add_column(name, justify="right")
+    for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE", "note"):
+        t.add_column(name, justify="right" if name != "note" else "left")
     for r in report.rows:
         t.add_row(str(r.lmax), f"{100 * r.mean_frac:.3f} %", f"{100 * r.max_frac:.3f} %",
-                  f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %")
+                  f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %", error_note(r.lmax))
     return _titled(t, title)
+
 
 
 def _titled(table, title: str | None):
@@ -171,19 +175,27 @@ def register(group: click.Group) -> None:
     @click.option("--method", type=click.Choice(("sh", "brute")), default="sh",
                   show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
                   "integral per pixel (slow, exact).")
-    @click.option("--exposure", type=float, default=0.0, show_default=True,
-                  help="Exposure in stops for .png output.")
+    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+                  help="PNG only: exposure in stops; auto maps the 99th percentile of the "
+                  "largest channel to white (at most 1 % of the pixels clip). The PNG shows "
+                  "E/π, the radiance a white diffuse surface reflects; linear files hold E.")
     @force_option
     def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout, size,
                        lmax, method, exposure, force):
-        """Write an irradiance environment map E(n) (R&H 2001 §3.1)."""
+        """Write an irradiance environment map E(n) (R&H 2001 §3.1).
+
+        Linear files (.exr .hdr .pfm .tif) hold E; a .png shows E/π (the radiance a white
+        diffuse surface reflects), tone-mapped at --exposure (auto by default, printed)."""
+        import numpy as np
 
         from ..lighting.irradiance import irradiance_map
         from ..lighting.reference import reference_irradiance_map
+        from ..probes.figures import exposure_for
         from ..probes.images import check_image_output
         from ..probes.layouts import get_layout, write_env
 
         check_image_output(output, force)
+        fixed = _exposure(exposure)  # a bad value is refused before the work
         src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
                              need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")
@@ -194,9 +206,19 @@ def register(group: click.Group) -> None:
         else:
             with _progress_bar("brute-force irradiance") as update:
                 emap = reference_irradiance_map(src.env, lay, sz, progress=update)
-        write_env(output, emap, overwrite=force, exposure=exposure)
+        shown, note = emap, ""
+        if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
+            from ..probes.layouts import Env
+
+            shown = Env(emap.radiance / np.pi, emap.layout)
+            stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))
+                     if fixed is None else fixed)  # pixels outside a disc do not count
+            note = f", E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}"
+        else:
+            stops = 0.0
+        write_env(output, shown, overwrite=force, exposure=stops)
         click.echo(f"wrote {output} ({lay.name} {'x'.join(map(str, emap.grid[::-1]))}, "
-                   f"{method}, lmax {lmax})", err=True)
+                   f"{method}, lmax {lmax}{note})", err=True)
 
     @group.command("error")
     @coeff_source_options
@@ -230,10 +252,14 @@ def register(group: click.Group) -> None:
                   show_default=True, help="Folder for the pictures (created if missing).")
     @click.option("--size", default="256x128", show_default=True,
                   help="Size WxH (or N for NxN/2) of the procedural lat-long environment.")
+    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+                  help="Exposure of the PNGs in stops; auto maps the 99th percentile of the "
+                  "largest channel of the sky and E/π together to white.")
     @force_option
-    def demo_cmd(out_dir, size, force):
+    def demo_cmd(out_dir, size, exposure, force):
         """The main job with no files: a procedural sky → SH coefficients → irradiance map,
-        a side-by-side picture and the error table."""
+        a labelled side-by-side picture and the error table. The PNGs show E/π (the radiance
+        a white diffuse surface reflects) at the sky's exposure, so the two compare."""
         import numpy as np
 
         from ..files import check_output_path, write_json
@@ -242,6 +268,7 @@ def register(group: click.Group) -> None:
         from ..lighting.projection import project
         from ..lighting.reference import error_report
         from ..probes.environments import procedural_env
+        from ..probes.figures import Panel, exposure_for, figure
         from ..probes.images import write_image
         from .common import console
 
@@ -252,6 +279,7 @@ def register(group: click.Group) -> None:
                  "coefficients.json"]
         for n in names:  # refuse before writing anything
             check_output_path(out / n, force)
+        fixed = _exposure(exposure)
         w, h = _grid_size(size, "latlong")
         env = procedural_env(w, h)
         coeffs = project(env, 2)
@@ -259,16 +287,23 @@ def register(group: click.Group) -> None:
         con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
                                       "(R&H 2001 Fig. 2 layout)"))
         emap = irradiance_map(coeffs, "latlong", (w, h))
-        side = np.concatenate([env.radiance, emap.radiance / np.pi], axis=1)
+        shown = emap.radiance / np.pi
+        stops = (exposure_for(np.concatenate([env.radiance, shown], axis=1))
+                 if fixed is None else fixed)
+        side = figure([Panel(env.radiance, "procedural sky: radiance L", units="relative "
+                             "radiance", exposure=stops),
+                       Panel(shown, "irradiance E/π (SH, lmax 2)",
+                             units="white diffuse radiance", exposure=stops)],
+                      title="probe | its SH irradiance map (lat-long, +Y up)")
         write_image(out / "probe.exr", env.radiance, overwrite=force)
         write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
-        write_image(out / "irradiance.png", emap.radiance / np.pi, overwrite=force,
-                    exposure=-1.0)
-        write_image(out / "side_by_side.png", side, overwrite=force, exposure=-1.0)
+        write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
+        side.save(out / "side_by_side.png", overwrite=force)
         write_json(out / "coefficients.json", coeffs_document(coeffs, "procedural", "latlong"),
                    overwrite=force)
         with _progress_bar("reference irradiance") as update:
             rep = error_report(env, progress=update)
         con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
-        con.print(f"wrote {', '.join(names)} in {out}/ (irradiance .png shows E/π, the "
-                  "radiance of a white diffuse surface)")
+        con.print(f"wrote {', '.join(names)} in {out}/ (the .pngs show E/π, the radiance of a "
+                  f"white diffuse surface, at exposure {stops:+.1f} EV"
+                  f"{' (auto)' if fixed is None else ''})")

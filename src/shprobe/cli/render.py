@@ -222,14 +222,19 @@ def register(group: click.Group) -> None:
             vis = basis_visual(B[..., k], scale)
             write_image(stem.with_suffix(".png"), vis, overwrite=force)
             tiles.append(vis)
-        # pyramid sheet: band l on row l, centred
-        H, W = B.shape[:2]
-        sheet = np.zeros(((lmax + 1) * H, (2 * lmax + 1) * W, 3), np.float32)
-        for k, t in enumerate(tiles):
+        # labelled pyramid sheet: band l on row l, centred; one colour bar, sign legend
+        from ..probes.figures import Panel, write_figure
+
+        rows = [[None] * (2 * lmax + 1) for _ in range(lmax + 1)]
+        for k in range(len(stems)):
             l, m = sh_lm(k)
-            c = lmax + m
-            sheet[l * H:(l + 1) * H, c * W:(c + 1) * W] = t
-        write_image(out / "basis.png", sheet, overwrite=force)
+            rows[l][lmax + m] = Panel(B[..., k], f"(l, m) = ({l}, {m:+d})", "signed",
+                                      units="Â_l y_lm(n) / π", scale=scale)
+        write_figure(out / "basis.png", rows, overwrite=force, shared_colorbar=True,
+                     title=f"irradiance basis images of "
+                           f"{'the unit sphere' if geo is None else os.path.basename(mesh)} "
+                           "(R&H 2001 Fig. 4): the object under L = e_lm",
+                     display_width=min(B.shape[1], 192))
         click.echo(f"{out}: {B.shape[-1]} basis images (PNG + EXR) and basis.png; common "
                    f"scale {scale:.4g}")
 

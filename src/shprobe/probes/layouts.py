@@ -606,6 +606,15 @@ class Env:
         """Bilinear radiance lookup in directions ``(..., 3)`` → ``(..., 3)``."""
         return self.layout.sample(self.radiance, dirs)
 
+    def __repr__(self) -> str:
+        """Short: layout, grid, dtype, path and ∫L dω per channel (not the pixels)."""
+        grid = "x".join(map(str, self._grid[::-1] if len(self._grid) == 2 else self._grid))
+        rad = self.radiance.reshape(-1, self.radiance.shape[-1])
+        total = self.solid_angles().reshape(-1) @ rad.astype(np.float64)
+        path = f", path={self.path!r}" if self.path else ""
+        return (f"Env({self.layout.name} {grid}, {self.radiance.dtype}{path}, "
+                f"∫L dω=({', '.join(f'{v:.4g}' for v in total)}))")
+
 
 def load_env(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
              layout: str | Layout | None = None, clamp: bool = False) -> Env:
@@ -682,6 +691,11 @@ def write_env(path: str | os.PathLike[str], env_or_radiance: Env | ArrayLike,
     """
     from .images import write_image
 
+    if isinstance(path, Env) or not isinstance(path, str | os.PathLike):
+        raise ShprobeError("write_env(path, env): the first argument is the file to write, "
+                           f"got {type(path).__name__}"
+                           + (" (arguments swapped?)" if isinstance(env_or_radiance,
+                                                                    str | os.PathLike) else ""))
     if isinstance(env_or_radiance, Env):
         rad, lay = env_or_radiance.radiance, env_or_radiance.layout
     else:

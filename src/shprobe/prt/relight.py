@@ -58,7 +58,11 @@ def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLi
     lc = lmax_of(c.shape[0])
     use = min(lt, lc) if lmax is None else int(lmax)
     if use > min(lt, lc) or use < 0:
-        raise ShprobeError(f"lmax={use} not available: transfer has {lt}, lighting has {lc}")
+        have = "the transfer" if lt < lc else "the lighting"
+        raise ShprobeError(f"lmax={use} not available: the transfer has degree {lt} and the "
+                           f"lighting degree {lc} ({(lc + 1) ** 2} coefficients); the highest "
+                           f"usable is {min(lt, lc)}, set by {have} — project the lighting "
+                           f"with lmax={use} or more, or pass lmax<={min(lt, lc)}")
     k = num_coeffs(use)
     if isinstance(transfer, Transfer):
         tk = transfer.select(mode, bounces, use)

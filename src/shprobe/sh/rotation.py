@@ -257,8 +257,12 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     """Coefficients of the turned function f∘R⁻¹ (LH eq. 5): a'_lm = Σ_n D^l_mn(R) a_ln.
 
     ``coeffs`` is (..., K, C) (or (K,) for one channel) and ``rotation`` is one rotation or a
-    batch (..., 3, 3) / (..., 4); the leading axes of both broadcast. float32 coefficients
-    stay float32 (the arithmetic is float64).
+    batch: (..., 3, 3) matrices, (..., 4) unit quaternions in **scalar-first (w, x, y, z)**
+    order (:func:`from_quaternion`), or a ``scipy.spatial.transform.Rotation`` (taken through
+    its ``as_matrix()``, so no order question arises); the leading axes of both broadcast.
+    Beware: scipy's ``Rotation.as_quat()`` is scalar-LAST (x, y, z, w) — pass the Rotation
+    itself, or ``np.roll(q, 1, axis=-1)``. float32 coefficients stay float32 (the arithmetic
+    is float64).
     """
     if (type(coeffs) is np.ndarray and coeffs.ndim == 2 and coeffs.dtype is _F64
             and type(rotation) is np.ndarray and rotation.shape == (3, 3)
