@@ -13,6 +13,7 @@ from . import prefilter as _prefilter
 from . import prt as _prt
 from . import render as _render
 from . import sh as _sh
+from . import view as _view
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -25,7 +26,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _view):
     _mod.register(cli)
 
 
