@@ -44,13 +44,14 @@ def register(group: click.Group) -> None:
         if host not in ("127.0.0.1", "localhost", "::1"):
             click.echo(f"warning: --host {host} makes the viewer reachable from other "
                        "machines; anyone with the URL's token can read what it serves", err=True)
-        session = Session(probe, preset, mesh, transfer, layout)
+        session = Session(probe, preset, mesh, transfer, layout, load=False)
         sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             sock.bind((host, port))
         except OSError as e:
             raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
+        sock.listen(128)  # connections wait in the backlog until uvicorn accepts them
         port = sock.getsockname()[1]
         token = new_token()
         local = host in ("127.0.0.1", "localhost", "::1")
@@ -59,9 +60,19 @@ def register(group: click.Group) -> None:
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
         server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
+
+        def load() -> None:  # the files load while the server starts and the page opens
+            try:
+                session.load()
+            except BaseException:  # a bad file named on the command line: stop, one line
+                server.should_exit = True
+
+        threading.Thread(target=load, daemon=True).start()
         if not no_browser:
             threading.Timer(0.3, lambda: webbrowser.open(url)).start()
         try:
             server.run(sockets=[sock])
         finally:
             session.close()
+        if session.error is not None:
+            raise session.error

@@ -45,7 +45,10 @@ def _csp(index: str) -> str:
     import re
 
     m = re.search(r'<script type="importmap">(.*?)</script>', index, re.S)
-    h = "" if m is None else f"'sha256-{base64.b64encode(hashlib.sha256(m.group(1).encode()).digest()).decode()}'"
+    h = ""
+    if m is not None:
+        digest = hashlib.sha256(m.group(1).encode()).digest()
+        h = f"'sha256-{base64.b64encode(digest).decode()}'"
     return CSP.format(importmap=h)
 
 
@@ -121,9 +124,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
     def src_info() -> dict[str, Any]:
         s = session.source
         return {"name": s.name, "has_env": s.env is not None,
-                "layout": None if s.env is None else s.env.layout.name,
-                "lmax": int(np.sqrt(s.coeffs.shape[0])) - 1,
-                "coeffs": s.coeffs.tolist()}
+                "layout": None if s.env is None else s.env.layout.name}
 
     async def init(req: Request) -> Response:
         from ..lighting.export import FORMATS, export_coeffs
@@ -151,16 +152,10 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         return Response(data, media_type="application/octet-stream")
 
     async def design(req: Request) -> Response:
-        from ..lighting.windows import min_irradiance
-
         try:
             st = await _state(req)
 
-            def run():
-                L, wdesc = design_coeffs(session.base(st["lmax"]), st)
-                m = min_irradiance(L)
-                return L, wdesc, m
-            L, wdesc, m = await to_thread.run_sync(run)
+            L, wdesc, m = await to_thread.run_sync(lambda: session.design(st))
         except ShprobeError as e:
             return _error(e)
         return JSONResponse({"coeffs": L.tolist(), "lmax": st["lmax"], "window": wdesc,
@@ -273,17 +268,27 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             return _error(e)
         return JSONResponse({"normals": nrm.tolist(), "irradiance": E.tolist()})
 
+    def ready(fn):
+        """Wait (off the loop) for the command line's files; their error, if any."""
+        async def wrapped(req: Request) -> Response:
+            if not session.ready.is_set():
+                await to_thread.run_sync(session.ready.wait)
+            if session.error is not None:
+                return _error(session.error, 500)
+            return await fn(req)
+        return wrapped
+
     routes = [
         Route("/", page),
-        Route("/api/init", init),
-        Route("/api/mesh", mesh),
-        Route("/api/background", background),
-        Route("/api/design", design, methods=["POST"]),
-        Route("/api/export/{fmt}", export, methods=["POST"]),
-        Route("/api/upload/{kind}", upload, methods=["POST"]),
-        Route("/api/compare", compare),
-        Route("/api/transfer", transfer),
-        Route("/api/irradiance", three_check, methods=["POST"]),
+        Route("/api/init", ready(init)),
+        Route("/api/mesh", ready(mesh)),
+        Route("/api/background", ready(background)),
+        Route("/api/design", ready(design), methods=["POST"]),
+        Route("/api/export/{fmt}", ready(export), methods=["POST"]),
+        Route("/api/upload/{kind}", ready(upload), methods=["POST"]),
+        Route("/api/compare", ready(compare)),
+        Route("/api/transfer", ready(transfer)),
+        Route("/api/irradiance", ready(three_check), methods=["POST"]),
         Mount("/static", StaticFiles(directory=str(static)), name="static"),
     ]
     app = Starlette(routes=routes)

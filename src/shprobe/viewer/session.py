@@ -14,7 +14,7 @@ import json
 import os
 import tempfile
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -268,14 +268,16 @@ def design_coeffs(base: NDArray[np.float64] | None, state: dict[str, Any]
 
 def pack_binary(header: dict[str, Any], arrays: dict[str, NDArray]) -> bytes:
     """One binary message: uint32 header length, JSON header (with each array's dtype, shape
-    and byte offset), padding to 4 bytes, then the arrays (little-endian float32 / uint32)."""
+    and byte offset), padding to 4 bytes, then the arrays (little-endian float16 / float32 /
+    uint32), each padded to 4 bytes."""
     parts, meta, off = [], {}, 0
     for name, a in arrays.items():
-        a = np.ascontiguousarray(a, dtype="<f4" if a.dtype.kind == "f" else "<u4")
-        meta[name] = {"dtype": "f4" if a.dtype.kind == "f" else "u4", "shape": list(a.shape),
-                      "offset": off}
+        kind = "f2" if a.dtype == np.float16 else "f4" if a.dtype.kind == "f" else "u4"
+        a = np.ascontiguousarray(a, dtype="<" + kind)
+        meta[name] = {"dtype": kind, "shape": list(a.shape), "offset": off}
         parts.append(a.tobytes())
-        off += a.nbytes
+        off += a.nbytes + (-a.nbytes % 4)
+        parts.append(b"\0" * (-a.nbytes % 4))
     head = json.dumps({**header, "arrays": meta}).encode()
     head += b" " * (-(len(head) + 4) % 4)
     return len(head).to_bytes(4, "little") + head + b"".join(parts)
@@ -284,19 +286,28 @@ def pack_binary(header: dict[str, Any], arrays: dict[str, NDArray]) -> bytes:
 # ----------------------------------------------------------------------------- session
 
 
-@dataclass
 class Source:
-    """A lighting source: coefficients projected to :data:`MAX_LMAX` (or a preset's nine),
-    the probe (None for presets) and the name ``shprobe`` commands give it. ``coeffs2``: the
-    projection at lmax 2, the base ``shprobe edit`` starts from (projecting to a higher degree
-    changes the low coefficients in the last bits)."""
+    """A lighting source: its name (as ``shprobe`` commands give it), the probe (None for
+    presets) and its coefficients: ``coeffs2`` at lmax 2, the base ``shprobe edit`` starts
+    from, and :attr:`coeffs` at :data:`MAX_LMAX`, projected on first use (projecting to a
+    higher degree changes the low coefficients in the last bits, so both are kept)."""
 
-    name: str
-    coeffs: NDArray[np.float64]
-    env: Any = None
-    coeffs2: NDArray[np.float64] | None = None
-    compare: dict[str, Any] | None = None
-    lock: threading.Lock = field(default_factory=threading.Lock)
+    def __init__(self, name: str, coeffs2: NDArray[np.float64], env: Any = None) -> None:
+        self.name, self.coeffs2, self.env = name, coeffs2, env
+        self._coeffs: NDArray[np.float64] | None = None if env is not None else coeffs2
+        self._lock = threading.Lock()
+
+    @property
+    def coeffs(self) -> NDArray[np.float64]:
+        with self._lock:
+            if self._coeffs is None:
+                from ..lighting.projection import project
+
+                self._coeffs = np.asarray(project(self.env, MAX_LMAX), np.float64)
+            return self._coeffs
+
+    def __repr__(self) -> str:
+        return f"Source({self.name!r}, env={self.env is not None})"
 
 
 @dataclass
@@ -314,30 +325,61 @@ class Session:
 
     def __init__(self, probe: str | None = None, preset: str | None = None,
                  mesh: str | None = None, transfer: str | None = None,
-                 layout: str = "auto") -> None:
+                 layout: str = "auto", load: bool = True) -> None:
         self.layout = layout
+        self._args = (probe, preset, mesh, transfer)
         self._dir = tempfile.TemporaryDirectory(prefix="shprobe-view-")
         self._n_uploads = 0
         self.lock = threading.Lock()
         self.tasks: dict[str, Task] = {}
+        self._design_cache: dict[str, Any] = {}
         self.transfer = None
         self.transfer_name = None
-        if transfer:
-            self.load_transfer(transfer)
-        if probe:
-            self.source = self.probe_source(probe)
-        elif preset:
-            self.source = self.preset_source(preset)
-        else:
-            from ..probes.environments import procedural_env
-
-            self.source = self.env_source(procedural_env(256, 128), "procedural sky")
         self.mesh = None
         self.mesh_name = "sphere"
-        if mesh:
-            self.load_mesh(mesh)
-        elif transfer is None and (p := default_mesh_path()) is not None:
-            self.load_mesh(str(p))
+        self.source: Source
+        self.ready = threading.Event()
+        self.error: ShprobeError | None = None
+        if load:
+            self.load()
+
+    def load(self) -> None:
+        """Read the files named on the command line (probe and mesh in parallel); sets
+        :attr:`ready`, and :attr:`error` when one of them is bad (then re-raised)."""
+        probe, preset, mesh, transfer = self._args
+        errors: list[BaseException] = []
+
+        def geometry() -> None:
+            try:
+                if transfer:
+                    self.load_transfer(transfer)
+                if mesh:
+                    self.load_mesh(mesh)
+                elif transfer is None and (p := default_mesh_path()) is not None:
+                    self.load_mesh(str(p))
+            except BaseException as e:  # re-raised below, in the caller's thread
+                errors.append(e)
+
+        th = threading.Thread(target=geometry, daemon=True)
+        th.start()
+        try:
+            if probe:
+                self.source = self.probe_source(probe)
+            elif preset:
+                self.source = self.preset_source(preset)
+            else:
+                from ..probes.environments import procedural_env
+
+                self.source = self.env_source(procedural_env(256, 128), "procedural sky")
+        except BaseException as e:
+            errors.append(e)
+        th.join()
+        if errors:
+            e = errors[0]
+            self.error = e if isinstance(e, ShprobeError) else ShprobeError(str(e))
+            self.ready.set()
+            raise e
+        self.ready.set()
 
     def close(self) -> None:
         self._dir.cleanup()
@@ -346,13 +388,46 @@ class Session:
     def env_source(self, env: Any, name: str) -> Source:
         from ..lighting.projection import project
 
-        return Source(name, np.asarray(project(env, MAX_LMAX), np.float64), env,
-                      coeffs2=np.asarray(project(env, 2), np.float64))
+        return Source(name, np.asarray(project(env, 2), np.float64), env)
+
+    def design(self, state: dict[str, Any]) -> tuple[NDArray[np.float64], str | None, Any]:
+        """(L_lm, window description, min E certificate) of ``state`` for the page, fast during
+        a drag: everything but the rotation is cached per (source, state without rotation) —
+        the edits before it, the window factors (``auto``: chosen on the unrotated lighting)
+        and :func:`~shprobe.lighting.windows.min_irradiance`, all invariant under rotation —
+        so a drag step is one Wigner rotation. Exports use :func:`design_coeffs` (the CLI's
+        exact sequence of operations)."""
+        from ..lighting.design import rotate_lighting
+        from ..lighting.windows import apply_window, auto_window, min_irradiance, window_factors
+        from ..sh import lmax_of
+
+        src = self.source
+        key = json.dumps({**state, "rotation": None}, sort_keys=True)
+        hit = self._design_cache.get(key)
+        if hit is None or hit[0] is not src:
+            L0 = design_base(self.base(state["lmax"]), state)
+            f, wdesc = None, None
+            if state["window"] == "auto":
+                ch = auto_window(L0)
+                f = ch.factors
+                wdesc = f"auto -> {ch.kind}" + (
+                    f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else "")
+            elif state["window"]:
+                kind, _, st = state["window"].partition(":")
+                f, wdesc = window_factors(kind, lmax_of(L0.shape[0]), float(st)), state["window"]
+            cert = min_irradiance(L0 if f is None else apply_window(L0, f))
+            hit = (src, L0, f, wdesc, cert)
+            if len(self._design_cache) > 64:
+                self._design_cache.clear()
+            self._design_cache[key] = hit
+        _, L0, f, wdesc, cert = hit
+        L = rotate_lighting(L0, rotation_matrix(state)) if state["rotation"] else L0
+        return (L if f is None else apply_window(L, f)), wdesc, cert
 
     def base(self, lmax: int) -> NDArray[np.float64]:
         """The coefficients the edits start from at degree ``lmax``."""
         s = self.source
-        return s.coeffs2 if lmax <= 2 and s.coeffs2 is not None else s.coeffs
+        return s.coeffs2 if lmax <= 2 else s.coeffs
 
     def probe_source(self, path: str, name: str | None = None) -> Source:
         from ..probes.layouts import load_env
@@ -364,7 +439,7 @@ class Session:
         if float(rad.min()) < 0:
             raise ShprobeError("probe has negative pixels", name or path)
         src = self.env_source(env, name or path)
-        if not np.all(np.isfinite(src.coeffs)):
+        if not np.all(np.isfinite(src.coeffs2)):
             raise ShprobeError("probe projects to non-finite coefficients", name or path)
         return src
 
@@ -464,8 +539,10 @@ class Session:
             img = env.radiance
         else:
             img = env.sample(LatLong().pixel_directions((h, 2 * h)))
+        rgba = np.ones((*img.shape[:2], 4), np.float16)  # half floats, ready for a texture
+        rgba[..., :3] = np.minimum(img, 65504.0)
         return pack_binary({"layout": env.layout.name, "grid": list(env.grid)},
-                           {"radiance": np.asarray(img, np.float32)})
+                           {"radiance": rgba})
 
 
 def camera_json(cam: Any, center: NDArray, radius: float) -> dict[str, Any]:

@@ -6,13 +6,15 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
 const $ = (id) => document.getElementById(id);
-const api = {};          // exposed for tests and benchmarks: window.__shprobe
+const api = window.__shprobe || {};  // exposed for tests and benchmarks
 window.__shprobe = api;
 const t0 = performance.now();
+api.marks = {};
+const mark = (name) => { api.marks[name] = Math.round(performance.now()); };
 
 // ------------------------------------------------------------------ server calls
-async function call(path, opts = {}) {
-  const r = await fetch(path, opts);
+async function call(path, opts = {}) { return handle(await fetch(path, opts)); }
+async function handle(r) {
   const type = r.headers.get('content-type') || '';
   if (!r.ok) {
     let msg = `${r.status} ${r.statusText}`;
@@ -30,8 +32,8 @@ function unpack(buf) {  // session.pack_binary
   const base = 4 + n, out = { head };
   for (const [k, m] of Object.entries(head.arrays || {})) {
     const len = m.shape.reduce((a, b) => a * b, 1);
-    out[k] = m.dtype === 'f4' ? new Float32Array(buf, base + m.offset, len)
-                              : new Uint32Array(buf, base + m.offset, len);
+    const T = { f2: Uint16Array, f4: Float32Array, u4: Uint32Array }[m.dtype];
+    out[k] = new T(buf, base + m.offset, len);
   }
   return out;
 }
@@ -43,6 +45,13 @@ function showError(e) {
 }
 function clearError() { $('error').hidden = true; }
 function setStatus(s) { $('status').textContent = s; }
+
+// the first requests were started by boot.js while three.js was loading
+function first(name, fallback) {
+  const b = window.__boot && window.__boot[name];
+  if (b) { window.__boot[name] = null; return b.then((r) => (r instanceof Response ? handle(r) : r)); }
+  return fallback();
+}
 
 // ------------------------------------------------------------------ edit state and history
 const EMPTY = { lmax: 2, weight: 1, blends: [], directional: [], cone: [], sky: null,
@@ -95,7 +104,8 @@ async function requestDesign() {
     do {
       designAgain = false;
       const tc = performance.now();
-      const r = await call('/api/design', { method: 'POST', body: JSON.stringify(state) });
+      const body = JSON.stringify(state);
+      const r = await first(`design:${body}`, () => call('/api/design', { method: 'POST', body }));
       api.lastDesignMs = performance.now() - tc;
       lastDesign = r; coeffs = r.coeffs; api.coeffs = r.coeffs;
       clearError();
@@ -467,9 +477,12 @@ async function newSource(src) {
   showLegend(); await requestDesign();
 }
 async function loadBackground() {  // linear float radiance, bilinear (Env.sample's filter)
-  const r = await call('/api/background');
-  const [h, w] = r.head.arrays.radiance.shape;
-  bgTex = floatTex(r.radiance, h, w);
+  const r = await first('background', () => call('/api/background'));
+  const [h, w] = r.head.arrays.radiance.shape;  // RGBA half floats, row 0 = +Y
+  const t = new THREE.DataTexture(r.radiance, w, h, THREE.RGBAFormat, THREE.HalfFloatType);
+  t.wrapS = THREE.RepeatWrapping; t.wrapT = THREE.ClampToEdgeWrapping;
+  t.magFilter = THREE.LinearFilter; t.minFilter = THREE.LinearFilter; t.needsUpdate = true;
+  bgTex = t;
 }
 
 // drag on the probe: horizontal = about +Y (features follow the cursor in azimuth), vertical =
@@ -492,7 +505,9 @@ function wireDrag() {
 
 // ------------------------------------------------------------------ start
 async function main() {
-  const init = await call('/api/init');
+  mark('script');
+  const init = await first('init', () => call('/api/init'));
+  mark('init');
   api.init = init;
   SHPROBE_GLSL = shaderFromExport(init.glsl);
   $('source').textContent = init.source.name;
@@ -518,16 +533,18 @@ async function main() {
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
   else if (init.transfer) state.lmax = init.transfer.lmax;
   wire(init); refreshControls();
-  const jobs = [requestDesign()];
-  if (init.source.has_env) jobs.push(loadBackground());
+  const jobs = [requestDesign().then(() => mark('design'))];
+  if (init.source.has_env) jobs.push(loadBackground().then(() => mark('background')));
   if (init.transfer) {
     $('mode').value = 'prt';
     jobs.push(loadTransfer($('prtmode').value, $('prtbounces').value));
   } else {
-    jobs.push(call('/api/mesh').then((g) => { setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; }));
+    jobs.push(first('mesh', () => call('/api/mesh')).then((g) => { mark('mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; }));
   }
   await Promise.all(jobs);
+  mark('data');
   draw();
+  mark('frame');
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
