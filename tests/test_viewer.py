@@ -411,3 +411,20 @@ def test_cli_view_prints_url_and_serves(probe_path):
     finally:
         p.terminate()
         p.wait(10)
+
+
+def test_hbasis_panel_in_page(page, served):
+    """The H-basis view shows the library's normal-mapping comparison for the page's lighting
+    (rotation applied): its errors are the library's, H6 beats H4."""
+    from shprobe.viewer.session import hbasis_panel
+
+    rot = {"axis": [1.0, 0.0, 0.0], "degrees": 40.0}
+    _state(page, {"rotation": rot})
+    page.select_option("#mode", "hbasis")
+    page.wait_for_function("() => window.__shprobe.hbasis", timeout=60000)
+    got = page.evaluate("() => window.__shprobe.hbasis")
+    _, want = hbasis_panel(served.session, check_state({"rotation": rot}))
+    assert got == pytest.approx(want, rel=1e-12)
+    assert got["H6"] < got["H4"]
+    assert page.locator("#hbimg").evaluate("(e) => e.naturalWidth") > 0
+    page.select_option("#mode", "design")

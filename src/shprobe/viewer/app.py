@@ -12,6 +12,7 @@ loop; long tasks report progress at ``/api/task/{name}``.
 
 from __future__ import annotations
 
+import json
 import secrets
 from importlib import resources
 from pathlib import Path
@@ -255,6 +256,17 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             return _error(e)
         return Response(data, media_type="application/octet-stream")
 
+    async def hbasis(req: Request) -> Response:
+        from .session import hbasis_panel
+
+        try:
+            st = await _state(req)
+            png, rms = await to_thread.run_sync(lambda: hbasis_panel(session, st))
+        except ShprobeError as e:
+            return _error(e)
+        return Response(png, media_type="image/png",
+                        headers={"X-Shprobe-Rel-Rms": json.dumps(rms)})
+
     async def three_check(req: Request) -> Response:
         """The library's irradiance at given normals, for the page's LightProbe check."""
         from ..lighting.irradiance import irradiance
@@ -289,6 +301,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         Route("/api/compare", ready(compare)),
         Route("/api/transfer", ready(transfer)),
         Route("/api/irradiance", ready(three_check), methods=["POST"]),
+        Route("/api/hbasis", ready(hbasis), methods=["POST"]),
         Mount("/static", StaticFiles(directory=str(static)), name="static"),
     ]
     app = Starlette(routes=routes)

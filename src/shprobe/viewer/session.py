@@ -581,3 +581,43 @@ def compare_data(src: Source, progress: Any = None) -> dict[str, Any]:
             "maps": maps, "total_intensity": total_intensity(env).tolist(),
             "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
                       "mean_rel": r.mean_rel} for r in rep.rows]}
+
+
+def hbasis_panel(session: Session, state: dict[str, Any], size: int = 160
+                 ) -> tuple[bytes, dict[str, float]]:
+    """Irradiance normal mapping (Habel & Wimmer 2010) as ``shprobe hbasis render`` draws it,
+    for the page's lighting: the mesh with a procedural bump, shaded by per-vertex H6, H4 and
+    tangent-space SH9 baked from the lighting at lmax 4 (the page's edits and rotation
+    applied), against the reference E(n′) — brute force over the probe (box-filtered to 64×128
+    and turned by the page's rotation; the other edits are not applied to it) or, for a preset,
+    the lighting's own SH expansion. → (PNG of ``panel_image``, relative RMS per basis)."""
+    import io
+
+    from PIL import Image
+
+    from ..hbasis._env import Lighting
+    from ..hbasis.normalmap import panel_image, render_normal_mapped
+    from ..probes.layouts import LatLong
+    from ..scene.render import sphere_mesh
+
+    st = {**state, "lmax": 4}
+    L, _ = design_coeffs(session.base(4), st)
+    env = session.source.env
+    if env is not None:
+        h = 64
+        if env.layout.name == "latlong" and env.grid[0] % h == 0:
+            k = env.grid[0] // h
+            img = env.radiance.reshape(h, k, 2 * h, k, 3).mean(axis=(1, 3))
+        else:
+            img = env.sample(LatLong().pixel_directions((h, 2 * h)))
+        lay = LatLong()
+        d = lay.pixel_directions((h, 2 * h)).reshape(-1, 3) @ rotation_matrix(state).T
+        light = Lighting(d, lay.solid_angles((h, 2 * h)).reshape(-1),
+                         np.asarray(img, np.float64).reshape(-1, 3), L)
+    else:
+        light = Lighting(None, None, None, L)
+    mesh = session.mesh if session.mesh is not None else sphere_mesh(4)
+    res = render_normal_mapped(mesh, light, size=size)
+    buf = io.BytesIO()
+    Image.fromarray(panel_image(res)).save(buf, format="PNG")
+    return buf.getvalue(), res.rel_rms

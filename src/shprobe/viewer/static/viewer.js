@@ -62,10 +62,10 @@ const KEY = 'shprobe-view-state';
 function saveLocal() { try { localStorage.setItem(KEY, JSON.stringify(state)); } catch (e) { /* private mode */ } }
 function commit(next) {   // an edit: undoable, persisted, recomputed
   history.push(JSON.stringify(state)); future = [];
-  state = next; saveLocal(); refreshControls(); requestDesign();
+  state = next; saveLocal(); refreshControls(); requestDesign(); updateHBasis();
 }
-function undo() { if (!history.length) return; future.push(JSON.stringify(state)); state = JSON.parse(history.pop()); saveLocal(); refreshControls(); requestDesign(); }
-function redo() { if (!future.length) return; history.push(JSON.stringify(state)); state = JSON.parse(future.pop()); saveLocal(); refreshControls(); requestDesign(); }
+function undo() { if (!history.length) return; future.push(JSON.stringify(state)); state = JSON.parse(history.pop()); saveLocal(); refreshControls(); requestDesign(); updateHBasis(); }
+function redo() { if (!future.length) return; history.push(JSON.stringify(state)); state = JSON.parse(future.pop()); saveLocal(); refreshControls(); requestDesign(); updateHBasis(); }
 api.getState = () => structuredClone(state);
 api.setState = (s) => commit({ ...structuredClone(EMPTY), ...structuredClone(s) });
 
@@ -308,6 +308,7 @@ async function loadTransfer(mode, bounces) {
   prt = { T: r.transfer, nv, kfull, coloured: per === 3, lmax: h.lmax, out: new Float32Array(nv * 3), head: h };
   if (!meshObj || meshObj.geometry.attributes.position.count !== nv) setGeometry(r, h.camera);
   const ls = $('prtlmax'); if (ls.options.length !== h.lmax + 1) { ls.innerHTML = ''; for (let l = 0; l <= h.lmax; l++) ls.add(new Option(l, l)); ls.value = h.lmax; }
+  $('meshname').textContent = `${h.name} (PRT)`;
   $('prtinfo').textContent = `${h.name}: ${nv} vertices, baked lmax ${h.lmax}, ${h.mode}${h.max_bounces ? `, up to ${h.max_bounces} bounces` : ''}`;
   setStatus('');
   api.prt = prt;
@@ -370,14 +371,44 @@ function showLegend() {
   $('legendmid').textContent = (row.max_frac / 2).toPrecision(3);
   $('errtable').tBodies[0].innerHTML = cmp.rows.map((r) => `<tr><td>${r.lmax}</td><td>${(100 * r.mean_frac).toFixed(3)}%</td><td>${(100 * r.max_frac).toFixed(3)}%</td></tr>`).join('');
 }
+const VIEW_LABELS = {
+  design: "Object: radiance = albedo · E(n) / π, E from shprobe's GLSL export (R&H eq. 13), per pixel",
+  sh: 'Object: E(n) of the probe at this lmax, the library\'s table (irradiance) looked up by normal',
+  exact: 'Object: brute-force E(n) of the probe (library reference_irradiance), looked up by normal',
+  error: 'Object: error heat map (legend below)',
+  hbasis: 'Object: SH per pixel (the H-basis panel is below)',
+  prt: 'Object: PRT exit radiance per vertex = transfer · rotated lighting (LH §4), computed in the page',
+};
 async function onMode() {
   const mode = $('mode').value;
+  $('viewlabel').textContent = VIEW_LABELS[mode.startsWith('sh') ? 'sh' : mode];
   try {
     if (mode !== 'design' && mode !== 'prt') await loadCompare();
     if (mode === 'prt' && !prt) await loadTransfer($('prtmode').value, $('prtbounces').value);
     clearError();
   } catch (e) { showError(e); $('mode').value = 'design'; }
+  $('hbbox').hidden = mode !== 'hbasis';
+  if (mode === 'hbasis') updateHBasis();
   showLegend(); draw();
+}
+let hbBusy = false, hbAgain = false;
+async function updateHBasis() {  // the library's render (server), after each settled edit
+  if ($('mode').value !== 'hbasis') return;
+  if (hbBusy) { hbAgain = true; return; }
+  hbBusy = true;
+  try {
+    do {
+      hbAgain = false;
+      setStatus('H-basis render…');
+      const r = await call('/api/hbasis', { method: 'POST', body: JSON.stringify(state) });
+      const rms = JSON.parse(r.headers.get('x-shprobe-rel-rms'));
+      $('hbimg').src = URL.createObjectURL(await r.blob());
+      $('hbtable').innerHTML = '<tr><th>basis</th><th>relative RMS error</th></tr>' + Object.entries(rms).map(([k, v]) => `<tr><td>${k}</td><td>${v.toFixed(4)}</td></tr>`).join('');
+      api.hbasis = rms;
+      setStatus('');
+    } while (hbAgain);
+  } catch (e) { showError(e); }
+  hbBusy = false;
 }
 
 // ------------------------------------------------------------------ controls
@@ -500,7 +531,7 @@ function wireDrag() {
     state = { ...state, rotation: toAxisAngle(R) };
     requestDesign();
   };
-  c.onpointerup = () => { if (!start) return; history.push(start.before); future = []; start = null; saveLocal(); requestDesign(); };
+  c.onpointerup = () => { if (!start) return; history.push(start.before); future = []; start = null; saveLocal(); requestDesign(); updateHBasis(); };
 }
 
 // ------------------------------------------------------------------ start
@@ -536,7 +567,7 @@ async function main() {
   const jobs = [requestDesign().then(() => mark('design'))];
   if (init.source.has_env) jobs.push(loadBackground().then(() => mark('background')));
   if (init.transfer) {
-    $('mode').value = 'prt';
+    $('mode').value = 'prt'; $('viewlabel').textContent = VIEW_LABELS.prt;
     jobs.push(loadTransfer($('prtmode').value, $('prtbounces').value));
   } else {
     jobs.push(first('mesh', () => call('/api/mesh')).then((g) => { mark('mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; }));
