@@ -86,8 +86,10 @@ def first_frame(browser, args: list[str]) -> tuple[float, float]:
 
 
 def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
-               ) -> tuple[list[float], list[float], list[float]]:
-    """Per drag step: (request + frame ms as the page sees it, frame ms, PRT loop ms)."""
+               ) -> dict[str, list[float]]:
+    """Per drag step (ms): ``step`` move → new frame as the page sees it, ``design`` the
+    /api/design round trip, ``frame`` the whole redraw (main view + the two panels),
+    ``main`` the 512×512 view alone, ``prt`` the page's PRT loop."""
     p, url, _ = start(args)
     try:
         ctx = browser.new_context(viewport={"width": 1100, "height": 900})
@@ -99,7 +101,7 @@ def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
             page.select_option("#mode", mode)
         box = page.locator("#probe").bounding_box()
         x, y = box["x"] + 100, box["y"] + 128
-        step_ms, frame_ms, prt_ms = [], [], []
+        step_ms, frame_ms, prt_ms, design_ms, main_ms = [], [], [], [], []
         page.mouse.move(x, y)
         page.mouse.down()
         for i in range(steps):
@@ -111,13 +113,15 @@ def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
             step_ms.append(1000 * (time.perf_counter() - t))
             frame_ms.append(page.evaluate("() => window.__shprobe.frameTimes().slice(-1)[0]"))
             prt_ms.append(page.evaluate("() => window.__shprobe.prtRelightMs || 0"))
+            design_ms.append(page.evaluate("() => window.__shprobe.lastDesignMs"))
+            main_ms.append(page.evaluate("() => window.__shprobe.mainFrameMs"))
         page.mouse.up()
-        design_ms = page.evaluate("() => window.__shprobe.lastDesignMs")
         ctx.close()
     finally:
         p.terminate()
         p.wait(10)
-    return step_ms, frame_ms, [*prt_ms, design_ms]
+    return {"step": step_ms, "frame": frame_ms, "prt": prt_ms, "design": design_ms,
+            "main": main_ms}
 
 
 def prt_transfer(folder: Path) -> Path:
@@ -160,18 +164,21 @@ def main() -> None:
         uu = [r[1] for r in runs]
         print(f"| of which: to the URL line | {min(uu):.2f} | {statistics.median(uu):.2f} |")
         print()
-        step, frame, extra = drag_times(browser, [str(probe)], None)
+        d = drag_times(browser, [str(probe)], None)
         print("### A lighting drag (per pointer move; ms, best | median of 40)\n")
         print("| | best ms | median ms |\n| --- | ---: | ---: |")
-        print(f"| move → new frame (server design call + redraw) | {stats(step)} |")
-        print(f"| frame alone: bunny per pixel 512×512 + panels | {stats(frame)} |")
-        print(f"| last `/api/design` round trip | {extra[-1]:.1f} | |")
+        print(f"| bunny: move → new frame (design call + redraw) | {stats(d['step'])} |")
+        print(f"| bunny: `/api/design` round trip (Wigner rotation) | {stats(d['design'])} |")
+        print(f"| bunny: redraw, 512×512 view + two 512×256 panels | {stats(d['frame'])} |")
+        print(f"| bunny: the 512×512 view alone (per pixel) | {stats(d['main'])} |")
         tp = prt_transfer(folder)
-        step, frame, extra = drag_times(browser, ["--transfer", str(tp)], None)
+        d = drag_times(browser, ["--transfer", str(tp)], None)
         nv = int(np.load(tp)["vertices"].shape[0])
-        print(f"| PRT {nv} vertices lmax 4: move → new frame | {stats(step)} |")
-        print(f"| PRT: transfer · lighting loop in the page | {stats(extra[:-1])} |")
-        print(f"| PRT: whole frame (loop + draw) | {stats(frame)} |")
+        print(f"| PRT {nv} vertices, lmax 4: move → new frame | {stats(d['step'])} |")
+        print(f"| PRT: `/api/design` round trip | {stats(d['design'])} |")
+        print(f"| PRT: transfer · lighting loop in the page | {stats(d['prt'])} |")
+        print(f"| PRT: redraw incl. the loop and the panels | {stats(d['frame'])} |")
+        print(f"| PRT: the 512×512 view alone incl. the loop | {stats(d['main'])} |")
         browser.close()
     print(f"\nLoad average at the end: {os.getloadavg()[0]:.2f}")
 
