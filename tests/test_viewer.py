@@ -217,6 +217,11 @@ def test_export_download_equals_cli(page, served, probe_path, tmp_path, fmt):
     args = cli_args(check_state(EDITS))
     assert main(["edit", str(probe_path), *args, "--format", fmt, "-o", str(out)]) == 0
     assert got == out.read_text()
+    if fmt == "json":  # what the page draws (the cached drag path) is what it exports
+        import json
+
+        shown = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+        np.testing.assert_array_equal(shown, json.loads(got)["coefficients"])
 
 
 def test_three_lightprobe_driven_by_three_export(page):

@@ -32,7 +32,7 @@ from .session import Session, Task, check_state, cli_args, compare_data, design_
 
 __all__ = ["create_app", "static_dir"]
 
-COOKIE = "shprobe_token"
+COOKIE = "shprobe_token_{port}"  # cookies ignore ports: one name per server
 CSP = ("default-src 'self'; script-src 'self' {importmap}; style-src 'self'; "
        "img-src 'self' blob: data:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
        "frame-ancestors 'none'")
@@ -66,8 +66,8 @@ def static_dir() -> Path:
 class Guard:
     """ASGI middleware: token, Host and Origin checks on every HTTP request."""
 
-    def __init__(self, app: ASGIApp, token: str, hosts: set[str] | None) -> None:
-        self.app, self.token, self.hosts = app, token, hosts
+    def __init__(self, app: ASGIApp, token: str, hosts: set[str] | None, cookie: str) -> None:
+        self.app, self.token, self.hosts, self.cookie = app, token, hosts, cookie
 
     def _ok_host(self, host: str) -> bool:
         return self.hosts is None or host.lower() in self.hosts
@@ -87,7 +87,7 @@ class Guard:
             await PlainTextResponse("forbidden origin", 403)(scope, receive, send)
             return
         given = (req.query_params.get("token") or req.headers.get("x-shprobe-token")
-                 or req.cookies.get(COOKIE) or "")
+                 or req.cookies.get(self.cookie) or "")
         if not secrets.compare_digest(given.encode(), self.token.encode()):
             await PlainTextResponse("forbidden: this server needs the token printed by "
                                     "`shprobe view` (?token=...)", 403)(scope, receive, send)
@@ -119,7 +119,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         r = Response(index, media_type="text/html",
                      headers={"Content-Security-Policy": csp, "Cache-Control": "no-store",
                               "Referrer-Policy": "no-referrer"})
-        r.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+        r.set_cookie(COOKIE.format(port=port), token, httponly=True, samesite="strict")
         return r
 
     def src_info() -> dict[str, Any]:
@@ -310,7 +310,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         hosts = {f"{h}:{port}" for h in ("127.0.0.1", "localhost", "[::1]")}
         if host not in ("127.0.0.1", "localhost", "0.0.0.0", "::"):
             hosts.add(f"{host}:{port}".lower())
-    app.add_middleware(Guard, token=token, hosts=hosts)
+    app.add_middleware(Guard, token=token, hosts=hosts, cookie=COOKIE.format(port=port))
     app.state.session = session
     return app
 

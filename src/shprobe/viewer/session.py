@@ -201,6 +201,12 @@ def cli_args(state: dict[str, Any]) -> list[str]:
     return a
 
 
+def _auto_desc(ch: Any) -> str:
+    """How the page names an ``auto_window`` choice."""
+    return f"auto -> {ch.kind}" + (
+        f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else "")
+
+
 def _window(c: NDArray[np.float64], spec: str | None) -> tuple[NDArray[np.float64], str | None]:
     from ..lighting.windows import apply_window, auto_window, window_factors
     from ..sh import lmax_of
@@ -209,8 +215,7 @@ def _window(c: NDArray[np.float64], spec: str | None) -> tuple[NDArray[np.float6
         return c, None
     if spec == "auto":
         ch = auto_window(c)
-        return apply_window(c, ch.factors), (f"auto -> {ch.kind}" + (
-            f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else ""))
+        return apply_window(c, ch.factors), _auto_desc(ch)
     kind, _, st = spec.partition(":")
     return apply_window(c, window_factors(kind, lmax_of(c.shape[0]), float(st))), spec
 
@@ -409,9 +414,7 @@ class Session:
             f, wdesc = None, None
             if state["window"] == "auto":
                 ch = auto_window(L0)
-                f = ch.factors
-                wdesc = f"auto -> {ch.kind}" + (
-                    f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else "")
+                f, wdesc = ch.factors, _auto_desc(ch)
             elif state["window"]:
                 kind, _, st = state["window"].partition(":")
                 f, wdesc = window_factors(kind, lmax_of(L0.shape[0]), float(st)), state["window"]

@@ -258,7 +258,7 @@ function draw() {
   const dt = performance.now() - tf;
   frameTimes.push(dt); if (frameTimes.length > 200) frameTimes.shift();
   api.frames = (api.frames || 0) + 1;
-  if (!api.firstFrameMs) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
+  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
 }
 api.draw = draw;
 api.frameTimes = () => frameTimes.slice();
@@ -565,7 +565,8 @@ async function main() {
   else if (init.transfer) state.lmax = init.transfer.lmax;
   wire(init); refreshControls();
   const jobs = [requestDesign().then(() => mark('design'))];
-  if (init.source.has_env) jobs.push(loadBackground().then(() => mark('background')));
+  // the first lit frame needs the lighting and the mesh; the background follows
+  const bg = init.source.has_env ? loadBackground().then(() => { mark('background'); draw(); }) : null;
   if (init.transfer) {
     $('mode').value = 'prt'; $('viewlabel').textContent = VIEW_LABELS.prt;
     jobs.push(loadTransfer($('prtmode').value, $('prtbounces').value));
@@ -576,6 +577,7 @@ async function main() {
   mark('data');
   draw();
   mark('frame');
+  if (bg) await bg;
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
