@@ -66,11 +66,11 @@ def start(args: list[str]) -> tuple[subprocess.Popen, str, float]:
 
 def first_frame(browser, args: list[str]) -> tuple[float, float]:
     """(seconds from command to first lit frame, seconds to the URL line)."""
+    ctx = browser.new_context(viewport={"width": 1100, "height": 900})
+    page = ctx.new_page()  # a browser tab already open, as a user's is
     p, url, t0 = start(args)
     t_url = time.time() - t0
     try:
-        ctx = browser.new_context(viewport={"width": 1100, "height": 900})
-        page = ctx.new_page()
         page.goto(url)
         page.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
                                "window.__shprobe.lastError)", timeout=60000)

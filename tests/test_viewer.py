@@ -391,6 +391,17 @@ def test_prt_frame_equals_relight(browser, tmp_path):
 # ----------------------------------------------------------------------------- the command
 
 
+def test_cli_view_bad_probe_is_one_line(tmp_path, probe_path):
+    bad = tmp_path / "cut.hdr"
+    bad.write_bytes(probe_path.read_bytes()[:5000])
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    r = subprocess.run([sys.executable, "-m", "shprobe", "view", str(bad), "--no-browser"],
+                       capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 1
+    assert r.stderr.strip().splitlines() == [f"shprobe: error: {bad}: truncated or corrupt "
+                                             ".hdr pixel data"]
+
+
 def test_cli_view_prints_url_and_serves(probe_path):
     """`shprobe view PROBE --no-browser` prints the URL with its token; requests without it
     are refused."""

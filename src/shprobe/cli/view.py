@@ -34,17 +34,29 @@ def register(group: click.Group) -> None:
         import threading
         import webbrowser
 
-        import uvicorn
-
-        from ..viewer.app import create_app, new_token
         from ..viewer.session import Session
 
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
+        session = Session(probe, preset, mesh, transfer, layout, load=False)
+        stop: list = []  # the server, once it exists
+
+        def load() -> None:  # the files load while the server starts and the page opens
+            try:
+                session.load()
+            except BaseException:  # a bad file named on the command line: stop, one line
+                if stop:
+                    stop[0].should_exit = True
+
+        threading.Thread(target=load, daemon=True).start()
+
+        import uvicorn
+
+        from ..viewer.app import create_app, new_token
+
         if host not in ("127.0.0.1", "localhost", "::1"):
             click.echo(f"warning: --host {host} makes the viewer reachable from other "
                        "machines; anyone with the URL's token can read what it serves", err=True)
-        session = Session(probe, preset, mesh, transfer, layout, load=False)
         sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -60,14 +72,9 @@ def register(group: click.Group) -> None:
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
         server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
-
-        def load() -> None:  # the files load while the server starts and the page opens
-            try:
-                session.load()
-            except BaseException:  # a bad file named on the command line: stop, one line
-                server.should_exit = True
-
-        threading.Thread(target=load, daemon=True).start()
+        stop.append(server)
+        if session.ready.is_set() and session.error is not None:
+            server.should_exit = True
         if not no_browser:
             threading.Timer(0.3, lambda: webbrowser.open(url)).start()
         try:
