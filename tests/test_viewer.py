@@ -444,3 +444,26 @@ def test_hbasis_panel_in_page(page, served):
     assert got["H6"] < got["H4"]
     assert page.locator("#hbimg").evaluate("(e) => e.naturalWidth") > 0
     page.select_option("#mode", "design")
+
+
+def test_upload_coefficients_as_source(served):
+    """Coefficients in any export format become the source (server side, no browser)."""
+    import httpx
+
+    from shprobe.lighting.export import export_coeffs
+    from shprobe.probes.presets import get_preset
+
+    keep = served.session.source
+    L = get_preset("eucalyptus") * 1.5
+    try:
+        with httpx.Client(base_url=served.base, params={"token": served.token}) as c:
+            r = c.post("/api/upload/coeffs", content=export_coeffs(L, "cmgen").encode(),
+                       headers={"X-Filename": "light_sh.txt"})
+            assert r.status_code == 200 and r.json()["source"]["name"] == "light_sh.txt"
+            got = np.array(c.post("/api/design", content="{}").json()["coeffs"])
+            np.testing.assert_allclose(got, L, rtol=1e-7, atol=1e-9)
+            r = c.post("/api/upload/coeffs", content=b"{not json",
+                       headers={"X-Filename": "x.json"})
+            assert r.status_code == 400 and "x.json" in r.json()["error"]
+    finally:
+        served.session.source = keep

@@ -127,20 +127,23 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         return {"name": s.name, "has_env": s.env is not None,
                 "layout": None if s.env is None else s.env.layout.name}
 
+    def transfer_info() -> dict[str, Any] | None:
+        t = session.transfer
+        return None if t is None else {
+            "name": session.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
+            "max_bounces": t.max_bounces, "mode": t.mode, "n_vertices": t.n_vertices}
+
     async def init(req: Request) -> Response:
         from ..lighting.export import FORMATS, export_coeffs
         from ..lighting.windows import WINDOWS
         from ..probes.presets import PRESETS
 
-        t = session.transfer
         return JSONResponse({
             "source": src_info(), "formats": list(FORMATS), "windows": list(WINDOWS),
             "presets": list(PRESETS), "mesh": session.mesh_name,
             # the page's shader is shprobe's own GLSL export (R&H eq. 11-13)
             "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
-            "transfer": None if t is None else {
-                "name": session.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
-                "max_bounces": t.max_bounces, "mode": t.mode, "n_vertices": t.n_vertices}})
+            "transfer": transfer_info()})
 
     async def mesh(req: Request) -> Response:
         data = await to_thread.run_sync(session.mesh_bytes)
@@ -181,7 +184,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     async def upload(req: Request) -> Response:
         kind = req.path_params["kind"]
-        if kind not in ("probe", "mesh", "transfer", "preset"):
+        if kind not in ("probe", "mesh", "transfer", "coeffs", "preset"):
             return _error(ShprobeError(f"unknown upload kind {kind!r}"), 404)
         try:
             if kind == "preset":
@@ -199,6 +202,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             def load():
                 if kind == "probe":
                     return session.probe_source(path, shown)
+                if kind == "coeffs":
+                    return session.coeffs_source(path, shown)
                 if kind == "mesh":
                     session.load_mesh(path, shown)
                 else:
@@ -215,7 +220,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         if new is not None:
             session.source = new
             session.tasks.pop("compare", None)
-        return JSONResponse({"source": src_info(), "mesh": session.mesh_name})
+        return JSONResponse({"source": src_info(), "mesh": session.mesh_name,
+                             "transfer": transfer_info()})
 
     async def compare(req: Request) -> Response:
         task = session.tasks.get("compare")

@@ -446,6 +446,17 @@ class Session:
             raise ShprobeError("probe projects to non-finite coefficients", name or path)
         return src
 
+    def coeffs_source(self, path: str, name: str) -> Source:
+        """Coefficients in any export format (``lighting.export.import_coeffs``)."""
+        from ..lighting.export import import_coeffs
+
+        c = import_coeffs(path)
+        if c.shape[1] == 1:
+            c = np.repeat(c, 3, axis=1)
+        if c.shape[1] != 3:
+            raise ShprobeError(f"needs 1 or 3 channels, got {c.shape[1]}", name)
+        return Source(name, c)
+
     def preset_source(self, name: str) -> Source:
         from ..probes.presets import get_preset
 

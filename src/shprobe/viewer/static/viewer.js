@@ -466,19 +466,23 @@ function wire(init) {
   }
   $('upprobe').onchange = () => upload('probe', $('upprobe'));
   $('upmesh').onchange = () => upload('mesh', $('upmesh'));
+  $('upcoeffs').onchange = () => upload('coeffs', $('upcoeffs'));
+  $('uptransfer').onchange = () => upload('transfer', $('uptransfer'));
   $('srcpreset').onchange = async () => {
     if (!$('srcpreset').value) return;
     try { const r = await call('/api/upload/preset?name=' + $('srcpreset').value, { method: 'POST' }); await newSource(r.source); } catch (e) { showError(e); }
   };
-  if (init.transfer) {
-    const o = $('mode').querySelector('option[value=prt]'); o.disabled = false;
-    $('prtbox').hidden = false;
-    for (const m of init.transfer.modes) $('prtmode').add(new Option(m, m));
-    $('prtmode').value = init.transfer.mode; $('prtbounces').value = init.transfer.max_bounces || 0;
-    const reload = async () => { try { await loadTransfer($('prtmode').value, $('prtbounces').value); clearError(); draw(); } catch (e) { showError(e); } };
-    $('prtmode').onchange = reload; $('prtbounces').onchange = reload; $('prtlmax').onchange = () => draw();
-  }
+  if (init.transfer) wirePRT(init.transfer);
   wireDrag();
+}
+function wirePRT(t) {
+  const o = $('mode').querySelector('option[value=prt]'); o.disabled = false;
+  $('prtbox').hidden = false;
+  $('prtmode').innerHTML = '';
+  for (const m of t.modes) $('prtmode').add(new Option(m, m));
+  $('prtmode').value = t.mode; $('prtbounces').value = t.max_bounces || 0;
+  const reload = async () => { try { await loadTransfer($('prtmode').value, $('prtbounces').value); clearError(); draw(); } catch (e) { showError(e); } };
+  $('prtmode').onchange = reload; $('prtbounces').onchange = reload; $('prtlmax').onchange = () => draw();
 }
 async function exportFormat(fmt) {  // the server's export of the same state: a download
   const r = await call('/api/export/' + fmt, { method: 'POST', body: JSON.stringify(state) });
@@ -494,7 +498,8 @@ async function upload(kind, input) {
   setStatus(`loading ${f.name}…`);
   try {
     const r = await call('/api/upload/' + kind, { method: 'POST', body: f, headers: { 'X-Filename': f.name } });
-    if (kind === 'probe') await newSource(r.source);
+    if (kind === 'probe' || kind === 'coeffs') await newSource(r.source);
+    if (kind === 'transfer') { prt = null; wirePRT(r.transfer); $('mode').value = 'prt'; await onMode(); }
     if (kind === 'mesh') { const g = await call('/api/mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; draw(); }
     clearError();
   } catch (e) { showError(e); }  // the edit state and the current source are kept
