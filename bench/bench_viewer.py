@@ -87,7 +87,8 @@ def first_frame(browser, args: list[str]) -> tuple[float, float]:
 
 def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
                ) -> dict[str, list[float]]:
-    """Per drag step (ms): ``step`` move → new frame as the page sees it, ``design`` the
+    """Per drag step (ms): ``first`` move → first new frame (in-page rotation for lmax ≤ 2,
+    else the server's answer), ``step`` move → the server's answer drawn, ``design`` the
     /api/design round trip, ``frame`` the whole redraw (main view + the two panels),
     ``main`` the 512×512 view alone, ``prt`` the page's PRT loop."""
     p, url, _ = start(args)
@@ -101,15 +102,16 @@ def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
             page.select_option("#mode", mode)
         box = page.locator("#probe").bounding_box()
         x, y = box["x"] + 100, box["y"] + 128
-        step_ms, frame_ms, prt_ms, design_ms, main_ms = [], [], [], [], []
+        step_ms, frame_ms, prt_ms, design_ms, main_ms, first_ms = [], [], [], [], [], []
         page.mouse.move(x, y)
         page.mouse.down()
         for i in range(steps):
             n0 = page.evaluate("() => window.__shprobe.frames")
             t = time.perf_counter()
             page.mouse.move(x + 4 * (i + 1), y + (i % 3))
+            page.wait_for_function(f"() => window.__shprobe.frames > {n0}", polling=1)
+            first_ms.append(1000 * (time.perf_counter() - t))
             page.evaluate("() => window.__shprobe.settled()")
-            page.wait_for_function(f"() => window.__shprobe.frames > {n0}")
             step_ms.append(1000 * (time.perf_counter() - t))
             frame_ms.append(page.evaluate("() => window.__shprobe.frameTimes().slice(-1)[0]"))
             prt_ms.append(page.evaluate("() => window.__shprobe.prtRelightMs || 0"))
@@ -121,7 +123,7 @@ def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
         p.terminate()
         p.wait(10)
     return {"step": step_ms, "frame": frame_ms, "prt": prt_ms, "design": design_ms,
-            "main": main_ms}
+            "main": main_ms, "first": first_ms}
 
 
 def prt_transfer(folder: Path) -> Path:
@@ -167,14 +169,15 @@ def main() -> None:
         d = drag_times(browser, [str(probe)], None)
         print("### A lighting drag (per pointer move; ms, best | median of 40)\n")
         print("| | best ms | median ms |\n| --- | ---: | ---: |")
-        print(f"| bunny: move → new frame (design call + redraw) | {stats(d['step'])} |")
+        print(f"| bunny: move → first new frame (rotation in the page) | {stats(d['first'])} |")
+        print(f"| bunny: move → library's answer drawn | {stats(d['step'])} |")
         print(f"| bunny: `/api/design` round trip (Wigner rotation) | {stats(d['design'])} |")
         print(f"| bunny: redraw, 512×512 view + two 512×256 panels | {stats(d['frame'])} |")
         print(f"| bunny: the 512×512 view alone (per pixel) | {stats(d['main'])} |")
         tp = prt_transfer(folder)
         d = drag_times(browser, ["--transfer", str(tp)], None)
         nv = int(np.load(tp)["vertices"].shape[0])
-        print(f"| PRT {nv} vertices, lmax 4: move → new frame | {stats(d['step'])} |")
+        print(f"| PRT {nv} vertices, lmax 4: move → new frame (server) | {stats(d['step'])} |")
         print(f"| PRT: `/api/design` round trip | {stats(d['design'])} |")
         print(f"| PRT: transfer · lighting loop in the page | {stats(d['prt'])} |")
         print(f"| PRT: redraw incl. the loop and the panels | {stats(d['frame'])} |")

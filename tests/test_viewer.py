@@ -190,6 +190,17 @@ def test_drag_on_probe_rotates_lighting_by_wigner(page):
     L2 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
     R = from_axis_angle([1, 0, 0], -22.5) @ from_axis_angle([0, 1, 0], -45.0)
     np.testing.assert_allclose(L2, rotate_lighting(L0, R), atol=1e-9 * np.abs(L0).max())
+    assert page.evaluate("() => window.__shprobe.localFrames") > 0  # drawn without a round trip
+    # the page's own rotation (lmax <= 2, used while dragging) is the library's Wigner rotation
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q = rng.normal(size=4)
+        from shprobe.sh.rotation import from_quaternion
+
+        R = from_quaternion(q / np.linalg.norm(q))
+        got = np.array(page.evaluate("([L, R]) => window.__shprobe.rotateInPage(L, R)",
+                                     [L0.tolist(), R.tolist()]))
+        np.testing.assert_allclose(got, rotate_lighting(L0, R), atol=1e-12 * np.abs(L0).max())
     # undo goes back to the first drag's lighting
     page.click("#undo")
     _settle(page)

@@ -159,10 +159,17 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         try:
             st = await _state(req)
 
-            L, wdesc, m = await to_thread.run_sync(lambda: session.design(st))
+            def run():
+                L, wdesc, m = session.design(st)
+                return L, wdesc, m, session.last_base
+            L, wdesc, m, (L0, f) = await to_thread.run_sync(run)
         except ShprobeError as e:
             return _error(e)
         return JSONResponse({"coeffs": L.tolist(), "lmax": st["lmax"], "window": wdesc,
+                             # the edits before the rotation and the window's band factors:
+                             # the page turns these itself while dragging (lmax <= 2)
+                             "unrotated": L0.tolist(),
+                             "factors": None if f is None else list(map(float, f)),
                              "min_e": m.minimum.tolist(), "min_exact": bool(m.exact),
                              "min_method": m.method, "cli": cli_args(st),
                              "source": session.source.name})

@@ -425,6 +425,7 @@ class Session:
             self._design_cache[key] = hit
         _, L0, f, wdesc, cert = hit
         L = rotate_lighting(L0, rotation_matrix(state)) if state["rotation"] else L0
+        self.last_base = (L0, f)  # what the page rotates itself during a drag (lmax ≤ 2)
         return (L if f is None else apply_window(L, f)), wdesc, cert
 
     def base(self, lmax: int) -> NDArray[np.float64]:

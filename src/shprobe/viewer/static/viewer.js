@@ -93,6 +93,44 @@ function toAxisAngle(R) {  // via the quaternion (robust near 180°)
 function stateRotation(s) { return s.rotation ? rotAxis(s.rotation.axis, s.rotation.degrees) : [[1, 0, 0], [0, 1, 0], [0, 0, 1]]; }
 api.rotationMatrix = () => stateRotation(state);
 
+// Rotation of lmax ≤ 2 lighting in the page (no server round trip while dragging), exact:
+// band 1 is a vector a with f(ω) = a·ω (R&H order y, z, x), turned as a' = R a; band 2 is a
+// traceless quadratic form f(ω) = ωᵀQω, turned as Q' = R Q Rᵀ; f∘R⁻¹ as the library's
+// rotate_lighting (the server's answer replaces this one when it arrives).
+const K1 = 1.092548430592079, K0 = 0.3153915652525200, K2 = 0.5462742152960396;
+function rotateLow(L, R) {  // L: (K ≤ 9, 3) → the coefficients of L∘R⁻¹
+  const out = L.map((c) => c.slice());
+  for (let ch = 0; ch < 3; ch++) {
+    if (L.length >= 4) {
+      const a = [L[3][ch], L[1][ch], L[2][ch]];  // (x, y, z)
+      const b = [0, 1, 2].map((i) => R[i][0] * a[0] + R[i][1] * a[1] + R[i][2] * a[2]);
+      out[1][ch] = b[1]; out[2][ch] = b[2]; out[3][ch] = b[0];
+    }
+    if (L.length >= 9) {
+      const [m2, m1, z0, p1, p2] = [L[4][ch], L[5][ch], L[6][ch], L[7][ch], L[8][ch]];
+      const Q = [[-K0 * z0 + K2 * p2, K1 * m2 / 2, K1 * p1 / 2],
+                 [K1 * m2 / 2, -K0 * z0 - K2 * p2, K1 * m1 / 2],
+                 [K1 * p1 / 2, K1 * m1 / 2, 2 * K0 * z0]];
+      const RQ = mul(R, Q);
+      const Qr = [0, 1, 2].map((i) => [0, 1, 2].map((j) => RQ[i][0] * R[j][0] + RQ[i][1] * R[j][1] + RQ[i][2] * R[j][2]));
+      out[4][ch] = 2 * Qr[0][1] / K1; out[5][ch] = 2 * Qr[1][2] / K1; out[7][ch] = 2 * Qr[0][2] / K1;
+      out[6][ch] = Qr[2][2] / (2 * K0); out[8][ch] = (Qr[0][0] - Qr[1][1]) / (2 * K2);
+    }
+  }
+  return out;
+}
+api.rotateInPage = (L, R) => rotateLow(L, R);
+function localDesign() {  // during a drag: the last server answer turned in the page
+  if (!lastDesign || !lastDesign.unrotated || lastDesign.unrotated.length > 9) return false;
+  if (JSON.stringify({ ...lastDesign.state, rotation: null }) !== JSON.stringify({ ...state, rotation: null })) return false;
+  let L = rotateLow(lastDesign.unrotated, stateRotation(state));
+  const f = lastDesign.factors;
+  if (f) L = L.map((c, k) => c.map((v) => v * f[Math.floor(Math.sqrt(k))]));
+  coeffs = L; api.coeffs = L; api.localFrames = (api.localFrames || 0) + 1;
+  draw();
+  return true;
+}
+
 // ------------------------------------------------------------------ design (library, server)
 let designBusy = false, designAgain = false;
 let coeffs = null;           // current L_lm (K, 3) from the server
@@ -104,10 +142,12 @@ async function requestDesign() {
     do {
       designAgain = false;
       const tc = performance.now();
-      const body = JSON.stringify(state);
+      const body = JSON.stringify(state), sent = state;
       const r = await first(`design:${body}`, () => call('/api/design', { method: 'POST', body }));
       api.lastDesignMs = performance.now() - tc;
-      lastDesign = r; coeffs = r.coeffs; api.coeffs = r.coeffs;
+      r.state = sent; lastDesign = r;
+      // a stale answer (the drag moved on meanwhile) is turned to the current rotation
+      if (JSON.stringify(state) === body || !localDesign()) { coeffs = r.coeffs; api.coeffs = r.coeffs; }
       clearError();
       showDesign(r);
       draw();
@@ -534,7 +574,8 @@ function wireDrag() {
     if (!start) return;
     const R = mul(dragRotation(e.offsetX - start.x, e.offsetY - start.y, c.clientWidth, c.clientHeight), start.R);
     state = { ...state, rotation: toAxisAngle(R) };
-    requestDesign();
+    localDesign();    // drawn at once, in the page (lmax ≤ 2)
+    requestDesign();  // then the library's coefficients and certificate
   };
   c.onpointerup = () => { if (!start) return; history.push(start.before); future = []; start = null; saveLocal(); requestDesign(); updateHBasis(); };
 }
