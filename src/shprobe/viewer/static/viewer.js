@@ -276,6 +276,7 @@ function setLightingUniforms(mat) {
 
 const MODES = { design: 0, sh1: 1, sh2: 1, sh3: 1, sh4: 1, exact: 2, error: 3, prt: 4 };
 let frameTimes = [];
+let moveAt = null;  // when the last drag move arrived (for the move → frame time)
 function draw() {
   if (!renderer || !coeffs) return;
   const tf = performance.now();
@@ -296,6 +297,7 @@ function draw() {
   panel.render(panelScene, panelCam);
   panelRenderer2.render(irrScene, panelCam);
   const dt = performance.now() - tf;
+  if (moveAt !== null) { (api.moveToFrame = api.moveToFrame || []).push(performance.now() - moveAt); moveAt = null; }
   frameTimes.push(dt); if (frameTimes.length > 200) frameTimes.shift();
   api.frames = (api.frames || 0) + 1;
   if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
@@ -572,6 +574,7 @@ function wireDrag() {
   c.onpointerdown = (e) => { c.setPointerCapture(e.pointerId); start = { x: e.offsetX, y: e.offsetY, R: stateRotation(state), before: JSON.stringify(state) }; };
   c.onpointermove = (e) => {
     if (!start) return;
+    moveAt = performance.now();
     const R = mul(dragRotation(e.offsetX - start.x, e.offsetY - start.y, c.clientWidth, c.clientHeight), start.R);
     state = { ...state, rotation: toAxisAngle(R) };
     localDesign();    // drawn at once, in the page (lmax ≤ 2)
