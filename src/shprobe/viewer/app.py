@@ -243,8 +243,9 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                 try:
                     task.result = compare_data(src, progress)
                     task.status, task.done = "done", 1.0
-                except ShprobeError as e:
-                    task.status, task.message = "error", str(e)
+                except Exception as e:  # reported to the page, one line
+                    task.status, task.message = "error", str(e).splitlines()[0] if str(e) \
+                        else type(e).__name__
 
             import threading
 
