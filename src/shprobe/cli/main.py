@@ -15,6 +15,7 @@ from . import prt as _prt
 from . import render as _render
 from . import report as _report
 from . import sh as _sh
+from . import view as _view
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -27,7 +28,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _report, _batch):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _report, _batch, _view):
     _mod.register(cli)
 
 

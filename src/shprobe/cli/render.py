@@ -17,7 +17,6 @@ from .common import (
     parse_floats,
     parse_rotation,
     parse_size,
-    parse_vector,
 )
 from .sources import coeff_source_options, resolve_coeffs
 
@@ -305,14 +304,14 @@ def register(group: click.Group) -> None:
             parts = c.split(":")
             if len(parts) != 3:
                 raise ShprobeError(f"--cone {c!r}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
-            cones.append((parse_vector(parts[0]), parse_floats(parts[1], 1, "aperture")[0],
-                          colour(parts[2], "colour")))
+            cones.append((parse_floats(parts[0], 3, "cone direction"),
+                           parse_floats(parts[1], 1, "aperture")[0], colour(parts[2], "colour")))
         sky_edit = None
         if sky:
             parts = sky.split(":")
             sky_edit = (colour(parts[0], "sky colour"),
                         colour(parts[1], "ground colour") if len(parts) > 1 else 0.0,
-                        parse_vector(parts[2], "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
+                        parse_floats(parts[2], 3, "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
 
         def kv(text: str, what: str, value: str) -> tuple[Any, list[float]]:
             k, sep, v = text.partition("=")
@@ -321,7 +320,7 @@ def register(group: click.Group) -> None:
             return k, parse_floats(v, None, value)
 
         L, wdesc = edit(base, lmax, window, rotations, weight=weight, blends=mixes,
-                        directional=[(parse_vector(d.partition(":")[0]),
+                        directional=[(parse_floats(d.partition(":")[0], 3, "direction"),
                                       colour(d.partition(":")[2], "colour"))
                                      for d in directional],
                         cones=cones, sky=sky_edit,

@@ -13,6 +13,7 @@ from __future__ import annotations
 from .camera import Camera
 from .mesh import (
     as_mesh,
+    bounding_sphere,
     load_mesh,
     mesh_hash,
     mesh_uvs,
@@ -42,6 +43,7 @@ __all__ = [
     "as_mesh",
     "basis_images",
     "basis_visual",
+    "bounding_sphere",
     "load_mesh",
     "mesh_hash",
     "mesh_uvs",

@@ -1,0 +1,194 @@
+"""Viewer speed, measured in the headless Chromium the tests use (Debian /usr/bin/chromium,
+SwiftShader WebGL — no GPU on this machine).
+
+Run: ``PYTHONPATH=src SHPROBE_TEST_DATA=../shared python bench/bench_viewer.py`` — prints
+markdown tables.
+
+1. Command to first lit frame: ``shprobe view PROBE --no-browser`` started as a subprocess with a
+   2048×1024 .hdr probe (grace resampled), the browser already running (as a user's is); the
+   clock runs from just before the process starts until the page has drawn the lit bunny
+   (``window.__shprobe.firstFrameAt``). Numba's cache is warmed by one run first.
+2. A lighting drag: each pointer move on the probe is one ``/api/design`` call (the library's
+   Wigner rotation, window and certificate) plus one frame; the time per move as the page sees
+   it (request + redraw), and the frame alone (per-pixel bunny, 512×512).
+3. PRT relighting of a 100k-vertex transfer at lmax 4 (unshadowed bake of a subdivided sphere):
+   the page's per-vertex transfer · lighting loop plus the frame, per drag step.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "src"))
+sys.path.insert(0, str(REPO / "bench"))
+
+from _machine import machine  # noqa: E402
+
+CHROMIUM = "/usr/bin/chromium"
+FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+def make_probe(folder: Path) -> Path:
+    from shprobe.probes.images import write_image
+    from shprobe.probes.layouts import LatLong, load_env
+
+    data = Path(os.environ.get("SHPROBE_TEST_DATA", REPO.parent / "shared"))
+    env = load_env(data / "probes" / "grace.hdr")
+    big = env.sample(LatLong().pixel_directions((1024, 2048)))
+    p = folder / "grace_2k.hdr"
+    write_image(p, big)
+    return p
+
+
+def start(args: list[str]) -> tuple[subprocess.Popen, str, float]:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    t0 = time.time()
+    p = subprocess.Popen([sys.executable, "-m", "shprobe", "view", *args, "--no-browser"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    line = p.stdout.readline()
+    m = re.search(r"http://\S+", line)
+    if not m:
+        p.kill()
+        raise SystemExit(f"no URL: {line!r} {p.stderr.read()}")
+    return p, m.group(0), t0
+
+
+def first_frame(browser, args: list[str]) -> tuple[float, float]:
+    """(seconds from command to first lit frame, seconds to the URL line)."""
+    ctx = browser.new_context(viewport={"width": 1100, "height": 900})
+    page = ctx.new_page()  # a browser tab already open, as a user's is
+    p, url, t0 = start(args)
+    t_url = time.time() - t0
+    try:
+        page.goto(url)
+        page.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
+                               "window.__shprobe.lastError)", timeout=60000)
+        err = page.evaluate("() => window.__shprobe.lastError")
+        if err:
+            raise SystemExit(err)
+        at = page.evaluate("() => window.__shprobe.firstFrameAt") / 1000.0
+        ctx.close()
+    finally:
+        p.terminate()
+        p.wait(10)
+    return at - t0, t_url
+
+
+def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
+               ) -> dict[str, list[float]]:
+    """Per drag step (ms): ``first`` move → first new frame (in-page rotation for lmax ≤ 2,
+    else the server's answer), ``step`` move → the server's answer drawn, ``design`` the
+    /api/design round trip, ``frame`` the whole redraw (main view + the two panels),
+    ``main`` the 512×512 view alone, ``prt`` the page's PRT loop."""
+    p, url, _ = start(args)
+    try:
+        ctx = browser.new_context(viewport={"width": 1100, "height": 900})
+        page = ctx.new_page()
+        page.goto(url)
+        page.wait_for_function("() => window.__shprobe && window.__shprobe.ready",
+                               timeout=120000)
+        if mode:
+            page.select_option("#mode", mode)
+        box = page.locator("#probe").bounding_box()
+        x, y = box["x"] + 100, box["y"] + 128
+        step_ms, frame_ms, prt_ms, design_ms, main_ms, first_ms = [], [], [], [], [], []
+        page.mouse.move(x, y)
+        page.mouse.down()
+        for i in range(steps):
+            n0 = page.evaluate("() => window.__shprobe.frames")
+            t = time.perf_counter()
+            page.mouse.move(x + 4 * (i + 1), y + (i % 3))
+            page.wait_for_function(f"() => window.__shprobe.frames > {n0}", polling=1)
+            first_ms.append(1000 * (time.perf_counter() - t))
+            page.evaluate("() => window.__shprobe.settled()")
+            step_ms.append(1000 * (time.perf_counter() - t))
+            frame_ms.append(page.evaluate("() => window.__shprobe.frameTimes().slice(-1)[0]"))
+            prt_ms.append(page.evaluate("() => window.__shprobe.prtRelightMs || 0"))
+            design_ms.append(page.evaluate("() => window.__shprobe.lastDesignMs"))
+            main_ms.append(page.evaluate("() => window.__shprobe.mainFrameMs"))
+        page.mouse.up()
+        inpage = page.evaluate("() => window.__shprobe.moveToFrame || []")
+        ctx.close()
+    finally:
+        p.terminate()
+        p.wait(10)
+    return {"step": step_ms, "frame": frame_ms, "prt": prt_ms, "design": design_ms,
+            "main": main_ms, "first": first_ms, "inpage": inpage}
+
+
+def prt_transfer(folder: Path) -> Path:
+    """An unshadowed lmax-4 bake of a ~100k-vertex sphere (analytic: no rays)."""
+    import trimesh
+
+    from shprobe.prt.bake import bake
+
+    m = trimesh.creation.icosphere(subdivisions=7)  # 163842 vertices
+    keep = m.vertices[:, 1] > -0.35  # trim to ~100k
+    faces = m.faces[keep[m.faces].all(axis=1)]
+    sub = trimesh.Trimesh(m.vertices, faces, process=True)
+    sub.remove_unreferenced_vertices()
+    mp = folder / "ball100k.obj"
+    sub.export(mp)
+    t = bake(str(mp), mode="unshadowed", lmax=4)
+    p = folder / "ball100k.npz"
+    t.save(p)
+    return p
+
+
+def stats(xs: list[float]) -> str:
+    return f"{min(xs):.1f} | {statistics.median(xs):.1f}"
+
+
+def main() -> None:
+    from playwright.sync_api import sync_playwright
+
+    print(f"Machine: {machine()}\n")
+    with tempfile.TemporaryDirectory() as d, sync_playwright() as pw:
+        folder = Path(d)
+        probe = make_probe(folder)
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=FLAGS)
+        first_frame(browser, [str(probe)])  # warm numba's cache and the OS file cache
+        runs = [first_frame(browser, [str(probe)]) for _ in range(5)]
+        print("### Command to first lit frame (2048×1024 .hdr probe, bunny, 512×512)\n")
+        print("| | best s | median s |\n| --- | ---: | ---: |")
+        ff = [r[0] for r in runs]
+        print(f"| `shprobe view` → first lit frame | {min(ff):.2f} | {statistics.median(ff):.2f} |")
+        uu = [r[1] for r in runs]
+        print(f"| of which: to the URL line | {min(uu):.2f} | {statistics.median(uu):.2f} |")
+        print()
+        d = drag_times(browser, [str(probe)], None)
+        print("### A lighting drag (per pointer move; ms, best | median of 40)\n")
+        print("| | best ms | median ms |\n| --- | ---: | ---: |")
+        print(f"| bunny: pointer event → frame drawn, timed in the page (rotation in the page) "
+              f"| {stats(d['inpage'])} |")
+        print(f"| bunny: move → first new frame, timed by Playwright | {stats(d['first'])} |")
+        print(f"| bunny: move → library's answer drawn | {stats(d['step'])} |")
+        print(f"| bunny: `/api/design` round trip (Wigner rotation) | {stats(d['design'])} |")
+        print(f"| bunny: redraw, 512×512 view + two 512×256 panels | {stats(d['frame'])} |")
+        print(f"| bunny: the 512×512 view alone (per pixel) | {stats(d['main'])} |")
+        tp = prt_transfer(folder)
+        d = drag_times(browser, ["--transfer", str(tp)], None)
+        nv = int(np.load(tp)["vertices"].shape[0])
+        print(f"| PRT {nv} vertices, lmax 4: move → new frame (server) | {stats(d['step'])} |")
+        print(f"| PRT: pointer event → frame drawn, timed in the page | {stats(d['inpage'])} |")
+        print(f"| PRT: `/api/design` round trip | {stats(d['design'])} |")
+        print(f"| PRT: transfer · lighting loop in the page | {stats(d['prt'])} |")
+        print(f"| PRT: redraw incl. the loop and the panels | {stats(d['frame'])} |")
+        print(f"| PRT: the 512×512 view alone incl. the loop | {stats(d['main'])} |")
+        browser.close()
+    print(f"\nLoad average at the end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

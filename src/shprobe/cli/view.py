@@ -1,0 +1,85 @@
+"""CLI command: view (the browser viewer, :mod:`shprobe.viewer`)."""
+
+from __future__ import annotations
+
+import click
+
+from ..errors import ShprobeError
+
+
+def register(group: click.Group) -> None:
+    """Add ``view`` to the top-level group."""
+
+    @group.command("view")
+    @click.argument("probe", required=False, type=click.Path(dir_okay=False))
+    @click.option("--layout", default="auto", show_default=True,
+                  help="Layout of PROBE (latlong, angular, mirrorball, cube, auto).")
+    @click.option("--preset", default=None, help="Start from an R&H preset instead of a probe.")
+    @click.option("--mesh", type=click.Path(dir_okay=False),
+                  help="Mesh (OBJ/PLY/glTF); default the bunny of $SHPROBE_TEST_DATA, else a "
+                       "sphere.")
+    @click.option("--transfer", type=click.Path(dir_okay=False),
+                  help="A `shprobe prt bake` output: relight it per vertex in the page.")
+    @click.option("--host", default="127.0.0.1", show_default=True,
+                  help="Address to bind (0.0.0.0 exposes the viewer to the network).")
+    @click.option("--port", default=0, show_default=True, type=click.IntRange(0, 65535),
+                  help="Port (0: a free one).")
+    @click.option("--no-browser", is_flag=True, help="Do not open a browser; print the URL.")
+    def view_cmd(probe, layout, preset, mesh, transfer, host, port, no_browser):
+        """Interactive lighting design in the browser (R&H 2001 §3.3, LH 2007 §4): the probe,
+        a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
+        edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
+        the URL with its access token; Ctrl-C stops it."""
+        import socket
+        import threading
+        import webbrowser
+
+        from ..viewer.session import Session
+
+        if probe and preset:
+            raise ShprobeError("give either PROBE or --preset, not both")
+        session = Session(probe, preset, mesh, transfer, layout, load=False)
+        stop: list = []  # the server, once it exists
+
+        def load() -> None:  # the files load while the server starts and the page opens
+            try:
+                session.load()
+            except BaseException:  # a bad file named on the command line: stop, one line
+                if stop:
+                    stop[0].should_exit = True
+
+        threading.Thread(target=load, daemon=True).start()
+
+        import uvicorn
+
+        from ..viewer.app import create_app, new_token
+
+        if host not in ("127.0.0.1", "localhost", "::1"):
+            click.echo(f"warning: --host {host} makes the viewer reachable from other "
+                       "machines; anyone with the URL's token can read what it serves", err=True)
+        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as e:
+            raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
+        sock.listen(128)  # connections wait in the backlog until uvicorn accepts them
+        port = sock.getsockname()[1]
+        token = new_token()
+        local = host in ("127.0.0.1", "localhost", "::1")
+        app = create_app(session, token, host, port, check_host=local)
+        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+        url = f"http://{shown}:{port}/?token={token}"
+        click.echo(f"shprobe view: {url}", nl=True)
+        server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
+        stop.append(server)
+        if session.ready.is_set() and session.error is not None:
+            server.should_exit = True
+        if not no_browser:
+            threading.Timer(0.3, lambda: webbrowser.open(url)).start()
+        try:
+            server.run(sockets=[sock])
+        finally:
+            session.close()
+        if session.error is not None:
+            raise session.error

@@ -1,0 +1,621 @@
+"""The viewer's model: what the page shows, computed by the library (no HTTP here).
+
+A :class:`Session` holds the files named on the command line and those uploaded through the page
+(kept in a private temporary folder under names the server chooses), the lighting source, the
+mesh and the optional PRT transfer. The page's edit state is a small JSON document (see
+:func:`check_state`) applied in the order of ``shprobe edit`` (blend, lights, per-coefficient and
+per-band scales, rotation, window) by :func:`design_coeffs`; :func:`cli_args` spells the same
+edits as ``shprobe edit`` arguments, so that an export from the page equals the CLI's file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ShprobeError
+
+__all__ = [
+    "MAX_LMAX",
+    "Session",
+    "Source",
+    "check_state",
+    "cli_args",
+    "default_mesh_path",
+    "design_coeffs",
+    "pack_binary",
+]
+
+#: highest degree the compare view projects to
+MAX_LMAX = 4
+#: lat-long size (H) of the background texture sent to the page
+BACKGROUND_H = 512
+#: lat-long size (H) of the irradiance lookup textures (the normals of ``error_report``)
+NORMAL_GRID = 32
+#: largest upload accepted (bytes)
+MAX_UPLOAD = 512 << 20
+_PROBE_EXT = (".hdr", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg", ".jpeg")
+_MESH_EXT = (".obj", ".ply", ".gltf", ".glb", ".stl", ".off")
+_COEFF_EXT = (".json", ".txt", ".glsl", ".hlsl", ".wgsl")
+
+
+def default_mesh_path() -> Path | None:
+    """The bunny of the test data (``$SHPROBE_TEST_DATA/meshes/bunny.obj``) when present; the
+    viewer falls back to a built-in sphere otherwise (no mesh data ships with shprobe)."""
+    root = os.environ.get("SHPROBE_TEST_DATA")
+    if not root:
+        return None
+    p = Path(root) / "meshes" / "bunny.obj"
+    return p if p.is_file() else None
+
+
+# ----------------------------------------------------------------------------- edit state
+
+_DEFAULT_STATE: dict[str, Any] = {
+    "lmax": 2, "weight": 1.0, "blends": [], "directional": [], "cone": [], "sky": None,
+    "scale": {}, "scale_band": {}, "rotation": None, "window": None,
+}
+
+
+def _floats(v: Any, n: int | None, what: str) -> list[float]:
+    try:
+        a = np.asarray(v, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"{what} must be numbers") from None
+    if (n is not None and a.size != n) or a.size == 0 or not np.all(np.isfinite(a)):
+        raise ShprobeError(f"{what} must be {n or 'some'} finite numbers, got {v!r}")
+    return [float(x) for x in a]
+
+
+def check_state(state: Any) -> dict[str, Any]:
+    """Validate the page's edit state (a JSON object) → a normalised copy; one-line
+    :class:`ShprobeError` on anything malformed. Keys (all optional):
+
+    ``lmax`` (0–8), ``weight``; ``blends``: [{"preset": NAME, "weight": w}];
+    ``directional``: [{"dir": [x,y,z], "rgb": [r,g,b]}]; ``cone``: [{"dir", "aperture_deg",
+    "rgb"}]; ``sky``: {"sky": rgb, "ground": rgb, "up": xyz} | null; ``scale``: {"l,m": f};
+    ``scale_band``: {"l": f}; ``rotation``: {"axis": xyz, "degrees": d} | null; ``window``:
+    null | "auto" | "KIND:STRENGTH".
+    """
+    from ..lighting.windows import WINDOWS
+    from ..probes.presets import PRESETS
+
+    if not isinstance(state, dict):
+        raise ShprobeError("edit state must be a JSON object")
+    unknown = set(state) - set(_DEFAULT_STATE)
+    if unknown:
+        raise ShprobeError(f"edit state has unknown keys: {', '.join(sorted(unknown))}")
+    s = {**_DEFAULT_STATE, **state}
+    out: dict[str, Any] = {}
+    lmax = s["lmax"]
+    if not isinstance(lmax, int) or not 0 <= lmax <= 8:
+        raise ShprobeError(f"lmax must be an integer 0..8, got {lmax!r}")
+    out["lmax"] = lmax
+    out["weight"] = _floats(s["weight"], 1, "weight")[0]
+    out["blends"] = []
+    for b in s["blends"] or []:
+        if not isinstance(b, dict) or b.get("preset") not in PRESETS:
+            raise ShprobeError(f"blend must name a preset ({', '.join(PRESETS)}), got {b!r}")
+        out["blends"].append({"preset": b["preset"],
+                              "weight": _floats(b.get("weight", 1.0), 1, "blend weight")[0]})
+    out["directional"] = [{"dir": _floats(d.get("dir"), 3, "light direction"),
+                           "rgb": _floats(d.get("rgb", [1, 1, 1]), 3, "light colour")}
+                          for d in _list(s["directional"], "directional")]
+    out["cone"] = []
+    for c in _list(s["cone"], "cone"):
+        ap = _floats(c.get("aperture_deg"), 1, "cone aperture")[0]
+        if not 0 < ap <= 180:
+            raise ShprobeError(f"cone aperture must be in (0, 180] degrees, got {ap}")
+        out["cone"].append({"dir": _floats(c.get("dir"), 3, "cone direction"),
+                            "aperture_deg": ap, "rgb": _floats(c.get("rgb", [1, 1, 1]), 3,
+                                                               "cone colour")})
+    sky = s["sky"]
+    out["sky"] = None if not sky else {
+        "sky": _floats(sky.get("sky", [1, 1, 1]), 3, "sky colour"),
+        "ground": _floats(sky.get("ground", [0, 0, 0]), 3, "ground colour"),
+        "up": _floats(sky.get("up", [0, 1, 0]), 3, "sky up")}
+    out["scale"] = {}
+    for k, f in (s["scale"] or {}).items():
+        try:
+            l, m = (int(x) for x in str(k).split(","))
+        except ValueError:
+            raise ShprobeError(f"coefficient key must be 'l,m', got {k!r}") from None
+        if not (0 <= l <= lmax and -l <= m <= l):
+            raise ShprobeError(f"coefficient {k!r} is not in lmax {lmax}")
+        out["scale"][f"{l},{m}"] = _floats(f, 1, "coefficient factor")[0]
+    out["scale_band"] = {}
+    for k, f in (s["scale_band"] or {}).items():
+        if not str(k).isdigit() or int(k) > lmax:
+            raise ShprobeError(f"band {k!r} is not in lmax {lmax}")
+        out["scale_band"][str(int(k))] = _floats(f, 1, "band factor")[0]
+    rot = s["rotation"]
+    if rot:
+        axis = _floats(rot.get("axis"), 3, "rotation axis")
+        if not any(axis):
+            raise ShprobeError("rotation axis must be a non-zero vector")
+        out["rotation"] = {"axis": axis, "degrees": _floats(rot.get("degrees"), 1,
+                                                            "rotation angle")[0]}
+    else:
+        out["rotation"] = None
+    w = s["window"]
+    if w in (None, "", "none"):
+        out["window"] = None
+    elif w == "auto":
+        out["window"] = "auto"
+    else:
+        kind, _, st = str(w).partition(":")
+        if kind not in WINDOWS:
+            raise ShprobeError(f"window {w!r}: expected 'auto' or KIND:STRENGTH, KIND one of "
+                               f"{', '.join(WINDOWS)}")
+        out["window"] = f"{kind}:{_floats(st, 1, 'window strength')[0]!r}"
+    return out
+
+
+def _list(v: Any, what: str) -> list[dict[str, Any]]:
+    if v is None:
+        return []
+    if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+        raise ShprobeError(f"{what} must be a list of objects")
+    return v
+
+
+def _r(x: float) -> str:
+    return repr(float(x))
+
+
+def _v(xs: list[float]) -> str:
+    return ",".join(_r(x) for x in xs)
+
+
+def cli_args(state: dict[str, Any]) -> list[str]:
+    """The ``shprobe edit`` options doing the same edits as ``state`` (after the source)."""
+    s = check_state(state)
+    a = ["--lmax", str(s["lmax"])]
+    if s["weight"] != 1.0:
+        a += ["--weight", _r(s["weight"])]
+    for b in s["blends"]:
+        a += ["--blend", f"preset:{b['preset']}:{_r(b['weight'])}"]
+    for d in s["directional"]:
+        a += ["--directional", f"{_v(d['dir'])}:{_v(d['rgb'])}"]
+    for c in s["cone"]:
+        a += ["--cone", f"{_v(c['dir'])}:{_r(c['aperture_deg'])}:{_v(c['rgb'])}"]
+    if s["sky"]:
+        k = s["sky"]
+        a += ["--sky", f"{_v(k['sky'])}:{_v(k['ground'])}:{_v(k['up'])}"]
+    for k, f in s["scale"].items():
+        a += ["--scale", f"{k}={_r(f)}"]
+    for k, f in s["scale_band"].items():
+        a += ["--scale-band", f"{k}={_r(f)}"]
+    if s["rotation"]:
+        a += ["--rotate", f"{_v(s['rotation']['axis'])}:{_r(s['rotation']['degrees'])}"]
+    if s["window"]:
+        a += ["--window", s["window"]]
+    return a
+
+
+def _auto_desc(ch: Any) -> str:
+    """How the page names an ``auto_window`` choice."""
+    return f"auto -> {ch.kind}" + (
+        f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else "")
+
+
+def _edits(state: dict[str, Any], rotate: bool, window: bool) -> Any:
+    """The page's edit state as the library's :class:`~shprobe.lighting.design.Edits`, the one
+    edit pipeline ``shprobe edit`` applies (so a download equals the CLI's file)."""
+    from ..lighting.design import Edits
+    from ..probes.presets import get_preset
+
+    spec = state["window"] if window else None
+    if spec not in (None, "auto"):
+        kind, _, strength = spec.partition(":")
+        spec = (kind, float(strength))
+    return Edits(
+        blends=[(get_preset(b["preset"]), b["weight"]) for b in state["blends"]],
+        directional=[(d["dir"], d["rgb"]) for d in state["directional"]],
+        cones=[(c["dir"], c["aperture_deg"], c["rgb"]) for c in state["cone"]],
+        sky=((state["sky"]["sky"], state["sky"]["ground"], state["sky"]["up"])
+             if state["sky"] else None),
+        scales=[(tuple(int(x) for x in k.split(",")), f) for k, f in state["scale"].items()],
+        scale_bands=[(int(k), f) for k, f in state["scale_band"].items()],
+        rotations=[rotation_matrix(state)] if rotate and state["rotation"] else [],
+        window=spec)
+
+
+def design_base(base: NDArray[np.float64] | None, state: dict[str, Any]) -> NDArray[np.float64]:
+    """The edits before the rotation (blend, lights, scales) of ``shprobe edit``
+    (:func:`shprobe.lighting.design.edit_lighting`)."""
+    from ..lighting.design import edit_lighting
+
+    return edit_lighting(base, _edits(state, False, False), state["lmax"],
+                         state["weight"]).coeffs
+
+
+def rotation_matrix(state: dict[str, Any]) -> NDArray[np.float64]:
+    """The state's lighting rotation as a 3×3 matrix (Rodrigues, right-hand rule)."""
+    from ..sh.rotation import from_axis_angle
+
+    r = state["rotation"]
+    return np.eye(3) if not r else from_axis_angle(r["axis"], r["degrees"])
+
+
+def design_coeffs(base: NDArray[np.float64] | None, state: dict[str, Any]
+                  ) -> tuple[NDArray[np.float64], str | None]:
+    """(L_lm (K, 3), window description): ``state`` applied to the source coefficients
+    ``base`` by the library's edit pipeline, in the order of ``shprobe edit``."""
+    from ..lighting.design import edit_lighting
+
+    res = edit_lighting(base, _edits(state, True, True), state["lmax"], state["weight"])
+    return res.coeffs, res.window
+
+
+# ----------------------------------------------------------------------------- binary payloads
+
+
+def pack_binary(header: dict[str, Any], arrays: dict[str, NDArray]) -> bytes:
+    """One binary message: uint32 header length, JSON header (with each array's dtype, shape
+    and byte offset), padding to 4 bytes, then the arrays (little-endian float16 / float32 /
+    uint32), each padded to 4 bytes."""
+    parts, meta, off = [], {}, 0
+    for name, a in arrays.items():
+        kind = "f2" if a.dtype == np.float16 else "f4" if a.dtype.kind == "f" else "u4"
+        a = np.ascontiguousarray(a, dtype="<" + kind)
+        meta[name] = {"dtype": kind, "shape": list(a.shape), "offset": off}
+        parts.append(a.tobytes())
+        off += a.nbytes + (-a.nbytes % 4)
+        parts.append(b"\0" * (-a.nbytes % 4))
+    head = json.dumps({**header, "arrays": meta}).encode()
+    head += b" " * (-(len(head) + 4) % 4)
+    return len(head).to_bytes(4, "little") + head + b"".join(parts)
+
+
+# ----------------------------------------------------------------------------- session
+
+
+class Source:
+    """A lighting source: its name (as ``shprobe`` commands give it), the probe (None for
+    presets) and its coefficients: ``coeffs2`` at lmax 2, the base ``shprobe edit`` starts
+    from, and :attr:`coeffs` at :data:`MAX_LMAX`, projected on first use (projecting to a
+    higher degree changes the low coefficients in the last bits, so both are kept)."""
+
+    def __init__(self, name: str, coeffs2: NDArray[np.float64], env: Any = None) -> None:
+        self.name, self.coeffs2, self.env = name, coeffs2, env
+        self._coeffs: NDArray[np.float64] | None = None if env is not None else coeffs2
+        self._lock = threading.Lock()
+
+    @property
+    def coeffs(self) -> NDArray[np.float64]:
+        with self._lock:
+            if self._coeffs is None:
+                from ..lighting.projection import project
+
+                self._coeffs = np.asarray(project(self.env, MAX_LMAX), np.float64)
+            return self._coeffs
+
+    def __repr__(self) -> str:
+        return f"Source({self.name!r}, env={self.env is not None})"
+
+
+@dataclass
+class Task:
+    """Progress of a long library call running off the event loop."""
+
+    done: float = 0.0
+    status: str = "idle"  # idle | running | done | error
+    message: str = ""
+    result: Any = None
+
+
+class Session:
+    """Everything one ``shprobe view`` serves: sources, mesh, transfer, uploads."""
+
+    def __init__(self, probe: str | None = None, preset: str | None = None,
+                 mesh: str | None = None, transfer: str | None = None,
+                 layout: str = "auto", load: bool = True) -> None:
+        self.layout = layout
+        self._args = (probe, preset, mesh, transfer)
+        self._dir = tempfile.TemporaryDirectory(prefix="shprobe-view-")
+        self._n_uploads = 0
+        self.lock = threading.Lock()
+        self.tasks: dict[str, Task] = {}
+        self._design_cache: dict[str, Any] = {}
+        self.transfer = None
+        self.transfer_name = None
+        self.mesh = None
+        self.mesh_name = "sphere"
+        self.source: Source
+        self.ready = threading.Event()
+        self.error: ShprobeError | None = None
+        if load:
+            self.load()
+
+    def load(self) -> None:
+        """Read the files named on the command line (probe and mesh in parallel); sets
+        :attr:`ready`, and :attr:`error` when one of them is bad (then re-raised)."""
+        probe, preset, mesh, transfer = self._args
+        errors: list[BaseException] = []
+
+        def geometry() -> None:
+            try:
+                if transfer:
+                    self.load_transfer(transfer)
+                if mesh:
+                    self.load_mesh(mesh)
+                elif transfer is None and (p := default_mesh_path()) is not None:
+                    self.load_mesh(str(p))
+            except BaseException as e:  # re-raised below, in the caller's thread
+                errors.append(e)
+
+        th = threading.Thread(target=geometry, daemon=True)
+        th.start()
+        try:
+            if probe:
+                self.source = self.probe_source(probe)
+            elif preset:
+                self.source = self.preset_source(preset)
+            else:
+                from ..probes.environments import procedural_env
+
+                self.source = self.env_source(procedural_env(256, 128), "procedural sky")
+        except BaseException as e:
+            errors.append(e)
+        th.join()
+        if errors:
+            e = errors[0]
+            self.error = e if isinstance(e, ShprobeError) else ShprobeError(str(e))
+            self.ready.set()
+            raise e
+        self.ready.set()
+
+    def close(self) -> None:
+        self._dir.cleanup()
+
+    # sources ----------------------------------------------------------------
+    def env_source(self, env: Any, name: str) -> Source:
+        from ..lighting.projection import project
+
+        return Source(name, np.asarray(project(env, 2), np.float64), env)
+
+    def design(self, state: dict[str, Any]) -> tuple[NDArray[np.float64], str | None, Any]:
+        """(L_lm, window description, min E certificate) of ``state`` for the page, fast during
+        a drag: everything but the rotation is cached per (source, state without rotation) —
+        the edits before it, the window factors (``auto``: chosen on the unrotated lighting)
+        and :func:`~shprobe.lighting.windows.min_irradiance`, all invariant under rotation —
+        so a drag step is one Wigner rotation. Exports use :func:`design_coeffs` (the CLI's
+        exact sequence of operations)."""
+        from ..lighting.design import rotate_lighting
+        from ..lighting.windows import apply_window, auto_window, min_irradiance, window_factors
+        from ..sh import lmax_of
+
+        src = self.source
+        key = json.dumps({**state, "rotation": None}, sort_keys=True)
+        hit = self._design_cache.get(key)
+        if hit is None or hit[0] is not src:
+            L0 = design_base(self.base(state["lmax"]), state)
+            f, wdesc = None, None
+            if state["window"] == "auto":
+                ch = auto_window(L0)
+                f, wdesc = ch.factors, _auto_desc(ch)
+            elif state["window"]:
+                kind, _, st = state["window"].partition(":")
+                f, wdesc = window_factors(kind, lmax_of(L0.shape[0]), float(st)), state["window"]
+            cert = min_irradiance(L0 if f is None else apply_window(L0, f))
+            hit = (src, L0, f, wdesc, cert)
+            if len(self._design_cache) > 64:
+                self._design_cache.clear()
+            self._design_cache[key] = hit
+        _, L0, f, wdesc, cert = hit
+        L = rotate_lighting(L0, rotation_matrix(state)) if state["rotation"] else L0
+        self.last_base = (L0, f)  # what the page rotates itself during a drag (lmax ≤ 2)
+        return (L if f is None else apply_window(L, f)), wdesc, cert
+
+    def base(self, lmax: int) -> NDArray[np.float64]:
+        """The coefficients the edits start from at degree ``lmax``."""
+        s = self.source
+        return s.coeffs2 if lmax <= 2 else s.coeffs
+
+    def probe_source(self, path: str, name: str | None = None) -> Source:
+        from ..probes.layouts import load_env
+
+        env = load_env(path, self.layout)
+        rad = env.radiance
+        if not np.all(np.isfinite(rad)):
+            raise ShprobeError("probe has non-finite (NaN or Inf) pixels", name or path)
+        if float(rad.min()) < 0:
+            raise ShprobeError("probe has negative pixels", name or path)
+        src = self.env_source(env, name or path)
+        if not np.all(np.isfinite(src.coeffs2)):
+            raise ShprobeError("probe projects to non-finite coefficients", name or path)
+        return src
+
+    def coeffs_source(self, path: str, name: str) -> Source:
+        """Coefficients in any export format (``lighting.export.import_coeffs``)."""
+        from ..lighting.export import import_coeffs
+
+        c = import_coeffs(path)
+        if c.shape[1] == 1:
+            c = np.repeat(c, 3, axis=1)
+        if c.shape[1] != 3:
+            raise ShprobeError(f"needs 1 or 3 channels, got {c.shape[1]}", name)
+        return Source(name, c)
+
+    def preset_source(self, name: str) -> Source:
+        from ..probes.presets import get_preset
+
+        return Source(f"preset:{name}", get_preset(name))
+
+    # mesh / transfer --------------------------------------------------------
+    def load_mesh(self, path: str, name: str | None = None) -> None:
+        from ..scene import load_mesh
+
+        m = load_mesh(path)
+        self.mesh, self.mesh_name = m, name or os.path.basename(path)
+
+    def load_transfer(self, path: str, name: str | None = None) -> None:
+        from ..prt.transfer import load_transfer
+
+        self.transfer = load_transfer(path)
+        self.transfer_name = name or os.path.basename(path)
+
+    def geometry(self) -> tuple[NDArray, NDArray, NDArray, NDArray, str]:
+        """(vertices, normals, albedo (V, 3), faces, name) of what the page draws."""
+        from ..scene import mesh_vertex_albedo, sphere_mesh
+
+        m = self.mesh if self.mesh is not None else sphere_mesh(5)
+        alb = mesh_vertex_albedo(m)
+        v = np.asarray(m.vertices)
+        return (v, np.asarray(m.vertex_normals), np.ones_like(v) if alb is None else alb,
+                np.asarray(m.faces), self.mesh_name)
+
+    def mesh_bytes(self) -> bytes:
+        from ..scene import Camera, bounding_sphere
+
+        v, n, a, f, name = self.geometry()
+        c, r = bounding_sphere(self.mesh if self.mesh is not None else None)
+        if self.mesh is None:  # the analytic unit sphere of the renderer
+            c, r = np.zeros(3), 1.0
+        return pack_binary({"name": name, "center": c.tolist(), "radius": r,
+                            "camera": camera_json(Camera(512, 512), c, r)},
+                           {"position": v, "normal": n, "albedo": a, "index": f})
+
+    def transfer_bytes(self, mode: str | None, bounces: int | None) -> bytes:
+        t = self.transfer
+        if t is None:
+            raise ShprobeError("no transfer: start `shprobe view --transfer T.npz`")
+        T = t.select(mode, bounces)
+        from ..scene.render import Camera
+
+        v = np.asarray(t.vertices)
+        c = 0.5 * (v.min(axis=0) + v.max(axis=0))
+        r = float(np.sqrt(((v - c) ** 2).sum(axis=1).max()))
+        return pack_binary(
+            {"name": self.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
+             "max_bounces": t.max_bounces, "mode": mode or t.mode, "bounces": bounces,
+             "camera": camera_json(Camera(512, 512), c, r)},
+            {"position": v, "normal": t.normals, "index": t.faces,
+             "transfer": T.reshape(T.shape[0], -1)})
+
+    # uploads ----------------------------------------------------------------
+    def save_upload(self, filename: str, data: bytes, kinds: tuple[str, ...]) -> tuple[str, str]:
+        """Write uploaded bytes to the session's private folder under a name the server picks
+        (only the extension of ``filename`` is kept, and only a known one); → (path, shown
+        name). No path from the page is ever opened."""
+        base = os.path.basename(str(filename).replace("\\", "/")) or "upload"
+        ext = os.path.splitext(base)[1].lower()
+        allowed = {"probe": _PROBE_EXT, "mesh": _MESH_EXT, "coeffs": _COEFF_EXT,
+                   "transfer": (".npz",)}
+        ok = tuple(e for k in kinds for e in allowed[k])
+        if ext not in ok:
+            raise ShprobeError(f"{base}: cannot load a {'/'.join(kinds)} with extension "
+                               f"{ext or '(none)'!r}; expected one of {' '.join(ok)}")
+        if len(data) > MAX_UPLOAD:
+            raise ShprobeError(f"{base}: upload of {len(data) >> 20} MiB is over the "
+                               f"{MAX_UPLOAD >> 20} MiB limit")
+        with self.lock:
+            self._n_uploads += 1
+            p = Path(self._dir.name) / f"upload-{self._n_uploads}{ext}"
+        p.write_bytes(data)
+        return str(p), base
+
+    # pictures ---------------------------------------------------------------
+    def background_bytes(self) -> bytes | None:
+        """The probe resampled to a lat-long grid (the library's directions and bilinear
+        lookup, :meth:`Env.sample`; lat-long probes larger than it box-filtered), linear
+        float32 in a :func:`pack_binary` message; None for a preset."""
+        from ..probes.layouts import LatLong
+
+        env = self.source.env
+        if env is None:
+            return None
+        h = BACKGROUND_H
+        if env.layout.name == "latlong" and env.grid[0] % h == 0:
+            k = env.grid[0] // h  # box filter: k×k pixel blocks (same solid-angle rows)
+            img = env.radiance.reshape(h, k, 2 * h, k, 3).mean(axis=(1, 3))
+        elif env.layout.name == "latlong" and env.grid[0] <= h:
+            img = env.radiance
+        else:
+            img = env.sample(LatLong().pixel_directions((h, 2 * h)))
+        rgba = np.ones((*img.shape[:2], 4), np.float16)  # half floats, ready for a texture
+        rgba[..., :3] = np.minimum(img, 65504.0)
+        return pack_binary({"layout": env.layout.name, "grid": list(env.grid)},
+                           {"radiance": rgba})
+
+
+def camera_json(cam: Any, center: NDArray, radius: float) -> dict[str, Any]:
+    """The library camera (:class:`shprobe.scene.render.Camera`) as the page needs it."""
+    c, d, _ = cam.framing(center, radius)
+    fwd, _, up = cam.basis()
+    eye = c - d * fwd
+    return {"eye": eye.tolist(), "target": list(map(float, c)), "up": up.tolist(),
+            "fov": cam.fov, "width": cam.width, "height": cam.height,
+            "azimuth": cam.azimuth, "elevation": cam.elevation,
+            "near": max(d - 2.0 * radius * cam.margin, 1e-3 * d), "far": d + 50.0 * radius}
+
+
+def compare_data(src: Source, progress: Any = None) -> dict[str, Any]:
+    """The compare view's numbers and lookup textures, all from the library: the brute-force
+    irradiance (``reference_irradiance``) and the SH irradiance of every lmax 1..N
+    (``irradiance``) on the normals of ``error_report`` (a (2N)×N lat-long grid, N =
+    :data:`NORMAL_GRID`), and R&H's error metric per lmax (``error_report``, §3.1)."""
+    from ..lighting.irradiance import irradiance
+    from ..lighting.projection import total_intensity
+    from ..lighting.reference import error_report, reference_irradiance
+    from ..probes.layouts import LatLong
+    from ..sh import num_coeffs
+
+    env = src.env
+    if env is None:
+        raise ShprobeError(f"{src.name} has no probe image: the exact irradiance needs one")
+    h = NORMAL_GRID
+    nrm = LatLong().pixel_directions((h, 2 * h)).reshape(-1, 3)
+    ref = reference_irradiance(env, nrm, progress=progress)
+    lmaxes = tuple(range(1, MAX_LMAX + 1))
+    rep = error_report(env, lmaxes, reference=ref, normal_grid=h)
+    maps = {lm: irradiance(src.coeffs[: num_coeffs(lm)], nrm).reshape(h, 2 * h, 3)
+            for lm in lmaxes}
+    return {"grid": [h, 2 * h], "reference": ref.reshape(h, 2 * h, 3),
+            "maps": maps, "total_intensity": total_intensity(env).tolist(),
+            "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
+                      "mean_rel": r.mean_rel} for r in rep.rows]}
+
+
+def hbasis_panel(session: Session, state: dict[str, Any], size: int = 160
+                 ) -> tuple[bytes, dict[str, float]]:
+    """Irradiance normal mapping (Habel & Wimmer 2010) as ``shprobe hbasis render`` draws it,
+    for the page's lighting: the mesh with a procedural bump, shaded by per-vertex H6, H4 and
+    tangent-space SH9 baked from the lighting at lmax 4 (the page's edits and rotation
+    applied), against the reference E(n′) — brute force over the probe (box-filtered to 64×128
+    and turned by the page's rotation; the other edits are not applied to it) or, for a preset,
+    the lighting's own SH expansion. → (PNG of ``panel_image``, relative RMS per basis)."""
+    import io
+
+    from PIL import Image
+
+    from ..hbasis.normalmap import panel_image, render_normal_mapped
+    from ..probes.images import auto_exposure, tonemap
+    from ..probes.layouts import Env, LatLong
+    from ..scene import sphere_mesh
+
+    st = {**state, "lmax": 4}
+    L, _ = design_coeffs(session.base(4), st)
+    env = session.source.env
+    if env is not None:  # the probe turned by the page's rotation: L'(p) = L(Rᵀp)
+        h = 64
+        dirs = LatLong().pixel_directions((h, 2 * h))
+        lighting = Env(np.asarray(env.sample(dirs @ rotation_matrix(state)), np.float32),
+                       LatLong())
+    else:
+        lighting = L
+    mesh = session.mesh if session.mesh is not None else sphere_mesh(4)
+    res = render_normal_mapped(mesh, lighting, size=size)
+    stops = auto_exposure(res.irradiance[res.mask], target=1.0)
+    buf = io.BytesIO()
+    Image.fromarray(tonemap(panel_image(res), stops)).save(buf, format="PNG")
+    return buf.getvalue(), res.info["rel_rms"]
