@@ -194,13 +194,49 @@ def _store(out, l, m, p, c, s, sqrt2):
         out[..., k0 - m] = sqrt2 * p * s
 
 
+#: Largest degree at which float32 output is computed in float32 arithmetic. The z-polynomials
+#: P̄_lm (the sinᵐθ factor lives in (x + iy)ᵐ) peak at z = ±1 near 10^(0.2 l): 10²⁶ at l = 128,
+#: so float32 (max 3·10³⁸) has room to spare; above this degree float64 arithmetic is used.
+F32_ARITHMETIC_LMAX = 128
+
+
+#: Outputs of at least this many bytes are written with streaming (non-temporal) stores by the
+#: table kernel: far larger than the caches, written once, so reading each line in before
+#: overwriting it would only double the memory traffic.
+STREAM_MIN_BYTES = 32 << 20
+
+
+def _stream_start(out: NDArray[np.floating]) -> int:
+    """−1 (plain stores) below ``STREAM_MIN_BYTES``; else the first flat index of ``out``
+    whose address is 64-byte aligned, modulo 64 / itemsize (what the kernel's streaming
+    copy needs).
+
+    Only a caller's ``out=`` is streamed: an array ``sh_basis`` has just allocated has no
+    pages yet, and the kernel zeroes each (huge) page on first touch, leaving it in the
+    cache, where plain stores then land, while streaming stores would write every line
+    twice to memory (the zeros and the values)."""
+    if out.nbytes < STREAM_MIN_BYTES or not out.flags.aligned:
+        return -1
+    return ((-out.ctypes.data) % 64) // out.itemsize
+
+
 @lru_cache(maxsize=64)
-def _diag_table(lmax: int) -> NDArray[np.float64]:
-    d = np.ones(lmax + 1)
+def _kernel_tables(lmax: int, dtype: type) -> tuple[NDArray[np.floating], ...]:
+    """Tables of the table kernel (``shprobe.sh._kernels.sh_rows``) in ``dtype``: R = the
+    (a_lm, a_lm·b_lm) pairs column by column (m = 0 … lmax−2, l = m+2 … lmax within a
+    column), d0[m] = P̄_mm, d1[l] = √(2l+1) P̄_{l−1,l−1}."""
+    a, b = recurrence_tables(lmax)
+    R = np.concatenate([np.stack([a[m + 2:, m], (a * b)[m + 2:, m]], -1).reshape(-1)
+                        for m in range(max(lmax - 1, 0))] + [np.zeros(2)])
     m = np.arange(1, lmax + 1)
-    d[1:] = np.sqrt((2.0 * m + 1.0) / (2.0 * m))
-    d.flags.writeable = False
-    return d
+    d0 = np.cumprod(np.concatenate([[0.5 / np.sqrt(np.pi)],
+                                    np.sqrt((2.0 * m + 1.0) / (2.0 * m))]))
+    d1 = np.zeros(lmax + 1)
+    d1[1:] = np.sqrt(2.0 * m + 1.0) * d0[:-1]
+    out = tuple(np.ascontiguousarray(t, dtype=dtype) for t in (R, d0, d1))
+    for t in out:
+        t.flags.writeable = False
+    return out
 
 
 def sh_basis(
@@ -230,6 +266,7 @@ def sh_basis(
     lmax = check_lmax(lmax)
     K = num_coeffs(lmax)
     shape = (*d.shape[:-1], K)
+    stream = out is not None  # a fresh array is written with plain stores (see _stream_start)
     if out is None:
         out = np.empty(shape, dtype=d.dtype)
     elif (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != d.dtype
@@ -247,6 +284,7 @@ def sh_basis(
         return out
     from ._kernels import sh_rows
 
-    a, b = recurrence_tables(lmax)
-    sh_rows(flat, lmax, a, b, _diag_table(lmax), out.reshape(-1, K))
+    f32 = out.dtype == np.float32 and lmax <= F32_ARITHMETIC_LMAX
+    sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64),
+            out.reshape(-1, K), _stream_start(out) if stream else -1)
     return out
