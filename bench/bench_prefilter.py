@@ -84,10 +84,10 @@ def latlong_table(rng, sizes, lmaxes, repeat: int = 9) -> None:
     wall time, best / median; the ratio is of best times."""
     print("### Lat-long projection (R&H eq. 10), float32 radiance, 3 channels\n")
     print("ms, best / median of interleaved repeats; × = shprobe.project / peer (best)\n")
-    print("| size | lmax | shprobe.project | threads | shprobe, one thread | separable numpy "
-          "(peer) | × |")
+    print("| size | lmax | shprobe.project | threads (at the end) | shprobe, one thread "
+          "| separable numpy (peer) | × |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
-    from shprobe.lighting.prefilter import LATLONG_THREAD_MIN_WORK
+    from shprobe.lighting.prefilter import _latlong_threads
 
     for w, h in sizes:
         rad = rng.random((h, w, 3), dtype=np.float32)
@@ -104,8 +104,7 @@ def latlong_table(rng, sizes, lmaxes, repeat: int = 9) -> None:
                     t0 = time.perf_counter()
                     f()
                     t[k].append(1e3 * (time.perf_counter() - t0))
-            nthr = (os.cpu_count() or 1) if h * w * 3 * (2 * lmax + 1) >= \
-                LATLONG_THREAD_MIN_WORK else 1
+            nthr = _latlong_threads(h * w * 3 * (2 * lmax + 1))
             b = {k: (min(v), float(np.median(v))) for k, v in t.items()}
             print(f"| {w}×{h} | {lmax} | {b['auto'][0]:.2f} / {b['auto'][1]:.2f} | {nthr} "
                   f"| {b['one'][0]:.2f} / {b['one'][1]:.2f} "

@@ -94,8 +94,9 @@ def f32_error(fn, d32, lmax):
 
 def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=7, budget=1 << 30):
     """shprobe and sphericart, output preallocated and allocated by the call, float64 and
-    float32, in the same run: each repeat times the four calls in turn (interleaved, so that
-    load drift hits them alike); best and median per call. 10⁶ directions, fewer where the
+    float32, in the same run: each repeat times the four calls in turn, in alternating order
+    (interleaved, so that load drift and the state of free memory hit them alike); best and
+    median per call. 10⁶ directions, fewer where the
     output would pass ``budget`` bytes (the box is shared)."""
     import sphericart
 
@@ -120,9 +121,12 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=7, budget=1 << 
             for f in calls.values():
                 f()
             t = {k: [] for k in calls}
-            for _ in range(repeat):
-                for k, f in calls.items():
-                    t[k].append(_timed(f) * 1e9 / n)
+            order = list(calls)
+            for r in range(repeat):
+                # alternate the order: a call that runs just after another one freed its
+                # gigabyte gets those (huge) pages back at once, the other pays for fresh ones
+                for k in order if r % 2 == 0 else order[::-1]:
+                    t[k].append(_timed(calls[k]) * 1e9 / n)
             e_ours = e_sc = float("nan")
             if dt == np.float32:
                 few = d[:2000]

@@ -142,11 +142,26 @@ def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDA
 LATLONG_THREAD_MIN_WORK = 1 << 26
 
 
+def _latlong_threads(work: int) -> int:
+    """Threads for ``work`` multiply-adds of per-row products: one below
+    ``LATLONG_THREAD_MIN_WORK``; above, the cores that are idle (cores − 1-minute load
+    average, counting this one), at least one — on a saturated machine extra threads only
+    queue behind other work and the split costs more than it gives."""
+    cores = os.cpu_count() or 1
+    if work < LATLONG_THREAD_MIN_WORK or cores == 1:
+        return 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:  # pragma: no cover - platforms without a load average
+        load = 0.0
+    return max(1, min(cores, int(cores - load + 1.0)))
+
+
 def _project_latlong(rad: NDArray[np.float32], lmax: int, threads: int | None = None
                      ) -> NDArray[np.float64]:
     """The separable transform: per row Σ_ψ L cos/sin(mψ) (one BLAS product per row; the rows
-    split over ``threads`` threads — default: the machine's cores when the products are at
-    least ``LATLONG_THREAD_MIN_WORK`` multiply-adds, else one), then Σ_θ with the row weights
+    split over ``threads`` threads — default :func:`_latlong_threads`: one below
+    ``LATLONG_THREAD_MIN_WORK`` multiply-adds, else the idle cores), then Σ_θ with the row weights
     dω_row Λ_l|m|(θ_row), one batched product over m."""
     h, w = rad.shape[:2]
     trig, by_m, mi, li = _latlong_tables(h, w, lmax)
@@ -154,8 +169,7 @@ def _project_latlong(rad: NDArray[np.float32], lmax: int, threads: int | None = 
         rad = rad.astype(np.float32)
     f = np.empty((h, trig.shape[0], rad.shape[2]), np.float32)  # (H, M, C)
     if threads is None:
-        work = h * w * rad.shape[2] * trig.shape[0]
-        threads = (os.cpu_count() or 1) if work >= LATLONG_THREAD_MIN_WORK else 1
+        threads = _latlong_threads(h * w * rad.shape[2] * trig.shape[0])
     n = max(1, min(int(threads), 16, h))
     if n == 1:
         np.matmul(trig[None], rad, out=f)
