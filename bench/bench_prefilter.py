@@ -75,6 +75,41 @@ def naive_angular_peer(env: Env, lmax: int) -> np.ndarray:
     return (sh_basis(d, lmax) * dw[:, None]).T @ L.astype(np.float64)
 
 
+def latlong_table(rng, sizes, lmaxes, repeat: int = 9) -> None:
+    """shprobe.project (threads picked by size), its one-thread path and the separable numpy
+    peer on random float32 lat-long images; each repeat runs the three in turn (interleaved),
+    wall time, best / median; the ratio is of best times."""
+    print("### Lat-long projection (R&H eq. 10), float32 radiance, 3 channels\n")
+    print("ms, best / median of interleaved repeats; × = shprobe.project / peer (best)\n")
+    print("| size | lmax | shprobe.project | threads (at the end) | shprobe, one thread "
+          "| separable numpy (peer) | × |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    from shprobe.lighting.projection import _latlong_threads
+
+    for w, h in sizes:
+        rad = rng.random((h, w, 3), dtype=np.float32)
+        env = Env(rad, "latlong")
+        for lmax in lmaxes:
+            calls = {"auto": lambda lm=lmax, e=env: project(e, lm),
+                     "one": lambda lm=lmax, r=rad: _project_latlong(r, lm, threads=1),
+                     "peer": lambda lm=lmax, r=rad: separable_numpy_peer(r, lm)}
+            t = {k: [] for k in calls}
+            for f in calls.values():
+                f()
+            for _ in range(repeat):
+                for k, f in calls.items():
+                    t0 = time.perf_counter()
+                    f()
+                    t[k].append(1e3 * (time.perf_counter() - t0))
+            nthr = _latlong_threads(h * w * 3 * (2 * lmax + 1))
+            b = {k: (min(v), float(np.median(v))) for k, v in t.items()}
+            print(f"| {w}×{h} | {lmax} | {b['auto'][0]:.2f} / {b['auto'][1]:.2f} | {nthr} "
+                  f"| {b['one'][0]:.2f} / {b['one'][1]:.2f} "
+                  f"| {b['peer'][0]:.2f} / {b['peer'][1]:.2f} "
+                  f"| {b['auto'][0] / b['peer'][0]:.2f} |")
+    print(f"\nload average after the table: {os.getloadavg()[0]:.2f}\n")
+
+
 def main() -> None:
     quick = "--quick" in sys.argv
     from _machine import machine
@@ -82,22 +117,20 @@ def main() -> None:
     print(f"Machine: {machine()}\n")
     rng = np.random.default_rng(0)
     rows: list[tuple[str, str, float]] = []
+    if "--latlong" in sys.argv:
+        latlong_table(rng, ((512, 256), (1024, 512), (4096, 2048)), (2, 8, 16))
+        return
 
-    # --- lat-long 4096 x 2048 ----------------------------------------------------------
-    h, w = (1024, 2048) if quick else (2048, 4096)
+    # --- lat-long: three sizes, interleaved with the peers ----------------------------------
+    sizes = ((512, 256), (1024, 512)) + (((2048, 1024),) if quick else ((4096, 2048),))
+    h, w = sizes[-1][1], sizes[-1][0]
+    latlong_table(rng, sizes, (2, 8, 16))
     rad = rng.random((h, w, 3), dtype=np.float32)
-    env = Env(rad, "latlong")
     for lmax in (2, 8):
-        rows.append((f"lat-long {w}×{h} float32, lmax {lmax}",
-                     f"shprobe.project (rows over {os.cpu_count()} threads)",
-                     best_ms(lambda lm=lmax: project(env, lm))))
-        rows.append(("", "shprobe, one thread (the peer's BLAS call)",
-                     best_ms(lambda lm=lmax: _project_latlong(rad, lm, threads=1))))
-        rows.append(("", "separable numpy (peer)",
-                     best_ms(lambda lm=lmax: separable_numpy_peer(rad, lm))))
         try:
             chans = [np.ascontiguousarray(rad[..., c], dtype=np.float64) for c in range(3)]
-            rows.append(("", "ducc0 analysis_2d F1, 3 channels (peer)",
+            rows.append((f"lat-long {w}×{h} float32, lmax {lmax}",
+                         "ducc0 analysis_2d F1, 3 channels (peer)",
                          best_ms(lambda lm=lmax, ch=chans: ducc0_peer(ch, lm), repeat=3)))
         except Exception as e:  # pragma: no cover - optional peer
             rows.append(("", f"ducc0 (unavailable: {type(e).__name__})", float("nan")))

@@ -74,6 +74,69 @@ def bench_basis(rows):
     rows.append(("scipy `sph_harm_y` + complex→real", t_scipy * ns, t_scipy / t_ours))
 
 
+def _timed(f):
+    t = time.process_time()
+    f()
+    return time.process_time() - t
+
+
+def f32_error(fn, d32, lmax):
+    """Largest |y₃₂ − y₆₄| over the band's scale √((2l+1)/4π), in float32 epsilons, against
+    shprobe's float64 values on the same (rounded) directions; nan counts as infinite."""
+    from shprobe.sh import sh_basis
+
+    y64 = sh_basis(d32.astype(np.float64), lmax)
+    l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+    err = np.abs(fn(d32).astype(np.float64) - y64) / np.sqrt((2 * l + 1) / (4 * np.pi))
+    err = np.where(np.isfinite(err), err, np.inf)
+    return err.max() / np.finfo(np.float32).eps
+
+
+def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=7, budget=1 << 30):
+    """shprobe and sphericart, output preallocated and allocated by the call, float64 and
+    float32, in the same run: each repeat times the four calls in turn, in alternating order
+    (interleaved, so that load drift and the state of free memory hit them alike); best and
+    median per call. 10⁶ directions, fewer where the
+    output would pass ``budget`` bytes (the box is shared)."""
+    import sphericart
+
+    from shprobe.sh import sh_basis
+
+    for lmax in lmaxes:
+        K = (lmax + 1) ** 2
+        n = min(10**6, budget // (8 * K))
+        d64 = unit_dirs(n)
+        for dt in (np.float64, np.float32):
+            d = d64.astype(dt)
+            out = np.empty((n, K), dt)
+            out.fill(0)  # pages touched once, as a reused buffer is
+            calc = sphericart.SphericalHarmonics(lmax)
+            calls = {
+                "ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+                "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                             None),
+                "ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+                "sc_alloc": lambda d=d, calc=calc: calc.compute(d),
+            }
+            for f in calls.values():
+                f()
+            t = {k: [] for k in calls}
+            order = list(calls)
+            for r in range(repeat):
+                # alternate the order: a call that runs just after another one freed its
+                # gigabyte gets those (huge) pages back at once, the other pays for fresh ones
+                for k in order if r % 2 == 0 else order[::-1]:
+                    t[k].append(_timed(calls[k]) * 1e9 / n)
+            e_ours = e_sc = float("nan")
+            if dt == np.float32:
+                few = d[:2000]
+                e_ours = f32_error(lambda x, lmax=lmax: sh_basis(x, lmax), few, lmax)
+                e_sc = f32_error(calc.compute, few, lmax)
+            rows.append((lmax, np.dtype(dt).name, n, {k: (min(v), float(np.median(v)))
+                                                      for k, v in t.items()}, e_ours, e_sc))
+            del out
+
+
 def bench_rotation(rows, batch_rows):
     from scipy.spatial.transform import Rotation
 
@@ -187,6 +250,28 @@ def bench_import(rows):
 
 def main():
     print(f"Machine: {machine()}\n")
+    grid = []
+    bench_basis_grid(grid)
+    print("### sh_basis against sphericart: random unit directions, one thread\n")
+    print("ns per direction, best / median of 7 interleaved repeats (process CPU time); "
+          "`out`: output preallocated (and touched before), `alloc`: the call allocates; "
+          "ratios of best times. f32 error: largest |y₃₂ − y₆₄| over the band scale "
+          "√((2l+1)/4π) in float32 epsilons (inf: nan/inf in the output).\n")
+    print("| lmax | dtype | directions | shprobe out | sphericart out | × | shprobe alloc "
+          "| sphericart alloc | × | f32 error shprobe / sphericart |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
+    for lmax, dt, n, t, e1, e2 in grid:
+        err = "" if dt == "float64" else f"{e1:.0f} / {e2:.3g}"
+        print(f"| {lmax} | {dt} | {n:,} | {t['ours_out'][0]:.1f} / {t['ours_out'][1]:.1f} "
+              f"| {t['sc_out'][0]:.1f} / {t['sc_out'][1]:.1f} "
+              f"| {t['ours_out'][0] / t['sc_out'][0]:.2f} "
+              f"| {t['ours_alloc'][0]:.1f} / {t['ours_alloc'][1]:.1f} "
+              f"| {t['sc_alloc'][0]:.1f} / {t['sc_alloc'][1]:.1f} "
+              f"| {t['ours_alloc'][0] / t['sc_alloc'][0]:.2f} | {err} |")
+    print("\nload average at the end of the table: "
+          + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + "\n")
+    if "--grid" in sys.argv:
+        return
     rows = []
     bench_basis(rows)
     print("### sh_basis: 10⁶ random unit directions, lmax = 6, float64, one thread\n")

@@ -33,7 +33,7 @@ from .conftest import random_dirs
 
 def project_latlong(path, lmax):
     """Brute-force projection of a lat-long probe (R&H eq. 10 as a Riemann sum), written out
-    here independently of shprobe.lighting.prefilter: row 0 = +Y, u = 0.5 → −Z, u = 0.75 → +X."""
+    here independently of shprobe.lighting.projection: row 0 = +Y, u = 0.5 → −Z, u = 0.75 → +X."""
     import OpenImageIO as oiio
 
     img = oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)[:, :, :3].astype(np.float64)

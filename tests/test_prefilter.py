@@ -107,6 +107,20 @@ def test_latlong_separable_projection_equals_direct_sum(lmax):
                                       _project_latlong(rad, lmax, 1))
 
 
+def test_latlong_threads_by_size_and_idle_cores(monkeypatch):
+    # one thread for small images; above LATLONG_THREAD_MIN_WORK the cores left idle
+    import shprobe.lighting.projection as pf
+
+    monkeypatch.setattr(pf.os, "cpu_count", lambda: 4)
+    big = pf.LATLONG_THREAD_MIN_WORK
+    for load, want in ((0.0, 4), (0.8, 4), (1.5, 3), (2.9, 2), (3.5, 1), (40.0, 1)):
+        monkeypatch.setattr(pf.os, "getloadavg", lambda load=load: (load, load, load))
+        assert pf._latlong_threads(big - 1) == 1
+        assert pf._latlong_threads(big) == want, load
+    # 512×256 and 1024×512 RGB at lmax 8 stay on one thread, 4096×2048 at lmax 2 may split
+    assert 512 * 256 * 3 * 17 < 1024 * 512 * 3 * 17 < big <= 4096 * 2048 * 3 * 5
+
+
 def test_project_samples_equals_direct_sum():
     d = random_dirs(500, seed=3)
     v = np.random.default_rng(4).random((500, 3))

@@ -94,9 +94,9 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
 
 @lru_cache(maxsize=16)
 def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDArray[np.float64],
-                                                        NDArray[np.int64]]:
-    """(trig (M, W) float32 for m = −lmax..lmax, row weights (H, K) = dω_row Λ_l|m|(θ_row),
-    index of the trig row of each k)."""
+                                                        NDArray[np.int64], NDArray[np.int64]]:
+    """(trig (M, W) float32 for m = −lmax..lmax; row weights by m, (M, lmax+1, H) float64:
+    [m, l, row] = dω_row Λ_l|m|(θ_row), zero for l < |m|; the (m, l) place of each k)."""
     psi = LatLong.column_azimuth(w)
     m = np.arange(-lmax, lmax + 1)
     # in the frame ω' the azimuth is φ' = −ψ: cos(mφ') = cos(mψ), sin(|m|φ') = −sin(|m|ψ)
@@ -109,35 +109,67 @@ def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDA
     ls = np.floor(np.sqrt(ks)).astype(np.int64)
     ms = ks - ls * (ls + 1)
     weights = lam[:, ls * (ls + 1) + np.abs(ms)] * LatLong.row_solid_angle(h, w)[:, None]
+    by_m = np.zeros((2 * lmax + 1, lmax + 1, h))
+    by_m[ms + lmax, ls] = weights.T
     trig = np.ascontiguousarray(trig, dtype=np.float32)
-    trig.flags.writeable = False
-    weights.flags.writeable = False
-    return trig, weights, ms + lmax
+    for t in (trig, by_m):
+        t.flags.writeable = False
+    return trig, by_m, ms + lmax, ls
+
+
+#: Below this many multiply-adds (pixels × channels × (2 lmax + 1)) the per-row products run
+#: on one thread: starting threads and splitting the rows costs more than they save there
+#: (2²⁶: 1024×512 at lmax 8 and 2048×1024 at lmax 2 stay on one thread, 4096×2048 splits).
+LATLONG_THREAD_MIN_WORK = 1 << 26
+
+
+def _latlong_threads(work: int) -> int:
+    """Threads for ``work`` multiply-adds of per-row products: one below
+    ``LATLONG_THREAD_MIN_WORK``; above, the cores that are idle (cores − 1-minute load
+    average, counting this one), at least one — on a saturated machine extra threads only
+    queue behind other work and the split costs more than it gives."""
+    cores = os.cpu_count() or 1
+    if work < LATLONG_THREAD_MIN_WORK or cores == 1:
+        return 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:  # pragma: no cover - platforms without a load average
+        load = 0.0
+    return max(1, min(cores, int(cores - load + 1.0)))
 
 
 def _project_latlong(rad: NDArray[np.float32], lmax: int, threads: int | None = None
                      ) -> NDArray[np.float64]:
-    """The separable transform: per row Σ_ψ L cos/sin(mψ) (one BLAS product per row, the rows
-    split over ``threads`` threads — default: the machine's cores, for images of ≥ 2²⁰ pixels),
-    then Σ_θ with the row weights dω_row Λ_l|m|(θ_row)."""
+    """The separable transform: per row Σ_ψ L cos/sin(mψ) (one BLAS product per row; the rows
+    split over ``threads`` threads — default :func:`_latlong_threads`: one below
+    ``LATLONG_THREAD_MIN_WORK`` multiply-adds, else the idle cores), then Σ_θ with the row weights
+    dω_row Λ_l|m|(θ_row), one batched product over m."""
     h, w = rad.shape[:2]
-    trig, weights, mrow = _latlong_tables(h, w, lmax)
+    trig, by_m, mi, li = _latlong_tables(h, w, lmax)
     if rad.dtype != np.float32:
         rad = rad.astype(np.float32)
     f = np.empty((h, trig.shape[0], rad.shape[2]), np.float32)  # (H, M, C)
-    n = threads if threads is not None else (os.cpu_count() or 1) if h * w >= 1 << 20 else 1
-    n = max(1, min(int(n), 16, h))
+    if threads is None:
+        threads = _latlong_threads(h * w * rad.shape[2] * trig.shape[0])
+    n = max(1, min(int(threads), 16, h))
     if n == 1:
         np.matmul(trig[None], rad, out=f)
-    else:  # numpy releases the GIL in matmul
-        from concurrent.futures import ThreadPoolExecutor
+    else:  # numpy releases the GIL in matmul; the calling thread takes the first share
+        import threading
 
         cuts = np.linspace(0, h, n + 1).astype(int)
-        with ThreadPoolExecutor(n) as pool:
-            list(pool.map(lambda a, b: np.matmul(trig[None], rad[a:b], out=f[a:b]),
-                          cuts[:-1], cuts[1:]))
-    cp = np.einsum("hk,hkc->kc", weights, f[:, mrow, :].astype(np.float64))
-    return _from_pole_y(cp)
+
+        def rows(a: int, b: int) -> None:
+            np.matmul(trig[None], rad[a:b], out=f[a:b])
+
+        pool = [threading.Thread(target=rows, args=(cuts[i], cuts[i + 1])) for i in range(1, n)]
+        for t in pool:
+            t.start()
+        rows(cuts[0], cuts[1])
+        for t in pool:
+            t.join()
+    g = np.matmul(by_m, f.transpose(1, 0, 2).astype(np.float64))  # (M, lmax+1, C)
+    return _from_pole_y(g[mi, li])
 
 
 def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | None = None,
@@ -292,15 +324,14 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
 
 def _stream_latlong(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
     h, w = LatLong().check_grid((im.height, im.width), im.path)
-    trig, weights, mrow = _latlong_tables(h, w, lmax)
-    cp = np.zeros((weights.shape[1], 3))
+    trig, by_m, mi, li = _latlong_tables(h, w, lmax)
+    g = np.zeros((by_m.shape[0], by_m.shape[1], 3))
     for y0, blk in im.blocks():
         f = np.matmul(trig[None], blk)  # (rows, M, C) float32, as _project_latlong
-        cp += np.einsum("hk,hkc->kc", weights[y0:y0 + blk.shape[0]],
-                        f[:, mrow, :].astype(np.float64))
+        g += np.matmul(by_m[:, :, y0:y0 + blk.shape[0]], f.transpose(1, 0, 2).astype(np.float64))
         if on_block is not None:
             on_block(y0, blk)
-    return _from_pole_y(cp)
+    return _from_pole_y(g[mi, li])
 
 
 def cube_face_rows(face: int, n: int, j0: int, j1: int
