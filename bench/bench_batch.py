@@ -180,6 +180,35 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
     return rows, info
 
 
+def bench_cpu(files: list[Path], repeat: int) -> list[str]:
+    """CPU time per probe in this process (steadier than wall time on a shared box): decode
+    only, and a batch row's parts, for the first .hdr and .exr."""
+    from shprobe.batch import probe_row
+    from shprobe.batch.rows import content_hash
+    from shprobe.lighting.projection import project_file
+    from shprobe.probes.images import read_image
+
+    rows = ["| format | read_image ms | content hash ms | project_file (streamed decode + "
+            "projection) ms | whole batch row ms | decode / row |",
+            "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    for ext in (".hdr", ".exr"):
+        p = next(f for f in files if f.suffix == ext)
+        fns = {"read": lambda p=p: read_image(p), "hash": lambda p=p: content_hash(p),
+               "proj": lambda p=p: project_file(p, 2), "row": lambda p=p: probe_row(str(p))}
+        for fn in fns.values():
+            fn()
+        cpu = {k: [] for k in fns}
+        for _ in range(2 * repeat + 1):  # interleaved
+            for k, fn in fns.items():
+                c = time.process_time()
+                fn()
+                cpu[k].append(time.process_time() - c)
+        b = {k: 1e3 * min(v) for k, v in cpu.items()}
+        rows.append(f"| {ext} | {b['read']:.1f} | {b['hash']:.1f} | {b['proj']:.1f} | "
+                    f"{b['row']:.1f} | {100 * b['read'] / b['row']:.0f} % |")
+    return rows
+
+
 def bench_cold_cli(files: list[Path], d: Path, workers: int) -> float:
     out = d / "cold.parquet"
     if out.exists():
@@ -301,6 +330,9 @@ def main() -> None:
               f"{100 * info['ratio_median']:.0f} % (median); with --no-window "
               f"{100 * info['ratio_now_best']:.0f} % (best), {100 * info['ratio_now_median']:.0f}"
               f" % (median). Windows chosen: {info['windows']}.")
+        print("\n### CPU time per probe, one process (best of "
+              f"{2 * args.repeat + 1}, interleaved)\n")
+        print("\n".join(bench_cpu(files, args.repeat)))
         cold = bench_cold_cli(files, d, args.workers)
         lb, lm = bench_latency(hdr, args.repeat)
         print("\n### Per-probe latency\n")
