@@ -8,6 +8,7 @@ import click
 
 from .._version import __version__
 from ..errors import ShprobeError
+from . import fit as _fit
 from . import hbasis as _hbasis
 from . import prefilter as _prefilter
 from . import prt as _prt
@@ -25,7 +26,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _fit):
     _mod.register(cli)
 
 

@@ -22,7 +22,7 @@ from .ball import (
     parse_ball_camera,
 )
 from .circle import Circle, check_circle, detect_circle, parse_circle
-from .objects import ObjectFit, fit_mesh, fit_normals
+from .objects import ObjectFit, fit_mesh, fit_normals, read_normal_map
 from .solve import LightingFit, design_factors, fit_samples
 
 __all__ = [
@@ -43,4 +43,5 @@ __all__ = [
     "fit_samples",
     "parse_ball_camera",
     "parse_circle",
+    "read_normal_map",
 ]

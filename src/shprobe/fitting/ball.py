@@ -153,7 +153,7 @@ def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | Non
     wx = (pts[0] - pts[1]) / (2 * h)
     wy = (pts[2] - pts[3]) / (2 * h)
     dw = np.linalg.norm(np.cross(wx, wy), axis=-1)
-    _, nc, vc = _geometry(circle, camera, np.array([circle.cx]), np.array([circle.cy]),
+    _, _, vc = _geometry(circle, camera, np.array([circle.cx]), np.array([circle.cy]),
                           (H, W))
     return BallPixels(jj.ravel()[inside], ii.ravel()[inside], n, v, refl, dw, vc[0].copy(),
                       (H, W))
@@ -239,13 +239,13 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
         raise ShprobeError("every pixel of the ball is saturated (clipped): nothing to fit",
                            path)
     fit = fit_samples(px.normals, vals, model="diffuse", albedo=albedo,
-                      saturation=saturation, robust=robust)
+                      saturation=saturation, black=0.0, robust=robust)
     return BallFit(fit, c, cam, px, "grey")
 
 
 def fit_chrome_ball(image: NDArray, circle: Circle | None = None,
                     camera: BallCamera | None = None, *, reflectance: float = 1.0,
-                    saturation: float | None = None, inset: float = 1.5,
+                    saturation: float | None = None, inset: float = 0.5,
                     path=None) -> BallFit:
     """Nine RGB lighting coefficients from a photo of a mirror (chrome) ball.
 
@@ -273,10 +273,8 @@ def fit_chrome_ball(image: NDArray, circle: Circle | None = None,
                                "fit", path)
     fit = fit_samples(px.reflect, vals, model="mirror", weights=px.solid_angle,
                       albedo=reflectance, robust=False)
-    cosb = float(np.min(px.reflect @ -px.axis)) if px.reflect.size else 1.0
-    # largest angle from −axis that no used pixel reaches: from the pixel reflecting closest
+    # the cone around −axis that no used pixel reflects into: up to the closest reflection
     blind = float(np.degrees(np.arccos(np.clip(np.max(px.reflect @ -px.axis), -1, 1))))
-    del cosb
     out = BallFit(fit, c, cam, px, "chrome", blind_angle=blind,
                   blind_solid_angle=2 * np.pi * (1 - np.cos(np.radians(blind))))
     out.info["clipped"] = clipped

@@ -4,12 +4,13 @@ Pixel coordinates throughout: x right, y down, from the image's top-left corner,
 (column i, row j) centred at (i + 0.5, j + 0.5) (docs/conventions.md).
 
 Detection (numpy / scipy only): the background colour is the median of the image border; a
-pixel belongs to the foreground when its colour differs from it by more than an Otsu
-threshold (at least 6 border noise deviations); the largest connected foreground component,
-holes filled, is the ball candidate. A circle is fitted algebraically (Kåsa) to its outline on
-a reduced image, then refined at full resolution on edge points (midpoints between
-neighbouring pixels on either side of the threshold, in an annulus around the first circle) by geometric
-least squares with Tukey weights, so a shadow or a stand touching the ball is outvoted.
+pixel belongs to the foreground when its colour differs from it by more than 2 % of the
+image's largest differences (and more than 6 border noise deviations); the largest connected
+foreground component, holes filled, is the ball candidate. A circle is fitted algebraically
+(Kåsa) to its outline on a reduced image, then refined at full resolution on edge points
+(midpoints between neighbouring pixels on either side of the threshold, in an annulus around
+the first circle) by geometric least squares with Tukey weights, so a shadow or a stand
+touching the ball is outvoted.
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ __all__ = ["Circle", "check_circle", "detect_circle", "parse_circle"]
 MIN_RADIUS = 8.0
 #: Largest image side the coarse detection works on.
 COARSE_SIDE = 768
+#: Foreground: colour distance from the background above this fraction of the image's
+#: 99.5th-percentile distance (and above 6 noise deviations of the border).
+THRESHOLD = 0.02
 
 
 @dataclass(frozen=True)
@@ -70,18 +74,6 @@ def check_circle(circle: Circle, shape: tuple[int, ...], path=None) -> Circle:
         raise ShprobeError(f"the ball ({c.text()}) touches or crosses the image border "
                            f"({w}x{h}); the photo must show the whole ball", path)
     return c
-
-
-def _otsu(v: NDArray) -> float:
-    hist, edges = np.histogram(v, bins=256)
-    mids = 0.5 * (edges[:-1] + edges[1:])
-    w0 = np.cumsum(hist)
-    w1 = w0[-1] - w0
-    m0 = np.cumsum(hist * mids)
-    mu0 = m0 / np.maximum(w0, 1)
-    mu1 = (m0[-1] - m0) / np.maximum(w1, 1)
-    between = w0 * w1 * (mu0 - mu1) ** 2
-    return float(mids[int(np.argmax(between))])
 
 
 def _reduce(img: NDArray, f: int) -> NDArray[np.float32]:
@@ -179,7 +171,7 @@ def detect_circle(image: NDArray, path=None) -> Circle:
     if not top > max(6.0 * noise, 1e-6 * max(float(np.abs(bg).max()), 1e-30), 0.0):
         raise ShprobeError("no ball found: nothing in the image stands out from the "
                            "background (pass --circle CX,CY,R)", path)
-    thr = max(_otsu(dist[dist <= top]), 6.0 * noise)
+    thr = max(THRESHOLD * top, 6.0 * noise)
     lab, n = ndimage.label(dist > thr)
     if n == 0:
         raise ShprobeError("no ball found: nothing stands out from the background "
@@ -191,9 +183,6 @@ def detect_circle(image: NDArray, path=None) -> Circle:
     if np.sqrt(area / np.pi) < MIN_RADIUS:
         raise ShprobeError(f"no ball found: the largest object covers {int(area)} pixels "
                            f"(pass --circle CX,CY,R)", path)
-    if comp[0].any() or comp[-1].any() or comp[:, 0].any() or comp[:, -1].any():
-        raise ShprobeError("the ball (largest object) touches the image border; the photo "
-                           "must show the whole ball (or pass --circle CX,CY,R)", path)
     # coarse circle from the component's outline
     cdist = np.where(comp, np.maximum(dist, thr * 1.0001), np.minimum(dist, thr))
     ex, ey = _edge_points(cdist, thr)
@@ -216,6 +205,11 @@ def detect_circle(image: NDArray, path=None) -> Circle:
         ex, ey = _edge_points(crop, thr, x0, y0)
         cx, cy, r, wts = _geometric(ex, ey, (cx, cy, r))
     inl = float(np.mean(wts > 0.5))
+    touches = bool(comp[0].any() or comp[-1].any() or comp[:, 0].any() or comp[:, -1].any())
+    outside = cx - r < 0 or cy - r < 0 or cx + r > W or cy + r > H
+    if touches and (outside or inl < 0.6):
+        raise ShprobeError("the ball touches the image border; the photo must show the whole "
+                           "ball", path)
     if inl < 0.6 or not r > MIN_RADIUS:
         raise ShprobeError(f"no ball found: the largest object's outline is not a circle "
                            f"(only {100 * inl:.0f} % of it fits one; pass --circle CX,CY,R)",

@@ -15,19 +15,21 @@ from ..errors import ShprobeError
 from ._scene import Camera, trace
 from .solve import LightingFit, fit_samples
 
-__all__ = ["ObjectFit", "fit_mesh", "fit_normals"]
+__all__ = ["ObjectFit", "fit_mesh", "fit_normals", "read_normal_map"]
 
 
 @dataclass(repr=False)
 class ObjectFit:
     """The fit (:class:`LightingFit`, world-frame coefficients) and where its pixels came
-    from: ``views`` list of (rows, cols) per image, ``shapes`` per image; ``vertex_albedo``
+    from: ``views`` list of (rows, cols) per image, ``shapes`` per image, ``normals`` (P, 3)
+    of all views' pixels in order; ``vertex_albedo``
     (V, 3) when fitted jointly (mean 1 over the seen regions: the global scale is in the
     coefficients)."""
 
     fit: LightingFit
     views: list[tuple[NDArray[np.intp], NDArray[np.intp]]]
     shapes: list[tuple[int, int]]
+    normals: NDArray[np.float64]
     vertex_albedo: NDArray[np.float64] | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
@@ -86,8 +88,9 @@ def fit_normals(image: ArrayLike, normals: ArrayLike, mask: ArrayLike | None = N
     dirs = n[rows, cols] / ln[rows, cols, None]
     a = np.asarray(albedo, dtype=np.float64)
     alb = a if a.ndim == 0 else a.reshape(*img.shape[:2], -1)[rows, cols]
-    fit = fit_samples(dirs, img[rows, cols], albedo=alb, saturation=saturation, robust=robust)
-    return ObjectFit(fit, [(rows, cols)], [img.shape[:2]])
+    fit = fit_samples(dirs, img[rows, cols], albedo=alb, saturation=saturation, black=0.0,
+                      robust=robust)
+    return ObjectFit(fit, [(rows, cols)], [img.shape[:2]], dirs)
 
 
 def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Sequence[Camera],
@@ -163,8 +166,8 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
         B = _bary_matrix(np.concatenate(faces), np.concatenate(barys), mesh)
         a = B @ a.reshape(len(mesh.vertices), -1)
     fit = fit_samples(d, y, albedo=a if a.ndim else float(a), saturation=saturation,
-                      robust=robust)
-    return ObjectFit(fit, views, shapes)
+                      black=0.0, robust=robust)
+    return ObjectFit(fit, views, shapes, d)
 
 
 def _bary_matrix(face: NDArray, bary: NDArray, mesh):
@@ -195,7 +198,9 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
     w = np.ones(y.shape[0])
     for it in range(1, rounds + 1):
         rp = np.maximum(B @ rho, 1e-6)
-        fit = fit_samples(d, y, albedo=rp, saturation=saturation, robust=robust, max_iter=5)
+        # the robust fit picks the outliers once; later rounds reuse its weights
+        fit = fit_samples(d, y, albedo=rp, saturation=saturation, black=0.0,
+                          robust=robust and it == 1, weights=None if it == 1 else w)
         w = fit.weights.astype(np.float64) * ~fit.clipped
         shade = fit.fitted / np.maximum(rp, 1e-6)  # A·L per pixel and channel
         new = np.ones((V, C))
@@ -213,7 +218,41 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
         if change < 1e-5:
             break
     rp = np.maximum(B @ rho, 1e-6)
-    fit = fit_samples(d, y, albedo=rp, saturation=saturation, robust=robust)
-    out = ObjectFit(fit, views, shapes, vertex_albedo=rho[labels])
+    fit = fit_samples(d, y, albedo=rp, saturation=saturation, black=0.0, robust=robust)
+    out = ObjectFit(fit, views, shapes, d, vertex_albedo=rho[labels])
     out.info.update(albedo_iterations=it, albedo_change=change, groups=G)
     return out
+
+
+def read_normal_map(path) -> NDArray[np.float32]:
+    """A float normal map (H, W, 3) as stored (.exr .tif .pfm; signed values kept, unlike
+    :func:`shprobe.probes.images.read_image`, which refuses negative pixels)."""
+    import os
+
+    p = os.fspath(path)
+    ext = os.path.splitext(p)[1].lower()
+    if ext not in (".exr", ".pfm", ".tif", ".tiff"):
+        raise ShprobeError("normal map must be a float image (.exr .pfm .tif) holding the "
+                           "normals themselves", p)
+    if not os.path.isfile(p):
+        raise ShprobeError("no such file", p)
+    if ext == ".pfm":
+        from pathlib import Path
+
+        from ..probes.images import _read_pfm
+
+        a = _read_pfm(Path(p))
+    else:
+        import OpenImageIO as oiio
+
+        inp = oiio.ImageInput.open(p)
+        if inp is None:
+            raise ShprobeError(f"cannot read normal map: {oiio.geterror().strip()}", p)
+        try:
+            a = inp.read_image("float")
+        finally:
+            inp.close()
+    a = np.asarray(a, np.float32)
+    if a is None or a.ndim != 3 or a.shape[2] < 3:
+        raise ShprobeError("normal map must have 3 channels", p)
+    return a[..., :3]
