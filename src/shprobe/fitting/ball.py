@@ -126,8 +126,10 @@ def _reflect(n: NDArray, v: NDArray) -> NDArray:
 
 
 def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | None = None,
-                inset: float = 0.0) -> BallPixels:
-    """Pixels whose centre lies on the ball more than ``inset`` pixels inside its outline."""
+                inset: float = 0.0, mirror: bool = True) -> BallPixels:
+    """Pixels whose centre lies on the ball more than ``inset`` pixels inside its outline.
+    ``mirror`` False skips the reflected directions' solid angles (zeros; a grey ball needs
+    only the normals)."""
     camera = camera or BallCamera()
     H, W = shape[:2]
     circle = check_circle(circle, shape)
@@ -145,14 +147,16 @@ def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | Non
     _, n, v = _geometry(circle, camera, x, y, (H, W))
     refl = _reflect(n, v)
     # solid angle of the reflected directions over the pixel: central differences
+    dw = np.zeros(x.size)
     h = 0.25
     pts = []
-    for dx, dy in ((h, 0.0), (-h, 0.0), (0.0, h), (0.0, -h)):
+    for dx, dy in ((h, 0.0), (-h, 0.0), (0.0, h), (0.0, -h)) if mirror else ():
         _, nn, vv = _geometry(circle, camera, x + dx, y + dy, (H, W))
         pts.append(_reflect(nn, vv))
-    wx = (pts[0] - pts[1]) / (2 * h)
-    wy = (pts[2] - pts[3]) / (2 * h)
-    dw = np.linalg.norm(np.cross(wx, wy), axis=-1)
+    if mirror:
+        wx = (pts[0] - pts[1]) / (2 * h)
+        wy = (pts[2] - pts[3]) / (2 * h)
+        dw = np.linalg.norm(np.cross(wx, wy), axis=-1)
     _, _, vc = _geometry(circle, camera, np.array([circle.cx]), np.array([circle.cy]),
                           (H, W))
     return BallPixels(jj.ravel()[inside], ii.ravel()[inside], n, v, refl, dw, vc[0].copy(),
@@ -231,7 +235,7 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     img = _image(image, path)
     c = _locate(img, circle, path)
     cam = camera or BallCamera()
-    px = ball_pixels(c, img.shape[:2], cam, inset)
+    px = ball_pixels(c, img.shape[:2], cam, inset, mirror=False)
     if px.rows.size < 9:
         raise ShprobeError(f"the ball covers only {px.rows.size} pixels", path)
     vals = img[px.rows, px.cols]

@@ -127,19 +127,6 @@ def _design(dirs: NDArray, factors: NDArray) -> NDArray[np.float64]:
     return sh_basis(np.ascontiguousarray(dirs, dtype=np.float64), 2) * factors
 
 
-def _normal_equations(dirs: NDArray, y: NDArray, w: NDArray, factors: NDArray
-                      ) -> tuple[NDArray, NDArray]:
-    """G = Σ w a aᵀ (9, 9) and R = Σ w a yᵀ (9, C), built chunk by chunk."""
-    G = np.zeros((9, 9))
-    R = np.zeros((9, y.shape[1]))
-    for s in range(0, dirs.shape[0], _CHUNK):
-        a = _design(dirs[s:s + _CHUNK], factors)
-        aw = a * w[s:s + _CHUNK, None]
-        G += aw.T @ a
-        R += aw.T @ y[s:s + _CHUNK]
-    return G, R
-
-
 def _predict(dirs: NDArray, X: NDArray, factors: NDArray) -> NDArray[np.float64]:
     out = np.empty((dirs.shape[0], X.shape[1]))
     for s in range(0, dirs.shape[0], _CHUNK):
@@ -155,14 +142,6 @@ def _solve(G: NDArray, R: NDArray) -> NDArray[np.float64]:
     except np.linalg.LinAlgError:
         raise ShprobeError("the pixels do not determine the lighting (singular normal "
                            "equations: too few pixels or normals)") from None
-
-
-def _relative(y: NDArray, f: NDArray, tau: NDArray) -> NDArray[np.float64]:
-    """Residuals in units of the mean |value| ``tau`` per channel (absolute residuals, as
-    R&H measure the l ≤ 2 error against the total intensity; a shadow is a large departure
-    wherever it falls, while the model's own error and the noise are of the same size over
-    the object)."""
-    return (y - f) / tau
 
 
 def _scale(r: NDArray, w: NDArray, floor: NDArray) -> NDArray[np.float64]:
@@ -182,27 +161,26 @@ def _weights(u: NDArray, loss: str = "tukey") -> NDArray[np.float64]:
     return (1.0 - t * t) ** 2
 
 
-def _starts(d: NDArray, y: NDArray, w: NDArray, factors: NDArray, tau: NDArray,
-            floor: NDArray, seed: int) -> tuple[list[NDArray[np.float64]], Any]:
+def _starts(a: NDArray, d: NDArray, y: NDArray, w: NDArray, tau: NDArray, floor: NDArray,
+            seed: int) -> list[NDArray[np.float64]]:
     """Starting fits for IRLS and the criterion that ranks fits (the median standardised
     residual, least median of squares). Candidates: least squares on all pixels; least
     median of squares over random 10-pixel subsets; and least squares on random 60 % subsets
     of 4×4 tiles of the normals (the tangent-plane coordinates around their mean; for a ball,
     tiles of the image), so that some start leaves out a whole shadow. Returns the best
-    :data:`TOP_STARTS` candidates and the criterion."""
-    a = _design(d, factors)
+    :data:`TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
     use = w > 0
     sw = np.sqrt(w)[:, None]
 
     def crit(x):
-        r = _relative(y, a @ x, tau) / floor
+        r = (y - a @ x) / tau / floor
         return float(np.median(_standardised(r, 1.0)[use]))
 
     def ls(sel):
         aw = a[sel] * sw[sel]
         return _solve(aw.T @ aw, aw.T @ (y[sel] * sw[sel]))
 
-    cands = [ls(use), _lmeds_start(d, y, w, factors, seed)]
+    cands = [ls(use), _lmeds_start(a, y, w, seed)]
     m = d[use].mean(axis=0)
     m = m / (np.linalg.norm(m) or 1.0)
     u = np.cross(m, [0.0, 0.0, 1.0] if abs(m[2]) < 0.9 else [1.0, 0.0, 0.0])
@@ -219,21 +197,21 @@ def _starts(d: NDArray, y: NDArray, w: NDArray, factors: NDArray, tau: NDArray,
         if np.count_nonzero(sel) >= 18:
             cands.append(ls(sel))
     cands.sort(key=crit)
-    return cands[:TOP_STARTS], crit
+    return cands[:TOP_STARTS]
 
 
-def _lmeds_start(d: NDArray, y: NDArray, w: NDArray, factors: NDArray, seed: int,
-                 trials: int = LMEDS_TRIALS, size: int = 10) -> NDArray[np.float64]:
+def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LMEDS_TRIALS,
+                 size: int = 10) -> NDArray[np.float64]:
     """A start for IRLS that outliers cannot drag: least median of squares over random
     ``size``-pixel subsets (Rousseeuw 1984), scored on ≤ 4096 pixels. With 40 % outliers a
     clean 10-pixel subset turns up in 500 trials with probability 0.95."""
     rng = np.random.default_rng(seed + 1)
     good = np.flatnonzero(w > 0)
     ev = good if good.size <= 4096 else rng.choice(good, 4096, replace=False)
-    a_ev = _design(d[ev], factors)
+    a_ev = a[ev]
     y_ev = y[ev]
     tau = np.maximum(np.mean(np.abs(y_ev), axis=0), 1e-30)
-    a_all = _design(d[good], factors)
+    a_all = a[good]
     picks = np.argsort(rng.random((trials, good.size)), axis=1)[:, :size] \
         if good.size <= 4 * size else rng.integers(0, good.size, (trials, size))
     A = a_all[picks]  # (T, size, 9)
@@ -308,37 +286,65 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     tau = np.maximum(np.mean(np.abs(ys[base > 0]), axis=0), 1e-30)
     floor = np.full(y.shape[1], float(scale_floor))
 
-    def solve(idx, w):
+    C = y.shape[1]
+
+    def solve_a(A, sub, w):
+        """Weighted least squares on the rows ``sub`` with their design ``A``."""
         if wch is None:
-            G, R = _normal_equations(d[idx], ys[idx], w, factors)
-            return _solve(G, R), G
-        X = np.empty((9, y.shape[1]))
-        G0 = None
-        for c in range(y.shape[1]):
-            G, R = _normal_equations(d[idx], ys[idx, c:c + 1], w * wch[idx, c], factors)
-            X[:, c:c + 1] = _solve(G, R)
-            G0 = G if G0 is None else G0
-        return X, G0
+            aw = A * w[:, None]
+            return _solve(aw.T @ A, aw.T @ ys[sub])
+        X = np.empty((9, C))
+        for c in range(C):
+            aw = A * (w * wch[sub, c])[:, None]
+            X[:, c:c + 1] = _solve(aw.T @ A, aw.T @ ys[sub, c:c + 1])
+        return X
 
-    # IRLS on a subset, then weights and the final solve on every pixel
-    idx = np.arange(P)
-    if robust and P > irls_samples:
-        idx = np.sort(np.random.default_rng(seed).choice(P, irls_samples, replace=False))
+    def u_of(A, sub, X):
+        return _standardised((ys[sub] - A @ X) / tau, 1.0)
+
+    def full_pass(X, scale):
+        """One pass over every pixel (chunked): weights (Tukey at ``scale``, or the prior
+        weights when None) and the normal equations; the solution and G."""
+        w = base.copy()
+        G = np.zeros((9, 9)) if wch is None else np.zeros((C, 9, 9))
+        R = np.zeros((9, C))
+        for s0 in range(0, P, _CHUNK):
+            sl = slice(s0, s0 + _CHUNK)
+            A = _design(d[sl], factors)
+            if scale is not None:
+                w[sl] *= _weights(_standardised((ys[sl] - A @ X) / tau, scale))
+            if wch is None:
+                aw = A * w[sl, None]
+                G += aw.T @ A
+                R += aw.T @ ys[sl]
+            else:
+                for c in range(C):
+                    aw = A * (w[sl] * wch[sl, c])[:, None]
+                    G[c] += aw.T @ A
+                    R[:, c] += aw.T @ ys[sl, c]
+        if wch is None:
+            return _solve(G, R), G, w
+        X = np.stack([_solve(G[c], R[:, c:c + 1])[:, 0] for c in range(C)], axis=1)
+        return X, G[0], w
+
+    # the robust stages on subsets whose design matrices are built once
+    idx = np.flatnonzero(base > 0)
+    rng = np.random.default_rng(seed)
+    if idx.size > irls_samples:
+        idx = np.sort(rng.choice(idx, irls_samples, replace=False))
     it = 0
+    s = None
     if robust:
+        A_idx = _design(d[idx], factors)
 
-        def u_of(sub, X):
-            return _standardised(_relative(ys[sub], _predict(d[sub], X, factors), tau), 1.0)
-
-        def csteps(sub, X, iters):
+        def csteps(A, sub, X, iters):
             """Concentration steps of least trimmed squares (Rousseeuw & Van Driessen
             2006): refit on the fraction LTS_H of pixels with the smallest residuals; the
             trimmed sum of squares never increases."""
-            use = base[sub] > 0
-            h = max(int(LTS_H * np.count_nonzero(use)), 9)
+            h = max(int(LTS_H * sub.size), 9)
             obj = np.inf
             for _ in range(iters):
-                u = np.where(use, u_of(sub, X), np.inf)
+                u = u_of(A, sub, X)
                 keep = np.argpartition(u, h - 1)[:h]
                 new_obj = float(np.sum(u[keep] ** 2))
                 if new_obj >= obj * (1 - 1e-9):
@@ -346,18 +352,17 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
                 obj = new_obj
                 w = np.zeros(sub.size)
                 w[keep] = base[sub][keep]
-                X, _ = solve(sub, w)
+                X = solve_a(A, sub, w)
             return X, obj
 
-        def irls(sub, X, scale, iters):
+        def irls(A, sub, X, scale, iters):
             """Tukey IRLS with the scale held fixed (an MM-estimator's last stage)."""
             k = 0
             for k in range(1, iters + 1):  # noqa: B007 (k is returned)
-                r = _relative(ys[sub], _predict(d[sub], X, factors), tau)
-                w_new = base[sub] * _weights(_standardised(r, scale))
+                w_new = base[sub] * _weights(_standardised((ys[sub] - A @ X) / tau, scale))
                 if not np.count_nonzero(w_new) >= 9:
                     break
-                X_new, _ = solve(sub, w_new)
+                X_new = solve_a(A, sub, w_new)
                 step = np.abs(X_new - X).max()
                 X = X_new
                 if step <= 1e-6 * max(np.abs(X).max(), 1e-300):
@@ -367,48 +372,54 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
         # starts (least squares, least median of squares, tile subsets) refined by LTS
         # concentration steps on a small subset; the least trimmed sum of squares wins, so
         # a shadow the nine parameters half-absorb from one start is left out by another
-        rng = np.random.default_rng(seed + 2)
-        small = idx if idx.size <= CANDIDATE_SAMPLES else np.sort(
-            rng.choice(idx, CANDIDATE_SAMPLES, replace=False))
-        starts, _ = _starts(d[small], ys[small], base[small], factors, tau, floor, seed)
+        pos = np.arange(idx.size) if idx.size <= CANDIDATE_SAMPLES else np.sort(
+            rng.choice(idx.size, CANDIDATE_SAMPLES, replace=False))
+        small, A_small = idx[pos], A_idx[pos]
+        starts = _starts(A_small, d[small], ys[small], base[small], tau, floor, seed)
         best, X = np.inf, None
         for start in starts:
-            Xc, obj = csteps(small, start, CANDIDATE_ITER)
+            Xc, obj = csteps(A_small, small, start, CANDIDATE_ITER)
             if obj < best:
                 best, X = obj, Xc
-        X, _ = csteps(idx, X, CANDIDATE_ITER)
-        # robust scale from the LTS fit (MAD over every usable pixel), then fixed
-        r = _relative(ys[idx], _predict(d[idx], X, factors), tau)
-        s = _scale(r, base[idx], floor)
-        X, it = irls(idx, X, s, max_iter)
-        r = _relative(ys, _predict(d, X, factors), tau)
-        w = base * _weights(_standardised(r, s))
-        X, G = solve(np.arange(P), w)
-    else:
-        w = base
-        X, G = solve(np.arange(P), w)
+        X, _ = csteps(A_idx, idx, X, CANDIDATE_ITER)
+        # robust scale from the LTS fit (MAD over the usable pixels), then fixed
+        s = _scale((ys[idx] - A_idx @ X) / tau, base[idx], floor)
+        X, it = irls(A_idx, idx, X, s, max_iter)
+    X, G, w = full_pass(X if robust else None, s)
     w_rel = np.where(prior > 0, w / np.where(prior > 0, prior, 1.0), 0.0)  # IRLS factor
-    fitted = _predict(d, X, factors)
-    res = ys - fitted
     inl = w_rel >= 0.5
-    if wch is not None:
-        fitted = fitted * a
-        res = y - fitted
     n_in = max(int(inl.sum()), 1)
-    rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("nan")
-    sig = np.sqrt(np.sum(w[inl, None] * res[inl] ** 2, axis=0) / max(n_in - 9, 1)) \
-        if wch is None else np.sqrt(np.mean(res[inl] ** 2, axis=0))
+    fitted = np.empty((P, C), np.float32)
+    res = np.empty((P, C), np.float32)
+    sq = np.zeros(C)
+    wsq = np.zeros(C)
+    abs_in = 0.0
+    for s0 in range(0, P, _CHUNK):  # fitted values and residual statistics, chunked
+        sl = slice(s0, s0 + _CHUNK)
+        f = _design(d[sl], factors) @ X
+        if wch is not None:
+            f *= a[sl]
+        r = y[sl] - f
+        fitted[sl] = f
+        res[sl] = r
+        m = inl[sl]
+        r2 = r[m] ** 2
+        sq += r2.sum(axis=0)
+        wsq += (w[sl][m, None] * r2).sum(axis=0)
+        abs_in += float(np.abs(y[sl][m]).sum())
+    rms = float(np.sqrt(sq.sum() / (n_in * C))) if inl.any() else float("nan")
+    sig = np.sqrt(wsq / max(n_in - 9, 1)) if wch is None else np.sqrt(sq / n_in)
     dg = np.sqrt(np.maximum(np.diag(G), 1e-300))
     Gn = G / np.outer(dg, dg)
     Gi = np.linalg.inv(Gn)
     cond_k = np.sqrt(np.maximum(np.diag(Gi), 0.0))
     stderr = np.sqrt(np.maximum(np.diag(Gi), 0.0))[:, None] / dg[:, None] * sig[None, :]
-    mean_abs = float(np.mean(np.abs(y[inl]))) if inl.any() else 0.0
+    mean_abs = abs_in / (n_in * C)
     info = {"rms_relative": rms / mean_abs if mean_abs > 0 else 0.0, "used": n_in,
-            "scale": s.tolist() if robust else None}
+            "scale": None if s is None else s.tolist()}
     return LightingFit(
         coeffs=X / scalar_albedo, albedo=scalar_albedo, stderr=stderr / scalar_albedo,
         conditioning=cond_k, condition=float(np.linalg.cond(Gn)),
-        weights=w_rel.astype(np.float32), fitted=fitted.astype(np.float32),
-        residual=res.astype(np.float32), clipped=clipped, rms=rms, iterations=it,
+        weights=w_rel.astype(np.float32), fitted=fitted, residual=res, clipped=clipped,
+        rms=rms, iterations=it,
         model=model, info=info)
