@@ -30,7 +30,6 @@ sys.path.insert(0, str(REPO / "src"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _machine import machine  # noqa: E402
-
 from shprobe.fitting import ball_pixels, detect_circle, fit_grey_ball, fit_samples  # noqa: E402
 from shprobe.fitting.solve import design_factors  # noqa: E402
 from shprobe.probes.presets import get_preset  # noqa: E402

@@ -39,11 +39,11 @@ POOR_CONDITION = 10.0
 #: Tukey's biweight constant (95 % efficiency at the normal distribution).
 TUKEY_C = 4.685
 #: Random subsets tried for the least-median-of-squares start of IRLS.
-LMEDS_TRIALS = 500
+LMEDS_TRIALS = 300
 #: Pixels and iterations for the competing IRLS starts (see :func:`fit_samples`).
 CANDIDATE_SAMPLES = 8192
 CANDIDATE_ITER = 10
-TILE_TRIALS = 150
+TILE_TRIALS = 100
 TOP_STARTS = 5
 #: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
 LTS_H = 0.75
@@ -203,11 +203,11 @@ def _starts(a: NDArray, d: NDArray, y: NDArray, w: NDArray, tau: NDArray, floor:
 def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LMEDS_TRIALS,
                  size: int = 10) -> NDArray[np.float64]:
     """A start for IRLS that outliers cannot drag: least median of squares over random
-    ``size``-pixel subsets (Rousseeuw 1984), scored on ≤ 4096 pixels. With 40 % outliers a
-    clean 10-pixel subset turns up in 500 trials with probability 0.95."""
+    ``size``-pixel subsets (Rousseeuw 1984), scored on ≤ 1024 pixels. With 30 % outliers a
+    clean 10-pixel subset turns up in 300 trials with probability 0.9998."""
     rng = np.random.default_rng(seed + 1)
     good = np.flatnonzero(w > 0)
-    ev = good if good.size <= 4096 else rng.choice(good, 4096, replace=False)
+    ev = good if good.size <= 1024 else rng.choice(good, 1024, replace=False)
     a_ev = a[ev]
     y_ev = y[ev]
     tau = np.maximum(np.mean(np.abs(y_ev), axis=0), 1e-30)
@@ -215,14 +215,15 @@ def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LM
     picks = np.argsort(rng.random((trials, good.size)), axis=1)[:, :size] \
         if good.size <= 4 * size else rng.integers(0, good.size, (trials, size))
     A = a_all[picks]  # (T, size, 9)
-    G = np.einsum("tpi,tpj->tij", A, A) + 1e-9 * np.eye(9)
-    R = np.einsum("tpi,tpc->tic", A, y[good][picks])
+    G = A.transpose(0, 2, 1) @ A + 1e-9 * np.eye(9)
+    R = A.transpose(0, 2, 1) @ y[good][picks]
     try:
         X = np.linalg.solve(G, R)  # (T, 9, C)
     except np.linalg.LinAlgError:
         X = np.stack([np.linalg.lstsq(g, r, rcond=None)[0] for g, r in zip(G, R, strict=True)])
-    F = np.einsum("pi,tic->tpc", a_ev, X)
-    med = np.median(np.sum(((y_ev - F) / tau) ** 2, axis=2), axis=1)
+    T, _, C = X.shape
+    F = (a_ev @ X.transpose(1, 0, 2).reshape(9, T * C)).reshape(-1, T, C)  # BLAS
+    med = np.median(np.sum(((y_ev[:, None, :] - F) / tau) ** 2, axis=2), axis=0)
     return X[int(np.argmin(med))]
 
 
