@@ -60,6 +60,19 @@ def _read_photo(path: str):
     return img, ldr
 
 
+def _start(photo: str, saturation, output, images: dict, report, force: bool):
+    """Refuse outputs before the work, read the photo: (image, saturation level)."""
+    _check(output, {**images, "report": report}, force)
+    img, ldr = _read_photo(photo)
+    return img, (saturation if saturation is not None else (0.999 if ldr else None))
+
+
+def _ball(circle, camera_text):
+    from ..fitting import parse_ball_camera, parse_circle
+
+    return (parse_circle(circle) if circle else None), parse_ball_camera(camera_text)
+
+
 def _check(output, images: dict, force: bool) -> None:
     from ..files import check_output_path
     from ..probes.images import check_image_output
@@ -131,15 +144,12 @@ def register(group: click.Group) -> None:
     def grey_ball_cmd(photo, circle, camera_text, albedo, inset, irradiance, no_robust, fmt,
                       output, saturation, residual, fitted, mask, report, force):
         """Lighting from a photo of a diffuse (grey) ball."""
-        from ..fitting import fit_grey_ball, parse_ball_camera, parse_circle
+        from ..fitting import fit_grey_ball
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
-        _check(output, {**images, "report": report}, force)
-        cam = parse_ball_camera(camera_text)
-        c = parse_circle(circle) if circle else None
-        img, ldr = _read_photo(photo)
-        sat = saturation if saturation is not None else (0.999 if ldr else None)
+        c, cam = _ball(circle, camera_text)
+        img, sat = _start(photo, saturation, output, images, report, force)
         res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
                             robust=not no_robust, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}")
@@ -156,14 +166,11 @@ def register(group: click.Group) -> None:
     def chrome_ball_cmd(photo, circle, camera_text, reflectance, inset, fmt, output,
                         saturation, residual, fitted, mask, report, force):
         """Lighting from a photo of a mirror (chrome) ball."""
-        from ..fitting import fit_chrome_ball, parse_ball_camera, parse_circle
+        from ..fitting import fit_chrome_ball
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask}
-        _check(output, {**images, "report": report}, force)
-        cam = parse_ball_camera(camera_text)
-        c = parse_circle(circle) if circle else None
-        img, ldr = _read_photo(photo)
-        sat = saturation if saturation is not None else (0.999 if ldr else None)
+        c, cam = _ball(circle, camera_text)
+        img, sat = _start(photo, saturation, output, images, report, force)
         res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
                               inset=inset, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}")
@@ -184,15 +191,13 @@ def register(group: click.Group) -> None:
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
-        _check(output, {**images, "report": report}, force)
-        img, ldr = _read_photo(photo)
+        img, sat = _start(photo, saturation, output, images, report, force)
         nrm = read_normal_map(normal_map)
         if nrm.shape[:2] != img.shape[:2]:
             from ..errors import ShprobeError
 
             raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
                                f"{img.shape[1]}x{img.shape[0]}", normal_map)
-        sat = saturation if saturation is not None else (0.999 if ldr else None)
         res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}")
 
@@ -222,12 +227,10 @@ def register(group: click.Group) -> None:
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
-        _check(output, {**images, "report": report}, force)
-        img, ldr = _read_photo(photo)
+        img, sat = _start(photo, saturation, output, images, report, force)
         m = load_mesh(mesh)
         cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
                      distance, None, margin)
-        sat = saturation if saturation is not None else (0.999 if ldr else None)
         res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}")
 
