@@ -292,3 +292,25 @@ def test_mesh_bad_input(bunny_path):
         fit_grey_ball(np.ones((64, 64, 3), np.float32), circ, saturation=0.999)
     with pytest.raises(ShprobeError, match="no normals"):
         fit_normals(r.image, np.zeros((64, 64, 3)))
+
+
+def test_subsampled_robust_fit_matches_full():
+    """Large photos run the robust stages on a random subset and classify every pixel in one
+    pass: the same rejected pixels (> 99 %)
+    as the fit that iterates on all of them, coefficients within their standard errors."""
+    L = get_preset("stpeters")
+    r, circ = _ortho_ball(L, 160)
+    img = r.image.copy()
+    img[30:70, 80:120] *= 0.2  # a shadow on the top right (13 % of the ball)
+    px = ball_pixels(circ, img.shape[:2], inset=1.0)
+    vals = img[px.rows, px.cols] + 0.002 * np.random.default_rng(5).standard_normal(
+        (px.rows.size, 3))
+    full = fit_samples(px.normals, vals)
+    sub = fit_samples(px.normals, vals, irls_samples=1024)
+    assert px.rows.size > 10 * 1024
+    for f in (full, sub):  # the subset's standard errors are its own (√(P/1024) larger)
+        assert np.all(np.abs(f.coeffs - 0.6 * L) < 4.5 * f.stderr)
+    assert np.median(sub.stderr / full.stderr) == pytest.approx(
+        np.sqrt((~full.rejected).sum() / 1024 * (1 - sub.rejected_fraction)), rel=0.3)
+    assert np.mean(full.rejected == sub.rejected) > 0.99
+    np.testing.assert_allclose(sub.conditioning, full.conditioning, rtol=0.05)

@@ -111,7 +111,8 @@ class LightingFit:
     def summary(self) -> str:
         """One line: RMS residual, fraction rejected, poorly determined coefficients."""
         poor = ", ".join(self.poorly_determined) or "none"
-        return (f"{self.weights.size} pixels, RMS residual {self.rms:.4g} "
+        what = "RMS residual" if self.model == "diffuse" else "RMS detail above l = 2"
+        return (f"{self.weights.size} pixels, {what} {self.rms:.4g} "
                 f"({100 * self.info.get('rms_relative', 0.0):.2f} % of the mean), "
                 f"{100 * self.rejected_fraction:.2f} % rejected "
                 f"({int(self.clipped.sum())} clipped), condition {self.condition:.3g}, "
@@ -245,8 +246,9 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     MM-estimator of the module docstring — else plain weighted least squares. The residual
     scale never falls below ``scale_floor`` × the mean |value|, so model error at that level
     (the l ≥ 4 part of real irradiance) is not rejected. The starts run on at most
-    ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets);
-    the final weights and solve are over every pixel.
+    ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets;
+    the coefficients and standard errors are that subset's); the weights, rejected pixels,
+    fitted values and residuals are over every pixel.
     """
     factors = design_factors(model)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
@@ -386,28 +388,42 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
         # robust scale from the LTS fit (MAD over the usable pixels), then fixed
         s = _scale((ys[idx] - A_idx @ X) / tau, base[idx], floor)
         X, it = irls(A_idx, idx, X, s, max_iter)
-    X, G, w = full_pass(X if robust else None, s)
-    w_rel = np.where(prior > 0, w / np.where(prior > 0, prior, 1.0), 0.0)  # IRLS factor
-    inl = w_rel >= 0.5
-    n_in = max(int(inl.sum()), 1)
+    if robust and idx.size < n_used:
+        # subsampled: IRLS has converged on idx (X is its solution); one pass over every
+        # pixel gives the weights and the fitted values
+        w = base.copy()
+    else:
+        X, G, w = full_pass(X if robust else None, s)
     fitted = np.empty((P, C), np.float32)
     res = np.empty((P, C), np.float32)
     sq = np.zeros(C)
     wsq = np.zeros(C)
     abs_in = 0.0
-    for s0 in range(0, P, _CHUNK):  # fitted values and residual statistics, chunked
+    n_in = 0
+    for s0 in range(0, P, _CHUNK):  # weights, fitted values and residual statistics, chunked
         sl = slice(s0, s0 + _CHUNK)
         f = _design(d[sl], factors) @ X
+        if robust and idx.size < n_used:
+            w[sl] *= _weights(_standardised((ys[sl] - f) / tau, s))
         if wch is not None:
             f *= a[sl]
         r = y[sl] - f
         fitted[sl] = f
         res[sl] = r
-        m = inl[sl]
+        m = w[sl] >= 0.5 * prior[sl]
+        m &= w[sl] > 0
         r2 = r[m] ** 2
         sq += r2.sum(axis=0)
         wsq += (w[sl][m, None] * r2).sum(axis=0)
         abs_in += float(np.abs(y[sl][m]).sum())
+        n_in += int(m.sum())
+    if robust and idx.size < n_used:
+        wi = w[idx]
+        aw = A_idx * wi[:, None] if wch is None else A_idx * (wi * wch[idx, 0])[:, None]
+        G = aw.T @ A_idx  # the subset's: X came from it, so do the standard errors
+    w_rel = np.where(prior > 0, w / np.where(prior > 0, prior, 1.0), 0.0)  # IRLS factor
+    inl = w_rel >= 0.5
+    n_in = max(n_in, 1)
     rms = float(np.sqrt(sq.sum() / (n_in * C))) if inl.any() else float("nan")
     sig = np.sqrt(wsq / max(n_in - 9, 1)) if wch is None else np.sqrt(sq / n_in)
     dg = np.sqrt(np.maximum(np.diag(G), 1e-300))
