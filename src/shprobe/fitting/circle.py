@@ -196,8 +196,9 @@ def detect_circle(image: NDArray, path=None) -> Circle:
     y0, y1 = int(max(np.floor(cy - r - m), 0)), int(min(np.ceil(cy + r + m), H))
     if f > 1:
         crop = _foreground_distance(img[y0:y1, x0:x1], bg)
-        yy, xx = np.mgrid[y0:y1, x0:x1]
-        rho = np.hypot(xx + 0.5 - cx, yy + 0.5 - cy)
+        yy = (np.arange(y0, y1, dtype=np.float32) + np.float32(0.5 - cy))[:, None]
+        xx = (np.arange(x0, x1, dtype=np.float32) + np.float32(0.5 - cx))[None, :]
+        rho = np.sqrt(yy * yy + xx * xx)
         ring = np.abs(rho - r) <= m
         # keep the structure of the crop: outside the ring, force the coarse decision
         crop = np.where(ring, crop, np.where(rho < r, np.maximum(crop, thr * 1.0001),

@@ -286,7 +286,6 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     if n_used < 9:
         raise ShprobeError(f"only {n_used} usable pixels ({int(clipped.sum())} of {P} clipped)"
                            ": nothing to fit")
-    tau = np.maximum(np.mean(np.abs(ys[base > 0]), axis=0), 1e-30)
     floor = np.full(y.shape[1], float(scale_floor))
 
     C = y.shape[1]
@@ -335,6 +334,7 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     rng = np.random.default_rng(seed)
     if idx.size > irls_samples:
         idx = np.sort(rng.choice(idx, irls_samples, replace=False))
+    tau = np.maximum(np.mean(np.abs(ys[idx]), axis=0), 1e-30)  # the residuals' unit
     it = 0
     s = None
     if robust:
