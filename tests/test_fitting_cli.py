@@ -125,3 +125,11 @@ def test_bad_input_one_line(tmp_path, capsys, bunny_path):
     rc, _, err = run(["fit", "grey-ball", tmp_path / "missing.exr"], capsys)
     one_line_error(rc, err, "no such file")
     assert Circle(1, 2, 3).text() == "1.000,2.000,3.000"
+
+
+def test_bad_numbers_one_line(tmp_path, capsys, grey):
+    path, _ = grey
+    for args, what in ((["--albedo", "0"], "albedo"), (["--albedo", "nan"], "albedo"),
+                       (["--inset", "-1"], "inset"), (["--saturation", "nan"], "saturation")):
+        rc, _, err = run(["fit", "grey-ball", path, *args], capsys)
+        one_line_error(rc, err, what)

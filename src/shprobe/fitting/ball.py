@@ -133,6 +133,8 @@ def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | Non
     camera = camera or BallCamera()
     H, W = shape[:2]
     circle = check_circle(circle, shape)
+    if not (np.isfinite(inset) and inset >= 0):
+        raise ShprobeError(f"rim inset must be a non-negative number of pixels, got {inset}")
     if inset >= circle.r:
         raise ShprobeError(f"rim inset {inset} px leaves nothing of a ball of radius "
                            f"{circle.r:.1f} px")

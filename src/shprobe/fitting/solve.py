@@ -276,6 +276,9 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
             raise ShprobeError("per-pixel albedo must be positive and finite")
         ys = y / a
         wch = np.broadcast_to(a * a, y.shape)
+    for name, v in (("saturation", saturation), ("black level", black)):
+        if v is not None and not np.isfinite(v):
+            raise ShprobeError(f"{name} must be a finite number, got {v}")
     clipped = np.zeros(P, bool)
     if saturation is not None:
         clipped = np.any(y >= saturation, axis=1)
