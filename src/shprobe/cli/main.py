@@ -9,6 +9,7 @@ import click
 from .._version import __version__
 from ..errors import ShprobeError
 from . import batch as _batch
+from . import fit as _fit
 from . import hbasis as _hbasis
 from . import prefilter as _prefilter
 from . import prt as _prt
@@ -28,7 +29,7 @@ def cli() -> None:
     """
 
 
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _report, _batch, _view):
+for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _fit, _report, _batch, _view):
     _mod.register(cli)
 
 

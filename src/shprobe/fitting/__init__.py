@@ -1,0 +1,47 @@
+"""Lighting from photographs (R&H 2001 §2–3 run backwards): a diffuse object's image keeps
+only the l ≤ 2 part of the lighting, so images of an object of known shape determine the nine
+coefficients L_lm through a linear least-squares problem.
+
+- :mod:`.solve`: the 9×9 normal equations, IRLS (Huber / Tukey) rejection, conditioning per
+  coefficient (:class:`LightingFit`);
+- :mod:`.circle`: a ball's outline, given (``CX,CY,R``) or detected;
+- :mod:`.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera);
+- :mod:`.objects`: any diffuse object — per-pixel normals, or a mesh seen by cameras, with
+  optional per-vertex albedo fitted jointly.
+
+Scene names come from :mod:`shprobe.scene`.
+"""
+
+from .ball import (
+    BallCamera,
+    BallFit,
+    BallPixels,
+    ball_pixels,
+    fit_chrome_ball,
+    fit_grey_ball,
+    parse_ball_camera,
+)
+from .circle import Circle, check_circle, detect_circle, parse_circle
+from .objects import ObjectFit, fit_mesh, fit_normals, read_normal_map
+from .solve import LightingFit, design_factors, fit_samples
+
+__all__ = [
+    "BallCamera",
+    "BallFit",
+    "BallPixels",
+    "Circle",
+    "LightingFit",
+    "ObjectFit",
+    "ball_pixels",
+    "check_circle",
+    "design_factors",
+    "detect_circle",
+    "fit_chrome_ball",
+    "fit_grey_ball",
+    "fit_mesh",
+    "fit_normals",
+    "fit_samples",
+    "parse_ball_camera",
+    "parse_circle",
+    "read_normal_map",
+]
