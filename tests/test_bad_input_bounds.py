@@ -128,3 +128,18 @@ def test_transfer_bomb_is_one_line_in_the_cli(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc != 0 and len(err) == 1 and "t.npz" in err[0] and "would need" in err[0]
     assert not (tmp_path / "x.png").exists()
+
+
+def test_max_memory_option_is_one_line_and_holds_for_one_call(capsys, monkeypatch):
+    import os
+
+    from shprobe.cli.main import main
+
+    monkeypatch.delenv("SHPROBE_MAX_MEMORY", raising=False)
+    grace = str(data_file("probes", "grace.hdr"))
+    rc = main(["--max-memory", "1M", "prefilter", grace, "--lmax", "8"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1
+    assert "grace.hdr" in err[0] and "over the limit of 1.05 MB" in err[0]
+    assert "SHPROBE_MAX_MEMORY" not in os.environ  # the next call is not limited
+    assert main(["prefilter", grace, "--lmax", "8", "--format", "json"]) == 0

@@ -21,12 +21,22 @@ from . import view as _view
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", "-V", prog_name="shprobe")
-def cli() -> None:
+@click.option("--max-memory", metavar="SIZE", default=None,
+              help="Refuse work estimated to need more memory than SIZE (e.g. 2G); default: "
+                   "80 % of the available memory (or SHPROBE_MAX_MEMORY).")
+def cli(max_memory: str | None) -> None:
     """shprobe: spherical-harmonic lighting — irradiance environment maps, SH rotation,
-    H-basis and precomputed radiance transfer.
+    H-basis, precomputed radiance transfer, lighting from photographs, batch tables and an
+    interactive viewer.
 
     Start with `shprobe demo`, which needs no files.
     """
+    if max_memory is not None:
+        import os
+
+        from ..limits import parse_bytes
+
+        os.environ["SHPROBE_MAX_MEMORY"] = str(parse_bytes(max_memory))
 
 
 for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _fit, _report, _batch, _view):
@@ -57,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
                 signal.signal(sig, _on_signal)
             except ValueError:  # not the main thread (e.g. called from a worker)
                 pass
+    saved = os.environ.get("SHPROBE_MAX_MEMORY")  # --max-memory holds for this call only
     try:
         rv = cli.main(args=argv, prog_name="shprobe", standalone_mode=False)
     except click.exceptions.Exit as e:
@@ -93,6 +104,11 @@ def main(argv: list[str] | None = None) -> int:
         _err(f"internal error {type(e).__name__}{': ' + msg if msg else ''} — please report "
              "it (run with SHPROBE_DEBUG=1 for the traceback)")
         return 70
+    finally:
+        if saved is None:
+            os.environ.pop("SHPROBE_MAX_MEMORY", None)
+        else:
+            os.environ["SHPROBE_MAX_MEMORY"] = saved
     return rv if isinstance(rv, int) else 0
 
 
