@@ -223,7 +223,7 @@ def register(group: click.Group) -> None:
         """Lighting from a photo of a diffuse mesh seen by the renderer's camera (`shprobe
         render` options: the photo's size is the camera's)."""
         from ..fitting import fit_mesh
-        from ..fitting._scene import Camera, load_mesh
+        from ..scene import Camera, load_mesh
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
