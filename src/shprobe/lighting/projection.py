@@ -188,4 +188,5 @@ def total_intensity(env: Env) -> NDArray[np.float64]:
 def _kernels() -> dict[str, Any]:
     from . import _kernels as k  # numba, imported lazily
 
-    return {"project_rgb": k.project_rgb_kernel, "brute": k.brute_kernel}
+    return {"project_rgb": k.project_rgb_kernel, "brute": k.brute_kernel,
+            "brute_serial": k.brute_serial}

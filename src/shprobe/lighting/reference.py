@@ -88,9 +88,10 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
 
 
 def _reference_fn(env: Env, chunk: int = 1 << 18):
-    """E_ref at any normals, with the sample table built once (for repeated small calls, as in
-    the refinement of :func:`error_report`); memory 48 bytes per sample."""
-    kern = _kernels()["brute"]
+    """E_ref at any normals, with the sample table built once, by the serial kernel (for
+    repeated small batches, as in the refinement of :func:`error_report`: no thread start-up
+    per call); memory 48 bytes per sample."""
+    kern = _kernels()["brute_serial"]
     tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
               for d, lw in _sample_chunks(env, 1, chunk)]
 
@@ -193,7 +194,7 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     pass a precomputed E_ref (of the given or grid normals).
 
     ``refine`` (default: True for the grid, False for given normals): the max is the worst case
-    on the whole sphere, not over the samples — from the grid's 8 worst, well-separated normals,
+    on the whole sphere, not over the samples — from the grid's 4 worst, well-separated normals,
     a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with exact brute-force E_ref at every
     candidate (:func:`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
     changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid

@@ -216,7 +216,7 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
         def f(n, ch=ch):
             return -(sh_basis(n, lmax) @ E_lm[:, ch])
 
-        sm = refine_max(f, pts, -vals[:, ch], step=step, tol=tol)
+        sm = refine_max(f, pts, -vals[:, ch], step=step, tol=tol, starts=8)
         mins[ch], lows[ch], dirs[ch], changes[ch] = -sm.value, np.nan, sm.direction, sm.change
     return IrradianceMinimum(mins, lows, dirs, False,
                              f"grid {len(pts)} + compass refinement to tol {tol:.2g}",
