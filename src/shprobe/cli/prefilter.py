@@ -260,7 +260,8 @@ def register(group: click.Group) -> None:
     @click.option("--lmax-max", type=click.IntRange(0, 32), default=4, show_default=True,
                   help="Report lmax = 1 .. this value.")
     @click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
-                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid.")
+                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid (the "
+                  "mean's quadrature; the max is refined on the sphere from them).")
     @click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
                   default="table", show_default=True)
     def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, fmt):
