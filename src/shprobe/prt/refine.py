@@ -98,14 +98,7 @@ def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64
                 face_edges: NDArray[np.int64]) -> Scene:
     """Split the ``marked`` edges (closure: a face with 2 marked edges gets its 3rd marked) at
     their midpoints; faces with 3 marked → 4, with 1 → 2 (module doc, step 3)."""
-    marked = marked.copy()
-    while True:
-        cnt = marked[face_edges].sum(1)
-        two = cnt == 2
-        if not two.any():
-            break
-        marked[face_edges[two].ravel()] = True
-    sel = np.flatnonzero(marked)
+    sel = _closure_edges(marked, face_edges)
     nv = scene.n_vertices
     mid = np.full(len(edges), -1, dtype=np.int64)
     mid[sel] = nv + np.arange(len(sel))
