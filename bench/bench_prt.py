@@ -99,7 +99,7 @@ def main() -> None:
     w, c, _ = best(lambda: rmi.intersects_any(o, d), 1)
     rows.append(("trimesh ray_pyembree.intersects_any, same rays", w, c, n_rays))
     w, c, _ = best(lambda: bake(args.mesh, ground=True, mode="shadowed", lmax=args.lmax,
-                                samples=args.samples, seed=0, threads=2), 3)
+                                samples=args.samples, seed=0, threads=2, refine=False), 3)
     rows.append(("shprobe shadowed bake from the .obj path (load + ground + bake), 2 threads",
                  w, c, n_rays))
     w, c, _ = best(lambda: bake(scene, mode="interreflected", lmax=args.lmax,

@@ -75,11 +75,29 @@ def error_table(report, title: str | None = None):
     from ..report.probe import error_note
 
     t = Table()
-    for name in ("lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE", "note"):
-        t.add_column(name, justify="right" if name != "note" else "left")
+    refined = getattr(report, "refined", False)
+    names = ["lmax", "mean |ΔE| / ∫L", "max |ΔE| / ∫L", "mean rel.", "sMAPE", "note"]
+    if refined:
+        names = ["lmax", "mean |ΔE|/∫L", "max |ΔE|/∫L", "worst normal", "mean rel.", "sMAPE",
+                 "note"]
+    for name in names:
+        t.add_column(name, justify="left" if name == "note" else "right",
+                     no_wrap=name == "worst normal")
     for r in report.rows:
-        t.add_row(str(r.lmax), f"{100 * r.mean_frac:.3f} %", f"{100 * r.max_frac:.3f} %",
-                  f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %", error_note(r.lmax))
+        cells = [str(r.lmax), f"{100 * r.mean_frac:.3f} %", f"{100 * r.max_frac:.3f} %",
+                 f"{100 * r.mean_rel:.3f} %", f"{100 * r.smape:.3f} %", error_note(r.lmax)]
+        if refined:
+            cells.insert(3, " ".join(f"{x:+.2f}" for x in r.max_normal) + " "
+                         + "RGB"[r.max_channel])
+        t.add_row(*cells)
+    if refined and report.rows:
+        import math
+
+        mc = max(r.mean_change for r in report.rows)
+        t.caption = (f"max: refined on the sphere, ± {100 * report.rows[0].max_tol:.3g} pp "
+                     "(stated tolerance)" + ("" if math.isnan(mc) else
+                                             f"; mean: |mean(N) − mean(N/2)| ≤ "
+                                             f"{100 * mc:.3g} pp"))
     return _titled(t, title)
 
 
@@ -98,9 +116,26 @@ def error_document(report, source: str | None) -> dict:
     return {
         "shprobe_version": __version__, "source": source, "n_normals": report.n_normals,
         "total_intensity": report.total_intensity.tolist(),
+        "refined": bool(getattr(report, "refined", False)),
         "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
-                  "mean_rel": r.mean_rel, "smape": r.smape} for r in report.rows],
+                  "mean_rel": r.mean_rel, "smape": r.smape,
+                  **_finite({"max_normal": [float(x) for x in r.max_normal],
+                             "max_channel": r.max_channel, "max_tol": r.max_tol,
+                             "max_change": r.max_change, "grid_max_frac": r.grid_max_frac,
+                             "mean_change": r.mean_change})} for r in report.rows],
     }
+
+
+def _finite(d: dict) -> dict:
+    """Drop the entries that are not finite numbers (never write NaN into JSON)."""
+    import math
+
+    def ok(v):
+        if isinstance(v, list):
+            return all(ok(x) for x in v)
+        return not isinstance(v, float) or math.isfinite(v)
+
+    return {k: v for k, v in d.items() if ok(v)}
 
 
 def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
@@ -225,7 +260,8 @@ def register(group: click.Group) -> None:
     @click.option("--lmax-max", type=click.IntRange(0, 32), default=4, show_default=True,
                   help="Report lmax = 1 .. this value.")
     @click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
-                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid.")
+                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid (the "
+                  "mean's quadrature; the max is refined on the sphere from them).")
     @click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
                   default="table", show_default=True)
     def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, fmt):
@@ -245,7 +281,8 @@ def register(group: click.Group) -> None:
             from .common import console
 
             console().print(error_table(rep, f"{src.source}: SH irradiance vs brute force, "
-                                              f"{rep.n_normals} normals"))
+                                              f"mean over {rep.n_normals} normals, max refined "
+                                              "on the sphere"))
 
     @group.command("demo")
     @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="shprobe-demo",

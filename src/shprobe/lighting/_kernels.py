@@ -39,8 +39,7 @@ def sh_into(x, y, z, lmax, a, b, out):
                 out[k0 - m] = sqrt2 * p * s
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
-def brute_kernel(nrm, dT, lwT, out):
+def _brute(nrm, dT, lwT, out):  # pragma: no cover - compiled twice below
     t = nrm.shape[0]
     s = dT.shape[1]
     for i in numba.prange(t):
@@ -57,6 +56,12 @@ def brute_kernel(nrm, dT, lwT, out):
         out[i, 0] += r
         out[i, 1] += g
         out[i, 2] += bb
+
+
+#: Σ_j max(0, n·ω_j) L_j dω_j for many normals (parallel over them) …
+brute_kernel = numba.njit(cache=True, parallel=True, fastmath=True)(_brute)
+#: … and for a few at a time (the refinement's small batches: no thread start-up per call)
+brute_serial = numba.njit(cache=True, fastmath=True)(_brute)
 
 
 @numba.njit(cache=True, parallel=True, fastmath=True)

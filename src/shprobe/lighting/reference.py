@@ -8,7 +8,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -75,6 +75,8 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     pairs, when given. Normals follow :mod:`shprobe.lighting.irradiance`'s policy (normalised;
     zero or non-finite refused).
     """
+    from ._kernels import brute_kernel as kern  # numba, imported lazily
+
     n = unit_normals(normals)
     k = subdivide
     if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
@@ -86,8 +88,6 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     t = flat.shape[0]
     out = np.zeros((t, 3))
-    from ._kernels import brute_kernel as kern  # numba, imported lazily
-
     total = t * int(np.prod(env.grid)) * int(subdivide) ** 2
     done = 0
     for d, lw in _sample_chunks(env, subdivide, int(chunk)):
@@ -101,6 +101,25 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     return out.reshape(*n.shape[:-1], 3)
 
 
+def _reference_fn(env: Env, chunk: int = 1 << 18):
+    """E_ref at any normals, with the sample table built once, by the serial kernel (for
+    repeated small batches, as in the refinement of :func:`error_report`: no thread start-up
+    per call); memory 48 bytes per sample."""
+    from ._kernels import brute_serial as kern  # numba, imported lazily
+
+    tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
+              for d, lw in _sample_chunks(env, 1, chunk)]
+
+    def f(normals: NDArray[np.float64]) -> NDArray[np.float64]:
+        flat = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
+        out = np.zeros((flat.shape[0], 3))
+        for dT, lwT in tables:
+            kern(flat, dT, lwT, out)
+        return out
+
+    return f
+
+
 # ----------------------------------------------------------------------------- error report
 
 
@@ -112,6 +131,12 @@ class ErrorRow:
     channel, mean weighted by the normals' solid angles, max over normals and channels);
     ``mean_rel``: mean |ΔE| / E_ref over normals with E_ref > 0; ``smape``: mean
     2|ΔE| / (|E_SH| + |E_ref|).
+
+    The max is the worst case on the sphere, found by refinement (:func:`error_report`):
+    ``max_normal`` / ``max_channel`` where it occurs, ``max_tol`` the stated tolerance (the
+    last refinement level changed it by ``max_change`` < ``max_tol``), ``grid_max_frac`` the
+    plain sample max over the grid. ``mean_change``: |mean(N) − mean(N/2)| of the quadrature
+    over the 2N×N and N×N/2 grids (NaN for given normals): the mean's stated accuracy.
     """
 
     lmax: int
@@ -119,15 +144,28 @@ class ErrorRow:
     max_frac: float
     mean_rel: float
     smape: float
+    max_normal: NDArray[np.float64] = field(default_factory=lambda: np.full(3, np.nan))
+    max_channel: int = -1
+    max_tol: float = float("nan")
+    max_change: float = float("nan")
+    grid_max_frac: float = float("nan")
+    mean_change: float = float("nan")
+
+    def __repr__(self) -> str:
+        n = ", ".join(f"{x:+.3f}" for x in self.max_normal)
+        return (f"ErrorRow(lmax={self.lmax}, mean {100 * self.mean_frac:.3f} % "
+                f"(±{100 * self.mean_change:.1g}), max {100 * self.max_frac:.3f} % "
+                f"(tol {100 * self.max_tol:.1g}) at ({n}) ch {self.max_channel})")
 
 
 @dataclass(frozen=True)
 class ErrorReport:
-    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of normals."""
+    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of grid normals."""
 
     rows: tuple[ErrorRow, ...]
     total_intensity: NDArray[np.float64]
     n_normals: int
+    refined: bool = False
 
     def row(self, lmax: int) -> ErrorRow:
         for r in self.rows:
@@ -142,20 +180,51 @@ def _normal_grid(h: int = 32) -> tuple[NDArray[np.float64], NDArray[np.float64]]
     return lay.pixel_directions(grid).reshape(-1, 3), lay.solid_angles(grid).reshape(-1)
 
 
+#: Default tolerance of the refined maximum, as a fraction of ∫L dω (0.001 percentage points).
+MAX_TOL = 1e-5
+
+
+def _frac_rows(coeffs, lm, nrm, ref, tot, wts):
+    e = irradiance(coeffs[: num_coeffs(lm)], nrm)
+    err = np.abs(e - ref)
+    frac = err / tot
+    pos = ref > 0
+    rel = np.where(pos, err / np.where(pos, ref, 1.0), 0.0)
+    denom = np.abs(e) + np.abs(ref)
+    sm = np.where(denom > 0, 2.0 * err / np.where(denom > 0, denom, 1.0), 0.0)
+    wpos = wts[:, None] * pos
+    return (frac, float((wts[:, None] * frac).sum() / 3.0),
+            float((wpos * rel).sum() / max(wpos.sum(), 1e-300)),
+            float((wts[:, None] * sm).sum() / 3.0))
+
+
 def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
                  normals: ArrayLike | None = None, reference: ArrayLike | None = None,
-                 progress=None, normal_grid: int = 32) -> ErrorReport:
+                 progress=None, normal_grid: int = 32, refine: bool | None = None,
+                 tol: float = MAX_TOL) -> ErrorReport:
     """R&H's error metric (§3.1) for each lmax: SH irradiance vs :func:`reference_irradiance`.
 
     ``normals`` default: the pixel centres of a (2N)×N lat-long grid, N = ``normal_grid``,
     weighted by their solid angles (given normals are weighted equally). ``reference`` may
-    pass a precomputed E_ref.
+    pass a precomputed E_ref (of the given or grid normals).
+
+    ``refine`` (default: True for the grid, False for given normals): the max is the worst case
+    on the whole sphere, not over the samples — from the grid's 4 worst, well-separated normals,
+    a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with exact brute-force E_ref at every
+    candidate (:func:`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
+    changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid
+    quadrature; with the default grid its accuracy is reported as |mean(N) − mean(N/2)|.
     """
+    from .sphere_search import refine_max
+
     if normals is None:
         nrm, wts = _normal_grid(normal_grid)
     else:
         nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         wts = np.ones(nrm.shape[0])
+    refine = normals is None if refine is None else bool(refine)
+    if not (np.isfinite(tol) and tol > 0):
+        raise ShprobeError(f"tolerance must be > 0, got {tol}")
     wts = wts / wts.sum()
     ref = (reference_irradiance(env, nrm, progress=progress) if reference is None
            else np.asarray(reference, dtype=np.float64).reshape(-1, 3))
@@ -164,24 +233,46 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
         raise ShprobeError("the environment has a channel with zero total intensity", env.path)
     lmax_values = tuple(check_lmax(int(x)) for x in lmax_values)
     coeffs = project(env, max(lmax_values))
+    half = None
+    if normals is None and normal_grid >= 4:
+        hn, hw = _normal_grid(normal_grid // 2)
+        half = (hn, hw / hw.sum(), reference_irradiance(env, hn))
+    step = np.pi / max(2, int(normal_grid)) if normals is None else _spacing(nrm)
     rows = []
+    eref = _reference_fn(env) if refine else None
+    done: dict[int, tuple] = {}  # effective degree → refined max (odd l ≥ 3 adds nothing: Â_l = 0)
     for lm in lmax_values:
-        e = irradiance(coeffs[: num_coeffs(lm)], nrm)
-        err = np.abs(e - ref)
-        frac = err / tot
-        pos = ref > 0
-        rel = np.where(pos, err / np.where(pos, ref, 1.0), 0.0)
-        denom = np.abs(e) + np.abs(ref)
-        sm = np.where(denom > 0, 2.0 * err / np.where(denom > 0, denom, 1.0), 0.0)
-        wpos = wts[:, None] * pos
-        rows.append(ErrorRow(
-            lmax=lm,
-            mean_frac=float((wts[:, None] * frac).sum() / 3.0),
-            max_frac=float(frac.max()),
-            mean_rel=float((wpos * rel).sum() / max(wpos.sum(), 1e-300)),
-            smape=float((wts[:, None] * sm).sum() / 3.0),
-        ))
-    return ErrorReport(tuple(rows), tot, nrm.shape[0])
+        frac, mean_frac, mean_rel, smape = _frac_rows(coeffs, lm, nrm, ref, tot, wts)
+        grid_max = float(frac.max())
+        mean_change = float("nan")
+        if half is not None:
+            mean_change = abs(mean_frac - _frac_rows(coeffs, lm, half[0], half[2], tot,
+                                                     half[1])[1])
+        if refine:
+            eff = lm - 1 if (lm >= 3 and lm % 2 == 1) else lm
+            if eff not in done:
+                k = num_coeffs(eff)
+
+                def f(n, k=k):
+                    return (np.abs(irradiance(coeffs[:k], n) - eref(n)) / tot).max(axis=1)
+
+                sm = refine_max(f, nrm, frac.max(axis=1), step=step, tol=tol)
+                at = sm.direction
+                chan = int(np.argmax(np.abs(irradiance(coeffs[:k], at) - eref(at)[0]) / tot))
+                done[eff] = (sm, chan)
+            sm, chan = done[eff]
+            rows.append(ErrorRow(lm, mean_frac, sm.value, mean_rel, smape, sm.direction, chan,
+                                 tol, sm.change, grid_max, mean_change))
+        else:
+            i, chan = np.unravel_index(int(np.argmax(frac)), frac.shape)
+            rows.append(ErrorRow(lm, mean_frac, grid_max, mean_rel, smape, nrm[i].copy(),
+                                 int(chan), float("nan"), float("nan"), grid_max, mean_change))
+    return ErrorReport(tuple(rows), tot, nrm.shape[0], refine)
+
+
+def _spacing(n: NDArray[np.float64]) -> float:
+    """A typical angular spacing of given normals: the area per point, √(4π/N), capped."""
+    return float(min(0.5, np.sqrt(4.0 * np.pi / max(1, n.shape[0]))))
 
 
 def reference_irradiance_map(env: Env, layout: str | Layout = "latlong",

@@ -17,7 +17,8 @@ a rigorous lower bound (the Lagrangian dual of the trust-region problem, which h
 gap). d is concave; its maximiser solves the secular equation Σ β_i² / (λ_i − μ)² = 1
 (β = Qᵀb), found by bisection; the primal point n = −(A − μI)⁻¹b (plus the λ₁ eigenvector in the
 "hard case" β₁ = 0) attains the bound. The certificate reports both: min E ∈ [lower, attained].
-For lmax > 2 the minimum is numerical (dense Fibonacci grid plus local refinement).
+For lmax > 2 the minimum is numerical: a dense Fibonacci grid, then refinement from the best
+grid points until the minimum changes by less than a stated tolerance (``tolerance``).
 """
 
 from __future__ import annotations
@@ -98,6 +99,8 @@ class IrradianceMinimum:
     ``minimum``: the smallest E found (attained at ``direction``); ``lower_bound``: a proven
     lower bound (lmax ≤ 2: the Lagrangian dual value, equal to ``minimum`` to rounding;
     higher lmax: NaN, the search is numerical); ``exact``: whether the bound is certified.
+    ``tolerance`` (lmax > 2): the refinement stopped when a halving of its step moved the
+    minimum by less than this (``change``, the last move); 0 for the exact lmax ≤ 2 case.
     """
 
     minimum: NDArray[np.float64]
@@ -105,6 +108,8 @@ class IrradianceMinimum:
     direction: NDArray[np.float64]
     exact: bool
     method: str
+    tolerance: float = 0.0
+    change: float = 0.0
 
     @property
     def nonnegative(self) -> bool:
@@ -177,12 +182,18 @@ def _fibonacci(n: int) -> NDArray[np.float64]:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
 
 
+#: Tolerance of the numerical minimum (lmax > 2), relative to the mean irradiance.
+MIN_TOL = 1e-9
+
+
 def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
     """Minimum of E(n) = Σ Â_l L_lm y_lm(n) over the unit sphere, per channel.
 
     lmax ≤ 2: exact, by the trust-region dual of nᵀMn (R&H eq. 11) — see the module doc.
-    lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then local refinement
-    (scipy L-BFGS-B in spherical angles) from the 8 best grid points.
+    lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then refinement from the 8
+    best well-separated grid points (:func:`shprobe.lighting.sphere_search.refine_max`: compass
+    search on the sphere, exact SH sums) until a halving of the step moves the minimum by less
+    than ``MIN_TOL`` × the mean irradiance E₀₀Y₀₀ (reported as ``tolerance``).
     """
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
@@ -194,30 +205,24 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
             mins[ch], lows[ch], dirs[ch] = _trust_region_min(M[ch, :3, :3], M[ch, :3, 3],
                                                              float(M[ch, 3, 3]))
         return IrradianceMinimum(mins, lows, dirs, True, "trust-region dual (R&H eq. 11)")
-    from scipy.optimize import minimize
+    from .sphere_search import refine_max
 
     E_lm = convolve(c, clamped_cosine_factors(lmax))
     pts = _fibonacci(max(int(grid), 100))
     vals = sh_basis(pts, lmax) @ E_lm
+    step = float(np.sqrt(4.0 * np.pi / len(pts)))
+    scale = max(abs(float(E_lm[0].max())) * 0.5 / np.sqrt(np.pi), 1e-300)  # mean E
+    tol = MIN_TOL * scale
+    changes = np.empty(C)
     for ch in range(C):
-        def f(tp, ch=ch):
-            st = np.sin(tp[0])
-            n = np.array([st * np.cos(tp[1]), st * np.sin(tp[1]), np.cos(tp[0])])
-            return float(sh_basis(n, lmax) @ E_lm[:, ch])
+        def f(n, ch=ch):
+            return -(sh_basis(n, lmax) @ E_lm[:, ch])
 
-        best, arg = np.inf, pts[0]
-        for i in np.argsort(vals[:, ch])[:8]:
-            p = pts[i]
-            x0 = [np.arccos(np.clip(p[2], -1, 1)), np.arctan2(p[1], p[0])]
-            r = minimize(f, x0, method="L-BFGS-B")
-            v = min(float(r.fun), float(vals[i, ch]))
-            if v < best:
-                best = v
-                st = np.sin(r.x[0])
-                arg = (np.array([st * np.cos(r.x[1]), st * np.sin(r.x[1]), np.cos(r.x[0])])
-                       if r.fun <= vals[i, ch] else p)
-        mins[ch], lows[ch], dirs[ch] = best, np.nan, arg
-    return IrradianceMinimum(mins, lows, dirs, False, f"grid {len(pts)} + L-BFGS-B")
+        sm = refine_max(f, pts, -vals[:, ch], step=step, tol=tol, starts=8)
+        mins[ch], lows[ch], dirs[ch], changes[ch] = -sm.value, np.nan, sm.direction, sm.change
+    return IrradianceMinimum(mins, lows, dirs, False,
+                             f"grid {len(pts)} + compass refinement to tol {tol:.2g}",
+                             tolerance=tol, change=float(changes.max()))
 
 
 @dataclass

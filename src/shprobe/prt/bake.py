@@ -98,7 +98,8 @@ def _quiet(items: Iterable[Any], description: str = "", total: int | None = None
 def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
          threads: int | None = None, progress: ProgressFn | None = None, *,
-         mesh_albedo: Any = None, ground_albedo: Any = None) -> Transfer:
+         mesh_albedo: Any = None, ground_albedo: Any = None,
+         refine: bool | None = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
     scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
@@ -114,12 +115,22 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     ``progress(items, description, total)`` that yields ``items`` (e.g.
     :func:`shprobe.cli.common.progress`).
 
+    refine: adaptive refinement of the scene where the transfer varies fast
+    (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground.
+
     Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
     is coloured) is the baked model, with transfer · L = exit radiance
     ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
     """
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
+    if refine is None:
+        refine = bool(ground) and mode != "unshadowed"
+    if refine:
+        from .refine import bake_refined
+
+        return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
+                            progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo)
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)

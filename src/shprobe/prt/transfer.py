@@ -267,7 +267,8 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
             want = scene.mesh_hash
         else:  # rebuild the scene as baked: the same meshes, with its ground plane if any
             want = load_scene(scene, ground=bool(meta.get("ground", False))).mesh_hash
-        if want != meta["mesh_hash"]:
+        # an adaptively refined bake (shprobe.prt.refine) matches the scene it started from
+        if want not in (meta["mesh_hash"], meta.get("refine", {}).get("base_mesh_hash")):
             raise ShprobeError(
                 f"baked for mesh {meta['mesh_hash'][:12]}…, not for this mesh ({want[:12]}…); "
                 "re-bake it", p)

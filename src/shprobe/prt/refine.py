@@ -1,0 +1,220 @@
+"""Adaptive refinement of a PRT scene where the baked transfer varies fast (issue 17).
+
+Per-vertex transfer is interpolated linearly over each triangle, both when relighting and when a
+bounce gathers the previous bounce at a ray's hit point (:mod:`shprobe.prt.bake`). Where the
+transfer varies within a triangle much faster than linearly — at the contact of an object with
+the ground, where a ground vertex under the object sees nothing and its neighbour a hand-width
+away sees half the sky — the interpolated bounce light is wrong by tens of per cent, however many
+rays are traced. A uniform ground fine enough everywhere costs vertices everywhere; this module
+puts them where the transfer says they are needed:
+
+1. bake the scene (:func:`shprobe.prt.bake.bake`, public API) with a quarter of the samples
+   (enough to see where the transfer jumps);
+2. for every edge of a refinable triangle (the ground's; every mesh's too with
+   ``refine_mesh=True``) compare its endpoints' transfer, layer by layer — the shadowed transfer
+   and each bounce *increment* — as ‖T_b(a) − T_b(c)‖ / s_b, with s_b the 90th percentile of
+   ‖T_b‖ over the scene's vertices (so a bounce, a few per cent of the direct light, is judged
+   on its own scale); mark the edges where some layer exceeds ``tol`` and that are longer than
+   ``min_edge``;
+3. split the marked edges at their midpoints (a triangle with two marked edges gets its third
+   marked as well, repeated to closure; then 3 marked → 4 triangles, 1 marked → 2), new
+   vertices get the mean of their endpoints' normals (normalised) and albedo;
+4. re-bake the refined scene and repeat until no edge is marked or ``max_rounds`` is reached;
+   the final geometry is baked with the full samples.
+
+Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
+its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
+below — light that leaks into the contact through every triangle around it; splitting those
+triangles shrinks the leak with the triangles. The original vertices keep their indices (new
+vertices are appended), so per-vertex data of the input mesh still lines up with the first
+vertices of the result.
+
+The result is an ordinary :class:`~shprobe.prt.transfer.Transfer` over the refined geometry;
+its metadata records the refinement (tolerance, rounds, vertices per round, the hash of the
+unrefined scene). Because every round is a full bake with the same seed, the result is
+deterministic.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ShprobeError
+from .bake import bake
+from .scene import Scene, load_scene, mesh_hash
+from .transfer import Transfer
+
+__all__ = ["REFINE_TOL", "RefineRound", "bake_refined", "split_edges", "transfer_jumps"]
+
+#: Default tolerance on the relative jump of a transfer layer across an edge.
+REFINE_TOL = 0.25
+#: Default smallest edge that is still split, as a fraction of the scene's bounding diagonal.
+MIN_EDGE_FRACTION = 2e-3
+
+
+@dataclass(frozen=True)
+class RefineRound:
+    """One bake of the refinement: vertices baked, edges split after it, bake seconds."""
+
+    vertices: int
+    split: int
+    seconds: float
+
+
+def _edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Unique undirected edges (E, 2) and, per face, the index of its edges (F, 3) in the order
+    (v0v1, v1v2, v2v0)."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    uniq, inv = np.unique(e, axis=0, return_inverse=True)
+    return uniq, inv.reshape(3, -1).T
+
+
+def transfer_jumps(t: Transfer) -> NDArray[np.float64]:
+    """Per vertex pair (edge of ``t.faces``): the largest relative jump over the layers (shadowed
+    and each bounce increment), ‖ΔT_b‖ / s_b with s_b the 90th percentile of ‖T_b‖ (module doc).
+    Returns (edges (E, 2), jumps (E,))."""
+    edges, _ = _edges(np.asarray(t.faces, dtype=np.int64))
+    tr = np.asarray(t.traced, dtype=np.float64)
+    layers = [tr[0]] + [tr[i] - tr[i - 1] for i in range(1, tr.shape[0])]
+    jump = np.zeros(len(edges))
+    for lay in layers:
+        flat = lay.reshape(lay.shape[0], -1)
+        norms = np.linalg.norm(flat, axis=1)
+        s = float(np.percentile(norms, 90))
+        if s <= 0:
+            continue
+        d = np.linalg.norm(flat[edges[:, 0]] - flat[edges[:, 1]], axis=1) / s
+        jump = np.maximum(jump, d)
+    return edges, jump
+
+
+def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64],
+                face_edges: NDArray[np.int64]) -> Scene:
+    """Split the ``marked`` edges (closure: a face with 2 marked edges gets its 3rd marked) at
+    their midpoints; faces with 3 marked → 4, with 1 → 2 (module doc, step 3)."""
+    sel = _closure_edges(marked, face_edges)
+    nv = scene.n_vertices
+    mid = np.full(len(edges), -1, dtype=np.int64)
+    mid[sel] = nv + np.arange(len(sel))
+    a, b = edges[sel, 0], edges[sel, 1]
+    v = np.concatenate([scene.vertices, 0.5 * (scene.vertices[a] + scene.vertices[b])])
+    n = scene.normals[a] + scene.normals[b]
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(ln > 1e-12, n / np.where(ln > 1e-12, ln, 1.0), scene.normals[a])
+    nrm = np.concatenate([scene.normals, n])
+    alb = np.concatenate([scene.albedo, 0.5 * (scene.albedo[a] + scene.albedo[b])])
+    f = scene.faces
+    m = mid[face_edges]  # (F, 3): midpoint of (v0v1, v1v2, v2v0) or −1
+    cnt = (m >= 0).sum(1)
+    out = [f[cnt == 0]]
+    full = cnt == 3
+    if full.any():
+        ff, mm = f[full], m[full]
+        out += [np.stack([ff[:, 0], mm[:, 0], mm[:, 2]], 1),
+                np.stack([mm[:, 0], ff[:, 1], mm[:, 1]], 1),
+                np.stack([mm[:, 2], mm[:, 1], ff[:, 2]], 1),
+                np.stack([mm[:, 0], mm[:, 1], mm[:, 2]], 1)]
+    one = cnt == 1
+    if one.any():
+        ff, mm = f[one], m[one]
+        k = np.argmax(mm >= 0, axis=1)  # which edge: (v_k, v_{k+1}) split at its midpoint
+        r = np.arange(len(ff))
+        p0, p1, p2 = ff[r, k], ff[r, (k + 1) % 3], ff[r, (k + 2) % 3]
+        q = mm[r, k]
+        out += [np.stack([p0, q, p2], 1), np.stack([q, p1, p2], 1)]
+    faces = np.concatenate(out).astype(np.int64)
+    return Scene(v, nrm, faces, alb, mesh_hash(v, faces))
+
+
+def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, samples: int = 1024,
+                 bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = True,
+                 threads: int | None = None, progress: Any = None, *, tol: float = REFINE_TOL,
+                 max_rounds: int = 4, refine_mesh: bool = True,
+                 driver_samples: int | None = None,
+                 min_edge: float | None = None, ground_resolution: int = 64,
+                 max_vertices: int = 2_000_000, mesh_albedo: Any = None,
+                 ground_albedo: Any = None) -> Transfer:
+    """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
+    with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
+    (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
+    2e-3 × the scene's diagonal) stops splitting; ``max_rounds`` bounds the re-bakes;
+    ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
+    least 64): directions of the bakes that only decide where to split — the final geometry is
+    baked once more with ``samples``. The returned transfer's
+    ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
+    if mode == "unshadowed":
+        raise ShprobeError("refinement needs a traced bake (shadowed or interreflected)")
+    if not (np.isfinite(tol) and tol > 0):
+        raise ShprobeError(f"refinement tolerance must be > 0, got {tol}")
+    base = load_scene(scene, albedo=albedo, ground=ground, ground_albedo=ground_albedo,
+                      ground_resolution=ground_resolution, mesh_albedo=mesh_albedo)
+    n_mesh = (load_scene(scene, albedo=albedo, mesh_albedo=mesh_albedo).n_vertices if ground
+              else base.n_vertices)
+    sc = base
+    diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
+    min_len = MIN_EDGE_FRACTION * diag if min_edge is None else float(min_edge)
+    is_ground = np.arange(sc.n_vertices) >= n_mesh
+    rounds: list[RefineRound] = []
+    kw = dict(mode=mode, lmax=lmax, bounces=bounces, seed=seed, threads=threads,
+              progress=progress)
+    drive = max(64, int(samples) // 4) if driver_samples is None else int(driver_samples)
+    for r in range(int(max_rounds) + 1):
+        t0 = time.perf_counter()
+        last = r == int(max_rounds)
+        t = bake(sc, samples=samples if last else min(drive, samples), refine=False, **kw)
+        secs = time.perf_counter() - t0
+        if last:
+            rounds.append(RefineRound(sc.n_vertices, 0, secs))
+            break
+        edges, face_edges = _edges(sc.faces)
+        _, jump = transfer_jumps(t)
+        length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
+        refinable = (is_ground[edges].all(1) if not refine_mesh
+                     else np.ones(len(edges), dtype=bool))
+        marked = (jump > tol) & (length > min_len) & refinable
+        rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
+        if not marked.any():
+            if drive < samples:  # the geometry is final: bake it with the full samples
+                t0 = time.perf_counter()
+                t = bake(sc, samples=samples, refine=False, **kw)
+                rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
+            break
+        new = split_edges(sc, marked, edges, face_edges)
+        if new.n_vertices > max_vertices:
+            raise ShprobeError(f"refinement would grow the scene past {max_vertices} vertices; "
+                               "raise tol or min_edge")
+        # new vertices on ground edges are ground; with refine_mesh a mesh edge gives mesh
+        added = new.n_vertices - sc.n_vertices
+        is_ground = np.concatenate([is_ground, np.zeros(added, dtype=bool)])
+        mids = _closure_edges(marked, face_edges)
+        is_ground[sc.n_vertices:] = is_ground[edges[mids, 0]] & is_ground[edges[mids, 1]]
+        sc = new
+    meta = dict(t.metadata)
+    meta["refine"] = {
+        "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
+        "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
+        "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
+                   for x in rounds],
+    }
+    meta["ground"] = bool(ground)
+    from dataclasses import replace
+
+    return replace(t, metadata=meta)
+
+
+def _closure_edges(marked: NDArray[np.bool_], face_edges: NDArray[np.int64]) -> NDArray:
+    """The edge indices :func:`split_edges` splits (marked, closed), in its order."""
+    m = marked.copy()
+    while True:
+        cnt = m[face_edges].sum(1)
+        two = cnt == 2
+        if not two.any():
+            break
+        m[face_edges[two].ravel()] = True
+    return np.flatnonzero(m)
