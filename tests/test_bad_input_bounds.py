@@ -143,3 +143,21 @@ def test_max_memory_option_is_one_line_and_holds_for_one_call(capsys, monkeypatc
     assert "grace.hdr" in err[0] and "over the limit of 1.05 MB" in err[0]
     assert "SHPROBE_MAX_MEMORY" not in os.environ  # the next call is not limited
     assert main(["prefilter", grace, "--lmax", "8", "--format", "json"]) == 0
+
+
+@pytest.mark.parametrize("argv", [
+    ["prt", "bake", "{mesh}", "--lmax", "1024", "-o", "{out}/t.npz"],
+    ["prt", "bake", "{mesh}", "--samples", "1000000000", "-o", "{out}/t.npz"],
+    ["render", "--preset", "grace", "--sphere", "--size", "16000x16000", "-o", "{out}/r.png"],
+    ["irradiance", "--preset", "grace", "--size", "16384x8192", "-o", "{out}/i.exr"],
+])
+def test_commands_refuse_what_would_not_fit(tmp_path, capsys, monkeypatch, argv):
+    from shprobe.cli.main import main
+
+    monkeypatch.setenv("SHPROBE_MAX_MEMORY", "2G")
+    mesh = tmp_path / "tri.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
+    rc = main([a.format(mesh=mesh, out=tmp_path) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1 and "would need about" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tri.obj"]

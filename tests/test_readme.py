@@ -26,7 +26,7 @@ def _blocks(lang: str, after: str) -> list[str]:
 
 def tour_lines() -> list[str]:
     block = _blocks("sh", "## A tour")[0]
-    lines = [ln.split("  #")[0].strip() for ln in block.splitlines()]
+    lines = [ln.split(" #")[0].strip() for ln in block.splitlines()]  # comments start " #"
     return [ln for ln in lines if ln.startswith("shprobe ")]
 
 
@@ -44,7 +44,7 @@ def tour_dir(tmp_path, monkeypatch):
 def test_the_tour_has_the_commands_it_promises():
     names = {shlex.split(ln)[1] for ln in tour_lines()}
     assert {"prefilter", "irradiance", "error", "render", "basis-images", "edit", "window",
-            "sh", "hbasis", "prt"} <= names
+            "sh", "hbasis", "prt", "fit", "report", "batch"} <= names
 
 
 @pytest.mark.slow
@@ -56,7 +56,8 @@ def test_every_tour_line_runs_as_written(tour_dir, capsys):
         assert "Traceback" not in out.err
     # what the lines say they write is there
     for name in ("c.json", "irr.exr", "bunny.png", "basis/basis.png", "edited.json", "h.npz",
-                 "nm.png", "t.npz", "frames/f_000.png", "frames/f_035.png"):
+                 "nm.png", "t.npz", "frames/f_000.png", "frames/f_035.png", "ball.png",
+                 "fitted.json", "report.html", "probes.parquet"):
         assert (tour_dir / name).is_file(), name
 
 

@@ -116,11 +116,15 @@ def register(group: click.Group) -> None:
                        "numba ray-set/visibility kernels and the sparse bounce products. The "
                        "bake does no BLAS work of note; only Embree's BVH build (milliseconds) "
                        "uses Embree's own threads.")
+    @click.option("--refine/--no-refine", default=None,
+                  help="Subdivide the scene where the transfer varies fast (contacts, "
+                       "occluders) and re-bake there; default: on for shadowed and "
+                       "interreflected bakes with --ground.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option
     def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, ground_albedo, seed,
-                 threads, output, force):
+                 threads, refine, output, force):
         """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes).
 
         One bake serves every model up to --mode: a shadowed bake can also be rendered
@@ -134,7 +138,7 @@ def register(group: click.Group) -> None:
         kw = albedo_arguments(albedo, len(scene))
         t0 = time.perf_counter()
         t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,
-                 seed=seed, ground=ground, threads=threads, progress=progress,
+                 seed=seed, ground=ground, threads=threads, progress=progress, refine=refine,
                  ground_albedo=None if ground_albedo is None else _albedo_value(ground_albedo),
                  **kw)
         t.save(output, overwrite=force)

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 from ..scene.raycast import RayCaster
 from ..sh import check_lmax, num_coeffs, sh_basis
 from ..sh.rotation import from_quaternion
@@ -143,6 +144,11 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     k = num_coeffs(lmax)
     shape = (sc.n_vertices, k) + ((3,) if coloured(sc.albedo) else ())
     counts = tuple(range(bounces + 1)) if traced_mode else ()
+    # the layers (float32), the float64 running sums, one worker block of SH rows per thread
+    check_memory(4.0 * np.prod(shape) * len(counts) + 16.0 * np.prod(shape) * bool(counts)
+                 + 8.0 * samples * k * nthreads,
+                 f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
+                 "samples")
     traced = np.empty((len(counts), *shape), dtype=np.float32)
     if traced_mode:
         with ThreadPoolExecutor(nthreads) as pool:

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..limits import check_memory
 
 __all__ = ["PROJECTIONS", "Camera"]
 
@@ -88,9 +89,11 @@ class Camera:
     def rays(self, center: ArrayLike, radius: float) -> tuple[NDArray, NDArray]:
         """Primary rays through pixel centres, (H·W, 3) origins and unit directions, row-major
         with row 0 at the top of the image."""
+        w, h = int(self.width), int(self.height)
+        # rays, hits, normals, shading and the image: about 256 bytes a pixel, planned first
+        check_memory(256.0 * w * h, f"rendering {w}x{h} pixels")
         c, d, hh = self.framing(center, radius)
         fwd, right, up = self.basis()
-        w, h = int(self.width), int(self.height)
         sx = (np.arange(w) + 0.5) / w * 2.0 - 1.0
         sy = 1.0 - (np.arange(h) + 0.5) / h * 2.0
         eye = c - d * fwd
