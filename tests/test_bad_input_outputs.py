@@ -131,3 +131,16 @@ def test_signals_leave_no_temporary_file(tmp_path, sig):
     assert _leftovers(tmp_path) == [] and not (tmp_path / "c.json").exists()
     assert "Traceback" not in proc.stderr.read()
 
+
+
+def test_devices_are_never_replaced(tmp_path, capsys):
+    """`-o /dev/null --force` must not turn the device into a file (renaming over it would)."""
+    import stat as st
+
+    assert st.S_ISCHR(os.stat("/dev/null").st_mode)
+    with pytest.raises(ShprobeError, match="not a regular file"):
+        check_output_path("/dev/null", overwrite=True)
+    rc = main(["prefilter", "--preset", "grace", "--format", "json", "-o", "/dev/null",
+               "--force"])
+    assert rc == 1 and "not a regular file" in capsys.readouterr().err
+    assert st.S_ISCHR(os.stat("/dev/null").st_mode)

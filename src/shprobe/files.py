@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import stat
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -45,6 +46,9 @@ def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> 
         raise ShprobeError("file name is longer than 255 bytes", p)
     if p.is_dir():
         raise ShprobeError("is a directory, not a file", p)
+    if os.path.lexists(p) and not stat.S_ISREG(os.lstat(p).st_mode) and not p.is_symlink():
+        raise ShprobeError("is not a regular file (a device, pipe or socket): shprobe writes "
+                           "its outputs as files only", p)
     if os.path.lexists(p) and not overwrite:
         raise ShprobeError("already exists (pass --force / overwrite=True to replace it)", p)
     parent = p.parent

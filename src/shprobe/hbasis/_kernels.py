@@ -29,6 +29,8 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from ..sh._kernels import _fence  # the one fence for streaming stores
+
 C1 = 1.0 / math.sqrt(2.0 * math.pi)  # H¹
 C3 = math.sqrt(3.0 / (2.0 * math.pi))  # H², H³, H⁴
 C5 = math.sqrt(15.0 / (2.0 * math.pi))  # H⁵; H⁶ uses C5 / 2
@@ -75,17 +77,6 @@ def _stream_store(typingctx, arr, idx, val):
     return sig, codegen
 
 
-@intrinsic
-def _store_fence(typingctx):
-    """A sequentially consistent fence (orders streaming stores before later accesses)."""
-
-    def codegen(context, builder, signature, args):
-        builder.fence("seq_cst")
-        return context.get_dummy_value()
-
-    return types.void(), codegen
-
-
 @numba.njit(cache=True, inline="always")
 def _h_of(s0, s1, s2, s3, s5, s6, s7):  # pragma: no cover - compiled
     """The first four H coefficients from the SH ones (T_h's nonzeros; H⁵ = A s4, H⁶ = A s8)."""
@@ -130,7 +121,7 @@ def t_h_c1_stream(s, out):  # pragma: no cover - compiled
         if n == 6:
             _stream_store(out, o + 4, A * s[b + 4])
             _stream_store(out, o + 5, A * s[b + 8])
-    _store_fence()
+    _fence()
 
 
 @numba.njit(cache=True)

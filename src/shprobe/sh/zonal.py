@@ -115,13 +115,9 @@ def legendre_moments(
 
 
 def _unit_axis(axis: ArrayLike) -> NDArray[np.float64]:
-    n = np.asarray(axis, dtype=np.float64)
-    if n.ndim < 1 or n.shape[-1] != 3:
-        raise ShprobeError(f"axis must have shape (..., 3), got {n.shape}")
-    norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(n)) or np.any(norm == 0.0):
-        raise ShprobeError("axis must be a finite, non-zero vector")
-    return n / norm
+    from .rotation import unit_vectors
+
+    return unit_vectors(axis, "axis")
 
 
 def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floating]:
