@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .circle import Circle, check_circle, detect_circle
+from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
 from .solve import LightingFit, fit_samples
 
 #: Largest ball radius (px) a grey-ball fit works at; bigger balls are block-averaged.
@@ -261,12 +261,11 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     f = _binning(c, img.shape, max_radius)
     work, cw, inset_w = img, c, inset
     if f > 1:  # block means; a block holding a clipped pixel stays clipped
-        H, W = img.shape[:2]
-        blocks = img.reshape(H // f, f, W // f, f, 3)
-        work = blocks.mean(axis=(1, 3))
+        work = _reduce(img, f)
+        hi, lo = block_extremes(img, f)
         if saturation is not None:
-            work[blocks.max(axis=(1, 3)).max(axis=-1) >= saturation] = saturation
-        work[blocks.min(axis=(1, 3)).min(axis=-1) <= 0.0] = 0.0
+            work[hi >= saturation] = saturation
+        work[lo <= 0.0] = 0.0
         cw = Circle(c.cx / f, c.cy / f, c.r / f, c.inliers)
         inset_w = inset / f + 0.75  # blocks straddling the outline blend with the background
     px = ball_pixels(cw, work.shape[:2], cam, inset_w, mirror=False)
