@@ -48,7 +48,7 @@ TOP_STARTS = 5
 #: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
 LTS_H = 0.75
 #: Pixels used for the IRLS iterations; the final weighted solve uses every pixel.
-IRLS_SAMPLES = 1 << 17
+IRLS_SAMPLES = 1 << 16
 _CHUNK = 1 << 19
 
 
