@@ -23,8 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .circle import Circle, check_circle, detect_circle
+from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
 from .solve import LightingFit, fit_samples
+
+#: Largest ball radius (px) a grey-ball fit works at; bigger balls are block-averaged.
+MAX_RADIUS = 512.0
 
 __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_grey_ball",
            "parse_ball_camera"]
@@ -195,6 +198,8 @@ class BallFit:
     camera: BallCamera
     pixels: BallPixels
     kind: str
+    binning: int = 1
+    photo: NDArray[np.float32] | None = None
     blind_angle: float = 0.0
     blind_solid_angle: float = 0.0
     info: dict[str, Any] = field(default_factory=dict)
@@ -212,7 +217,9 @@ class BallFit:
         return out
 
     def summary(self) -> str:
-        s = f"{self.kind} ball {self.circle.text()} ({self.camera}): {self.fit.summary()}"
+        c = self.info.get("circle_full", self.circle)
+        binned = f", fitted on {self.binning}x{self.binning} blocks" if self.binning > 1 else ""
+        s = f"{self.kind} ball {c.text()} ({self.camera}{binned}): {self.fit.summary()}"
         if self.kind == "chrome":
             s += (f"; blind spot {self.blind_angle:.1f} deg around the view axis "
                   f"({self.blind_solid_angle:.3f} sr, "
@@ -232,7 +239,7 @@ def _locate(img: NDArray, circle: Circle | None, path) -> Circle:
 def fit_grey_ball(image: NDArray, circle: Circle | None = None,
                   camera: BallCamera | None = None, *, albedo: float = 1.0,
                   saturation: float | None = None, inset: float = 1.0, robust: bool = True,
-                  path=None) -> BallFit:
+                  max_radius: float | None = MAX_RADIUS, path=None) -> BallFit:
     """Nine RGB lighting coefficients from a photo of a diffuse (grey) ball (R&H 2001 §2–3).
 
     ``circle`` None detects the ball. Pixels whose centre lies within ``inset`` px of the
@@ -240,20 +247,49 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     exposure, by which the coefficients are divided (1: the coefficients carry that scale).
     Only the visible part of the ball constrains the lighting; ``fit.conditioning`` says how
     well each coefficient is determined.
+
+    A ball of radius above ``max_radius`` px (a 4k photo's) is fitted on f×f block means of
+    the photo (f the smallest block that brings it under, dividing the image size): the model
+    is linear in the pixel values and the normals vary by O(1/r) over a block, so the fit
+    loses nothing that matters while the work drops f²-fold. The result (``circle``,
+    ``pixels``, the images) is then at that resolution, ``binning`` = f and ``photo`` the
+    block-mean image; ``info['circle_full']`` is the circle in the photo's pixels.
     """
     img = _image(image, path)
     c = _locate(img, circle, path)
     cam = camera or BallCamera()
-    px = ball_pixels(c, img.shape[:2], cam, inset, mirror=False)
+    f = _binning(c, img.shape, max_radius)
+    work, cw, inset_w = img, c, inset
+    if f > 1:  # block means; a block holding a clipped pixel stays clipped
+        work = _reduce(img, f)
+        hi, lo = block_extremes(img, f)
+        if saturation is not None:
+            work[hi >= saturation] = saturation
+        work[lo <= 0.0] = 0.0
+        cw = Circle(c.cx / f, c.cy / f, c.r / f, c.inliers)
+        inset_w = inset / f + 0.75  # blocks straddling the outline blend with the background
+    px = ball_pixels(cw, work.shape[:2], cam, inset_w, mirror=False)
     if px.rows.size < 9:
         raise ShprobeError(f"the ball covers only {px.rows.size} pixels", path)
-    vals = img[px.rows, px.cols]
+    vals = work[px.rows, px.cols]
     if saturation is not None and np.all(np.any(vals >= saturation, axis=1)):
         raise ShprobeError("every pixel of the ball is saturated (clipped): nothing to fit",
                            path)
     fit = fit_samples(px.normals, vals, model="diffuse", albedo=albedo,
                       saturation=saturation, black=0.0, robust=robust)
-    return BallFit(fit, c, cam, px, "grey")
+    out = BallFit(fit, cw, cam, px, "grey", binning=f, photo=work if f > 1 else None)
+    out.info["circle_full"] = c
+    return out
+
+
+def _binning(c: Circle, shape: tuple[int, ...], max_radius: float | None) -> int:
+    """Block size for a ball of radius above ``max_radius`` px (one that divides the image)."""
+    if not max_radius or c.r <= max_radius:
+        return 1
+    f = int(np.ceil(c.r / max_radius))
+    while f > 1 and (shape[0] % f or shape[1] % f):
+        f -= 1
+    return f
 
 
 def fit_chrome_ball(image: NDArray, circle: Circle | None = None,

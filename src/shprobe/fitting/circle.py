@@ -77,11 +77,34 @@ def check_circle(circle: Circle, shape: tuple[int, ...], path=None) -> Circle:
 
 
 def _reduce(img: NDArray, f: int) -> NDArray[np.float32]:
+    """f×f block means (the image cropped to whole blocks), summed over the f² strided views
+    (much faster than a reduction over a 5-D reshape)."""
+    a = np.asarray(img, np.float32)
     if f == 1:
-        return np.asarray(img, np.float32)
-    h, w = (img.shape[0] // f) * f, (img.shape[1] // f) * f
-    a = np.asarray(img[:h, :w], np.float32)
-    return a.reshape(h // f, f, w // f, f, -1).mean(axis=(1, 3))
+        return a
+    h, w = (a.shape[0] // f) * f, (a.shape[1] // f) * f
+    out = np.zeros((h // f, w // f, *a.shape[2:]), np.float32)
+    for i in range(f):
+        for j in range(f):
+            out += a[i:h:f, j:w:f]
+    out *= np.float32(1.0 / (f * f))
+    return out
+
+
+def block_extremes(img: NDArray, f: int) -> tuple[NDArray, NDArray]:
+    """Per f×f block, the largest and the smallest channel value of any pixel (elementwise
+    over the strided views and the channels; reductions over a length-3 axis are slow)."""
+    a = np.asarray(img, np.float32)
+    h, w = (a.shape[0] // f) * f, (a.shape[1] // f) * f
+    hi = lo = None
+    for i in range(f):
+        for j in range(f):
+            v = a[i:h:f, j:w:f]
+            for c in range(a.shape[2]):
+                x = v[..., c]
+                hi = x.copy() if hi is None else np.maximum(hi, x, out=hi)
+                lo = x.copy() if lo is None else np.minimum(lo, x, out=lo)
+    return hi, lo
 
 
 def _kasa(x: NDArray, y: NDArray) -> tuple[float, float, float]:
@@ -117,7 +140,12 @@ def _geometric(x: NDArray, y: NDArray, c0: tuple[float, float, float], iters: in
 
 
 def _foreground_distance(img: NDArray, bg: NDArray) -> NDArray[np.float32]:
-    return np.abs(np.asarray(img, np.float32) - bg).max(axis=-1)
+    """max over channels of |pixel − background| (elementwise over the channels)."""
+    a = np.asarray(img, np.float32)
+    out = np.abs(a[..., 0] - np.float32(bg[0]))
+    for c in range(1, a.shape[-1]):
+        np.maximum(out, np.abs(a[..., c] - np.float32(bg[c])), out=out)
+    return out
 
 
 def _edge_points(dist: NDArray, thr: float, x0: float = 0.0, y0: float = 0.0

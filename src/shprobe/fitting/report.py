@@ -37,7 +37,8 @@ def fit_document(result: Result, source: str | None) -> dict[str, Any]:
         "poorly_determined": list(f.poorly_determined), "summary": result.summary(),
     }
     if isinstance(result, BallFit):
-        q.update(kind=result.kind, circle=[result.circle.cx, result.circle.cy, result.circle.r],
+        full = result.info.get("circle_full", result.circle)
+        q.update(kind=result.kind, circle=[full.cx, full.cy, full.r], binning=result.binning,
                  camera=str(result.camera), frame="camera: looking along -Z, +Y up, +X right")
         if result.kind == "chrome":
             q.update(blind_spot_degrees=result.blind_angle,
@@ -106,6 +107,8 @@ def save_fit_figure(path: str | os.PathLike[str], photo: NDArray, result: Result
     from ..files import atomic_output
     from ..probes.images import tonemap
 
+    if getattr(result, "photo", None) is not None:  # a block-averaged fit: its own photo
+        photo = result.photo
     ims = fit_images(result, view)
     sy, sx = _crop(result, view)
     ph = np.asarray(photo, np.float32)[sy, sx, :3]

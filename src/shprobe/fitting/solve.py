@@ -48,7 +48,7 @@ TOP_STARTS = 5
 #: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
 LTS_H = 0.75
 #: Pixels used for the IRLS iterations; the final weighted solve uses every pixel.
-IRLS_SAMPLES = 1 << 17
+IRLS_SAMPLES = 1 << 16
 _CHUNK = 1 << 19
 
 
@@ -280,10 +280,11 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
         if v is not None and not np.isfinite(v):
             raise ShprobeError(f"{name} must be a finite number, got {v}")
     clipped = np.zeros(P, bool)
-    if saturation is not None:
-        clipped = np.any(y >= saturation, axis=1)
-    if black is not None:
-        clipped |= np.any(y <= black, axis=1)
+    for c in range(y.shape[1]):  # per channel (a reduction over a length-3 axis is slow)
+        if saturation is not None:
+            clipped |= y[:, c] >= saturation
+        if black is not None:
+            clipped |= y[:, c] <= black
     base = np.where(clipped, 0.0, prior)
     n_used = int(np.count_nonzero(base > 0))
     if n_used < 9:
