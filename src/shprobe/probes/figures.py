@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from .images import auto_exposure
 
 KINDS = ("radiance", "signed", "error")
 
@@ -69,12 +70,12 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
     v = v[np.isfinite(v)]
     if v.size == 0:
         return 0.0
-    p = float(np.percentile(v, percentile))
-    if not p > 0:
-        p = float(v.max())
-    if not p > 0:
+    if not float(np.percentile(v, percentile)) > 0:  # mostly black: key on the brightest
+        v = v[v >= v.max()]
+    if not v.size or not float(v.max()) > 0:
         return 0.0
-    e = float(np.floor(-np.log2(p) * 10.0) / 10.0)
+    # the one percentile-to-white rule (probes.images.auto_exposure), in steps of 0.1 stop
+    e = float(np.floor(auto_exposure(v[:, None], 1.0, percentile) * 10.0) / 10.0)
     allowed = (100.0 - percentile) / 100.0
     for _ in range(200):  # ties at the percentile (flat regions): step down until it holds
         if float((v * 2.0 ** e >= _WHITE).mean()) <= allowed:

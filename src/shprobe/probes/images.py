@@ -594,14 +594,15 @@ def tonemap(rgb: ArrayLike, exposure: float = 0.0) -> NDArray[np.uint8]:
     return np.round(linear_to_srgb(v) * 255.0).astype(np.uint8)
 
 
-def auto_exposure(radiance: ArrayLike, target: float = 0.8) -> float:
-    """Exposure in stops for :func:`tonemap` that maps the 99th percentile of the largest
-    channel of ``radiance`` (..., 3) to ``target`` (0 when there is no light): bright enough to
-    see, with at most ~1 % of the values clipped."""
+def auto_exposure(radiance: ArrayLike, target: float = 0.8, percentile: float = 99.0) -> float:
+    """Exposure in stops for :func:`tonemap` that maps the ``percentile``-th percentile of the
+    largest channel of ``radiance`` (..., C) to ``target`` (0 when there is no light): bright
+    enough to see, with at most ~1 % of the values clipped. The one exposure rule; pictures
+    with labelled panels round it to 0.1 stop (:func:`shprobe.probes.figures.exposure_for`)."""
     a = np.asarray(radiance, dtype=np.float64)
     if a.size == 0:
         return 0.0
-    peak = float(np.percentile(np.max(a, axis=-1), 99.0))
+    peak = float(np.percentile(np.max(a, axis=-1), percentile))
     return float(np.log2(target / peak)) if np.isfinite(peak) and peak > 0 else 0.0
 
 
