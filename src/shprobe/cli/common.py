@@ -80,6 +80,22 @@ def parse_rotation(text: str):
         raise ShprobeError(f"rotation {text!r}: {e.message}") from None
 
 
+def parse_exposure(text: str) -> float | None:
+    """The one ``--exposure`` grammar: ``auto`` → None (the command picks it by
+    :func:`shprobe.probes.images.auto_exposure` and prints it); otherwise finite stops."""
+    import math
+
+    if str(text).strip().lower() == "auto":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise ShprobeError(f"--exposure must be 'auto' or a number of stops, got {text!r}")
+    return v
+
+
 #: Largest image side any command makes (a refusal, not an allocation, above it).
 MAX_SIDE = 16384
 

@@ -8,8 +8,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import force_option
-from .prt import _exposure
+from .common import force_option, parse_exposure
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.export).
@@ -230,7 +229,7 @@ def register(group: click.Group) -> None:
         from ..probes.layouts import get_layout, write_env
 
         check_image_output(output, force)
-        fixed = _exposure(exposure)  # a bad value is refused before the work
+        fixed = parse_exposure(exposure)  # a bad value is refused before the work
         src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
                              need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")
@@ -316,7 +315,7 @@ def register(group: click.Group) -> None:
                  "coefficients.json"]
         for n in names:  # refuse before writing anything
             check_output_path(out / n, force)
-        fixed = _exposure(exposure)
+        fixed = parse_exposure(exposure)
         w, h = _grid_size(size, "latlong")
         env = procedural_env(w, h)
         coeffs = project(env, 2)

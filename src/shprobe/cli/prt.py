@@ -14,6 +14,7 @@ from .common import (
     clamp_option,
     force_option,
     layout_option,
+    parse_exposure,
     parse_floats,
     parse_rotation,
     parse_size,
@@ -68,21 +69,6 @@ def lighting(probe: str | None, preset: str | None, cone: str | None, lmax: int,
                     _finite(parse_floats(ap, 1, "cone aperture"), "--cone", cone)[0])
     return resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
                           lmax=lmax if (probe or cone) else None, cone=cone_arg).coeffs
-
-
-def _exposure(text: str) -> float | None:
-    """``auto`` → None; otherwise a finite number of stops."""
-    import math
-
-    if text.strip().lower() == "auto":
-        return None
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v):
-        raise ShprobeError(f"--exposure must be 'auto' or a number of stops, got {text!r}")
-    return v
 
 
 def register(group: click.Group) -> None:
@@ -199,7 +185,7 @@ def register(group: click.Group) -> None:
 
         # the name as given (frames get _000 … suffixes; their existence is checked below)
         check_image_output(output, force or turntable is not None)
-        stops = _exposure(exposure)
+        stops = parse_exposure(exposure)
         t = load_transfer(transfer, scene=list(scene_check) or None)
         use = t.lmax if lmax is None else lmax
         if use > t.lmax:

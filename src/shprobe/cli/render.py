@@ -14,6 +14,7 @@ from ..errors import ShprobeError
 from .common import (
     ROTATE_HELP,
     force_option,
+    parse_exposure,
     parse_floats,
     parse_rotation,
     parse_size,
@@ -130,8 +131,9 @@ def register(group: click.Group) -> None:
                        "colours or material colour, else 1).")
     @click.option("--background", default=None,
                   help="'env' (the probe itself, default with a probe), 'none', or r,g,b.")
-    @click.option("--exposure", default=0.0, show_default=True,
-                  help="PNG tone map: x 2^EXPOSURE, clamp, sRGB.")
+    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+                  help="PNG tone map: x 2^EXPOSURE, clamp, sRGB; auto puts the 99th percentile "
+                       "of the object's radiance at white (printed).")
     @click.option("--window", "window", default=None, help=WINDOW_HELP)
     @click.option("--rotate", multiple=True, help="Turn the lighting. " + ROTATE_HELP
                   + " Repeatable.")
@@ -151,6 +153,7 @@ def register(group: click.Group) -> None:
 
         t0 = time.perf_counter()
         check_image_output(output, force)
+        stops = parse_exposure(exposure)  # a bad value is refused before the work
         if exr:
             check_image_output(exr, force)
         coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
@@ -169,7 +172,13 @@ def register(group: click.Group) -> None:
             bg = parse_floats(background, 3, "background colour")
         alb = parse_floats(albedo, 3, "albedo") if albedo else None
         res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
-        res.save(output, exposure=exposure, overwrite=force)
+        if stops is None:
+            from ..probes.images import auto_exposure
+
+            stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image, 1.0)
+            if output.lower().endswith((".png", ".jpg", ".jpeg")):
+                click.echo(f"exposure {stops:+.2f} stops (auto)")
+        res.save(output, exposure=stops, overwrite=force)
         if exr:
             res.save(exr, overwrite=force)
         dt = time.perf_counter() - t0
