@@ -180,7 +180,15 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     assert "| H6 |" in text and "| SH9 |" in text
     from PIL import Image
 
-    assert Image.open(png).size == (4 * 48, 2 * 48)
+    from shprobe.probes.figures import read_panels
+
+    meta = read_panels(png)  # a labelled figure: 4 images over 3 error maps on one colour bar
+    titles = [q["title"] for q in meta["panels"]]
+    assert titles[:4] == ["reference (exact)", "H6", "H4", "SH9"]
+    assert [q["kind"] for q in meta["panels"][4:]] == ["error"] * 3
+    assert all(q.startswith(f"|{k} − ref|, rel. RMS") for q, k in zip(titles[4:],
+                                                                      ("H6", "H4", "SH9"),
+                                                                      strict=True))
     # bake → render: the baked coefficients give the same render as baking in place
     png2 = tmp_path / "r2.png"
     assert main(["hbasis", "render", str(bunny_path), str(grace_path), "--coeffs", str(out),
@@ -203,7 +211,8 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
                  "-o", str(png4), "--size", "32"]) == 0
     text4 = capsys.readouterr().out
     assert "| H6 |" not in text4 and "| H4 |" in text4
-    assert Image.open(png4).size == (3 * 32, 2 * 32)
+    assert [q["title"] for q in read_panels(png4)["panels"]][:3] == ["reference (exact)", "H4",
+                                                                     "SH9"]
     # a bake for another mesh is refused with one line
     import trimesh
 

@@ -574,10 +574,25 @@ def panel_image(res: RenderResult, gain: float = 4.0) -> NDArray[np.float32]:
 
 def save_panel(path: str | os.PathLike[str], res: RenderResult, gain: float = 4.0,
                overwrite: bool = False) -> Path:
-    """Write :func:`panel_image` (atomically, :func:`shprobe.probes.images.write_image`): a
-    PNG is exposed by :func:`~shprobe.probes.images.auto_exposure` of the reference (its 99th
-    percentile at white) and tone-mapped like every PNG; EXR/HDR/PFM stay linear."""
-    from ..probes.images import auto_exposure, write_image
+    """Write the comparison as a labelled figure (:mod:`shprobe.probes.figures`): top, the
+    reference and each basis as E/π (the radiance of a white diffuse surface) at one exposure
+    (the reference's 99th percentile at white); bottom, |basis − reference| / π on one shared
+    error scale with its colour bar, each titled with the basis's relative RMS error. ``gain``
+    is kept for the raw :func:`panel_image`; the figure's colour bar replaces it."""
+    from ..probes.figures import Panel, write_figure
+    from ..probes.images import auto_exposure
 
-    stops = auto_exposure(res.irradiance[res.mask], target=1.0)
-    return write_image(path, panel_image(res, gain), overwrite=overwrite, exposure=stops)
+    ref = res.irradiance / np.pi
+    stops = auto_exposure(ref[res.mask], target=1.0)
+    keys = [k for k in ("H6", "H4", "SH9") if k in res.layers]
+    rms = res.info.get("rel_rms", {})
+    errs = {k: np.abs(res.layers[k] / np.pi - ref).max(axis=-1) for k in keys}
+    top = max((float(e.max()) for e in errs.values()), default=0.0) or 1.0
+    units = "W m⁻² sr⁻¹ (E/π)"
+    rows = [[Panel(ref, "reference (exact)", units=units, exposure=stops),
+             *(Panel(res.layers[k] / np.pi, k, units=units, exposure=stops) for k in keys)],
+            [None, *(Panel(errs[k], f"|{k} − ref|, rel. RMS {100 * rms.get(k, np.nan):.1f} %",
+                           "error", units=units, scale=top) for k in keys)]]
+    write_figure(path, rows, overwrite=overwrite, shared_colorbar=True,
+                 title="normal mapping (H&W 2010): per-vertex bases vs exact E at n′")
+    return Path(path)
