@@ -165,7 +165,6 @@ def test_probe_coefficients_equal_independent_quadrature(probe):
     img = read_image(path)
     ref = own_latlong_quadrature(img)
     got = project(load_env(path), 2)
-    print(f"\n{probe}: L_lm =\n{np.array2string(got, precision=4)}")
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-6 * np.abs(ref).max())
 
 
@@ -291,7 +290,6 @@ def test_directional_light_max_error_is_9_4_percent():
     n = np.stack([np.sin(beta), np.cos(beta), np.zeros_like(beta)], axis=-1)
     rep = error_report(env, (1, 2, 4), normals=n)
     r2 = rep.row(2)
-    print(f"\ndirectional light: lmax 2 max error {100 * r2.max_frac:.2f} % of ∫L dω")
     assert r2.max_frac == pytest.approx(3 / 32, abs=1e-3)
     assert rep.row(4).max_frac < r2.max_frac < rep.row(1).max_frac
 
@@ -305,8 +303,6 @@ def test_rh_claim_on_natural_light(probe):
     env = load_env(data_file("probes", f"{probe}.hdr"))
     rep = error_report(env, (1, 2, 3, 4))
     r2 = rep.row(2)
-    print(f"\n{probe}: lmax 2 mean {100 * r2.mean_frac:.3f} %, max {100 * r2.max_frac:.3f} % "
-          f"of ∫L dω; mean rel {100 * r2.mean_rel:.2f} %, sMAPE {100 * r2.smape:.2f} %")
     assert r2.mean_frac < 0.02 and r2.max_frac < 0.05
     assert rep.row(4).mean_frac < r2.mean_frac < rep.row(1).mean_frac
 
@@ -321,7 +317,6 @@ def test_brute_force_converges_with_subdivision(grace_path):
     e3 = reference_irradiance(env, n, subdivide=3, chunk=5000)
     rel12 = np.abs(e2 - e1).max() / np.abs(e1).max()
     rel23 = np.abs(e3 - e2).max() / np.abs(e2).max()
-    print(f"\nsubdivision: 1→2 moves {rel12:.2e}, 2→3 moves {rel23:.2e}")
     assert rel12 < 1e-3 and rel23 < 1e-3
     assert rel23 < rel12
 

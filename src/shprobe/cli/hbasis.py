@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import console, force_option
+from .common import ROTATE_HELP, console, force_option, parse_rotation
 
 
 @click.group("hbasis")
@@ -15,9 +15,11 @@ def hbasis_group() -> None:
     """H-basis (Habel & Wimmer 2010): error study, per-vertex bake, normal-mapped render."""
 
 
-@hbasis_group.command("study")
-@click.option("--signals", "-n", type=click.IntRange(1, 10_000_000), default=10000,
-              show_default=True, help="Number of random irradiance signals.")
+@hbasis_group.command("study", short_help="Habel & Wimmer Fig. 3: the mean IMSE of every "
+                                          "hemispherical basis over random signals.")
+@click.option("--signals", "-n", type=click.IntRange(1, 200_000), default=10000,
+              show_default=True, help="Number of random irradiance signals (about 1 s per "
+                                      "2000 on one core).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Generator seed.")
 @click.option("--output", "-o", "outdir", type=click.Path(file_okay=False, path_type=Path),
               default=None, help="Folder for hbasis_study.{md,csv,png} (created if missing).")
@@ -75,7 +77,7 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
 @click.argument("mesh", type=click.Path(path_type=Path))
 @click.argument("probe", type=click.Path(path_type=Path))
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Output PNG: reference | H6 | H4 | SH9 over |error| × gain.")
+              help="Output PNG: a labelled figure, reference | H6 | H4 | SH9 over their errors.")
 @click.option("--coeffs", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Per-vertex coefficients from `hbasis bake` (.npz) for this MESH, instead of "
                    "baking them here.")
@@ -86,9 +88,11 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
               help="Multiplier of the error panels.")
 @click.option("--normal-map", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Tangent-space normal-map image (needs a mesh with UVs) instead of the bump.")
+@click.option("--rotate", default=None, help="Turn the lighting. " + ROTATE_HELP)
 @force_option
 def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size: int,
-               bump: float, gain: float, normal_map: Path | None, force: bool) -> None:
+               bump: float, gain: float, normal_map: Path | None, rotate: str | None,
+               force: bool) -> None:
     """Render MESH with a procedural normal map under PROBE, shading with per-vertex H6, H4 and
     SH9 against the brute-force reference; prints the relative RMS errors.
 
@@ -117,8 +121,18 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
     baked = None if coeffs is None else load_bake(coeffs, m)
     nmap = None if normal_map is None else read_normal_map(normal_map)
     light = read_lighting(probe)
-    res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
-                               baked=baked)
+    if rotate is not None:
+        if baked is not None:
+            raise ShprobeError("--rotate turns the lighting; a bake holds it unturned: bake "
+                               "again, or drop --coeffs", coeffs)
+        from ..lighting.design import rotate_lighting
+
+        R = parse_rotation(rotate)
+        light = rotate_lighting(light, R) if isinstance(light, np.ndarray) else light.rotated(R)
+    with console(stderr=True).status("baking per-vertex bases, tracing and the brute-force "
+                                     "reference irradiance …"):
+        res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
+                                   baked=baked)
     save_panel(output, res, gain, overwrite=force)
     if not isinstance(light, np.ndarray):
         ref = "brute force"

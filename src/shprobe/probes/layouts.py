@@ -592,6 +592,18 @@ class Env:
         """Unit vectors of the pixel centres, ``(*grid, 3)``."""
         return self.layout.pixel_directions(self._grid)
 
+    def rotated(self, rotation: ArrayLike) -> Env:
+        """The environment turned by ``rotation`` (anything
+        :func:`shprobe.sh.rotation.one_rotation` takes): L'(ω) = L(Rᵀω), resampled
+        bilinearly on this grid (the map-space counterpart of rotating its SH coefficients)."""
+        from ..sh.rotation import one_rotation
+
+        R = one_rotation(rotation)
+        valid = self.layout.valid_mask(self.grid)
+        out = np.zeros_like(self.radiance)
+        out[valid] = self.layout.sample(self.radiance, self.directions()[valid] @ R)
+        return Env(out, self.layout, self.path)
+
     def solid_angles(self) -> NDArray[np.float64]:
         """Exact per-pixel solid angle ``(*grid,)``, 0 where invalid."""
         return self.layout.solid_angles(self._grid)

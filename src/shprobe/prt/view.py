@@ -47,7 +47,27 @@ def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | No
     radiance = frame_radiance(transfer, coeffs, rs, light_rotation, lmax, mode, bounces)
     mesh = trimesh.Trimesh(transfer.vertices @ rs.T, transfer.faces,
                            vertex_normals=transfer.normals @ rs.T, process=False)
-    return render_vertex_colors(mesh, radiance, camera, background=background)
+    return render_vertex_colors(mesh, radiance, camera, background=background,
+                                frame=object_frame(transfer, rs))
+
+
+def object_frame(transfer: Transfer, rotation: ArrayLike | None = None
+                 ) -> tuple[NDArray[np.float64], float] | None:
+    """The bounding sphere of the scene's objects without its ground plane (which is several
+    times larger: framing it would leave the objects a quarter of the picture), turned by
+    ``rotation``; None when the bake has no ground."""
+    if not transfer.metadata.get("ground"):
+        return None
+    v, n = transfer.vertices, transfer.normals
+    floor = v[:, 1].min()
+    tol = 1e-9 * float(np.ptp(v, axis=0).max())
+    ground = (v[:, 1] <= floor + tol) & (n[:, 1] > 1.0 - 1e-9)
+    obj = v[~ground] if (~ground).any() else v
+    rs = np.eye(3) if rotation is None else one_rotation(rotation)
+    lo, hi = obj.min(axis=0), obj.max(axis=0)
+    c = 0.5 * (lo + hi)
+    r = float(np.sqrt(((obj - c) ** 2).sum(axis=1).max()))
+    return c @ rs.T, max(r, 1e-12)
 
 
 def turntable(transfer: Transfer, coeffs: ArrayLike, frames: int,

@@ -70,12 +70,13 @@ class Hits:
     directions: NDArray[np.float64]  # (P, 3) ray directions
 
 
-def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None = None
-          ) -> Hits:
+def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None = None,
+          frame: tuple[ArrayLike, float] | None = None) -> Hits:
     """Cast the camera's primary rays through :class:`RayCaster` (built here unless
     ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
-    origin when ``mesh`` is None."""
-    center, radius = bounding_sphere(mesh)
+    origin when ``mesh`` is None. The camera frames ``frame`` = (centre, radius) — by default
+    the mesh's bounding sphere."""
+    center, radius = bounding_sphere(mesh) if frame is None else frame
     origins, dirs = camera.rays(center, radius)
     P = origins.shape[0]
     if mesh is None:
@@ -278,10 +279,12 @@ def render_result(hits: Hits, radiance: NDArray, irradiance: NDArray, camera: Ca
 
 
 def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
-                         camera: Camera | None = None, background: Any = None) -> RenderResult:
+                         camera: Camera | None = None, background: Any = None,
+                         frame: tuple[ArrayLike, float] | None = None) -> RenderResult:
     """Render per-vertex outgoing radiance (V, C), interpolated barycentrically across the
     triangles (e.g. the result of PRT relighting). No shading is applied; ``irradiance`` in the
-    result is 0 and ``radiance``/``image`` hold the interpolated values."""
+    result is 0 and ``radiance``/``image`` hold the interpolated values. ``frame``: the sphere
+    the camera frames (see :func:`trace`)."""
     camera = camera or Camera()
     vr = np.asarray(vertex_radiance, dtype=np.float32)
     if vr.ndim == 1:
@@ -291,7 +294,7 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
             f"vertex_radiance has {vr.shape[0]} rows but the mesh has {len(mesh.vertices)} "
             "vertices")
     C = vr.shape[1]
-    hits = trace(mesh, camera)
+    hits = trace(mesh, camera, frame=frame)
     hit = hits.face >= 0
     rad = np.zeros((hit.size, C), np.float32)
     rad[hit] = _interp(vr, mesh, hits, hit)

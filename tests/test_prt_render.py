@@ -1,4 +1,4 @@
-"""Review checks of PRT (Lisle & Huang 2007 §4): rendered pictures against independent
+"""Rendering PRT (Lisle & Huang 2007 §4): rendered pictures against independent
 quadrature and geometry, the turntable against a window turned by hand, and bad input."""
 
 from __future__ import annotations
@@ -169,3 +169,28 @@ def test_zero_normals_are_refused(tmp_path, capsys):
     one_line_error(capsys, ["prt", "bake", str(bad), "-o", str(tmp_path / "x.npz")],
                    "flat.obj", "normal")
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_turntable_frames_the_object_not_the_ground(tmp_path):
+    """With a ground plane (several times the object) the camera frames the object: the
+    frame sphere is the object's bounding sphere, and the rendered object fills as much of
+    the picture as without the ground."""
+    from shprobe.prt import bake
+    from shprobe.prt.view import object_frame, render_frame
+    from shprobe.scene import Camera, sphere_mesh
+
+    mesh = sphere_mesh(2)
+    plain = bake(mesh, mode="unshadowed", lmax=2)
+    grounded = bake(mesh, mode="unshadowed", lmax=2, ground=True)
+    assert object_frame(plain) is None
+    c, r = object_frame(grounded)
+    np.testing.assert_allclose(c, 0.0, atol=1e-9)
+    assert abs(r - 1.0) < 1e-6  # the unit sphere, not the ground's half-diagonal
+    L = np.zeros((9, 3))
+    L[0] = 1.0
+    cam = Camera(64, 64, elevation=0.0)
+    a = render_frame(plain, L, camera=cam)
+    b = render_frame(grounded, L, camera=cam)
+    assert a.mask.sum() > 0.4 * 64 * 64  # framed: the sphere fills the picture
+    # the same framing with the ground: the sphere covers the same pixels, the ground more
+    assert b.mask.sum() >= a.mask.sum() and (b.mask | ~a.mask).all()

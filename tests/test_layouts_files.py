@@ -1,4 +1,4 @@
-"""Review checks of image layouts and LDR decoding: known directions on known pixels of the
+"""Image layouts read from files and LDR decoding: known directions on known pixels of the
 cube-map *files* (crosses and strips), and JPEG decoded from sRGB by an independent decoder."""
 
 from __future__ import annotations
