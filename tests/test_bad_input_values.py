@@ -146,3 +146,16 @@ def test_no_writer_emits_non_finite_json():
     doc = coeffs_document(L9)
     text = json.dumps(doc, allow_nan=False)  # raises if anything were non-finite
     assert "NaN" not in text
+
+
+@pytest.mark.parametrize("option", [["--elevation", "nan"], ["--azimuth", "inf"],
+                                    ["--fov", "nan"]])
+def test_non_finite_camera_is_refused_not_rendered_black(tmp_path, capsys, option):
+    from shprobe.cli.main import main
+
+    rc = main(["render", "--preset", "grace", "--sphere", "--size", "16", *option, "-o",
+               str(tmp_path / "e.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1
+    assert "finite" in err[0] or "field of view" in err[0]
+    assert not (tmp_path / "e.png").exists()

@@ -47,10 +47,16 @@ class Camera:
             raise ShprobeError(f"projection must be one of {PROJECTIONS}, got {self.projection!r}")
         if int(self.width) <= 0 or int(self.height) <= 0:
             raise ShprobeError(f"image size must be positive, got {self.width}x{self.height}")
-        if not 0.0 < self.fov < 180.0:
+        if not 0.0 < float(self.fov) < 180.0:
             raise ShprobeError(f"field of view must be in (0, 180) degrees, got {self.fov}")
-        if self.margin <= 0.0:
+        if not self.margin > 0.0:
             raise ShprobeError(f"margin must be positive, got {self.margin}")
+        for name in ("azimuth", "elevation", "fov", "margin", "distance", "ortho_height"):
+            v = getattr(self, name)
+            if v is not None and not np.isfinite(float(v)):
+                raise ShprobeError(f"camera {name} must be a finite number, got {v}")
+        if self.target is not None and not np.all(np.isfinite(np.asarray(self.target, float))):
+            raise ShprobeError(f"camera target must be finite, got {self.target}")
 
     @property
     def aspect(self) -> float:
