@@ -73,6 +73,10 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
                                f"{bk.h.shape[1]} × 3")
 
 
+#: Largest brute-force reference `hbasis render` starts (pixels × probe texels): minutes.
+MAX_REFERENCE_PAIRS = 2e11
+
+
 @hbasis_group.command("render")
 @click.argument("mesh", type=click.Path(path_type=Path))
 @click.argument("probe", type=click.Path(path_type=Path))
@@ -121,6 +125,14 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
     baked = None if coeffs is None else load_bake(coeffs, m)
     nmap = None if normal_map is None else read_normal_map(normal_map)
     light = read_lighting(probe)
+    if not isinstance(light, np.ndarray):  # the exact reference: every pixel × every texel
+        pairs = float(size) ** 2 * float(np.prod(light.grid))
+        if pairs > MAX_REFERENCE_PAIRS:
+            raise ShprobeError(f"the brute-force reference at --size {size} would take "
+                               f"{pairs:.2g} pixel-texel products (about "
+                               f"{pairs / 1e9 / 60:.0f} min), over the limit of "
+                               f"{MAX_REFERENCE_PAIRS:.0e}: use a smaller --size or a "
+                               "smaller probe, or `hbasis bake` it first (SH reference)", probe)
     if rotate is not None:
         if baked is not None:
             raise ShprobeError("--rotate turns the lighting; a bake holds it unturned: bake "
