@@ -129,16 +129,12 @@ def save_npz(path: str | os.PathLike[str], overwrite: bool = False, **arrays: An
     return Path(path)
 
 
-def load_npz(path: str | os.PathLike[str], names: Any = None,
-             what: str = "file") -> dict[str, np.ndarray]:
-    """Arrays of an ``.npz`` archive, read safely: every member's header (shape, dtype) is read
-    and the total inflated size checked against the memory limit *before* anything is
-    inflated (a small compressed file cannot expand to gigabytes unasked); object arrays are
-    refused (no pickles); a missing, truncated or corrupt archive is one line naming it.
-    ``names`` limits the arrays read (all by default; a missing one is not an error here)."""
+def npz_headers(path: str | os.PathLike[str], what: str = "file"
+                ) -> dict[str, tuple[tuple[int, ...], np.dtype, bool]]:
+    """(shape, dtype, stored size matches the header) of every array of an ``.npz``, read from
+    the ``.npy`` headers alone (nothing is inflated); object arrays are refused (no pickles);
+    a missing, empty, truncated or corrupt archive is one line naming it."""
     import zipfile
-
-    from .limits import check_memory
 
     p = os.fspath(path)
     if not os.path.isfile(p):
@@ -146,25 +142,52 @@ def load_npz(path: str | os.PathLike[str], names: Any = None,
     if not zipfile.is_zipfile(p):
         raise ShprobeError(f"not a {what} (not an .npz archive: empty, truncated or another "
                            "format)", p)
+    out = {}
     try:
         with zipfile.ZipFile(p) as z:
-            members = {n[:-4]: n for n in z.namelist() if n.endswith(".npy")}
-            want = list(members) if names is None else [n for n in names if n in members]
-            total = 0
-            for n in want:
-                with z.open(members[n]) as f:
+            for info in z.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                name = info.filename[:-4]
+                with z.open(info) as f:
                     fmt = np.lib.format
                     read = (fmt.read_array_header_1_0 if fmt.read_magic(f) == (1, 0)
                             else fmt.read_array_header_2_0)
                     shape, _, dtype = read(f)
+                    start = f.tell()
                 if dtype.hasobject:
-                    raise ShprobeError(f"array {n!r} holds Python objects (refused)", p)
-                total += int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
-            check_memory(total, f"reading the arrays of this {what}", p)
-            with np.load(p, allow_pickle=False) as d:
-                return {n: d[n] for n in want}
+                    raise ShprobeError(f"array {name!r} holds Python objects (refused)", p)
+                size = start + int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+                out[name] = (tuple(shape), dtype, info.file_size == size)
     except ShprobeError:
         raise
     except Exception as e:  # zipfile / numpy raise many types on damaged archives
+        raise ShprobeError(f"cannot read {what} (not an .npz, truncated or malformed): "
+                           f"{' '.join(str(e).split())[:200]}", p) from None
+    return out
+
+
+def load_npz(path: str | os.PathLike[str], names: Any = None,
+             what: str = "file") -> dict[str, np.ndarray]:
+    """Arrays of an ``.npz`` archive, read safely: the headers (:func:`npz_headers`) are read
+    and the total inflated size checked against the memory limit *before* anything is
+    inflated (a small compressed file cannot expand to gigabytes unasked), then each member's
+    stored size against its header; one line naming the file on any problem. ``names``
+    limits the arrays read (all by default; a missing one is not an error here)."""
+    from .limits import check_memory
+
+    p = os.fspath(path)
+    heads = npz_headers(p, what)
+    want = list(heads) if names is None else [n for n in names if n in heads]
+    check_memory(sum(int(np.prod(heads[n][0], dtype=np.float64)) * heads[n][1].itemsize
+                     for n in want), f"reading the arrays of this {what}", p)
+    bad = [n for n in want if not heads[n][2]]
+    if bad:
+        raise ShprobeError(f"array {bad[0]!r} is not the size its header says (truncated or "
+                           "malformed)", p)
+    try:
+        with np.load(p, allow_pickle=False) as d:
+            return {n: d[n] for n in want}
+    except Exception as e:  # CRC errors, truncated streams
         raise ShprobeError(f"cannot read {what} (truncated or corrupt): "
                            f"{' '.join(str(e).split())[:200]}", p) from None

@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..files import load_npz, npz_headers, save_npz
 from ..lighting import irradiance, irradiance_coeffs, project, reference_irradiance
 from ..probes.layouts import Env
 from ..scene import (
@@ -339,7 +340,6 @@ def bake_mesh(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, n: int = 6,
 def save_bake(path: str | os.PathLike[str], bk: Bake, overwrite: bool = False) -> Path:
     """Write a mesh's bake (from :func:`bake_mesh`) as .npz, atomically (an existing file is
     replaced only with ``overwrite``)."""
-    from ..files import save_npz
 
     if bk.mesh_hash is None or bk.bands is None:
         raise ShprobeError("only a bake of a mesh (bake_mesh) can be saved: it needs the "
@@ -372,37 +372,6 @@ def is_bake(path: str | os.PathLike[str]) -> bool:
     return {"h.npy", "frames.npy"} <= names
 
 
-def _npz_headers(p: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Shape and dtype of every array of an .npz, read from the .npy headers only (nothing is
-    inflated); checks that each member's stored size is what its header promises."""
-    out = {}
-    try:
-        with zipfile.ZipFile(p) as z:
-            for info in z.infolist():
-                name = info.filename
-                if not name.endswith(".npy"):
-                    continue
-                with z.open(info) as f:
-                    version = np.lib.format.read_magic(f)
-                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                            else np.lib.format.read_array_header_2_0)
-                    shape, _fortran, dtype = read(f)
-                    start = f.tell()
-                if dtype.hasobject:
-                    raise ShprobeError(f"array {name[:-4]} holds Python objects", p)
-                want = start + int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
-                if info.file_size != want:
-                    raise ShprobeError(f"array {name[:-4]} is {info.file_size} bytes, its "
-                                       f"header says {want} (truncated or malformed)", p)
-                out[name[:-4]] = (tuple(shape), dtype)
-    except ShprobeError:
-        raise
-    except Exception as e:  # zipfile / numpy header errors come in many types
-        raise ShprobeError("cannot read bake file (not an .npz, truncated or malformed): "
-                           f"{' '.join(str(e).split())[:160]}", p) from None
-    return out
-
-
 def load_bake(path: str | os.PathLike[str], mesh: trimesh.Trimesh | None = None) -> Bake:
     """Read a bake file (:func:`save_bake`, ``shprobe hbasis bake``).
 
@@ -411,14 +380,16 @@ def load_bake(path: str | os.PathLike[str], mesh: trimesh.Trimesh | None = None)
     :class:`ShprobeError` naming the file on any problem.
     """
     p = Path(path)
-    if not p.is_file():
-        raise ShprobeError("no such file", p)
-    heads = _npz_headers(p)
+    heads = npz_headers(p, "bake file")
+    lying = [k for k, (_, _, ok) in heads.items() if not ok]
+    if lying:
+        raise ShprobeError(f"array {lying[0]} is not the size its header says (truncated or "
+                           "malformed)", p)
     missing = [k for k in ("h", "sh9", "frames", "mesh_hash") if k not in heads]
     if missing:
         raise ShprobeError(f"not a 'shprobe hbasis bake' file (missing {', '.join(missing)})",
                            p)
-    (hs, ht), (ss, st), (fs, ft) = heads["h"], heads["sh9"], heads["frames"]
+    (hs, ht, _), (ss, st, _), (fs, ft, _) = heads["h"], heads["sh9"], heads["frames"]
     v = hs[0] if len(hs) == 3 else -1
     if (len(hs) != 3 or hs[1] not in (4, 6) or len(ss) != 3 or ss[:2] != (v, 9)
             or fs != (v, 3, 3) or ss[2] != hs[2]):
@@ -433,20 +404,15 @@ def load_bake(path: str | os.PathLike[str], mesh: trimesh.Trimesh | None = None)
             raise ShprobeError(f"array {k} has shape {heads[k][0]} / type {heads[k][1]}, "
                                f"expected {shape}", p)
     if "L" in heads:
-        ls, lt = heads["L"]
+        ls, lt, _ = heads["L"]
         if len(ls) != 2 or ls[1] != 3 or lt.kind != "f" or int(np.sqrt(ls[0])) ** 2 != ls[0]:
             raise ShprobeError(f"array L has shape {ls}, expected (K, 3) with K = (lmax+1)²",
                                p)
-    need = sum(int(np.prod(s, dtype=np.int64)) * 8 for s, _ in heads.values())
+    need = sum(int(np.prod(s, dtype=np.int64)) * 8 for s, _, _ in heads.values())
     if need > MAX_BAKE_BYTES:
         raise ShprobeError(f"bake would take {need / 2**30:.1f} GiB (limit "
                            f"{MAX_BAKE_BYTES / 2**30:.0f} GiB)", p)
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            data = {k: z[k] for k in heads}
-    except Exception as e:  # CRC errors, truncated streams
-        raise ShprobeError(f"cannot read bake file (truncated or corrupt): "
-                           f"{' '.join(str(e).split())[:160]}", p) from None
+    data = load_npz(p, heads, "bake file")
     if "format" in data and str(data["format"]) != BAKE_FORMAT:
         raise ShprobeError(f"not a 'shprobe hbasis bake' file (format {str(data['format'])!r})",
                            p)
