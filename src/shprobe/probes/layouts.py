@@ -119,11 +119,11 @@ class Layout:
 
 
 def _unit(dirs: ArrayLike) -> NDArray[np.float64]:
-    d = np.asarray(dirs, dtype=np.float64)
-    if d.ndim < 1 or d.shape[-1] != 3:
-        raise ShprobeError(f"directions must have shape (..., 3), got {d.shape}")
-    n = np.linalg.norm(d, axis=-1, keepdims=True)
-    return d / np.where(n > 0, n, 1.0)
+    """Directions as unit vectors (zero vectors stay zero): :func:`shprobe.sh.rotation.
+    unit_vectors`, the one normalisation."""
+    from ..sh.rotation import unit_vectors
+
+    return unit_vectors(dirs, "directions", zero="keep")
 
 
 def _bilinear(img: NDArray, x: NDArray, y: NDArray, wrap_x: bool) -> NDArray[np.float32]:
