@@ -162,13 +162,11 @@ class _Thumb:
     def png(self) -> tuple[bytes, float]:
         from PIL import Image
 
-        from ..probes.images import tonemap
+        from ..probes.images import auto_exposure, tonemap
 
         widths = np.diff(np.append(self.cols, self.w))
         img = self.sum / (self.count[:, None, None] * widths[None, :, None])
-        lum = img @ np.asarray(LUMA)
-        hi = float(np.percentile(lum, 99.0)) if lum.size else 0.0
-        exposure = -math.log2(hi) if hi > 0 and math.isfinite(hi) else 0.0
+        exposure = auto_exposure(img, 1.0)  # the one exposure rule
         buf = io.BytesIO()
         Image.fromarray(tonemap(img, exposure)).save(buf, format="PNG")
         return buf.getvalue(), exposure
