@@ -51,8 +51,8 @@ def make_probe(folder: Path) -> Path:
     return p
 
 
-def start(args: list[str]) -> tuple[subprocess.Popen, str, float]:
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+def start(args: list[str], src: Path | None = None) -> tuple[subprocess.Popen, str, float]:
+    env = dict(os.environ, PYTHONPATH=str(src or REPO / "src"))
     t0 = time.time()
     p = subprocess.Popen([sys.executable, "-m", "shprobe", "view", *args, "--no-browser"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
@@ -64,11 +64,30 @@ def start(args: list[str]) -> tuple[subprocess.Popen, str, float]:
     return p, m.group(0), t0
 
 
-def first_frame(browser, args: list[str]) -> tuple[float, float]:
-    """(seconds from command to first lit frame, seconds to the URL line)."""
+STAGES = [  # (label, start event, end event): the stages of the first lit frame
+    ("python start + imports → `view` command", "t0", "cli"),
+    ("command → URL printed (server built, socket bound)", "cli", "url"),
+    ("probe decode (load_env, 2048×1024 .hdr)", "load_start", "decoded"),
+    ("probe checks + projection to lmax 2", "decoded", "source_done"),
+    ("mesh load (bunny)", "load_start", "geometry_done"),
+    ("URL → page navigation starts (browser)", "url", "nav"),
+    ("page HTML received", "nav", "html"),
+    ("page → viewer.js runs (three.js fetched + parsed)", "nav", "script"),
+    ("files ready (server) ", "t0", "ready"),
+    ("viewer.js → /api/init answered", "script", "init"),
+    ("init → design answered", "init", "design"),
+    ("init → mesh received", "init", "mesh"),
+    ("data → first lit frame (shader compile, upload, draw)", "data", "frame"),
+]
+
+
+def first_frame(browser, args: list[str], src: Path | None = None
+                ) -> tuple[float, float, dict[str, float]]:
+    """(seconds from command to first lit frame, seconds to the URL line, stage stamps in
+    seconds since the command started)."""
     ctx = browser.new_context(viewport={"width": 1100, "height": 900})
     page = ctx.new_page()  # a browser tab already open, as a user's is
-    p, url, t0 = start(args)
+    p, url, t0 = start(args, src)
     t_url = time.time() - t0
     try:
         page.goto(url)
@@ -78,11 +97,33 @@ def first_frame(browser, args: list[str]) -> tuple[float, float]:
         if err:
             raise SystemExit(err)
         at = page.evaluate("() => window.__shprobe.firstFrameAt") / 1000.0
+        info = page.evaluate("""() => { const a = window.__shprobe, o = performance.timeOrigin;
+            const n = performance.getEntriesByType('navigation')[0];
+            const m = {}; for (const [k, v] of Object.entries(a.marks)) m[k] = (o + v) / 1000;
+            m.nav = o / 1000; m.html = (o + n.responseEnd) / 1000;
+            return { marks: m, server: (a.init && a.init.timings) || {} }; }""")
         ctx.close()
     finally:
         p.terminate()
         p.wait(10)
-    return at - t0, t_url
+    st = {"t0": 0.0, "first": at - t0}
+    for k, v in {**info["server"], **info["marks"]}.items():
+        st[k] = v - t0
+    return at - t0, t_url, st
+
+
+def breakdown(runs: list[dict[str, float]]) -> None:
+    """The stages of the first lit frame: median start and end (s after the command) and
+    median duration of each, over the runs."""
+    med = statistics.median
+    print("| stage | from s | to s | takes ms (median) |\n| --- | ---: | ---: | ---: |")
+    for label, a, b in STAGES:
+        xs = [r for r in runs if a in r and b in r]
+        if not xs:
+            continue
+        print(f"| {label} | {med(r[a] for r in xs):.3f} | {med(r[b] for r in xs):.3f} | "
+              f"{1000 * med(r[b] - r[a] for r in xs):.0f} |")
+    print(f"| **first lit frame** | | {med(r['first'] for r in runs):.3f} | |")
 
 
 def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
@@ -151,22 +192,52 @@ def stats(xs: list[float]) -> str:
 
 
 def main() -> None:
+    import argparse
+
     from playwright.sync_api import sync_playwright
 
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=5, help="timed first-frame runs (default 5)")
+    ap.add_argument("--first-only", action="store_true", help="only the first-frame figure")
+    ap.add_argument("--before", type=Path, default=None,
+                    help="another checkout's src/ to time interleaved with this one (before/after)")
+    a = ap.parse_args()
     print(f"Machine: {machine()}\n")
     with tempfile.TemporaryDirectory() as d, sync_playwright() as pw:
         folder = Path(d)
         probe = make_probe(folder)
         browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=FLAGS)
-        first_frame(browser, [str(probe)])  # warm numba's cache and the OS file cache
-        runs = [first_frame(browser, [str(probe)]) for _ in range(5)]
-        print("### Command to first lit frame (2048×1024 .hdr probe, bunny, 512×512)\n")
+        trees = {"this tree": None}
+        if a.before is not None:
+            trees = {"before": a.before.resolve(), "this tree": None}
+        for src in trees.values():  # warm numba's cache and the OS file cache
+            first_frame(browser, [str(probe)], src)
+        load0 = os.getloadavg()[0]
+        res: dict[str, list] = {k: [] for k in trees}
+        for _ in range(a.runs):  # interleaved, so that both see the same load
+            for k, src in trees.items():
+                res[k].append(first_frame(browser, [str(probe)], src))
+        load1 = os.getloadavg()[0]
+        print(f"### Command to first lit frame (2048×1024 .hdr probe, bunny, 512×512; "
+              f"{a.runs} runs after a warm-up)\n")
         print("| | best s | median s |\n| --- | ---: | ---: |")
-        ff = [r[0] for r in runs]
-        print(f"| `shprobe view` → first lit frame | {min(ff):.2f} | {statistics.median(ff):.2f} |")
-        uu = [r[1] for r in runs]
-        print(f"| of which: to the URL line | {min(uu):.2f} | {statistics.median(uu):.2f} |")
-        print()
+        for k, runs in res.items():
+            ff, uu = [r[0] for r in runs], [r[1] for r in runs]
+            print(f"| {k}: `shprobe view` → first lit frame | {min(ff):.2f} | "
+                  f"{statistics.median(ff):.2f} |")
+            print(f"| {k}: of which to the URL line | {min(uu):.2f} | "
+                  f"{statistics.median(uu):.2f} |")
+        ff = [r[0] for r in res["this tree"]]
+        print(f"\n**FIRST LIT FRAME: {min(ff):.2f} s best, {statistics.median(ff):.2f} s median** "
+              f"(target ≤ 1.5 s; load average {load0:.2f} before the runs, {load1:.2f} after)\n")
+        for k, runs in res.items():
+            print(f"#### Where the time goes, {k} (seconds after the command; the browser tab "
+                  "is open before the clock starts)\n")
+            breakdown([r[2] for r in runs])
+            print()
+        if a.first_only:
+            browser.close()
+            return
         d = drag_times(browser, [str(probe)], None)
         print("### A lighting drag (per pointer move; ms, best | median of 40)\n")
         print("| | best ms | median ms |\n| --- | ---: | ---: |")

@@ -29,7 +29,7 @@ CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 VENDOR = (Path(__file__).resolve().parents[1] / "src" / "shprobe" / "viewer" / "static" / "vendor"
-          / "three" / "three.module.js")
+          / "three" / "three.min.js")
 
 
 def _need_browser():

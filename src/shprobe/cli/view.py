@@ -32,13 +32,18 @@ def register(group: click.Group) -> None:
         the URL with its access token; Ctrl-C stops it."""
         import socket
         import threading
+        import time
         import webbrowser
+
+        t_cli = time.time()
 
         from ..viewer.session import Session
 
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
         session = Session(probe, preset, mesh, transfer, layout, load=False)
+        session.timings["cli"] = t_cli
+        session.fork_loader()  # before any thread starts
         stop: list = []  # the server, once it exists
 
         def load() -> None:  # the files load while the server starts and the page opens
@@ -71,6 +76,7 @@ def register(group: click.Group) -> None:
         shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
+        session.timings["url"] = time.time()
         server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
         stop.append(server)
         if session.ready.is_set() and session.error is not None:

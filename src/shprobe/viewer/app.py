@@ -57,7 +57,7 @@ def static_dir() -> Path:
     """The page and its vendored libraries (package data); refuses a checkout where
     ``tools/vendor_js.sh`` has not been run."""
     d = Path(str(resources.files("shprobe.viewer") / "static"))
-    if not (d / "vendor" / "three" / "three.module.js").is_file():
+    if not (d / "vendor" / "three" / "three.min.js").is_file():
         raise ShprobeError("the viewer's JavaScript libraries are not installed: run "
                            "tools/vendor_js.sh (it installs three.js from npm)", d / "vendor")
     return d
@@ -124,8 +124,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     def src_info() -> dict[str, Any]:
         s = session.source
-        return {"name": s.name, "has_env": s.env is not None,
-                "layout": None if s.env is None else s.env.layout.name}
+        return {"name": s.name, "has_env": s.has_env, "layout": s.layout_name}
 
     def transfer_info() -> dict[str, Any] | None:
         t = session.transfer
@@ -143,7 +142,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             "presets": list(PRESETS), "mesh": session.mesh_name,
             # the page's shader is shprobe's own GLSL export (R&H eq. 11-13)
             "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
-            "transfer": transfer_info()})
+            "transfer": transfer_info(), "timings": session.timings})
 
     async def mesh(req: Request) -> Response:
         data = await to_thread.run_sync(session.mesh_bytes)

@@ -283,24 +283,59 @@ class Source:
     """A lighting source: its name (as ``shprobe`` commands give it), the probe (None for
     presets) and its coefficients: ``coeffs2`` at lmax 2, the base ``shprobe edit`` starts
     from, and :attr:`coeffs` at :data:`MAX_LMAX`, projected on first use (projecting to a
-    higher degree changes the low coefficients in the last bits, so both are kept)."""
+    higher degree changes the low coefficients in the last bits, so both are kept).
 
-    def __init__(self, name: str, coeffs2: NDArray[np.float64], env: Any = None) -> None:
-        self.name, self.coeffs2, self.env = name, coeffs2, env
-        self._coeffs: NDArray[np.float64] | None = None if env is not None else coeffs2
+    ``pending=True``: a probe whose :class:`Env` is still on its way from the loader process
+    (the lmax-2 coefficients came first, for the first frame); :attr:`env` waits for it."""
+
+    def __init__(self, name: str, coeffs2: NDArray[np.float64], env: Any = None,
+                 pending: bool = False) -> None:
+        self.name, self.coeffs2 = name, coeffs2
+        self._env = env
+        self.has_env = env is not None or pending
+        self.layout_name = None if env is None else env.layout.name
+        self._coeffs: NDArray[np.float64] | None = None if self.has_env else coeffs2
+        self._arrived = threading.Event()
+        if not pending:
+            self._arrived.set()
         self._lock = threading.Lock()
+        #: the page's background texture (:func:`background_payload`), once made
+        self.background: bytes | None = None
+        self.decoded_at = 0.0  # when the probe was decoded (time.time(), for the benchmark)
+
+    @property
+    def env(self) -> Any:
+        """The probe (None for presets); waits for one still being loaded."""
+        self._arrived.wait()
+        return self._env
+
+    def arrive(self, env: Any, coeffs: NDArray[np.float64] | None = None,
+               background: bytes | None = None) -> None:
+        """The pending probe (None: its loading failed), its lmax-:data:`MAX_LMAX`
+        coefficients and background texture, from the loader process."""
+        with self._lock:
+            self._env = env
+            if coeffs is not None:
+                self._coeffs = coeffs
+            if background is not None:
+                self.background = background
+            self.has_env = env is not None
+        self._arrived.set()
 
     @property
     def coeffs(self) -> NDArray[np.float64]:
+        env = self.env
         with self._lock:
             if self._coeffs is None:
                 from ..lighting.projection import project
 
-                self._coeffs = np.asarray(project(self.env, MAX_LMAX), np.float64)
+                if env is None:
+                    raise ShprobeError(f"{self.name}: the probe could not be loaded")
+                self._coeffs = np.asarray(project(env, MAX_LMAX), np.float64)
             return self._coeffs
 
     def __repr__(self) -> str:
-        return f"Source({self.name!r}, env={self.env is not None})"
+        return f"Source({self.name!r}, env={self.has_env})"
 
 
 @dataclass
@@ -328,51 +363,147 @@ class Session:
         self._design_cache: dict[str, Any] = {}
         self.transfer = None
         self.transfer_name = None
-        self.mesh = None
+        self._mesh: Any = None
+        self._mesh_path: str | None = None  # loaded on first use (see :attr:`mesh`)
+        self._mesh_bytes: bytes | None = None
+        self._mesh_lock = threading.Lock()
         self.mesh_name = "sphere"
         self.source: Source
         self.ready = threading.Event()
         self.error: ShprobeError | None = None
+        #: wall-clock stamps (time.time()) of the loading stages, for the first-frame benchmark
+        self.timings: dict[str, float] = {}
+        self._child: Any = None  # (process, pipe) of fork_loader
         if load:
             self.load()
 
+    def _mesh_arg(self) -> str | None:
+        mesh, transfer = self._args[2:]
+        if mesh or transfer:
+            return mesh
+        p = default_mesh_path()
+        return None if p is None else str(p)
+
+    def fork_loader(self) -> None:
+        """Start loading the probe and the mesh named on the command line in a forked
+        process (``shprobe view``; call before any thread starts): numba's first call and
+        trimesh's import take most of a second, and in a thread here they would hold the GIL
+        the server needs while the page loads. :meth:`load` then takes the lmax-2
+        coefficients and the page's mesh arrays from it (the first frame needs no more); the
+        :class:`Env` (compare, H-basis, lmax > 2), its lmax-:data:`MAX_LMAX` coefficients and
+        the background texture follow in a thread. The trimesh object is loaded in this
+        process only when a view needs it (:attr:`mesh`). Without a fork (not Linux) nothing
+        happens and :meth:`load` reads the files itself."""
+        import time
+
+        probe, mesh = self._args[0], self._mesh_arg()
+        ctx = _fork_context()
+        if ctx is None or not (probe or mesh):
+            return
+        self.timings["load_start"] = time.time()
+        name = os.path.basename(mesh) if mesh else None
+        self._child = []
+        # two processes: numba's first call (the decoder) and trimesh's import each take a core
+        for args in ((probe, None), (None, mesh)):
+            if args[0] or args[1]:
+                recv, send = ctx.Pipe(duplex=False)
+                proc = ctx.Process(target=_load_child, args=(send, args[0], self.layout,
+                                                             args[1], name), daemon=True)
+                proc.start()
+                send.close()
+                self._child.append((proc, recv))
+
     def load(self) -> None:
-        """Read the files named on the command line (probe and mesh in parallel); sets
-        :attr:`ready`, and :attr:`error` when one of them is bad (then re-raised)."""
-        probe, preset, mesh, transfer = self._args
+        """Read the files named on the command line (probe and mesh in parallel, or from the
+        process :meth:`fork_loader` started); sets :attr:`ready`, and :attr:`error` when one
+        of them is bad (then re-raised)."""
+        import time
+
+        probe, preset, _, transfer = self._args
+        mesh_path = self._mesh_arg()
         errors: list[BaseException] = []
+        stamp = self.timings
+        stamp.setdefault("load_start", time.time())
+        forked = self._child is not None
 
         def geometry() -> None:
             try:
                 if transfer:
                     self.load_transfer(transfer)
-                if mesh:
-                    self.load_mesh(mesh)
-                elif transfer is None and (p := default_mesh_path()) is not None:
-                    self.load_mesh(str(p))
+                if mesh_path and not forked:
+                    self.load_mesh(mesh_path, os.path.basename(mesh_path))
+                    stamp["geometry_done"] = time.time()
             except BaseException as e:  # re-raised below, in the caller's thread
                 errors.append(e)
 
         th = threading.Thread(target=geometry, daemon=True)
         th.start()
         try:
-            if probe:
+            if forked:
+                self._load_forked(probe, mesh_path)
+            if probe and not forked:
                 self.source = self.probe_source(probe)
             elif preset:
                 self.source = self.preset_source(preset)
-            else:
+            elif not probe:
                 from ..probes.environments import procedural_env
 
                 self.source = self.env_source(procedural_env(256, 128), "procedural sky")
         except BaseException as e:
             errors.append(e)
+        stamp.setdefault("source_done", time.time())
         th.join()
+        stamp["ready"] = time.time()
         if errors:
             e = errors[0]
             self.error = e if isinstance(e, ShprobeError) else ShprobeError(str(e))
             self.ready.set()
-            raise e
+            raise self.error
         self.ready.set()
+
+    def _load_forked(self, probe: str | None, mesh_path: str | None) -> None:
+        """:meth:`load`'s probe and mesh from the forked processes (:func:`_load_child`)."""
+        name = os.path.basename(mesh_path) if mesh_path else None
+        src: Source | None = None
+        try:
+            for _, recv in self._child:
+                while True:
+                    kind, *data = recv.recv()
+                    if kind == "error":
+                        raise ShprobeError(data[0])
+                    self.timings.update(data[-1])
+                    if kind == "source":
+                        src = Source(probe, data[0], pending=True)
+                        src.layout_name = data[1]
+                        self.source = src
+                    elif kind == "mesh":
+                        with self._mesh_lock:
+                            self._mesh, self._mesh_path, self.mesh_name = None, mesh_path, name
+                            self._mesh_bytes = data[0]
+                    elif kind == "ready":
+                        break
+        except EOFError:
+            raise ShprobeError("the loading process ended unexpectedly") from None
+        except BaseException:
+            for proc, _ in self._child:
+                proc.terminate()
+            raise
+
+        def rest() -> None:  # the Env and what is made from it, after the first frame's data
+            got = None
+            if src is not None:
+                try:
+                    kind, *data = self._child[0][1].recv()
+                    if kind == "env":
+                        got = data
+                except (EOFError, OSError):
+                    pass
+                src.arrive(*(got[:3] if got else (None,)))
+            for proc, recv in self._child:
+                recv.close()
+                proc.join()
+
+        threading.Thread(target=rest, daemon=True).start()
 
     def close(self) -> None:
         self._dir.cleanup()
@@ -422,17 +553,8 @@ class Session:
         return s.coeffs2 if lmax <= 2 else s.coeffs
 
     def probe_source(self, path: str, name: str | None = None) -> Source:
-        from ..probes.layouts import load_env
-
-        env = load_env(path, self.layout)
-        rad = env.radiance
-        if not np.all(np.isfinite(rad)):
-            raise ShprobeError("probe has non-finite (NaN or Inf) pixels", name or path)
-        if float(rad.min()) < 0:
-            raise ShprobeError("probe has negative pixels", name or path)
-        src = self.env_source(env, name or path)
-        if not np.all(np.isfinite(src.coeffs2)):
-            raise ShprobeError("probe projects to non-finite coefficients", name or path)
+        src = load_probe(path, self.layout, name)
+        self.timings.setdefault("decoded", src.decoded_at)
         return src
 
     def coeffs_source(self, path: str, name: str) -> Source:
@@ -452,11 +574,24 @@ class Session:
         return Source(f"preset:{name}", get_preset(name))
 
     # mesh / transfer --------------------------------------------------------
+    @property
+    def mesh(self) -> Any:
+        """The trimesh mesh drawn (None: the built-in sphere); a mesh the loading process
+        read for the first frame is loaded here on first use."""
+        with self._mesh_lock:
+            if self._mesh is None and self._mesh_path is not None:
+                from ..scene import load_mesh
+
+                self._mesh = load_mesh(self._mesh_path)
+            return self._mesh
+
     def load_mesh(self, path: str, name: str | None = None) -> None:
         from ..scene import load_mesh
 
         m = load_mesh(path)
-        self.mesh, self.mesh_name = m, name or os.path.basename(path)
+        with self._mesh_lock:
+            self._mesh, self._mesh_path, self._mesh_bytes = m, None, None
+            self.mesh_name = name or os.path.basename(path)
 
     def load_transfer(self, path: str, name: str | None = None) -> None:
         from ..prt.transfer import load_transfer
@@ -464,26 +599,12 @@ class Session:
         self.transfer = load_transfer(path)
         self.transfer_name = name or os.path.basename(path)
 
-    def geometry(self) -> tuple[NDArray, NDArray, NDArray, NDArray, str]:
-        """(vertices, normals, albedo (V, 3), faces, name) of what the page draws."""
-        from ..scene import mesh_vertex_albedo, sphere_mesh
-
-        m = self.mesh if self.mesh is not None else sphere_mesh(5)
-        alb = mesh_vertex_albedo(m)
-        v = np.asarray(m.vertices)
-        return (v, np.asarray(m.vertex_normals), np.ones_like(v) if alb is None else alb,
-                np.asarray(m.faces), self.mesh_name)
-
     def mesh_bytes(self) -> bytes:
-        from ..scene import Camera, bounding_sphere
-
-        v, n, a, f, name = self.geometry()
-        c, r = bounding_sphere(self.mesh if self.mesh is not None else None)
-        if self.mesh is None:  # the analytic unit sphere of the renderer
-            c, r = np.zeros(3), 1.0
-        return pack_binary({"name": name, "center": c.tolist(), "radius": r,
-                            "camera": camera_json(Camera(512, 512), c, r)},
-                           {"position": v, "normal": n, "albedo": a, "index": f})
+        """The page's mesh (:func:`mesh_payload`), made once per mesh."""
+        b = self._mesh_bytes
+        if b is None:
+            b = self._mesh_bytes = mesh_payload(self.mesh, self.mesh_name)
+        return b
 
     def transfer_bytes(self, mode: str | None, bounces: int | None) -> bytes:
         t = self.transfer
@@ -526,26 +647,123 @@ class Session:
 
     # pictures ---------------------------------------------------------------
     def background_bytes(self) -> bytes | None:
-        """The probe resampled to a lat-long grid (the library's directions and bilinear
-        lookup, :meth:`Env.sample`; lat-long probes larger than it box-filtered), linear
-        float32 in a :func:`pack_binary` message; None for a preset."""
-        from ..probes.layouts import LatLong
+        """The source's background texture (:func:`background_payload`), None for a preset."""
+        src = self.source
+        if src.background is None:
+            env = src.env
+            if env is None:
+                return None
+            src.background = background_payload(env)
+        return src.background
 
-        env = self.source.env
-        if env is None:
-            return None
-        h = BACKGROUND_H
-        if env.layout.name == "latlong" and env.grid[0] % h == 0:
-            k = env.grid[0] // h  # box filter: k×k pixel blocks (same solid-angle rows)
-            img = env.radiance.reshape(h, k, 2 * h, k, 3).mean(axis=(1, 3))
-        elif env.layout.name == "latlong" and env.grid[0] <= h:
-            img = env.radiance
-        else:
-            img = env.sample(LatLong().pixel_directions((h, 2 * h)))
-        rgba = np.ones((*img.shape[:2], 4), np.float16)  # half floats, ready for a texture
-        rgba[..., :3] = np.minimum(img, 65504.0)
-        return pack_binary({"layout": env.layout.name, "grid": list(env.grid)},
-                           {"radiance": rgba})
+
+def _fork_context() -> Any:
+    """multiprocessing's fork context where the platform has one (Linux), else None."""
+    import multiprocessing
+
+    try:
+        return multiprocessing.get_context("fork")
+    except ValueError:
+        return None
+
+
+def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
+                mesh_name: str | None) -> None:
+    """In the process :meth:`Session.load` forks: the probe's lmax-2 coefficients, the page's
+    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
+    background texture, sent as they are ready (with wall-clock stamps); a failure is one
+    ("error", line) message. Ends the process itself (``os._exit``): nothing of the parent's
+    (threads, exit handlers, the CLI's signal handlers) runs here."""
+    import signal
+    import time
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    try:
+        src = None
+        if probe:
+            src = load_probe(probe, layout)
+            conn.send(("source", src.coeffs2, src.layout_name,
+                       {"decoded": src.decoded_at, "source_done": time.time()}))
+        if mesh:
+            from ..scene import load_mesh
+
+            data = mesh_payload(load_mesh(mesh), mesh_name or os.path.basename(mesh))
+            conn.send(("mesh", data, {"geometry_done": time.time()}))
+        conn.send(("ready", {}))
+        if src is not None:
+            env = src.env
+            conn.send(("env", env, src.coeffs, background_payload(env),
+                       {"env_sent": time.time()}))
+    except ShprobeError as e:
+        conn.send(("error", str(e)))
+    except Exception as e:  # a library bug: one line, the server stops
+        conn.send(("error", f"{type(e).__name__}: {e}".splitlines()[0]))
+    finally:
+        conn.close()
+        os._exit(0)
+
+
+def load_probe(path: str, layout: str = "auto", name: str | None = None) -> Source:
+    """A probe file as a :class:`Source` (decoded by the library, checked, projected to lmax
+    2); one-line :class:`ShprobeError` naming the file when it is bad."""
+    import time
+
+    from ..lighting.projection import project
+    from ..probes.layouts import load_env
+
+    env = load_env(path, layout)
+    decoded = time.time()
+    rad = env.radiance
+    if not np.all(np.isfinite(rad)):
+        raise ShprobeError("probe has non-finite (NaN or Inf) pixels", name or path)
+    if float(rad.min()) < 0:
+        raise ShprobeError("probe has negative pixels", name or path)
+    src = Source(name or path, np.asarray(project(env, 2), np.float64), env)
+    if not np.all(np.isfinite(src.coeffs2)):
+        raise ShprobeError("probe projects to non-finite coefficients", name or path)
+    src.decoded_at = decoded
+    return src
+
+
+def mesh_payload(mesh: Any, name: str) -> bytes:
+    """What the page draws, in one :func:`pack_binary` message: positions, normals, albedo
+    (V, 3) as the renderer reads them, faces, and the library camera framing the bounding
+    sphere. ``mesh`` None: the renderer's analytic unit sphere (drawn as a fine icosphere)."""
+    from ..scene import Camera, bounding_sphere, mesh_vertex_albedo, sphere_mesh
+
+    m = mesh if mesh is not None else sphere_mesh(5)
+    alb = mesh_vertex_albedo(m)
+    v = np.asarray(m.vertices)
+    if mesh is None:  # the analytic unit sphere of the renderer
+        c, r = np.zeros(3), 1.0
+    else:
+        c, r = bounding_sphere(mesh)
+    return pack_binary({"name": name, "center": c.tolist(), "radius": r,
+                        "camera": camera_json(Camera(512, 512), c, r)},
+                       {"position": v, "normal": np.asarray(m.vertex_normals),
+                        "albedo": np.ones_like(v) if alb is None else alb,
+                        "index": np.asarray(m.faces)})
+
+
+def background_payload(env: Any) -> bytes:
+    """The probe resampled to a :data:`BACKGROUND_H` × 2·:data:`BACKGROUND_H` lat-long grid
+    (the library's directions and bilinear lookup, :meth:`Env.sample`; lat-long probes larger
+    than it box-filtered), RGBA half floats in a :func:`pack_binary` message."""
+    from ..probes.layouts import LatLong
+
+    h = BACKGROUND_H
+    if env.layout.name == "latlong" and env.grid[0] % h == 0:
+        k = env.grid[0] // h  # box filter: k×k pixel blocks (same solid-angle rows)
+        img = env.radiance.reshape(h, k, 2 * h, k, 3).mean(axis=(1, 3))
+    elif env.layout.name == "latlong" and env.grid[0] <= h:
+        img = env.radiance
+    else:
+        img = env.sample(LatLong().pixel_directions((h, 2 * h)))
+    rgba = np.ones((*img.shape[:2], 4), np.float16)  # half floats, ready for a texture
+    rgba[..., :3] = np.minimum(img, 65504.0)
+    return pack_binary({"layout": env.layout.name, "grid": list(env.grid)},
+                       {"radiance": rgba})
 
 
 def camera_json(cam: Any, center: NDArray, radius: float) -> dict[str, Any]:

@@ -2,15 +2,15 @@
 // the page draws: per-pixel irradiance with shprobe's own GLSL export (R&H 2001 eq. 13, the
 // coefficients as uniforms), lookups of the library's irradiance tables by normal, and PRT
 // relighting (transfer · lighting per vertex, Lisle & Huang §4).
-import * as THREE from 'three';
-import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import * as THREE from 'three';  // the parts of three.js this page uses (tools/js/entry.js)
+import { OrbitControls } from 'three';
 
 const $ = (id) => document.getElementById(id);
 const api = window.__shprobe || {};  // exposed for tests and benchmarks
 window.__shprobe = api;
 const t0 = performance.now();
 api.marks = {};
-const mark = (name) => { api.marks[name] = Math.round(performance.now()); };
+const mark = (name) => { api.marks[name] = Math.round(performance.now()); };  // ms since navigation start
 
 // ------------------------------------------------------------------ server calls
 async function call(path, opts = {}) { return handle(await fetch(path, opts)); }
