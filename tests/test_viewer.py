@@ -131,13 +131,11 @@ def test_page_loads_without_console_errors(page):
     assert page.locator("#error").is_hidden()
 
 
-def test_webgl_pixels_equal_library_render(page, served):
-    """Same camera (the library's Camera(512, 512) fitted to the mesh), same lighting (the
-    page's coefficients): interior object pixels equal the library's tone-mapped render."""
+def _pixels_match_render(page, served, L):
+    """The page's 512×512 view equals the library's tone-mapped render of lighting ``L``
+    (same camera: the library's Camera(512, 512) fitted to the mesh) on interior pixels."""
     from shprobe.scene.render import Camera, render, sphere_mesh
 
-    _state(page, {})
-    L = np.array(page.evaluate("() => window.__shprobe.coeffs"))
     raw = base64.b64decode(page.evaluate("() => window.__shprobe.readAll()"))
     img = np.frombuffer(raw, np.uint8).reshape(512, 512, 4)[..., :3].astype(int)
     mesh = served.session.mesh
@@ -158,6 +156,35 @@ def test_webgl_pixels_equal_library_render(page, served):
     assert np.mean(px <= 1) > 0.99
     assert np.mean(px <= 2) > 0.999
     assert np.mean(px > 3) < 5e-4
+    return img, ref, inner
+
+
+def test_webgl_pixels_equal_library_render(page, served):
+    """lmax 2: the page's per-pixel shading (shprobe's GLSL export, R&H eq. 13) equals the
+    library's render of the page's coefficients."""
+    _state(page, {})
+    L = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+    assert L.shape == (9, 3)
+    _pixels_match_render(page, served, L)
+
+
+def test_webgl_pixels_at_lmax_4_equal_library_render(page, served):
+    """Above l = 2 (no quadratic form) the page shades per pixel with the library's generated
+    GLSL (lighting.glsl): design at lmax 4, and the compare view's 'SH lmax 3' (the probe's
+    own coefficients truncated at 3), each equal to the library's render; the l = 3–4 bands
+    change the picture (the test would see a page that dropped them)."""
+    _state(page, {"lmax": 4})
+    _settle(page)
+    L4 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+    assert L4.shape == (25, 3)
+    img4, _, inner = _pixels_match_render(page, served, L4)
+    page.select_option("#mode", "sh3")
+    page.wait_for_function("() => window.__shprobe.compare")
+    L3 = served.session.source.coeffs[:16]
+    img3, _, _ = _pixels_match_render(page, served, L3)
+    assert np.abs(img4[inner] - img3[inner]).max() >= 3  # the bands above 2 are drawn
+    page.select_option("#mode", "design")
+    _state(page, {})
 
 
 def test_drag_on_probe_rotates_lighting_by_wigner(page):

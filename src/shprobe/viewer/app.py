@@ -28,7 +28,16 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ..errors import ShprobeError
-from .session import Session, Task, check_state, cli_args, compare_data, design_coeffs, pack_binary
+from .session import (
+    MAX_LMAX,
+    Session,
+    Task,
+    check_state,
+    cli_args,
+    compare_data,
+    design_coeffs,
+    pack_binary,
+)
 
 __all__ = ["create_app", "static_dir"]
 
@@ -134,6 +143,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     async def init(req: Request) -> Response:
         from ..lighting.export import FORMATS, export_coeffs
+        from ..lighting.glsl import glsl_irradiance
         from ..lighting.windows import WINDOWS
         from ..probes.presets import PRESETS
 
@@ -142,6 +152,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             "presets": list(PRESETS), "mesh": session.mesh_name,
             # the page's shader is shprobe's own GLSL export (R&H eq. 11-13)
             "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
+            # above l = 2: the library's generated per-pixel function (lighting.glsl)
+            "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX,
             "transfer": transfer_info(), "timings": session.timings})
 
     async def mesh(req: Request) -> Response:
@@ -164,7 +176,11 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             L, wdesc, m, (L0, f) = await to_thread.run_sync(run)
         except ShprobeError as e:
             return _error(e)
+        from ..lighting.glsl import glsl_uniform_values
+
         return JSONResponse({"coeffs": L.tolist(), "lmax": st["lmax"], "window": wdesc,
+                             # E_lm = Â_l L_lm for the generated per-pixel GLSL (lmax > 2)
+                             "irradiance": glsl_uniform_values(L, MAX_LMAX).tolist(),
                              # the edits before the rotation and the window's band factors:
                              # the page turns these itself while dragging (lmax <= 2)
                              "unrotated": L0.tolist(),
@@ -256,6 +272,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         arrays = {"reference": r["reference"]}
         arrays.update({f"sh{lm}": m for lm, m in r["maps"].items()})
         return Response(pack_binary({"status": "done", "grid": r["grid"], "rows": r["rows"],
+                                     "irradiance": r["irradiance"],
                                      "total_intensity": r["total_intensity"]}, arrays),
                         media_type="application/octet-stream")
 

@@ -798,7 +798,11 @@ def compare_data(src: Source, progress: Any = None) -> dict[str, Any]:
     rep = error_report(env, lmaxes, reference=ref, normal_grid=h)
     maps = {lm: irradiance(src.coeffs[: num_coeffs(lm)], nrm).reshape(h, 2 * h, 3)
             for lm in lmaxes}
+    from ..lighting.glsl import glsl_uniform_values
+
     return {"grid": [h, 2 * h], "reference": ref.reshape(h, 2 * h, 3),
+            # E_lm of the probe at lmax N: the page's per-pixel SH at each lmax 1..N
+            "irradiance": glsl_uniform_values(src.coeffs, MAX_LMAX).tolist(),
             "maps": maps, "total_intensity": total_intensity(env).tolist(),
             "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
                       "mean_rel": r.mean_rel} for r in rep.rows]}

@@ -134,6 +134,7 @@ function localDesign() {  // during a drag: the last server answer turned in the
 // ------------------------------------------------------------------ design (library, server)
 let designBusy = false, designAgain = false;
 let coeffs = null;           // current L_lm (K, 3) from the server
+let irrE = null;             // its E_lm = Â_l L_lm (library, lighting.glsl.glsl_uniform_values)
 let lastDesign = null;
 async function requestDesign() {
   if (designBusy) { designAgain = true; return; }
@@ -147,7 +148,7 @@ async function requestDesign() {
       api.lastDesignMs = performance.now() - tc;
       r.state = sent; lastDesign = r;
       // a stale answer (the drag moved on meanwhile) is turned to the current rotation
-      if (JSON.stringify(state) === body || !localDesign()) { coeffs = r.coeffs; api.coeffs = r.coeffs; }
+      if (JSON.stringify(state) === body || !localDesign()) { coeffs = r.coeffs; api.coeffs = r.coeffs; irrE = r.irradiance; }
       clearError();
       showDesign(r);
       draw();
@@ -186,13 +187,21 @@ vec3 heat(float x) {  // the legend's colour map
 `;
 const HEAT_CSS = 'linear-gradient(to right, rgb(13,8,51), rgb(51,51,204), rgb(26,179,128), rgb(242,217,26), rgb(255,255,255))';
 let SHPROBE_GLSL = '';   // shprobe's export, constants turned into uniforms
+let SHPROBE_GLSL_SH = '';  // shprobe's generated any-lmax function (lighting.glsl), uniform E_lm
 function shaderFromExport(text) {
   return text
     .replace(/const mat4 (SHPROBE_M_[RGB]) = mat4\([^;]*\);/g, 'uniform mat4 $1;')
     .replace(/const vec3 SHPROBE_L\[9\] = vec3\[9\]\([\s\S]*?\n\);/, 'uniform vec3 SHPROBE_L[9];');
 }
+let SH_LMAX = 4;  // the degree of the library's generated per-pixel function (init.glsl_sh)
+// E(n) per pixel: R&H eq. 13 (the export) at lmax <= 2, the library's generated GLSL above it
+const IRRADIANCE = `uniform int uSH;
+vec3 shprobe_E(vec3 n) { return uSH == 1 ? shprobe_irradiance_sh(n) : shprobe_irradiance_poly(n); }
+`;
 const commonUniforms = () => ({
   SHPROBE_L: { value: Array.from({ length: 9 }, () => new THREE.Vector3()) },
+  SHPROBE_E: { value: Array.from({ length: (SH_LMAX + 1) ** 2 }, () => new THREE.Vector3()) },
+  uSH: { value: 0 },
   SHPROBE_M_R: { value: new THREE.Matrix4() }, SHPROBE_M_G: { value: new THREE.Matrix4() },
   SHPROBE_M_B: { value: new THREE.Matrix4() },
   uExposure: { value: 0 }, uRotInv: { value: new THREE.Matrix3() },
@@ -213,14 +222,14 @@ function makeObjectMaterial() {
     vertexShader: `in vec3 albedo; in vec3 prtColor; out vec3 vN; out vec3 vAlb; out vec3 vPrt;
       void main() { vN = normal; vAlb = albedo; vPrt = prtColor;
         gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
-    fragmentShader: PI + SRGB + SHPROBE_GLSL + `
+    fragmentShader: PI + SRGB + SHPROBE_GLSL + SHPROBE_GLSL_SH + IRRADIANCE + `
       uniform int uMode; uniform float uExposure; uniform sampler2D uA; uniform sampler2D uRef;
       uniform vec3 uTot; uniform float uErrMax;
       in vec3 vN; in vec3 vAlb; in vec3 vPrt;
       void main() {
         vec3 n = normalize(vN), E;
-        if (uMode == 0) E = shprobe_irradiance_poly(n);          // R&H eq. 13, per pixel
-        else if (uMode == 1) E = texture(uA, dirToUV(n)).rgb;    // library table, lmax l
+        if (uMode == 0) E = shprobe_E(n);                        // per pixel: eq. 13 or any lmax
+        else if (uMode == 1) E = shprobe_irradiance_sh(n);       // the probe at lmax l, per pixel
         else if (uMode == 2) E = texture(uRef, dirToUV(n)).rgb;  // library brute force
         else if (uMode == 3) {
           vec3 d = abs(texture(uA, dirToUV(n)).rgb - texture(uRef, dirToUV(n)).rgb) / uTot;
@@ -247,10 +256,10 @@ function makePanelMaterial(kind) {  // lat-long panels: the probe, or E/π of th
     glslVersion: THREE.GLSL3, depthTest: false,
     uniforms: commonUniforms(),
     vertexShader: `out vec2 vUv; void main() { vUv = vec2(uv.x, 1.0 - uv.y); gl_Position = vec4(position.xy, 0.0, 1.0); }`,
-    fragmentShader: PI + SRGB + SHPROBE_GLSL + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
+    fragmentShader: PI + SRGB + SHPROBE_GLSL + SHPROBE_GLSL_SH + IRRADIANCE + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
       uniform mat3 uRotInv; in vec2 vUv;
       void main() { vec3 d = uvToDir(vUv);
-        vec3 c = ${kind === 'probe' ? 'uHasBg == 1 ? rgbe(uBg, dirToUV(uRotInv * d)) : vec3(0.18)' : 'shprobe_irradiance_poly(d) / PI'};
+        vec3 c = ${kind === 'probe' ? 'uHasBg == 1 ? rgbe(uBg, dirToUV(uRotInv * d)) : vec3(0.18)' : 'shprobe_E(d) / PI'};
         fragColor = vec4(srgb(c * exp2(uExposure)), 1.0); }`,
   });
 }
@@ -263,11 +272,19 @@ function floatTex(data, h, w) {  // (h, w, 3) float32 → RGBA float texture, ro
   return t;
 }
 
+function setE(u, E, lmax) {  // E_lm = Â_l L_lm of the library, zero above lmax
+  const K = (lmax + 1) ** 2;
+  u.SHPROBE_E.value.forEach((v, k) => { const c = (k < K && E && E[k]) || [0, 0, 0]; v.set(c[0], c[1], c[2]); });
+}
 function setLightingUniforms(mat) {
   const u = mat.uniforms;
   if (coeffs) for (let k = 0; k < 9; k++) {
     const c = coeffs[k] || [0, 0, 0]; u.SHPROBE_L.value[k].set(c[0], c[1], c[2]);
   }
+  // above l = 2 there is no quadratic form: the generated function, with the library's E_lm
+  const high = !!(coeffs && coeffs.length > 9 && irrE);
+  u.uSH.value = high ? 1 : 0;
+  if (high) setE(u, irrE, Math.sqrt(coeffs.length) - 1);
   u.uExposure.value = Number($('exposure').value);
   const R = stateRotation(state);  // R⁻¹ = Rᵀ: the rotated lighting at ω is the probe at R⁻¹ω
   u.uRotInv.value.set(R[0][0], R[1][0], R[2][0], R[0][1], R[1][1], R[2][1], R[0][2], R[1][2], R[2][2]);
@@ -284,7 +301,7 @@ function draw() {
   if (mode === 'prt') relightPRT();
   for (const m of [objMat, bgMat, probeMat, irrMat]) setLightingUniforms(m);
   objMat.uniforms.uMode.value = MODES[mode];
-  if (cmp && MODES[mode] === 1) objMat.uniforms.uA.value = lookTex['sh' + mode.slice(2)];
+  if (cmp && MODES[mode] === 1) setE(objMat.uniforms, cmp.irradiance, Number(mode.slice(2)));
   if (cmp && MODES[mode] === 3) objMat.uniforms.uA.value = lookTex['sh' + $('errlmax').value];
   if (cmp) { objMat.uniforms.uRef.value = lookTex.reference; }
   camera.updateMatrixWorld();
@@ -414,8 +431,8 @@ function showLegend() {
   $('errtable').tBodies[0].innerHTML = cmp.rows.map((r) => `<tr><td>${r.lmax}</td><td>${(100 * r.mean_frac).toFixed(3)}%</td><td>${(100 * r.max_frac).toFixed(3)}%</td></tr>`).join('');
 }
 const VIEW_LABELS = {
-  design: "Object: radiance = albedo · E(n) / π, E from shprobe's GLSL export (R&H eq. 13), per pixel",
-  sh: 'Object: E(n) of the probe at this lmax, the library\'s table (irradiance) looked up by normal',
+  design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–4: lighting.glsl's generated function)",
+  sh: "Object: E(n) of the probe (edits not applied) truncated at this lmax, per pixel by shprobe's generated GLSL (lighting.glsl) with the library's E_lm = Â_l L_lm",
   exact: 'Object: brute-force E(n) of the probe (library reference_irradiance), looked up by normal',
   error: 'Object: error heat map (legend below)',
   hbasis: 'Object: SH per pixel (the H-basis panel is below)',
@@ -465,7 +482,8 @@ function slider(label, value, onchange) {
 }
 function refreshControls() {
   $('sliders').innerHTML = '';
-  for (let l = 0; l <= Math.min(state.lmax, 2); l++) slider(`band ${l}`, state.scale_band[l] ?? 1, (v) => { const s = structuredClone(state); s.scale_band[l] = v; commit(s); });
+  $('lmax').value = String(state.lmax);
+  for (let l = 0; l <= state.lmax; l++) slider(`band ${l}`, state.scale_band[l] ?? 1, (v) => { const s = structuredClone(state); s.scale_band[l] = v; commit(s); });
   for (let k = 0; k < 9 && k < (state.lmax + 1) ** 2; k++) {
     const l = Math.floor(Math.sqrt(k)), m = k - l * l - l;
     slider(LABELS[k], state.scale[`${l},${m}`] ?? 1, (v) => { const s = structuredClone(state); s.scale[`${l},${m}`] = v; commit(s); });
@@ -492,6 +510,12 @@ function wire(init) {
   $('reset').onclick = () => commit({ ...structuredClone(EMPTY), lmax: state.lmax });
   $('exposure').oninput = () => { $('expval').textContent = $('exposure').value; draw(); };
   $('mode').onchange = onMode; $('errlmax').onchange = () => { showLegend(); draw(); };
+  $('lmax').onchange = () => {  // the design's degree (scales above it are dropped)
+    const s = structuredClone(state); s.lmax = Number($('lmax').value);
+    for (const k of Object.keys(s.scale)) if (Number(k.split(',')[0]) > s.lmax) delete s.scale[k];
+    for (const k of Object.keys(s.scale_band)) if (Number(k) > s.lmax) delete s.scale_band[k];
+    commit(s);
+  };
   const guard = (f) => () => { try { f(); clearError(); } catch (e) { showError(e); } };
   $('adddir').onclick = guard(() => { const s = structuredClone(state); s.directional.push({ dir: unrotate(nums('ldir', 3)), rgb: nums('lrgb', 3) }); commit(s); });
   $('addcone').onclick = guard(() => { const s = structuredClone(state); s.cone.push({ dir: unrotate(nums('ldir', 3)), aperture_deg: nums('lap', 1)[0], rgb: nums('lrgb', 3) }); commit(s); });
@@ -590,6 +614,7 @@ async function main() {
   mark('init');
   api.init = init;
   SHPROBE_GLSL = shaderFromExport(init.glsl);
+  SHPROBE_GLSL_SH = init.glsl_sh; SH_LMAX = init.max_lmax;
   $('source').textContent = init.source.name;
   renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: false, preserveDrawingBuffer: true });
   renderer.setPixelRatio(1); renderer.setSize(512, 512, false);
