@@ -9,6 +9,7 @@ uploads).
 from __future__ import annotations
 
 import base64
+import json
 import os
 import socket
 import subprocess
@@ -262,6 +263,44 @@ def test_export_download_equals_cli(page, served, probe_path, tmp_path, fmt):
         np.testing.assert_array_equal(shown, json.loads(got)["coefficients"])
 
 
+def test_blend_probes_command_line_and_uploaded(page, served, probe_path, tmp_path):
+    """Blends take probes: the command-line probe (listed by the page) and a probe uploaded
+    through the page, each projected by the library to the edit's degree and blended by its
+    edit pipeline; the export equals `shprobe edit --blend FILE:W` and the coefficients equal
+    Σ wᵢ project(probeᵢ, lmax) computed here."""
+    from shprobe.cli.main import main
+    from shprobe.lighting.projection import project
+    from shprobe.probes.layouts import load_env
+
+    other = data_file("probes", "ennis.hdr")
+    _state(page, {"lmax": 3})
+    _settle(page)
+    page.fill("#bweight", "0.3")
+    page.set_input_files("#upblend", str(other))
+    page.wait_for_function("() => window.__shprobe.getState().blends.length === 1")
+    cmd = page.evaluate("() => window.__shprobe.init.probes")[0]
+    assert cmd["name"] == probe_path.name
+    page.select_option("#bpreset", f"probe:{cmd['id']}")
+    page.fill("#bweight", "0.5")
+    page.click("#addblend")
+    _settle(page)
+    st = page.evaluate("() => window.__shprobe.getState()")
+    assert [b["weight"] for b in st["blends"]] == [0.3, 0.5]
+    assert st["blends"][1]["probe"] == cmd["id"] and "probe" in st["blends"][0]
+    assert f"{other.name}:0.3" in page.locator("#cli").inner_text()
+    g, e = load_env(probe_path), load_env(other)
+    want = 1.5 * project(g, 3) + 0.3 * project(e, 3)  # the source is projected to 3 too
+    got = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    with page.expect_download() as dl:
+        page.click("#export-json")
+    out = tmp_path / "cli.json"
+    assert main(["edit", str(probe_path), "--lmax", "3", "--blend", f"{other}:0.3",
+                 "--blend", f"{probe_path}:0.5", "--format", "json", "-o", str(out)]) == 0
+    assert Path(dl.value.path()).read_text() == out.read_text()
+    _state(page, {})
+
+
 def test_three_lightprobe_driven_by_three_export(page):
     """three.js's LightProbe (SphericalHarmonics3.fromArray of the `three` export) gives the
     library's irradiance E(n)."""
@@ -365,13 +404,20 @@ def test_token_host_origin_and_paths(served):
         assert r.status_code == 400 and "unknown keys" in r.json()["error"]
         r = c.post(f"{b}/api/design", params={"token": tok}, content='{"weight": NaN}')
         assert r.status_code == 400
+        # a blend names a probe by the id the server gave it, never by a path
+        for p in ("/etc/passwd", "../../etc/passwd", "pffffff.0"):
+            r = c.post(f"{b}/api/design", params={"token": tok},
+                       content=json.dumps({"blends": [{"probe": p, "weight": 1}]}))
+            assert r.status_code == 400 and "\n" not in r.json()["error"], p
 
 
 def test_state_validation():
     assert check_state({})["lmax"] == 2
     for bad in ({"lmax": 99}, {"directional": [{"dir": [0, 0]}]}, {"window": "box:1"},
                 {"scale": {"3,0": 2}}, {"rotation": {"axis": [0, 0, 0], "degrees": 3}},
-                {"cone": [{"dir": [0, 1, 0], "aperture_deg": 200}]}, [], {"blends": [{}]}):
+                {"cone": [{"dir": [0, 1, 0], "aperture_deg": 200}]}, [], {"blends": [{}]},
+                {"blends": [{"probe": "/etc/passwd"}]}, {"blends": [{"probe": "p0.1/../x"}]},
+                {"blends": [{"probe": "pabcdef.1", "preset": "grace"}]}):
         with pytest.raises(ShprobeError):
             check_state(bad)
     args = cli_args({"rotation": {"axis": [0, 1, 0], "degrees": 30.0}, "window": "auto"})

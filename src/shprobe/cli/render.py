@@ -290,8 +290,10 @@ def register(group: click.Group) -> None:
         from ..sh import lmax_of
 
         check_output_path(output, force)
-        base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, None,
-                                    required=False)
+        # a probe is projected to the result's degree (as a blended probe is), at least 2;
+        # presets and coefficient files keep theirs (cut or zero-padded below)
+        base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp,
+                                    max(lmax, 2) if probe else None, required=False)
         mixes = []
         for b in blends:
             head, _, w = b.rpartition(":")

@@ -154,7 +154,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
             # above l = 2: the library's generated per-pixel function (lighting.glsl)
             "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX,
-            "transfer": transfer_info(), "timings": session.timings})
+            "transfer": transfer_info(), "timings": session.timings,
+            "probes": session.probe_list()})
 
     async def mesh(req: Request) -> Response:
         data = await to_thread.run_sync(session.mesh_bytes)
@@ -186,7 +187,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                              "unrotated": L0.tolist(),
                              "factors": None if f is None else list(map(float, f)),
                              "min_e": m.minimum.tolist(), "min_exact": bool(m.exact),
-                             "min_method": m.method, "cli": cli_args(st),
+                             "min_method": m.method,
+                             "cli": cli_args(st, session.probe_names()),
                              "source": session.source.name})
 
     async def export(req: Request) -> Response:
@@ -198,7 +200,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         try:
             st = await _state(req)
             text = await to_thread.run_sync(lambda: export_coeffs(
-                design_coeffs(session.base(st["lmax"]), st)[0], fmt, source=session.source.name))
+                design_coeffs(session.base(st["lmax"]), st, session.probe_coeffs)[0], fmt,
+                source=session.source.name))
         except ShprobeError as e:
             return _error(e)
         return Response(text, media_type="text/plain; charset=utf-8", headers={
@@ -206,7 +209,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     async def upload(req: Request) -> Response:
         kind = req.path_params["kind"]
-        if kind not in ("probe", "mesh", "transfer", "coeffs", "preset"):
+        if kind not in ("probe", "blend", "mesh", "transfer", "coeffs", "preset"):
             return _error(ShprobeError(f"unknown upload kind {kind!r}"), 404)
         try:
             if kind == "preset":
@@ -219,11 +222,13 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                 session.tasks.pop("compare", None)
                 return JSONResponse({"source": src_info()})
             data = await req.body()
-            path, shown = session.save_upload(req.headers.get("x-filename", ""), data, (kind,))
+            path, shown = session.save_upload(req.headers.get("x-filename", ""), data,
+                                              ("probe",) if kind == "blend" else (kind,))
 
             def load():
-                if kind == "probe":
-                    return session.probe_source(path, shown)
+                if kind in ("probe", "blend"):  # kept for blending either way
+                    src = session.probe_source(path, shown)
+                    return src, session.register_probe(src, shown)
                 if kind == "coeffs":
                     return session.coeffs_source(path, shown)
                 if kind == "mesh":
@@ -239,11 +244,15 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                 raise ShprobeError(f"{shown}: could not load: {e}") from None
         except ShprobeError as e:
             return _error(e)
-        if new is not None:
+        pid = None
+        if isinstance(new, tuple):
+            new, pid = new
+        if new is not None and kind != "blend":
             session.source = new
             session.tasks.pop("compare", None)
         return JSONResponse({"source": src_info(), "mesh": session.mesh_name,
-                             "transfer": transfer_info()})
+                             "transfer": transfer_info(), "probe_id": pid,
+                             "probes": session.probe_list()})
 
     async def compare(req: Request) -> Response:
         task = session.tasks.get("compare")
@@ -303,7 +312,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
         try:
             st = await _state(req)
-            L, _ = design_coeffs(session.base(st["lmax"]), st)
+            L, _ = design_coeffs(session.base(st["lmax"]), st, session.probe_coeffs)
             nrm = np.array([[0, 1, 0], [1, 0, 0], [0, 0, 1], [0.6, -0.8, 0], [0, 0, -1.0]])
             E = irradiance(L[:9], nrm)
         except ShprobeError as e:

@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import secrets
 import tempfile
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,7 +82,8 @@ def check_state(state: Any) -> dict[str, Any]:
     """Validate the page's edit state (a JSON object) → a normalised copy; one-line
     :class:`ShprobeError` on anything malformed. Keys (all optional):
 
-    ``lmax`` (0–8), ``weight``; ``blends``: [{"preset": NAME, "weight": w}];
+    ``lmax`` (0–8), ``weight``; ``blends``: [{"preset": NAME, "weight": w} | {"probe": ID,
+    "weight": w}] (ID: a probe this server loaded, :meth:`Session.register_probe`);
     ``directional``: [{"dir": [x,y,z], "rgb": [r,g,b]}]; ``cone``: [{"dir", "aperture_deg",
     "rgb"}]; ``sky``: {"sky": rgb, "ground": rgb, "up": xyz} | null; ``scale``: {"l,m": f};
     ``scale_band``: {"l": f}; ``rotation``: {"axis": xyz, "degrees": d} | null; ``window``:
@@ -102,10 +106,15 @@ def check_state(state: Any) -> dict[str, Any]:
     out["weight"] = _floats(s["weight"], 1, "weight")[0]
     out["blends"] = []
     for b in s["blends"] or []:
-        if not isinstance(b, dict) or b.get("preset") not in PRESETS:
-            raise ShprobeError(f"blend must name a preset ({', '.join(PRESETS)}), got {b!r}")
-        out["blends"].append({"preset": b["preset"],
-                              "weight": _floats(b.get("weight", 1.0), 1, "blend weight")[0]})
+        w = _floats(b.get("weight", 1.0), 1, "blend weight")[0] if isinstance(b, dict) else 0
+        if isinstance(b, dict) and b.get("preset") in PRESETS and "probe" not in b:
+            out["blends"].append({"preset": b["preset"], "weight": w})
+        elif isinstance(b, dict) and isinstance(b.get("probe"), str) and \
+                _PROBE_ID.fullmatch(b["probe"]) and "preset" not in b:
+            out["blends"].append({"probe": b["probe"], "weight": w})
+        else:
+            raise ShprobeError(f"blend must name a preset ({', '.join(PRESETS)}) or a probe "
+                               f"this server loaded, got {b!r}")
     out["directional"] = [{"dir": _floats(d.get("dir"), 3, "light direction"),
                            "rgb": _floats(d.get("rgb", [1, 1, 1]), 3, "light colour")}
                           for d in _list(s["directional"], "directional")]
@@ -159,6 +168,10 @@ def check_state(state: Any) -> dict[str, Any]:
     return out
 
 
+#: ids of the probes a session loaded (:meth:`Session.register_probe`): never a path
+_PROBE_ID = re.compile(r"p[0-9a-f]{6}\.[0-9]{1,6}")
+
+
 def _list(v: Any, what: str) -> list[dict[str, Any]]:
     if v is None:
         return []
@@ -175,14 +188,22 @@ def _v(xs: list[float]) -> str:
     return ",".join(_r(x) for x in xs)
 
 
-def cli_args(state: dict[str, Any]) -> list[str]:
-    """The ``shprobe edit`` options doing the same edits as ``state`` (after the source)."""
+def cli_args(state: dict[str, Any], probe_names: dict[str, str] | None = None) -> list[str]:
+    """The ``shprobe edit`` options doing the same edits as ``state`` (after the source);
+    ``probe_names`` gives the file of each blended probe id (the name the user gave it)."""
     s = check_state(state)
     a = ["--lmax", str(s["lmax"])]
     if s["weight"] != 1.0:
         a += ["--weight", _r(s["weight"])]
     for b in s["blends"]:
-        a += ["--blend", f"preset:{b['preset']}:{_r(b['weight'])}"]
+        if "preset" in b:
+            a += ["--blend", f"preset:{b['preset']}:{_r(b['weight'])}"]
+        else:
+            name = (probe_names or {}).get(b["probe"])
+            if name is None:
+                raise ShprobeError(f"blend probe {b['probe']} is not loaded in this server "
+                                   "(load it again)")
+            a += ["--blend", f"{name}:{_r(b['weight'])}"]
     for d in s["directional"]:
         a += ["--directional", f"{_v(d['dir'])}:{_v(d['rgb'])}"]
     for c in s["cone"]:
@@ -207,18 +228,34 @@ def _auto_desc(ch: Any) -> str:
         f" {ch.strength:.4g}, bias {100 * ch.bias:.2f}%" if ch.kind != "none" else "")
 
 
-def _edits(state: dict[str, Any], rotate: bool, window: bool) -> Any:
-    """The page's edit state as the library's :class:`~shprobe.lighting.design.Edits`, the one
-    edit pipeline ``shprobe edit`` applies (so a download equals the CLI's file)."""
-    from ..lighting.design import Edits
+ProbeCoeffs = Callable[[str, int], NDArray[np.float64]]
+
+
+def _blend_coeffs(b: dict[str, Any], lmax: int, probes: ProbeCoeffs | None
+                  ) -> NDArray[np.float64]:
     from ..probes.presets import get_preset
+
+    if "preset" in b:
+        return get_preset(b["preset"])
+    if probes is None:
+        raise ShprobeError(f"blend probe {b['probe']} is not loaded in this server")
+    return probes(b["probe"], lmax)
+
+
+def _edits(state: dict[str, Any], rotate: bool, window: bool,
+           probes: ProbeCoeffs | None = None) -> Any:
+    """The page's edit state as the library's :class:`~shprobe.lighting.design.Edits`, the one
+    edit pipeline ``shprobe edit`` applies (so a download equals the CLI's file). ``probes``
+    (id, lmax) → the coefficients of a blended probe (:meth:`Session.probe_coeffs`)."""
+    from ..lighting.design import Edits
 
     spec = state["window"] if window else None
     if spec not in (None, "auto"):
         kind, _, strength = spec.partition(":")
         spec = (kind, float(strength))
     return Edits(
-        blends=[(get_preset(b["preset"]), b["weight"]) for b in state["blends"]],
+        blends=[(_blend_coeffs(b, state["lmax"], probes), b["weight"])
+                for b in state["blends"]],
         directional=[(d["dir"], d["rgb"]) for d in state["directional"]],
         cones=[(c["dir"], c["aperture_deg"], c["rgb"]) for c in state["cone"]],
         sky=((state["sky"]["sky"], state["sky"]["ground"], state["sky"]["up"])
@@ -229,12 +266,13 @@ def _edits(state: dict[str, Any], rotate: bool, window: bool) -> Any:
         window=spec)
 
 
-def design_base(base: NDArray[np.float64] | None, state: dict[str, Any]) -> NDArray[np.float64]:
+def design_base(base: NDArray[np.float64] | None, state: dict[str, Any],
+                probes: ProbeCoeffs | None = None) -> NDArray[np.float64]:
     """The edits before the rotation (blend, lights, scales) of ``shprobe edit``
     (:func:`shprobe.lighting.design.edit_lighting`)."""
     from ..lighting.design import edit_lighting
 
-    return edit_lighting(base, _edits(state, False, False), state["lmax"],
+    return edit_lighting(base, _edits(state, False, False, probes), state["lmax"],
                          state["weight"]).coeffs
 
 
@@ -246,13 +284,16 @@ def rotation_matrix(state: dict[str, Any]) -> NDArray[np.float64]:
     return np.eye(3) if not r else from_axis_angle(r["axis"], r["degrees"])
 
 
-def design_coeffs(base: NDArray[np.float64] | None, state: dict[str, Any]
+def design_coeffs(base: NDArray[np.float64] | None, state: dict[str, Any],
+                  probes: ProbeCoeffs | None = None
                   ) -> tuple[NDArray[np.float64], str | None]:
     """(L_lm (K, 3), window description): ``state`` applied to the source coefficients
-    ``base`` by the library's edit pipeline, in the order of ``shprobe edit``."""
+    ``base`` by the library's edit pipeline, in the order of ``shprobe edit``; ``probes``
+    resolves blended probes (:meth:`Session.probe_coeffs`)."""
     from ..lighting.design import edit_lighting
 
-    res = edit_lighting(base, _edits(state, True, True), state["lmax"], state["weight"])
+    res = edit_lighting(base, _edits(state, True, True, probes), state["lmax"],
+                        state["weight"])
     return res.coeffs, res.window
 
 
@@ -295,6 +336,7 @@ class Source:
         self.has_env = env is not None or pending
         self.layout_name = None if env is None else env.layout.name
         self._coeffs: NDArray[np.float64] | None = None if self.has_env else coeffs2
+        self._by_lmax: dict[int, NDArray[np.float64]] = {}
         self._arrived = threading.Event()
         if not pending:
             self._arrived.set()
@@ -324,6 +366,7 @@ class Source:
 
     @property
     def coeffs(self) -> NDArray[np.float64]:
+        """The coefficients at :data:`MAX_LMAX` (the compare view's)."""
         env = self.env
         with self._lock:
             if self._coeffs is None:
@@ -333,6 +376,23 @@ class Source:
                     raise ShprobeError(f"{self.name}: the probe could not be loaded")
                 self._coeffs = np.asarray(project(env, MAX_LMAX), np.float64)
             return self._coeffs
+
+    def coeffs_at(self, lmax: int) -> NDArray[np.float64]:
+        """The probe projected to exactly ``lmax`` > 2 (R&H eq. 10; cached)."""
+        if lmax == MAX_LMAX:
+            return self.coeffs
+        with self._lock:
+            c = self._by_lmax.get(lmax)
+        if c is None:
+            from ..lighting.projection import project
+
+            env = self.env
+            if env is None:
+                raise ShprobeError(f"{self.name}: the probe could not be loaded")
+            c = np.asarray(project(env, lmax), np.float64)
+            with self._lock:
+                self._by_lmax[lmax] = c
+        return c
 
     def __repr__(self) -> str:
         return f"Source({self.name!r}, env={self.has_env})"
@@ -374,6 +434,10 @@ class Session:
         #: wall-clock stamps (time.time()) of the loading stages, for the first-frame benchmark
         self.timings: dict[str, float] = {}
         self._child: Any = None  # (process, pipe) of fork_loader
+        #: probes loaded (command line, uploads): id → (file name as the user gave it, Source)
+        self.probes: dict[str, tuple[str, Source]] = {}
+        self._probe_tag = f"p{secrets.token_hex(3)}"  # ids of another server never match
+        self._probe_cache: dict[tuple[str, int], NDArray[np.float64]] = {}
         if load:
             self.load()
 
@@ -443,6 +507,7 @@ class Session:
                 self._load_forked(probe, mesh_path)
             if probe and not forked:
                 self.source = self.probe_source(probe)
+                self.register_probe(self.source, probe)
             elif preset:
                 self.source = self.preset_source(preset)
             elif not probe:
@@ -476,6 +541,7 @@ class Session:
                         src = Source(probe, data[0], pending=True)
                         src.layout_name = data[1]
                         self.source = src
+                        self.register_probe(src, probe)
                     elif kind == "mesh":
                         with self._mesh_lock:
                             self._mesh, self._mesh_path, self.mesh_name = None, mesh_path, name
@@ -529,7 +595,7 @@ class Session:
         key = json.dumps({**state, "rotation": None}, sort_keys=True)
         hit = self._design_cache.get(key)
         if hit is None or hit[0] is not src:
-            L0 = design_base(self.base(state["lmax"]), state)
+            L0 = design_base(self.base(state["lmax"]), state, self.probe_coeffs)
             f, wdesc = None, None
             if state["window"] == "auto":
                 ch = auto_window(L0)
@@ -547,10 +613,49 @@ class Session:
         self.last_base = (L0, f)  # what the page rotates itself during a drag (lmax ≤ 2)
         return (L if f is None else apply_window(L, f)), wdesc, cert
 
+    def register_probe(self, src: Source, name: str) -> str:
+        """Keep a loaded probe for blending; → its id (what the page names it by)."""
+        with self.lock:
+            pid = f"{self._probe_tag}.{len(self.probes)}"
+            self.probes[pid] = (name, src)
+        return pid
+
+    def probe_names(self) -> dict[str, str]:
+        return {k: v[0] for k, v in self.probes.items()}
+
+    def probe_list(self) -> list[dict[str, str]]:
+        return [{"id": k, "name": os.path.basename(v[0]) or v[0]}
+                for k, v in self.probes.items()]
+
+    def probe_coeffs(self, pid: str, lmax: int) -> NDArray[np.float64]:
+        """A registered probe projected to ``lmax`` (R&H eq. 10) — as ``shprobe edit --blend
+        FILE:W`` projects a blended probe to the edit's degree."""
+        if pid not in self.probes:
+            raise ShprobeError(f"blend probe {pid} is not loaded in this server (load it "
+                               "again)")
+        key = (pid, lmax)
+        c = self._probe_cache.get(key)
+        if c is None:
+            src = self.probes[pid][1]
+            if lmax == 2:
+                c = src.coeffs2
+            elif lmax > 2:
+                c = src.coeffs_at(lmax)
+            else:
+                from ..lighting.projection import project
+
+                env = src.env
+                if env is None:
+                    raise ShprobeError(f"{src.name}: the probe could not be loaded")
+                c = np.asarray(project(env, lmax), np.float64)
+            self._probe_cache[key] = c
+        return c
+
     def base(self, lmax: int) -> NDArray[np.float64]:
-        """The coefficients the edits start from at degree ``lmax``."""
+        """The coefficients the edits start from at degree ``lmax``: a probe projected to
+        max(lmax, 2), as ``shprobe edit`` projects its source."""
         s = self.source
-        return s.coeffs2 if lmax <= 2 else s.coeffs
+        return s.coeffs2 if lmax <= 2 or not s.has_env else s.coeffs_at(lmax)
 
     def probe_source(self, path: str, name: str | None = None) -> Source:
         src = load_probe(path, self.layout, name)
@@ -826,7 +931,7 @@ def hbasis_panel(session: Session, state: dict[str, Any], size: int = 160
     from ..scene import sphere_mesh
 
     st = {**state, "lmax": 4}
-    L, _ = design_coeffs(session.base(4), st)
+    L, _ = design_coeffs(session.base(4), st, session.probe_coeffs)
     env = session.source.env
     if env is not None:  # the probe turned by the page's rotation: L'(p) = L(Rᵀp)
         h = 64

@@ -493,10 +493,20 @@ function refreshControls() {
   state.directional.forEach((d, i) => item(`directional (${d.dir.map((v) => v.toFixed(2))}) rgb ${d.rgb}`, () => { const s = structuredClone(state); s.directional.splice(i, 1); commit(s); }));
   state.cone.forEach((d, i) => item(`cone (${d.dir.map((v) => v.toFixed(2))}) ${d.aperture_deg}° rgb ${d.rgb}`, () => { const s = structuredClone(state); s.cone.splice(i, 1); commit(s); }));
   if (state.sky) item(`hemisphere sky ${state.sky.sky} ground ${state.sky.ground}`, () => { const s = structuredClone(state); s.sky = null; commit(s); });
-  state.blends.forEach((b, i) => item(`blend ${b.preset} × ${b.weight}`, () => { const s = structuredClone(state); s.blends.splice(i, 1); commit(s); }));
+  state.blends.forEach((b, i) => item(`blend ${b.preset ? 'preset ' + b.preset : 'probe ' + (probeNames[b.probe] || b.probe)} × ${b.weight}`, () => { const s = structuredClone(state); s.blends.splice(i, 1); commit(s); }));
   $('weight').value = state.weight;
   const w = state.window || ''; $('window').value = w.includes(':') ? w.split(':')[0] : w;
   if (w.includes(':')) $('wstrength').value = Number(w.split(':')[1]);
+}
+// blend sources: the presets and every probe this server loaded (command line, uploads), by id
+let probeNames = {}, presetNames = [];
+function blendOptions(presets, probes) {
+  if (presets) presetNames = presets;
+  const sel = $('bpreset'), keep = sel.value; sel.innerHTML = '';
+  for (const p of presetNames) sel.add(new Option(`preset ${p}`, `preset:${p}`));
+  probeNames = {};
+  for (const p of probes || []) { probeNames[p.id] = p.name; sel.add(new Option(`probe ${p.name}`, `probe:${p.id}`)); }
+  if ([...sel.options].some((o) => o.value === keep)) sel.value = keep;
 }
 function nums(id, n) {
   const v = $(id).value.split(',').map(Number);
@@ -521,8 +531,12 @@ function wire(init) {
   $('addcone').onclick = guard(() => { const s = structuredClone(state); s.cone.push({ dir: unrotate(nums('ldir', 3)), aperture_deg: nums('lap', 1)[0], rgb: nums('lrgb', 3) }); commit(s); });
   $('addsky').onclick = guard(() => { const s = structuredClone(state); s.sky = { sky: nums('lrgb', 3), ground: [0, 0, 0], up: unrotate(nums('ldir', 3)) }; commit(s); });
   $('weight').onchange = () => { const s = structuredClone(state); s.weight = Number($('weight').value); commit(s); };
-  for (const p of init.presets) { $('bpreset').add(new Option(p, p)); $('srcpreset').add(new Option(p, p)); }
-  $('addblend').onclick = () => { const s = structuredClone(state); s.blends.push({ preset: $('bpreset').value, weight: Number($('bweight').value) }); commit(s); };
+  for (const p of init.presets) $('srcpreset').add(new Option(p, p));
+  blendOptions(init.presets, init.probes);
+  $('addblend').onclick = () => {
+    const s = structuredClone(state), [kind, name] = $('bpreset').value.split(/:(.*)/s);
+    s.blends.push({ [kind]: name, weight: Number($('bweight').value) }); commit(s);
+  };
   for (const w of init.windows) $('window').add(new Option(w, w));
   const setWindow = () => { const s = structuredClone(state); const k = $('window').value; s.window = !k ? null : k === 'auto' ? 'auto' : `${k}:${Number($('wstrength').value)}`; commit(s); };
   $('window').onchange = setWindow; $('wstrength').onchange = setWindow;
@@ -531,6 +545,7 @@ function wire(init) {
     b.onclick = () => exportFormat(f).catch(showError); $('exports').append(b);
   }
   $('upprobe').onchange = () => upload('probe', $('upprobe'));
+  $('upblend').onchange = () => upload('blend', $('upblend'));
   $('upmesh').onchange = () => upload('mesh', $('upmesh'));
   $('upcoeffs').onchange = () => upload('coeffs', $('upcoeffs'));
   $('uptransfer').onchange = () => upload('transfer', $('uptransfer'));
@@ -564,6 +579,10 @@ async function upload(kind, input) {
   setStatus(`loading ${f.name}…`);
   try {
     const r = await call('/api/upload/' + kind, { method: 'POST', body: f, headers: { 'X-Filename': f.name } });
+    if (r.probes) blendOptions(null, r.probes);
+    if (kind === 'blend') {  // blend the uploaded probe in at the weight given
+      const s = structuredClone(state); s.blends.push({ probe: r.probe_id, weight: Number($('bweight').value) }); commit(s);
+    }
     if (kind === 'probe' || kind === 'coeffs') await newSource(r.source);
     if (kind === 'transfer') { prt = null; wirePRT(r.transfer); $('mode').value = 'prt'; await onMode(); }
     if (kind === 'mesh') { const g = await call('/api/mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; draw(); }
