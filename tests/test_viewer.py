@@ -364,6 +364,65 @@ def test_bad_uploads_show_one_line_and_keep_state(browser, served, tmp_path):
         ctx.close()
 
 
+def test_cube_faces_upload(browser, served, probe_path, tmp_path):
+    """Six cube faces (+X −X +Y −Y +Z −Z) uploaded through the page become the source, read by
+    the library's resolver (the page's coefficients equal resolve_lighting of the same six
+    files in the same order); a bad face,
+    or five faces, is one line naming the problem, and the source, the edit state and the
+    server are kept."""
+    from shprobe.lighting.source import resolve_lighting
+    from shprobe.probes.images import write_image
+    from shprobe.probes.layouts import CUBE, load_env
+
+    env = load_env(probe_path)
+    faces = env.sample(CUBE.pixel_directions((6, 24, 24)))
+    paths = []
+    for i, tag in enumerate(("px", "nx", "py", "ny", "pz", "nz")):
+        paths.append(tmp_path / f"face_{tag}.hdr")
+        write_image(paths[-1], faces[i])
+    old = served.session.source
+    ctx, page = _open(browser, served)
+    try:
+        _state(page, {"scale_band": {"1": 0.5}})
+        _settle(page)
+        before = page.evaluate("() => window.__shprobe.getState()")
+        L_before = page.evaluate("() => window.__shprobe.coeffs")
+        page.evaluate("() => { document.querySelector('#loadcube').closest('details')"
+                      ".open = true; }")
+        bad = tmp_path / "face_bad.hdr"
+        bad.write_bytes(paths[3].read_bytes()[:200])
+        for files, expect in (([*paths[:3], bad, *paths[4:]], "face_bad.hdr"),
+                              (paths[:5], "needs 6 face images")):
+            page.evaluate("() => { window.__shprobe.lastError = null; }")
+            for i in range(6):
+                page.set_input_files(f"#face{i}", [str(files[i])] if i < len(files) else [])
+            page.click("#loadcube")
+            page.wait_for_function("() => window.__shprobe.lastError", timeout=30000)
+            msg = page.locator("#error").inner_text().strip()
+            assert "\n" not in msg and expect in msg and str(tmp_path) not in msg, msg
+            assert page.evaluate("() => window.__shprobe.getState()") == before
+            assert page.evaluate("() => window.__shprobe.coeffs") == L_before
+            assert served.session.source is old
+        for i in range(6):
+            page.set_input_files(f"#face{i}", str(paths[i]))
+        page.evaluate("() => { window.__shprobe.lastError = null; }")
+        page.click("#loadcube")
+        page.wait_for_function("() => document.querySelector('#source').textContent"
+                               ".startsWith('cube faces')", timeout=30000)
+        _state(page, {})
+        _settle(page)
+        assert page.evaluate("() => window.__shprobe.lastError") is None
+        got = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+        want = resolve_lighting([str(p) for p in paths], lmax=2).coeffs
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+        # (the six files in the order +X −X +Y −Y +Z −Z: a page that reordered them fails)
+        assert np.abs(got - resolve_lighting([str(p) for p in paths[::-1]], lmax=2).coeffs
+                      ).max() > 0.1 * np.abs(want).max()
+    finally:
+        ctx.close()
+        served.session.source = old
+
+
 # ----------------------------------------------------------------------------- security
 
 

@@ -209,7 +209,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     async def upload(req: Request) -> Response:
         kind = req.path_params["kind"]
-        if kind not in ("probe", "blend", "mesh", "transfer", "coeffs", "preset"):
+        if kind not in ("probe", "blend", "cube", "mesh", "transfer", "coeffs", "preset"):
             return _error(ShprobeError(f"unknown upload kind {kind!r}"), 404)
         try:
             if kind == "preset":
@@ -222,10 +222,19 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                 session.tasks.pop("compare", None)
                 return JSONResponse({"source": src_info()})
             data = await req.body()
-            path, shown = session.save_upload(req.headers.get("x-filename", ""), data,
-                                              ("probe",) if kind == "blend" else (kind,))
+            if kind == "cube":  # six faces +X −X +Y −Y +Z −Z in one body
+                paths, names = session.save_cube_upload(data)
+                path: Any = paths
+                shown = (f"cube faces {names[0]} … {names[-1]}" if len(names) > 1
+                         else names[0])
+            else:
+                path, shown = session.save_upload(req.headers.get("x-filename", ""), data,
+                                                  ("probe",) if kind == "blend" else (kind,))
+                paths, names = [path], [shown]
 
             def load():
+                if kind == "cube":  # a source (blends name single files, as the CLI does)
+                    return session.probe_source(path, shown)
                 if kind in ("probe", "blend"):  # kept for blending either way
                     src = session.probe_source(path, shown)
                     return src, session.register_probe(src, shown)
@@ -239,7 +248,10 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             try:
                 new = await to_thread.run_sync(load)
             except ShprobeError as e:  # name the user's file, not the private copy
-                raise ShprobeError(str(e).replace(path, shown)) from None
+                msg = str(e)
+                for p, s in zip(paths, names, strict=True):
+                    msg = msg.replace(p, s)
+                raise ShprobeError(msg) from None
             except Exception as e:  # a library bug must not take the server down
                 raise ShprobeError(f"{shown}: could not load: {e}") from None
         except ShprobeError as e:

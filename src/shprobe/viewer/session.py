@@ -657,7 +657,7 @@ class Session:
         s = self.source
         return s.coeffs2 if lmax <= 2 or not s.has_env else s.coeffs_at(lmax)
 
-    def probe_source(self, path: str, name: str | None = None) -> Source:
+    def probe_source(self, path: str | list[str], name: str | None = None) -> Source:
         src = load_probe(path, self.layout, name)
         self.timings.setdefault("decoded", src.decoded_at)
         return src
@@ -750,6 +750,13 @@ class Session:
         p.write_bytes(data)
         return str(p), base
 
+    def save_cube_upload(self, data: bytes) -> tuple[list[str], list[str]]:
+        """Six cube faces in one upload (:func:`unpack_files`), each stored as
+        :meth:`save_upload` stores a probe; → (paths, shown names), in the page's order
+        +X −X +Y −Y +Z −Z."""
+        saved = [self.save_upload(n, d, ("probe",)) for n, d in unpack_files(data)]
+        return [p for p, _ in saved], [s for _, s in saved]
+
     # pictures ---------------------------------------------------------------
     def background_bytes(self) -> bytes | None:
         """The source's background texture (:func:`background_payload`), None for a preset."""
@@ -760,6 +767,31 @@ class Session:
                 return None
             src.background = background_payload(env)
         return src.background
+
+
+def unpack_files(data: bytes, most: int = 6) -> list[tuple[str, bytes]]:
+    """Several files in one request body, as the page packs them: uint32 (little-endian)
+    length of a JSON header ``{"files": [{"name": str, "size": int}, ...]}``, the header, then
+    the files' bytes one after another. Malformed bodies are a one-line ShprobeError."""
+    bad = ShprobeError("malformed multi-file upload")
+    if len(data) < 4:
+        raise bad
+    n = int.from_bytes(data[:4], "little")
+    if not 0 < n <= min(len(data) - 4, 1 << 16):
+        raise bad
+    try:
+        files = json.loads(data[4: 4 + n].decode())["files"]
+        items = [(str(f["name"]), int(f["size"])) for f in files]
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        raise bad from None
+    if not 0 < len(items) <= most or any(s < 0 for _, s in items) \
+            or sum(s for _, s in items) != len(data) - 4 - n:
+        raise bad
+    out, off = [], 4 + n
+    for name, size in items:
+        out.append((name, data[off: off + size]))
+        off += size
+    return out
 
 
 def _fork_context() -> Any:
@@ -809,24 +841,28 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
         os._exit(0)
 
 
-def load_probe(path: str, layout: str = "auto", name: str | None = None) -> Source:
-    """A probe file as a :class:`Source` (decoded by the library, checked, projected to lmax
-    2); one-line :class:`ShprobeError` naming the file when it is bad."""
+def load_probe(path: str | list[str], layout: str = "auto", name: str | None = None) -> Source:
+    """A probe — one file, or six cube-face files +X −X +Y −Y +Z −Z — as a :class:`Source`,
+    read by the library's one resolver (:func:`shprobe.lighting.source.resolve_lighting`:
+    decoded, projected to lmax 2) and checked; one-line :class:`ShprobeError` naming the file
+    when it is bad."""
     import time
 
-    from ..lighting.projection import project
-    from ..probes.layouts import load_env
+    from ..lighting.source import resolve_lighting
 
-    env = load_env(path, layout)
+    lit = resolve_lighting(path, layout=None if layout == "auto" else layout, lmax=2,
+                           need_env=True)
     decoded = time.time()
+    env = lit.env
+    where = name or lit.source
     rad = env.radiance
     if not np.all(np.isfinite(rad)):
-        raise ShprobeError("probe has non-finite (NaN or Inf) pixels", name or path)
+        raise ShprobeError("probe has non-finite (NaN or Inf) pixels", where)
     if float(rad.min()) < 0:
-        raise ShprobeError("probe has negative pixels", name or path)
-    src = Source(name or path, np.asarray(project(env, 2), np.float64), env)
+        raise ShprobeError("probe has negative pixels", where)
+    src = Source(where, np.asarray(lit.coeffs, np.float64), env)
     if not np.all(np.isfinite(src.coeffs2)):
-        raise ShprobeError("probe projects to non-finite coefficients", name or path)
+        raise ShprobeError("probe projects to non-finite coefficients", where)
     src.decoded_at = decoded
     return src
 

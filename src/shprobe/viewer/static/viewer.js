@@ -546,6 +546,7 @@ function wire(init) {
   }
   $('upprobe').onchange = () => upload('probe', $('upprobe'));
   $('upblend').onchange = () => upload('blend', $('upblend'));
+  $('loadcube').onclick = uploadCube;
   $('upmesh').onchange = () => upload('mesh', $('upmesh'));
   $('upcoeffs').onchange = () => upload('coeffs', $('upcoeffs'));
   $('uptransfer').onchange = () => upload('transfer', $('uptransfer'));
@@ -589,6 +590,18 @@ async function upload(kind, input) {
     clearError();
   } catch (e) { showError(e); }  // the edit state and the current source are kept
   setStatus(''); input.value = '';
+}
+async function uploadCube() {  // six faces +X −X +Y −Y +Z −Z in one request (session.unpack_files)
+  const files = [0, 1, 2, 3, 4, 5].map((i) => $('face' + i).files[0]).filter(Boolean);
+  const head = new TextEncoder().encode(JSON.stringify({ files: files.map((f) => ({ name: f.name, size: f.size })) }));
+  const len = new Uint8Array(4); new DataView(len.buffer).setUint32(0, head.length, true);
+  setStatus('loading cube faces…');
+  try {
+    const r = await call('/api/upload/cube', { method: 'POST', body: new Blob([len, head, ...files]) });
+    await newSource(r.source);
+    clearError();
+  } catch (e) { showError(e); }  // the edit state and the current source are kept
+  setStatus('');
 }
 async function newSource(src) {
   $('source').textContent = src.name;
