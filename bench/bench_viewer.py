@@ -66,18 +66,20 @@ def start(args: list[str], src: Path | None = None) -> tuple[subprocess.Popen, s
 
 STAGES = [  # (label, start event, end event): the stages of the first lit frame
     ("python start + imports → `view` command", "t0", "cli"),
-    ("command → URL printed (server built, socket bound)", "cli", "url"),
-    ("probe decode (load_env, 2048×1024 .hdr)", "load_start", "decoded"),
-    ("probe checks + projection to lmax 2", "decoded", "source_done"),
-    ("mesh load (bunny)", "load_start", "geometry_done"),
+    ("command → URL printed (loaders forked, server built, socket bound)", "cli", "url"),
+    ("probe read + projected to lmax 2 (resolve_lighting; loader process)", "load_start",
+     "decoded"),
+    ("probe checks, coefficients to the server", "decoded", "source_done"),
+    ("mesh read + the page's arrays (load_mesh; loader process)", "load_start", "geometry_done"),
+    ("command → files ready for the page (server)", "t0", "ready"),
     ("URL → page navigation starts (browser)", "url", "nav"),
-    ("page HTML received", "nav", "html"),
-    ("page → viewer.js runs (three.js fetched + parsed)", "nav", "script"),
-    ("files ready (server) ", "t0", "ready"),
-    ("viewer.js → /api/init answered", "script", "init"),
+    ("navigation → page HTML received", "nav", "html"),
+    ("navigation → viewer.js runs (three.js fetched + parsed)", "nav", "script"),
+    ("viewer.js → WebGL contexts + shader programs compiled", "script", "gl"),
+    ("→ /api/init answered (it waits for the files)", "gl", "init"),
     ("init → design answered", "init", "design"),
     ("init → mesh received", "init", "mesh"),
-    ("data → first lit frame (shader compile, upload, draw)", "data", "frame"),
+    ("design + mesh → first lit frame drawn", "data", "first"),
 ]
 
 

@@ -141,19 +141,29 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             "name": session.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
             "max_bounces": t.max_bounces, "mode": t.mode, "n_vertices": t.n_vertices}
 
+    shader_text: dict[str, Any] = {}
+
+    async def shaders(req: Request) -> Response:
+        """The page's shader functions (no file needed: served before the files are read)."""
+        if not shader_text:
+            from ..lighting.export import export_coeffs
+            from ..lighting.glsl import glsl_irradiance
+
+            shader_text.update({
+                # shprobe's own GLSL export (R&H eq. 11-13), its constants made uniforms
+                "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
+                # above l = 2: the library's generated per-pixel function (lighting.glsl)
+                "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX})
+        return JSONResponse(shader_text)
+
     async def init(req: Request) -> Response:
-        from ..lighting.export import FORMATS, export_coeffs
-        from ..lighting.glsl import glsl_irradiance
+        from ..lighting.export import FORMATS
         from ..lighting.windows import WINDOWS
         from ..probes.presets import PRESETS
 
         return JSONResponse({
             "source": src_info(), "formats": list(FORMATS), "windows": list(WINDOWS),
             "presets": list(PRESETS), "mesh": session.mesh_name,
-            # the page's shader is shprobe's own GLSL export (R&H eq. 11-13)
-            "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
-            # above l = 2: the library's generated per-pixel function (lighting.glsl)
-            "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX,
             "transfer": transfer_info(), "timings": session.timings,
             "probes": session.probe_list()})
 
@@ -343,6 +353,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
     routes = [
         Route("/", page),
+        Route("/api/shaders", shaders),
         Route("/api/init", ready(init)),
         Route("/api/mesh", ready(mesh)),
         Route("/api/background", ready(background)),

@@ -10,6 +10,7 @@
   if (saved) { try { state = Object.assign({}, EMPTY, JSON.parse(saved)); } catch (e) { state = EMPTY; } }
   const body = JSON.stringify(state);
   window.__boot = {
+    shaders: fetch('/api/shaders'),
     init: fetch('/api/init'),
     mesh: fetch('/api/mesh'),
     background: fetch('/api/background'),

@@ -311,13 +311,14 @@ function draw() {
   const gl = renderer.getContext(); const px = new Uint8Array(4);
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
   api.mainFrameMs = performance.now() - tf;
+  // the first lit frame: the object drawn with the lighting, finished (the panels follow)
+  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
   panel.render(panelScene, panelCam);
   panelRenderer2.render(irrScene, panelCam);
   const dt = performance.now() - tf;
   if (moveAt !== null) { (api.moveToFrame = api.moveToFrame || []).push(performance.now() - moveAt); moveAt = null; }
   frameTimes.push(dt); if (frameTimes.length > 200) frameTimes.shift();
   api.frames = (api.frames || 0) + 1;
-  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
 }
 api.draw = draw;
 api.frameTimes = () => frameTimes.slice();
@@ -642,12 +643,10 @@ function wireDrag() {
 // ------------------------------------------------------------------ start
 async function main() {
   mark('script');
-  const init = await first('init', () => call('/api/init'));
-  mark('init');
-  api.init = init;
-  SHPROBE_GLSL = shaderFromExport(init.glsl);
-  SHPROBE_GLSL_SH = init.glsl_sh; SH_LMAX = init.max_lmax;
-  $('source').textContent = init.source.name;
+  // the shaders need no file: WebGL and the programs are set up while the server loads them
+  const sh = await first('shaders', () => call('/api/shaders'));
+  SHPROBE_GLSL = shaderFromExport(sh.glsl);
+  SHPROBE_GLSL_SH = sh.glsl_sh; SH_LMAX = sh.max_lmax;
   renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: false, preserveDrawingBuffer: true });
   renderer.setPixelRatio(1); renderer.setSize(512, 512, false);
   renderer.outputColorSpace = THREE.LinearSRGBColorSpace;  // our shaders write sRGB themselves
@@ -666,6 +665,17 @@ async function main() {
   probeMat = makePanelMaterial('probe'); irrMat = makePanelMaterial('irr');
   panelScene = new THREE.Scene(); panelScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), probeMat));
   irrScene = new THREE.Scene(); irrScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), irrMat));
+  // compile every program now (a stand-in triangle carries the object's material)
+  const stand = new THREE.Mesh(new THREE.BufferGeometry(), objMat);
+  for (const [n, k] of [['position', 3], ['normal', 3], ['albedo', 3], ['prtColor', 3]]) stand.geometry.setAttribute(n, new THREE.BufferAttribute(new Float32Array(9), k));
+  scene.add(stand);
+  renderer.compile(scene, camera); panel.compile(panelScene, panelCam); panelRenderer2.compile(irrScene, panelCam);
+  scene.remove(stand); stand.geometry.dispose();
+  mark('gl');
+  const init = await first('init', () => call('/api/init'));
+  mark('init');
+  api.init = init;
+  $('source').textContent = init.source.name;
   const saved = localStorage.getItem(KEY);   // the edit state survives a reload
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
   else if (init.transfer) state.lmax = init.transfer.lmax;
