@@ -567,6 +567,18 @@ def test_cli_view_prints_url_and_serves(probe_path):
         base = url.split("/?")[0]
         assert httpx.get(url).status_code == 200
         assert httpx.get(base + "/").status_code == 403
+        # the files were read in the forked loader processes: the library's numbers arrive
+        tok = {"token": url.split("token=")[1]}
+        r = httpx.post(base + "/api/design", params=tok, content='{"lmax": 4}', timeout=60)
+        from shprobe.lighting.projection import project
+        from shprobe.probes.layouts import load_env
+
+        np.testing.assert_allclose(r.json()["coeffs"], project(load_env(probe_path), 4),
+                                   rtol=0, atol=1e-13)
+        m = httpx.get(base + "/api/mesh", params=tok, timeout=60)
+        assert m.status_code == 200 and len(m.content) > 10000
+        bg = httpx.get(base + "/api/background", params=tok, timeout=60)
+        assert bg.status_code == 200 and len(bg.content) > 256 * 128 * 8
     finally:
         p.terminate()
         p.wait(10)

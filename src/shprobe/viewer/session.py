@@ -466,14 +466,14 @@ class Session:
             return
         self.timings["load_start"] = time.time()
         name = os.path.basename(mesh) if mesh else None
+        pipes = [ctx.Pipe(duplex=False) if p else (None, None) for p in (probe, mesh)]
+        proc = ctx.Process(target=_loader, args=(pipes[0][1], pipes[1][1], probe, self.layout,
+                                                 mesh, name, [r for r, _ in pipes if r]),
+                           daemon=True)
+        proc.start()
         self._child = []
-        # two processes: numba's first call (the decoder) and trimesh's import each take a core
-        for args in ((probe, None), (None, mesh)):
-            if args[0] or args[1]:
-                recv, send = ctx.Pipe(duplex=False)
-                proc = ctx.Process(target=_load_child, args=(send, args[0], self.layout,
-                                                             args[1], name), daemon=True)
-                proc.start()
+        for recv, send in pipes:  # [probe's pipe,] [mesh's pipe]
+            if send is not None:
                 send.close()
                 self._child.append((proc, recv))
 
@@ -804,18 +804,43 @@ def _fork_context() -> Any:
         return None
 
 
-def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None) -> None:
-    """In the process :meth:`Session.load` forks: the probe's lmax-2 coefficients, the page's
-    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
-    background texture, sent as they are ready (with wall-clock stamps); a failure is one
-    ("error", line) message. Ends the process itself (``os._exit``): nothing of the parent's
-    (threads, exit handlers, the CLI's signal handlers) runs here."""
+def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
+            mesh_name: str | None, theirs: list[Any]) -> None:
+    """The process :meth:`Session.fork_loader` starts (``theirs``: the parent's pipe ends,
+    closed here): imports scipy once (numba's first call
+    imports scipy.linalg for its BLAS check, trimesh imports scipy.spatial: a third of a
+    second each time on this machine), then, given both, forks again so that the probe
+    (numba) and the mesh (trimesh) load on two cores (:func:`_load_child`)."""
     import signal
-    import time
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
+        c.close()
+    try:
+        import scipy.linalg  # noqa: F401
+    except ImportError:  # pragma: no cover - scipy is a dependency
+        pass
+    if probe and mesh:
+        pid = os.fork()
+        if pid == 0:  # the mesh's process
+            pconn.close()
+            _load_child(mconn, None, layout, mesh, mesh_name)
+        mconn.close()
+        _load_child(pconn, probe, layout, None, None, wait=pid)
+    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name)
+
+
+def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
+                mesh_name: str | None, wait: int = 0) -> None:
+    """In the process :meth:`Session.load` forks: the probe's lmax-2 coefficients, the page's
+    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
+    background texture, sent as they are ready (with wall-clock stamps); a failure is one
+    ("error", line) message. Ends the process itself (``os._exit``, after reaping the
+    process ``wait``): nothing of the parent's (threads, exit handlers, the CLI's signal
+    handlers) runs here."""
+    import time
+
     try:
         src = None
         if probe:
@@ -838,6 +863,8 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
         conn.send(("error", f"{type(e).__name__}: {e}".splitlines()[0]))
     finally:
         conn.close()
+        if wait:
+            os.waitpid(wait, 0)
         os._exit(0)
 
 
