@@ -249,7 +249,8 @@ def register(group: click.Group) -> None:
     @group.command("edit")
     @source_options
     @click.option("--lmax", type=click.IntRange(0, 64), default=2, show_default=True,
-                  help="Degree of the result (sources are cut or zero-padded; edits above it "
+                  help="Degree of the result (a probe is projected to it, at least 2; "
+                       "presets and coefficient files are cut or zero-padded; edits above it "
                        "are refused).")
     @click.option("--blend", "blends", multiple=True,
                   help="Add another lighting FILE:WEIGHT (a probe image, projected, or "
