@@ -87,8 +87,11 @@ def first_frame(browser, args: list[str], src: Path | None = None
                 ) -> tuple[float, float, dict[str, float]]:
     """(seconds from command to first lit frame, seconds to the URL line, stage stamps in
     seconds since the command started)."""
+    import resource
+
     ctx = browser.new_context(viewport={"width": 1100, "height": 900})
     page = ctx.new_page()  # a browser tab already open, as a user's is
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     p, url, t0 = start(args, src)
     t_url = time.time() - t0
     try:
@@ -108,7 +111,9 @@ def first_frame(browser, args: list[str], src: Path | None = None
     finally:
         p.terminate()
         p.wait(10)
-    st = {"t0": 0.0, "first": at - t0}
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)  # the server and the loaders it reaped
+    st = {"t0": 0.0, "first": at - t0,
+          "cpu": r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime}
     for k, v in {**info["server"], **info["marks"]}.items():
         st[k] = v - t0
     return at - t0, t_url, st
@@ -225,10 +230,13 @@ def main() -> None:
         print("| | best s | median s |\n| --- | ---: | ---: |")
         for k, runs in res.items():
             ff, uu = [r[0] for r in runs], [r[1] for r in runs]
+            cc = [r[2]["cpu"] for r in runs]
             print(f"| {k}: `shprobe view` → first lit frame | {min(ff):.2f} | "
                   f"{statistics.median(ff):.2f} |")
             print(f"| {k}: of which to the URL line | {min(uu):.2f} | "
                   f"{statistics.median(uu):.2f} |")
+            print(f"| {k}: CPU time of the server's processes, whole run (not wall) | "
+                  f"{min(cc):.2f} | {statistics.median(cc):.2f} |")
         ff = [r[0] for r in res["this tree"]]
         print(f"\n**FIRST LIT FRAME: {min(ff):.2f} s best, {statistics.median(ff):.2f} s median** "
               f"(target ≤ 1.5 s; load average {load0:.2f} before the runs, {load1:.2f} after)\n")
