@@ -923,7 +923,12 @@ def background_payload(env: Any) -> bytes:
     h = BACKGROUND_H
     if env.layout.name == "latlong" and env.grid[0] % h == 0:
         k = env.grid[0] // h  # box filter: k×k pixel blocks (same solid-angle rows)
-        img = env.radiance.reshape(h, k, 2 * h, k, 3).mean(axis=(1, 3))
+        rad = env.radiance
+        img = np.zeros((h, 2 * h, 3), np.float32)
+        for i in range(k):  # k² strided adds (float32): ~10× faster than a reshaped mean
+            for j in range(k):
+                img += rad[i::k, j::k]
+        img *= np.float32(1.0 / (k * k))
     elif env.layout.name == "latlong" and env.grid[0] <= h:
         img = env.radiance
     else:
