@@ -123,6 +123,33 @@ def test_error_command(probe, capsys):
     one_line_error(rc, err)
 
 
+def test_error_command_tolerance_and_worst_normal(probe, capsys):
+    """--tol reaches the report; the JSON max is the exact error (brute force, computed here)
+    at the reported normal and channel, no lower than the grid max; the table shows the worst
+    normal and the tolerance; a bad --tol is one line."""
+    from shprobe.lighting.projection import total_intensity
+    from shprobe.lighting.reference import reference_irradiance
+
+    path, env = probe
+    rc, out, _ = run(["error", path, "--lmax-max", "2", "--normals", "8", "--tol", "1e-4",
+                      "-F", "json"], capsys)
+    assert rc == 0
+    r = json.loads(out)["rows"][1]
+    assert r["max_tol"] == 1e-4 and r["max_change"] < 1e-4
+    n = np.asarray(r["max_normal"])[None]
+    e = (np.abs(irradiance(project(env, 2), n) - reference_irradiance(env, n))
+         / total_intensity(env))[0]
+    assert e[r["max_channel"]] == pytest.approx(r["max_frac"], rel=1e-9) == e.max()
+    assert r["max_frac"] >= r["grid_max_frac"]
+    rc, out, _ = run(["error", path, "--lmax-max", "2", "--normals", "8", "--tol", "1e-4"],
+                     capsys)
+    assert rc == 0 and "± 0.01 pp" in out and "worst normal" in out
+    assert " ".join(f"{x:+.2f}" for x in n[0]) in out
+    for bad in ("0", "-1e-5", "nan", "inf"):
+        rc, _, err = run(["error", path, "--tol", bad], capsys)
+        one_line_error(rc, err)
+
+
 @pytest.mark.filterwarnings("ignore:.*8/16-bit")
 def test_demo_writes_everything_once(tmp_path, capsys):
     out = tmp_path / "demo"

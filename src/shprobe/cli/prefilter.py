@@ -261,9 +261,13 @@ def register(group: click.Group) -> None:
     @click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
                   show_default=True, help="Normals: the centres of a 2N×N lat-long grid (the "
                   "mean's quadrature; the max is refined on the sphere from them).")
+    @click.option("--tol", type=float, default=None, metavar="FRACTION",
+                  help="Stated tolerance of the max, as a fraction of ∫L dω; the refinement "
+                  "stops when a level moves the max by less. Default: the library's, 1e-5 "
+                  "(0.001 percentage points).")
     @click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
                   default="table", show_default=True)
-    def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, fmt):
+    def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, tol, fmt):
         """Error of the SH irradiance against the exact hemispherical integral, as a fraction
         of the total intensity ∫L dω (R&H 2001 §3.1)."""
         import json
@@ -273,7 +277,8 @@ def register(group: click.Group) -> None:
         src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
         with _progress_bar("reference irradiance") as update:
             rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
-                               normal_grid=grid_h, progress=update)
+                               normal_grid=grid_h, progress=update,
+                               **({} if tol is None else {"tol": tol}))
         if fmt == "json":
             click.echo(json.dumps(error_document(rep, src.source), indent=2))
         else:
