@@ -9,7 +9,7 @@ import pytest
 from shprobe.lighting.irradiance import irradiance, shade_irradiance
 from shprobe.lighting.projection import project, total_intensity
 from shprobe.lighting.reference import error_report, reference_irradiance
-from shprobe.lighting.sphere_search import refine_max
+from shprobe.lighting.sphere_search import refine_max, tangent_patch
 from shprobe.lighting.windows import _fibonacci, min_irradiance
 from shprobe.probes.layouts import Env, load_env
 
@@ -18,15 +18,7 @@ from .conftest import data_file
 
 def patch(centre, half=0.02, n=41):
     """n×n unit vectors within ±half rad of ``centre`` (tangent-plane grid)."""
-    c = np.asarray(centre, dtype=np.float64)
-    a = np.array([1.0, 0, 0]) if abs(c[0]) < 0.9 else np.array([0, 1.0, 0])
-    u = np.cross(c, a)
-    u /= np.linalg.norm(u)
-    w = np.cross(c, u)
-    t = np.linspace(-half, half, n)
-    x, y = np.meshgrid(t, t)
-    p = c + x[..., None] * u + y[..., None] * w
-    return (p / np.linalg.norm(p, axis=-1, keepdims=True)).reshape(-1, 3)
+    return tangent_patch(centre, half, n)
 
 
 def test_refine_max_finds_a_peak_narrower_than_the_grid():

@@ -193,8 +193,13 @@ class ErrorRow:
     The max is the worst case on the sphere, found by refinement (:func:`error_report`):
     ``max_normal`` / ``max_channel`` where it occurs, ``max_tol`` the stated tolerance (the
     last refinement level changed it by ``max_change`` < ``max_tol``), ``grid_max_frac`` the
-    plain sample max over the grid. ``mean_change``: |mean(N) − mean(N/2)| of the quadrature
-    over the 2N×N and N×N/2 grids (NaN for given normals): the mean's stated accuracy.
+    plain sample max over the grid. Both are attained values (the exact error at a normal), so
+    both are lower bounds of the true worst case; the refined one is never below the grid's,
+    and no finer sampling near it is expected to beat it by more than ``max_tol`` (a numerical
+    statement, checked against dense brute-force patches, not a proof). A finer grid's max is
+    no substitute: grids straddle narrow ridges (docs/benchmarks.md, issue 17).
+    ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and N×N/2 grids
+    (NaN for given normals): the mean's stated accuracy.
     """
 
     lmax: int
@@ -268,10 +273,14 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
 
     ``refine`` (default: True for the grid, False for given normals): the max is the worst case
     on the whole sphere, not over the samples — from the grid's 4 worst, well-separated normals,
-    a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with exact brute-force E_ref at every
+    a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with the exact E_ref at every
     candidate (:func:`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
     changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid
     quadrature; with the default grid its accuracy is reported as |mean(N) − mean(N/2)|.
+
+    E_ref here is the sum of :func:`reference_irradiance` (same pixels, same products) taken
+    per row of a lat-long map from prefix sums (:class:`_Exact`: O(H) per normal, so the
+    refinement's ~10⁴ evaluations cost milliseconds); other layouts sum pixel by pixel.
     """
     from .sphere_search import refine_max
 

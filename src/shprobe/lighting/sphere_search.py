@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SphereMax", "pick_starts", "refine_max"]
+__all__ = ["SphereMax", "pick_starts", "refine_max", "tangent_patch"]
 
 _ANGLES = np.arange(8) * (np.pi / 4)
 _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
@@ -62,11 +62,29 @@ def pick_starts(points: NDArray[np.float64], values: NDArray[np.float64], k: int
     return np.asarray(picked, dtype=np.int64)
 
 
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a × b for (N, 3) rows (np.cross's arithmetic without its axis handling: it is hot)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
 def _tangent_frames(p: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     a = np.where(np.abs(p[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    u = np.cross(p, a)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    return u, np.cross(p, u)
+    u = _cross(p, a)
+    u /= np.sqrt((u * u).sum(axis=1, keepdims=True))
+    return u, _cross(p, u)
+
+
+def tangent_patch(centre: NDArray[np.float64], half: float, n: int) -> NDArray[np.float64]:
+    """n×n unit vectors within ±``half`` rad of ``centre`` ((n², 3); a square grid in the
+    tangent plane, projected back to the sphere): the dense checks of a refined extremum."""
+    c = np.asarray(centre, dtype=np.float64).reshape(1, 3)
+    u, w = _tangent_frames(c / np.linalg.norm(c))
+    t = np.linspace(-half, half, int(n))
+    x, y = np.meshgrid(t, t)
+    p = c + x[..., None] * u + y[..., None] * w
+    return (p / np.linalg.norm(p, axis=-1, keepdims=True)).reshape(-1, 3)
 
 
 def _quadratic_design() -> tuple[NDArray, NDArray, NDArray]:
@@ -120,11 +138,12 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     level = 0
     rows = np.arange(n)
 
-    def on_sphere(base, u, w, x, y):
-        q = (np.cos(np.hypot(x, y))[..., None] * base[:, None]
-             + np.sinc(np.hypot(x, y) / np.pi)[..., None]
+    def on_sphere(base, u, w, x, y):  # exp map: the point at tangent offset (x, y) from base
+        r = np.hypot(x, y)
+        q = (np.cos(r)[..., None] * base[:, None]
+             + np.sinc(r / np.pi)[..., None]
              * (x[..., None] * u[:, None] + y[..., None] * w[:, None]))
-        return q / np.linalg.norm(q, axis=-1, keepdims=True)
+        return q / np.sqrt((q * q).sum(axis=-1, keepdims=True))
 
     while level < max_levels:
         level += 1
