@@ -150,6 +150,25 @@ def test_error_command_tolerance_and_worst_normal(probe, capsys):
         one_line_error(rc, err)
 
 
+def test_error_table_flags_a_max_that_did_not_converge():
+    import io
+    from dataclasses import replace
+
+    from rich.console import Console
+
+    from shprobe.cli.prefilter import error_table
+    from shprobe.lighting.reference import ErrorReport, ErrorRow
+
+    ok = ErrorRow(2, 0.01, 0.05, 0.1, 0.1, np.array([0.0, 0.0, 1.0]), 1, 1e-5, 2e-6, 0.04, 1e-4)
+    loose = replace(ok, lmax=4, max_change=3e-5)
+    for rows, flagged in (((ok,), False), ((ok, loose), True)):
+        con = Console(width=200, record=True, file=io.StringIO())
+        con.print(error_table(ErrorReport(rows, np.ones(3), 2048, True)))
+        out = con.export_text()
+        assert "± 0.001 pp" in out and ("NOT converged to it for lmax 4" in out) == flagged
+    assert "NOT converged" in repr(loose) and "NOT" not in repr(ok)
+
+
 @pytest.mark.filterwarnings("ignore:.*8/16-bit")
 def test_demo_writes_everything_once(tmp_path, capsys):
     out = tmp_path / "demo"

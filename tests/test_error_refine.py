@@ -119,3 +119,18 @@ def test_numerical_certificate_converges_to_its_tolerance(seed):
         p = patch(cert.direction[ch], half=0.01)
         assert shade_irradiance(L[:, ch], p, np.float64).min() >= (cert.minimum[ch]
                                                                    - cert.tolerance)
+
+
+def test_error_max_on_a_cube_map_is_attained():
+    """Other layouts take the pixel-by-pixel sum: the refined max of a small cube map is the
+    brute-force error at the reported normal, no lower than the grid's, converged."""
+    rng = np.random.default_rng(5)
+    rad = rng.random((6, 8, 8, 3)).astype(np.float32)
+    rad[2, 3, 4] = 50.0
+    env = Env(rad, "cube")
+    r = error_report(env, (2,), normal_grid=8).row(2)
+    n = r.max_normal[None]
+    e = (np.abs(irradiance(project(env, 2), n) - reference_irradiance(env, n))
+         / total_intensity(env))[0]
+    assert e[r.max_channel] == pytest.approx(r.max_frac, rel=1e-9) == e.max()
+    assert r.max_frac >= r.grid_max_frac and r.max_change < r.max_tol

@@ -93,10 +93,13 @@ def error_table(report, title: str | None = None):
         import math
 
         mc = max(r.mean_change for r in report.rows)
+        loose = [str(r.lmax) for r in report.rows if r.max_change >= r.max_tol]
         t.caption = (f"max: refined on the sphere, ± {100 * report.rows[0].max_tol:.3g} pp "
                      "(stated tolerance)" + ("" if math.isnan(mc) else
                                              f"; mean: |mean(N) − mean(N/2)| ≤ "
-                                             f"{100 * mc:.3g} pp"))
+                                             f"{100 * mc:.3g} pp")
+                     + ("" if not loose else f"; NOT converged to it for lmax "
+                        f"{', '.join(loose)} (see max_change in -F json)"))
     return _titled(t, title)
 
 

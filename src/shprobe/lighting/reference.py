@@ -216,9 +216,12 @@ class ErrorRow:
 
     def __repr__(self) -> str:
         n = ", ".join(f"{x:+.3f}" for x in self.max_normal)
+        tol = (f"tol {100 * self.max_tol:.1g}" if not self.max_change >= self.max_tol else
+               f"NOT converged: last change {100 * self.max_change:.1g} ≥ tol "
+               f"{100 * self.max_tol:.1g}")
         return (f"ErrorRow(lmax={self.lmax}, mean {100 * self.mean_frac:.3f} % "
                 f"(±{100 * self.mean_change:.1g}), max {100 * self.max_frac:.3f} % "
-                f"(tol {100 * self.max_tol:.1g}) at ({n}) ch {self.max_channel})")
+                f"({tol}) at ({n}) ch {self.max_channel})")
 
 
 @dataclass(frozen=True)
@@ -294,10 +297,12 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
         raise ShprobeError(f"tolerance must be > 0, got {tol}")
     wts = wts / wts.sum()
     exact = _Exact(env)
-    if reference is None:
-        ref = exact(unit_normals(nrm))
+    if reference is None and exact.latlong:
+        ref = exact(unit_normals(nrm))  # milliseconds
         if progress is not None:
             progress(1, 1)
+    elif reference is None:  # pixel by pixel: the parallel kernel, with progress
+        ref = reference_irradiance(env, nrm, progress=progress)
     else:
         ref = np.asarray(reference, dtype=np.float64).reshape(-1, 3)
     tot = total_intensity(env)
@@ -308,7 +313,7 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     half = None
     if normals is None and normal_grid >= 4:
         hn, hw = _normal_grid(normal_grid // 2)
-        half = (hn, hw / hw.sum(), exact(hn))
+        half = (hn, hw / hw.sum(), exact(hn) if exact.latlong else reference_irradiance(env, hn))
     step = np.pi / max(2, int(normal_grid)) if normals is None else _spacing(nrm)
     rows = []
     done: dict[int, tuple] = {}  # effective degree → refined max (odd l ≥ 3 adds nothing: Â_l = 0)

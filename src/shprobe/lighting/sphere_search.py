@@ -198,25 +198,33 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
             p, v = p[keep], v[keep]
             n = len(p)
             rows = np.arange(n)
+    polish_change = 0.0
     if polish and best > grid_best:
         # kinks (E_ref's gradient jumps where a bright pixel crosses the horizon of n) can stop
         # a compass short of a narrow top: sweep 11×11 patches about the best point, spacing h,
-        # h/3, h/9, … down to 1e-5 rad, each centred on the last one's best
+        # h/3, h/9, … down to 1e-5 rad, each centred on the last one's best; at each spacing
+        # the sweep is repeated (at most 20 times) until it gains less than tol/2, and that
+        # last gain counts towards ``change``
         i = int(np.argmax(v))
         q, qv = p[i : i + 1].copy(), float(v[i])
         hh = h
         while hh > 1e-5:
-            u, w = _tangent_frames(q)
             t = hh * np.arange(-5, 6)
             x, y = (a.ravel()[None] for a in np.meshgrid(t, t))
-            cand = on_sphere(q, u, w, x, y)[0]
-            cv = np.asarray(f(cand), dtype=np.float64)
-            evals += cv.size
-            k = int(np.argmax(cv))
-            if cv[k] > qv:
-                change = max(change, float(cv[k]) - best) if cv[k] - qv > 0.5 * tol else change
-                q, qv = cand[k : k + 1], float(cv[k])
+            for _ in range(20):
+                u, w = _tangent_frames(q)
+                cand = on_sphere(q, u, w, x, y)[0]
+                cv = np.asarray(f(cand), dtype=np.float64)
+                evals += cv.size
+                k = int(np.argmax(cv))
+                sweep_gain = max(0.0, float(cv[k]) - qv)
+                if cv[k] > qv:
+                    q, qv = cand[k : k + 1], float(cv[k])
+                if sweep_gain <= 0.5 * tol:
+                    break
+            polish_change = max(polish_change, sweep_gain)
             hh /= 3.0
+        change = max(change, polish_change)
         if qv > best:
             p[i], v[i] = q[0], qv
             best = qv
