@@ -154,7 +154,7 @@ def quad_eval(n, q, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, inline="always")
 def _lit(nx, nz, a, s, cx, cz, j, w):
-    jj = j  # j is in [0, 4w): no integer division
+    jj = j  # 0 ≤ j < 5w: subtract instead of an integer division
     while jj >= w:
         jj -= w
     return a + s * (nx * cx[jj] + nz * cz[jj]) > 0.0
@@ -185,7 +185,7 @@ def latlong_exact_into(nx, ny, nz, ct, st, cx, cz, pre, e):  # pragma: no cover 
             continue
         else:
             hw = math.acos(min(1.0, max(-1.0, -a / bb))) * scale
-            lo = math.ceil(jc - hw) + 2 * w  # kept in [0, 4w): see _lit
+            lo = math.ceil(jc - hw) + 2 * w  # ≥ w, so lo − 1 ≥ 0 below: see _lit
             hi = math.floor(jc + hw) + 2 * w
             # the closed form can be off by one at either end: check with the sign test
             while hi >= lo and not _lit(nx, nz, a, s, cx, cz, lo, w):

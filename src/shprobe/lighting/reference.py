@@ -109,7 +109,7 @@ class _Exact:
     per-row prefix sums of L dω, L dω ω_x, L dω ω_z (:func:`._kernels.latlong_exact_into`):
     O(H) per normal instead of O(H·W), the same pixels and products re-associated (exact to
     rounding; checked against :func:`reference_irradiance` in the tests), 72 bytes per pixel.
-    Other layouts: the brute-force sum, serially (48 bytes per sample).
+    Other layouts: the brute-force sum, serially (48 bytes per sample, built on first use).
     """
 
     def __init__(self, env: Env, chunk: int = 1 << 18):
@@ -128,8 +128,7 @@ class _Exact:
             self.pre = pre.reshape(h, w + 1, 3 * nch)
             self.nch = nch
         else:
-            self.tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
-                           for d, lw in _sample_chunks(env, 1, chunk)]
+            self.env, self.chunk, self.tables = env, chunk, None
             self.nch = 3
 
     def __call__(self, normals: ArrayLike) -> NDArray[np.float64]:
@@ -144,6 +143,9 @@ class _Exact:
             return out
         from ._kernels import brute_serial  # numba, imported lazily
 
+        if self.tables is None:
+            self.tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
+                           for d, lw in _sample_chunks(self.env, 1, self.chunk)]
         for dT, lwT in self.tables:
             brute_serial(flat, dT, lwT, out)
         return out
@@ -281,9 +283,10 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid
     quadrature; with the default grid its accuracy is reported as |mean(N) − mean(N/2)|.
 
-    E_ref here is the sum of :func:`reference_irradiance` (same pixels, same products) taken
-    per row of a lat-long map from prefix sums (:class:`_Exact`: O(H) per normal, so the
-    refinement's ~10⁴ evaluations cost milliseconds); other layouts sum pixel by pixel.
+    E_ref here is the sum of :func:`reference_irradiance` (the same pixels, re-associated)
+    taken per row of a lat-long map from prefix sums (:class:`_Exact`: O(H) per normal, so the
+    refinement's thousands of evaluations cost tens of milliseconds); other layouts sum pixel
+    by pixel.
     """
     from .sphere_search import refine_max
 
