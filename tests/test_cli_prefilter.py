@@ -135,7 +135,7 @@ def test_error_command_tolerance_and_worst_normal(probe, capsys):
                       "-F", "json"], capsys)
     assert rc == 0
     r = json.loads(out)["rows"][1]
-    assert r["max_tol"] == 1e-4 and r["max_change"] < 1e-4
+    assert r["max_tol"] == 1e-4 and r["max_change"] < 1e-4 and r["max_converged"] is True
     n = np.asarray(r["max_normal"])[None]
     e = (np.abs(irradiance(project(env, 2), n) - reference_irradiance(env, n))
          / total_intensity(env))[0]

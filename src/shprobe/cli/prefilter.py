@@ -124,7 +124,9 @@ def error_document(report, source: str | None) -> dict:
                   **_finite({"max_normal": [float(x) for x in r.max_normal],
                              "max_channel": r.max_channel, "max_tol": r.max_tol,
                              "max_change": r.max_change, "grid_max_frac": r.grid_max_frac,
-                             "mean_change": r.mean_change})} for r in report.rows],
+                             "mean_change": r.mean_change}),
+                  **({"max_converged": bool(r.max_change < r.max_tol)}
+                     if getattr(report, "refined", False) else {})} for r in report.rows],
     }
 
 
