@@ -123,6 +123,52 @@ def test_error_command(probe, capsys):
     one_line_error(rc, err)
 
 
+def test_error_command_tolerance_and_worst_normal(probe, capsys):
+    """--tol reaches the report; the JSON max is the exact error (brute force, computed here)
+    at the reported normal and channel, no lower than the grid max; the table shows the worst
+    normal and the tolerance; a bad --tol is one line."""
+    from shprobe.lighting.projection import total_intensity
+    from shprobe.lighting.reference import reference_irradiance
+
+    path, env = probe
+    rc, out, _ = run(["error", path, "--lmax-max", "2", "--normals", "8", "--tol", "1e-4",
+                      "-F", "json"], capsys)
+    assert rc == 0
+    r = json.loads(out)["rows"][1]
+    assert r["max_tol"] == 1e-4 and r["max_change"] < 1e-4 and r["max_converged"] is True
+    n = np.asarray(r["max_normal"])[None]
+    e = (np.abs(irradiance(project(env, 2), n) - reference_irradiance(env, n))
+         / total_intensity(env))[0]
+    assert e[r["max_channel"]] == pytest.approx(r["max_frac"], rel=1e-9) == e.max()
+    assert r["max_frac"] >= r["grid_max_frac"]
+    rc, out, _ = run(["error", path, "--lmax-max", "2", "--normals", "8", "--tol", "1e-4"],
+                     capsys)
+    assert rc == 0 and "± 0.01 pp" in out and "worst normal" in out
+    assert " ".join(f"{x:+.2f}" for x in n[0]) in out
+    for bad in ("0", "-1e-5", "nan", "inf"):
+        rc, _, err = run(["error", path, "--tol", bad], capsys)
+        one_line_error(rc, err)
+
+
+def test_error_table_flags_a_max_that_did_not_converge():
+    import io
+    from dataclasses import replace
+
+    from rich.console import Console
+
+    from shprobe.cli.prefilter import error_table
+    from shprobe.lighting.reference import ErrorReport, ErrorRow
+
+    ok = ErrorRow(2, 0.01, 0.05, 0.1, 0.1, np.array([0.0, 0.0, 1.0]), 1, 1e-5, 2e-6, 0.04, 1e-4)
+    loose = replace(ok, lmax=4, max_change=3e-5)
+    for rows, flagged in (((ok,), False), ((ok, loose), True)):
+        con = Console(width=200, record=True, file=io.StringIO())
+        con.print(error_table(ErrorReport(rows, np.ones(3), 2048, True)))
+        out = con.export_text()
+        assert "± 0.001 pp" in out and ("NOT converged to it for lmax 4" in out) == flagged
+    assert "NOT converged" in repr(loose) and "NOT" not in repr(ok)
+
+
 @pytest.mark.filterwarnings("ignore:.*8/16-bit")
 def test_demo_writes_everything_once(tmp_path, capsys):
     out = tmp_path / "demo"

@@ -9,24 +9,16 @@ import pytest
 from shprobe.lighting.irradiance import irradiance, shade_irradiance
 from shprobe.lighting.projection import project, total_intensity
 from shprobe.lighting.reference import error_report, reference_irradiance
-from shprobe.lighting.sphere_search import refine_max
+from shprobe.lighting.sphere_search import refine_max, tangent_patch
 from shprobe.lighting.windows import _fibonacci, min_irradiance
-from shprobe.probes.layouts import load_env
+from shprobe.probes.layouts import Env, load_env
 
 from .conftest import data_file
 
 
 def patch(centre, half=0.02, n=41):
     """n×n unit vectors within ±half rad of ``centre`` (tangent-plane grid)."""
-    c = np.asarray(centre, dtype=np.float64)
-    a = np.array([1.0, 0, 0]) if abs(c[0]) < 0.9 else np.array([0, 1.0, 0])
-    u = np.cross(c, a)
-    u /= np.linalg.norm(u)
-    w = np.cross(c, u)
-    t = np.linspace(-half, half, n)
-    x, y = np.meshgrid(t, t)
-    p = c + x[..., None] * u + y[..., None] * w
-    return (p / np.linalg.norm(p, axis=-1, keepdims=True)).reshape(-1, 3)
+    return tangent_patch(centre, half, n)
 
 
 def test_refine_max_finds_a_peak_narrower_than_the_grid():
@@ -47,6 +39,30 @@ def test_refine_max_finds_a_peak_narrower_than_the_grid():
     fine = float(f(patch(a, half=0.01, n=201)).max())  # spacing 1e-4 rad
     assert fine - 1e-6 <= sm.value
     assert sm.value > 1.13 and np.degrees(np.arccos(min(1.0, sm.direction @ a))) < 0.5
+
+
+@pytest.mark.parametrize("h", [1, 2, 7, 16])
+def test_row_sums_equal_the_brute_force_sum(h):
+    """The error report's exact E (lit pixels of a row = one run of columns, prefix sums)
+    equals reference_irradiance's pixel-by-pixel sum, at random normals, the poles, the axes,
+    pixel centres and their antipodes (rows exactly half lit), on maps with single bright
+    pixels; a cube map takes the brute-force path and agrees too."""
+    from shprobe.lighting.reference import _Exact
+
+    rng = np.random.default_rng(h)
+    rad = rng.random((h, 2 * h, 3)).astype(np.float32)
+    rad[rng.integers(0, h), rng.integers(0, 2 * h)] = 1e4  # a sun
+    env = Env(rad, "latlong")
+    d = env.directions().reshape(-1, 3)
+    n = np.concatenate([rng.normal(size=(500, 3)), np.eye(3), -np.eye(3), d, -d,
+                        [[1e-12, 1.0, 0.0], [0.0, -1.0, 1e-12]]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    ref = reference_irradiance(env, n)
+    got = _Exact(env)(n)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    cube = Env(rng.random((6, 4, 4, 3)).astype(np.float32), "cube")
+    np.testing.assert_allclose(_Exact(cube)(n[:50]), reference_irradiance(cube, n[:50]),
+                               rtol=1e-12)
 
 
 @pytest.mark.parametrize("probe", ["grace", "ennis"])
@@ -103,3 +119,18 @@ def test_numerical_certificate_converges_to_its_tolerance(seed):
         p = patch(cert.direction[ch], half=0.01)
         assert shade_irradiance(L[:, ch], p, np.float64).min() >= (cert.minimum[ch]
                                                                    - cert.tolerance)
+
+
+def test_error_max_on_a_cube_map_is_attained():
+    """Other layouts take the pixel-by-pixel sum: the refined max of a small cube map is the
+    brute-force error at the reported normal, no lower than the grid's, converged."""
+    rng = np.random.default_rng(5)
+    rad = rng.random((6, 8, 8, 3)).astype(np.float32)
+    rad[2, 3, 4] = 50.0
+    env = Env(rad, "cube")
+    r = error_report(env, (2,), normal_grid=8).row(2)
+    n = r.max_normal[None]
+    e = (np.abs(irradiance(project(env, 2), n) - reference_irradiance(env, n))
+         / total_intensity(env))[0]
+    assert e[r.max_channel] == pytest.approx(r.max_frac, rel=1e-9) == e.max()
+    assert r.max_frac >= r.grid_max_frac and r.max_change < r.max_tol

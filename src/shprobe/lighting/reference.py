@@ -101,23 +101,83 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     return out.reshape(*n.shape[:-1], 3)
 
 
-def _reference_fn(env: Env, chunk: int = 1 << 18):
-    """E_ref at any normals, with the sample table built once, by the serial kernel (for
-    repeated small batches, as in the refinement of :func:`error_report`: no thread start-up
-    per call); memory 48 bytes per sample."""
-    from ._kernels import brute_serial as kern  # numba, imported lazily
+class _Exact:
+    """E_ref(n) = Σ_pixels L max(0, n·ω) dω at any normals, tables built once, for the error
+    report's grid and its refinement (many small batches).
 
-    tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
-              for d, lw in _sample_chunks(env, 1, chunk)]
+    Lat-long maps: the lit pixels of a row are one cyclic run of columns, so the sum is read off
+    per-row prefix sums of L dω, L dω ω_x, L dω ω_z (:func:`._kernels.latlong_exact_into`):
+    O(H) per normal instead of O(H·W), the same pixels and products re-associated (exact to
+    rounding; checked against :func:`reference_irradiance` in the tests), 72 bytes per pixel.
+    Other layouts: the brute-force sum, serially (48 bytes per sample, built on first use).
+    """
 
-    def f(normals: NDArray[np.float64]) -> NDArray[np.float64]:
+    def __init__(self, env: Env, chunk: int = 1 << 18):
+        rad = env.radiance
+        self.latlong = env.layout.name == "latlong"
+        if self.latlong:
+            h, w, nch = rad.shape
+            check_memory(8.0 * h * (w + 1) * 3 * nch, f"row sums of a {w}x{h} map", env.path)
+            self.ct, self.st = LatLong.row_cos_theta(h), LatLong.row_sin_theta(h)
+            self.cx, self.cz = LatLong.column_xz(w)
+            ldw = rad.astype(np.float64) * LatLong.row_solid_angle(h, w)[:, None, None]
+            pre = np.zeros((h, w + 1, nch, 3))
+            np.cumsum(ldw, axis=1, out=pre[:, 1:, :, 0])
+            np.cumsum(ldw * self.cx[None, :, None], axis=1, out=pre[:, 1:, :, 1])
+            np.cumsum(ldw * self.cz[None, :, None], axis=1, out=pre[:, 1:, :, 2])
+            self.pre = pre.reshape(h, w + 1, 3 * nch)
+            self.nch = nch
+        else:
+            self.env, self.chunk, self.tables = env, chunk, None
+            self.nch = 3
+
+    def __call__(self, normals: ArrayLike) -> NDArray[np.float64]:
+        """E_ref at unit normals (M, 3) → (M, C)."""
         flat = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).reshape(-1, 3))
-        out = np.zeros((flat.shape[0], 3))
-        for dT, lwT in tables:
-            kern(flat, dT, lwT, out)
+        out = np.zeros((flat.shape[0], self.nch))
+        if self.latlong:
+            from ._kernels import latlong_exact, latlong_exact_parallel  # numba, lazily
+
+            kern = latlong_exact_parallel if flat.shape[0] > 65536 else latlong_exact
+            kern(flat, self.ct, self.st, self.cx, self.cz, self.pre, out)
+            return out
+        from ._kernels import brute_serial  # numba, imported lazily
+
+        if self.tables is None:
+            self.tables = [(np.ascontiguousarray(d.T), np.ascontiguousarray(lw.T))
+                           for d, lw in _sample_chunks(self.env, 1, self.chunk)]
+        for dT, lwT in self.tables:
+            brute_serial(flat, dT, lwT, out)
         return out
 
-    return f
+    def error_fn(self, coeffs: NDArray[np.float64], tot: NDArray[np.float64]):
+        """n (M, 3) → (max_c |E_SH,c − E_ref,c| / ∫L_c (M,), channel (M,)) for the SH
+        lighting ``coeffs`` (K, C) (R&H eq. 7): one kernel call per batch on lat-long maps."""
+        from ..sh import lmax_of, recurrence_tables
+        from .irradiance import irradiance_coeffs
+
+        elm = np.ascontiguousarray(irradiance_coeffs(coeffs), dtype=np.float64)
+        inv = np.ascontiguousarray(1.0 / np.asarray(tot, dtype=np.float64))
+        if not self.latlong:
+            def slow(n):
+                d = np.abs(irradiance(coeffs, n) - self(n)) * inv
+                return d.max(axis=1), d.argmax(axis=1)
+
+            return slow
+        from ._kernels import latlong_error  # numba, imported lazily
+
+        lmax = lmax_of(elm.shape[0])
+        a, b = (np.ascontiguousarray(t) for t in recurrence_tables(max(lmax, 1)))
+
+        def fast(n):
+            flat = np.ascontiguousarray(np.asarray(n, dtype=np.float64).reshape(-1, 3))
+            out = np.empty(flat.shape[0])
+            chan = np.empty(flat.shape[0], dtype=np.int64)
+            latlong_error(flat, self.ct, self.st, self.cx, self.cz, self.pre, elm, lmax, a, b,
+                          inv, out, chan)
+            return out, chan
+
+        return fast
 
 
 # ----------------------------------------------------------------------------- error report
@@ -135,8 +195,13 @@ class ErrorRow:
     The max is the worst case on the sphere, found by refinement (:func:`error_report`):
     ``max_normal`` / ``max_channel`` where it occurs, ``max_tol`` the stated tolerance (the
     last refinement level changed it by ``max_change`` < ``max_tol``), ``grid_max_frac`` the
-    plain sample max over the grid. ``mean_change``: |mean(N) − mean(N/2)| of the quadrature
-    over the 2N×N and N×N/2 grids (NaN for given normals): the mean's stated accuracy.
+    plain sample max over the grid. Both are attained values (the exact error at a normal), so
+    both are lower bounds of the true worst case; the refined one is never below the grid's,
+    and no finer sampling near it is expected to beat it by more than ``max_tol`` (a numerical
+    statement, checked against dense brute-force patches, not a proof). A finer grid's max is
+    no substitute: grids straddle narrow ridges (docs/benchmarks.md, issue 17).
+    ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and N×N/2 grids
+    (NaN for given normals): the mean's stated accuracy.
     """
 
     lmax: int
@@ -153,9 +218,12 @@ class ErrorRow:
 
     def __repr__(self) -> str:
         n = ", ".join(f"{x:+.3f}" for x in self.max_normal)
+        tol = (f"tol {100 * self.max_tol:.1g}" if not self.max_change >= self.max_tol else
+               f"NOT converged: last change {100 * self.max_change:.1g} ≥ tol "
+               f"{100 * self.max_tol:.1g}")
         return (f"ErrorRow(lmax={self.lmax}, mean {100 * self.mean_frac:.3f} % "
                 f"(±{100 * self.mean_change:.1g}), max {100 * self.max_frac:.3f} % "
-                f"(tol {100 * self.max_tol:.1g}) at ({n}) ch {self.max_channel})")
+                f"({tol}) at ({n}) ch {self.max_channel})")
 
 
 @dataclass(frozen=True)
@@ -210,10 +278,15 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
 
     ``refine`` (default: True for the grid, False for given normals): the max is the worst case
     on the whole sphere, not over the samples — from the grid's 4 worst, well-separated normals,
-    a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with exact brute-force E_ref at every
+    a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with the exact E_ref at every
     candidate (:func:`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
     changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid
     quadrature; with the default grid its accuracy is reported as |mean(N) − mean(N/2)|.
+
+    E_ref here is the sum of :func:`reference_irradiance` (the same pixels, re-associated)
+    taken per row of a lat-long map from prefix sums (:class:`_Exact`: O(H) per normal, so the
+    refinement's thousands of evaluations cost tens of milliseconds); other layouts sum pixel
+    by pixel.
     """
     from .sphere_search import refine_max
 
@@ -226,8 +299,15 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     if not (np.isfinite(tol) and tol > 0):
         raise ShprobeError(f"tolerance must be > 0, got {tol}")
     wts = wts / wts.sum()
-    ref = (reference_irradiance(env, nrm, progress=progress) if reference is None
-           else np.asarray(reference, dtype=np.float64).reshape(-1, 3))
+    exact = _Exact(env)
+    if reference is None and exact.latlong:
+        ref = exact(unit_normals(nrm))  # milliseconds
+        if progress is not None:
+            progress(1, 1)
+    elif reference is None:  # pixel by pixel: the parallel kernel, with progress
+        ref = reference_irradiance(env, nrm, progress=progress)
+    else:
+        ref = np.asarray(reference, dtype=np.float64).reshape(-1, 3)
     tot = total_intensity(env)
     if not np.all(tot > 0):
         raise ShprobeError("the environment has a channel with zero total intensity", env.path)
@@ -236,10 +316,9 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     half = None
     if normals is None and normal_grid >= 4:
         hn, hw = _normal_grid(normal_grid // 2)
-        half = (hn, hw / hw.sum(), reference_irradiance(env, hn))
+        half = (hn, hw / hw.sum(), exact(hn) if exact.latlong else reference_irradiance(env, hn))
     step = np.pi / max(2, int(normal_grid)) if normals is None else _spacing(nrm)
     rows = []
-    eref = _reference_fn(env) if refine else None
     done: dict[int, tuple] = {}  # effective degree → refined max (odd l ≥ 3 adds nothing: Â_l = 0)
     for lm in lmax_values:
         frac, mean_frac, mean_rel, smape = _frac_rows(coeffs, lm, nrm, ref, tot, wts)
@@ -251,15 +330,10 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
         if refine:
             eff = lm - 1 if (lm >= 3 and lm % 2 == 1) else lm
             if eff not in done:
-                k = num_coeffs(eff)
-
-                def f(n, k=k):
-                    return (np.abs(irradiance(coeffs[:k], n) - eref(n)) / tot).max(axis=1)
-
-                sm = refine_max(f, nrm, frac.max(axis=1), step=step, tol=tol)
-                at = sm.direction
-                chan = int(np.argmax(np.abs(irradiance(coeffs[:k], at) - eref(at)[0]) / tot))
-                done[eff] = (sm, chan)
+                err = exact.error_fn(coeffs[: num_coeffs(eff)], tot)
+                sm = refine_max(lambda n, err=err: err(n)[0], nrm, frac.max(axis=1),
+                                step=step, tol=tol)
+                done[eff] = (sm, int(err(sm.direction[None])[1][0]))
             sm, chan = done[eff]
             rows.append(ErrorRow(lm, mean_frac, sm.value, mean_rel, smape, sm.direction, chan,
                                  tol, sm.change, grid_max, mean_change))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SphereMax", "pick_starts", "refine_max"]
+__all__ = ["SphereMax", "pick_starts", "refine_max", "tangent_patch"]
 
 _ANGLES = np.arange(8) * (np.pi / 4)
 _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
@@ -62,11 +62,29 @@ def pick_starts(points: NDArray[np.float64], values: NDArray[np.float64], k: int
     return np.asarray(picked, dtype=np.int64)
 
 
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a × b for (N, 3) rows (np.cross's arithmetic without its axis handling: it is hot)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
 def _tangent_frames(p: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
     a = np.where(np.abs(p[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    u = np.cross(p, a)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    return u, np.cross(p, u)
+    u = _cross(p, a)
+    u /= np.sqrt((u * u).sum(axis=1, keepdims=True))
+    return u, _cross(p, u)
+
+
+def tangent_patch(centre: NDArray[np.float64], half: float, n: int) -> NDArray[np.float64]:
+    """n×n unit vectors within ±``half`` rad of ``centre`` ((n², 3); a square grid in the
+    tangent plane, projected back to the sphere): the dense checks of a refined extremum."""
+    c = np.asarray(centre, dtype=np.float64).reshape(1, 3)
+    u, w = _tangent_frames(c / np.linalg.norm(c))
+    t = np.linspace(-half, half, int(n))
+    x, y = np.meshgrid(t, t)
+    p = c + x[..., None] * u + y[..., None] * w
+    return (p / np.linalg.norm(p, axis=-1, keepdims=True)).reshape(-1, 3)
 
 
 def _quadratic_design() -> tuple[NDArray, NDArray, NDArray]:
@@ -120,11 +138,12 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     level = 0
     rows = np.arange(n)
 
-    def on_sphere(base, u, w, x, y):
-        q = (np.cos(np.hypot(x, y))[..., None] * base[:, None]
-             + np.sinc(np.hypot(x, y) / np.pi)[..., None]
+    def on_sphere(base, u, w, x, y):  # exp map: the point at tangent offset (x, y) from base
+        r = np.hypot(x, y)
+        q = (np.cos(r)[..., None] * base[:, None]
+             + np.sinc(r / np.pi)[..., None]
              * (x[..., None] * u[:, None] + y[..., None] * w[:, None]))
-        return q / np.linalg.norm(q, axis=-1, keepdims=True)
+        return q / np.sqrt((q * q).sum(axis=-1, keepdims=True))
 
     while level < max_levels:
         level += 1
@@ -179,25 +198,33 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
             p, v = p[keep], v[keep]
             n = len(p)
             rows = np.arange(n)
+    polish_change = 0.0
     if polish and best > grid_best:
         # kinks (E_ref's gradient jumps where a bright pixel crosses the horizon of n) can stop
         # a compass short of a narrow top: sweep 11×11 patches about the best point, spacing h,
-        # h/3, h/9, … down to 1e-5 rad, each centred on the last one's best
+        # h/3, h/9, … down to 1e-5 rad, each centred on the last one's best; at each spacing
+        # the sweep is repeated (at most 20 times) until it gains less than tol/2, and that
+        # last gain counts towards ``change``
         i = int(np.argmax(v))
         q, qv = p[i : i + 1].copy(), float(v[i])
         hh = h
         while hh > 1e-5:
-            u, w = _tangent_frames(q)
             t = hh * np.arange(-5, 6)
             x, y = (a.ravel()[None] for a in np.meshgrid(t, t))
-            cand = on_sphere(q, u, w, x, y)[0]
-            cv = np.asarray(f(cand), dtype=np.float64)
-            evals += cv.size
-            k = int(np.argmax(cv))
-            if cv[k] > qv:
-                change = max(change, float(cv[k]) - best) if cv[k] - qv > 0.5 * tol else change
-                q, qv = cand[k : k + 1], float(cv[k])
+            for _ in range(20):
+                u, w = _tangent_frames(q)
+                cand = on_sphere(q, u, w, x, y)[0]
+                cv = np.asarray(f(cand), dtype=np.float64)
+                evals += cv.size
+                k = int(np.argmax(cv))
+                sweep_gain = max(0.0, float(cv[k]) - qv)
+                if cv[k] > qv:
+                    q, qv = cand[k : k + 1], float(cv[k])
+                if sweep_gain <= 0.5 * tol:
+                    break
+            polish_change = max(polish_change, sweep_gain)
             hh /= 3.0
+        change = max(change, polish_change)
         if qv > best:
             p[i], v[i] = q[0], qv
             best = qv
