@@ -6,6 +6,9 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pyarrow as pa
@@ -210,3 +213,28 @@ def test_cli(library, tmp_path, capsys):
                "-n", "4"])
     err = capsys.readouterr().err
     assert rc == 1 and err.startswith("shprobe: error:") and err.count("\n") == 1
+
+
+_FAULTS = """
+import resource, sys
+if sys.argv[1] == "keep":
+    from shprobe.batch.engine import _keep_heap
+    assert _keep_heap()
+a = bytearray(16 << 20)  # 16 MiB (malloc, not numpy: numpy asks for huge pages), freed,
+del a
+f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+a = bytearray(16 << 20)  # then the same size again (the next probe)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc mallopt")
+def test_worker_heap_reuses_buffers():
+    """Under Dask's MALLOC_TRIM_THRESHOLD_=65536 a second 16 MiB buffer is mapped afresh
+    (~4096 page faults); after _keep_heap (what the batch worker plugin does) it is the first
+    one's memory again."""
+    env = os.environ | {"MALLOC_TRIM_THRESHOLD_": "65536"}
+    faults = {how: int(subprocess.run([sys.executable, "-c", _FAULTS, how], env=env, text=True,
+                                      capture_output=True, check=True).stdout)
+              for how in ("dask", "keep")}
+    assert faults["dask"] > 3000 and faults["keep"] < 300, faults

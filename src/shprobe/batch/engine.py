@@ -118,10 +118,11 @@ def _warm() -> None:
 
     from ..lighting import auto_window, min_irradiance
     from ..lighting.projection import _project_kernel
-    from ..probes.images import _rgbe_half_step
+    from ..probes.images import _rgbe_half_step, _rgbe_rows
     from ..probes.presets import get_preset
 
     _rgbe_half_step(np.ones((2, 2, 3), np.float32))
+    _rgbe_rows(np.zeros(0, np.uint8), 0, np.empty((0, 8, 3), np.float32))
     _project_kernel(np.array([[0.0, 0.0, 1.0]]), np.ones((1, 3)), np.ones(1), 2)
     c = get_preset("grace")
     min_irradiance(c)
@@ -129,13 +130,49 @@ def _warm() -> None:
     import pyarrow  # noqa: F401  (the driver reads rows as Arrow; warm the import too)
 
 
+#: glibc ``mallopt`` parameters (malloc.h) and the values a batch worker runs with.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: Blocks up to this size come from the heap and are reused, not mapped and unmapped per probe
+#: (glibc's ceiling for the mmap threshold on 64-bit).
+WORKER_MMAP_THRESHOLD = 32 << 20
+#: Free memory at the top of the heap kept for the next probe instead of being returned.
+WORKER_TRIM_THRESHOLD = 64 << 20
+
+
+def _keep_heap() -> bool:
+    """Let a worker reuse its freed image buffers (glibc only; False where it cannot).
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which also freezes
+    glibc's mmap threshold at 128 KiB: every block of decoded rows, every image buffer of the
+    decoder, is a fresh ``mmap`` that the kernel zero-fills page by page and unmaps when
+    freed — 31 000 page faults and ~50 ms of a 2048×1024 EXR probe's 190 ms
+    (bench/bench_batch.py). With the thresholds above, buffers up to 32 MiB are reused from
+    the heap (no faults) and at most 64 MiB of free heap is kept; larger buffers are still
+    mapped and returned at once, so memory stays bounded."""
+    import ctypes
+    import ctypes.util
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):  # musl and others: no mallopt
+        return False
+    return bool(mallopt(_M_MMAP_THRESHOLD, WORKER_MMAP_THRESHOLD)
+                and mallopt(_M_TRIM_THRESHOLD, WORKER_TRIM_THRESHOLD))
+
+
 class _WarmPlugin:
-    """Dask worker plugin: warm numba in every worker, including ones started later."""
+    """Dask worker plugin: warm numba and let the heap keep freed image buffers
+    (:func:`_keep_heap`) in every worker, including ones started later."""
 
     name = "shprobe-warm"
     idempotent = True  # registered once per cluster, not again by every batch
 
     def setup(self, worker: Any) -> None:
+        _keep_heap()
         _warm()
 
 
