@@ -14,6 +14,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+import xxhash
 from PIL import Image
 
 from shprobe.batch import BatchOptions, expand_inputs, parts_dir, probe_row, run_batch
@@ -104,6 +105,7 @@ def test_row_against_independent_results(tmp_path):
     assert row["error"] is None and row["warning"] is None
     assert (row["layout"], row["width"], row["height"], row["lmax"]) == ("latlong", 256, 128, 2)
     assert row["size_bytes"] == p.stat().st_size and row["content_hash"] == content_hash(p)
+    assert content_hash(p) == xxhash.xxh3_128_hexdigest(p.read_bytes())  # read in chunks
     np.testing.assert_allclose(row["coefficients"], c, atol=1e-12)
     np.testing.assert_allclose(row["irradiance_coefficients"], irradiance_coeffs(c), atol=1e-12)
     np.testing.assert_allclose(row["M"], irradiance_matrix(c), atol=1e-12)
@@ -197,6 +199,14 @@ def test_resume_interrupt_and_options(library, tmp_path):
         run_batch([library], out, scheduler="inline", lmax=1)
     t3 = run_batch([library / "a.exr"], out, scheduler="inline", lmax=1, force=True)
     assert t3.num_rows == 1 and len(t3.column("coefficients")[0]) == 4
+    # a table whose hashes were made by another algorithm (SHA-256 before) is refused by name
+    meta = json.loads(t3.schema.metadata[b"shprobe"])
+    assert meta["options"]["hash"] == "xxh3_128"
+    assert t3.schema.field("content_hash").metadata[b"algorithm"] == b"xxh3_128"
+    meta["options"]["hash"] = "sha256"
+    pq.write_table(t3.replace_schema_metadata({"shprobe": json.dumps(meta)}), out)
+    with pytest.raises(ShprobeError, match="content hashes are sha256"):
+        run_batch([library], out, scheduler="inline", lmax=1)
     with pytest.raises(ShprobeError, match=r"\.parquet file"):
         run_batch([library], tmp_path / "t.csv", scheduler="inline")
 

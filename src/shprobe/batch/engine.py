@@ -97,7 +97,13 @@ def _existing_rows(output: Path, meta: dict[str, Any]) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
     for p, t in tables:
         have = table_meta(t).get("options")
-        if have != meta["options"]:
+        want = meta["options"]
+        old_hash = (have or {}).get("hash")
+        if isinstance(have, dict) and old_hash != want["hash"]:
+            raise ShprobeError(f"its content hashes are {old_hash} and this shprobe makes "
+                               f"{want['hash']}: they cannot be matched to resume; choose "
+                               "another output or pass --force to start afresh", p)
+        if have != want:
             raise ShprobeError(f"was made with other options ({have}, now {meta['options']}); "
                                "choose another output or pass --force to start afresh", p)
         rows += t.to_pylist()
