@@ -73,6 +73,9 @@ def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     assert t.num_rows == 8 and t.column("error").null_count == 7
     _same_rows(t, inline)
     assert np.isfinite(np.asarray(t.column("seconds"))).all()
+    # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
+    _same_rows(run_batch([library], None, scheduler=cluster.scheduler_address, reference=4,
+                         chunk=3), inline)
 
 
 def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):

@@ -182,17 +182,46 @@ class _WarmPlugin:
         _warm()
 
 
-def _task(path: str, layout: str, options: BatchOptions, done: frozenset[str]) -> dict:
-    return probe_row(path, layout, options, done)
+def _task(jobs: list[tuple[str, str]], options: BatchOptions, done: frozenset[str]
+          ) -> list[dict]:
+    return [probe_row(path, layout, options, done) for path, layout in jobs]
+
+
+#: Probes per Dask task: at most this many, and few enough that every worker gets
+#: ``TASKS_PER_WORKER`` tasks or more (the last tasks of a batch keep all workers busy).
+MAX_CHUNK = 8
+TASKS_PER_WORKER = 8
+
+
+def chunk_size(n: int, workers: int) -> int:
+    """Probes per task for ``n`` probes on ``workers`` worker threads: one task costs the
+    scheduler, the client and the worker a few ms of CPU, a tenth of a 2k probe's work on
+    two cores, so large batches send ``MAX_CHUNK`` probes a task; small ones keep
+    ``TASKS_PER_WORKER`` tasks per worker so that none idles at the end."""
+    return max(1, min(MAX_CHUNK, n // max(1, TASKS_PER_WORKER * workers)))
+
+
+def _by_size(jobs: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """Largest files first (a batch ends on small probes, not on one big one)."""
+    def size(job: tuple[str, str]) -> int:
+        try:
+            return os.stat(job[0]).st_size
+        except OSError:
+            return 0
+
+    return sorted(jobs, key=size, reverse=True)
 
 
 def _local_cluster(workers: int | None):
+    import dask
     from distributed import LocalCluster
 
     n = int(workers) if workers else (os.cpu_count() or 1)
-    return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
-                        dashboard_address=None, host="127.0.0.1",
-                        silence_logs=logging.ERROR)
+    # no dashboard, so no use for the workers' statistical profiler (a sample every 10 ms)
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
+                            dashboard_address=None, host="127.0.0.1",
+                            silence_logs=logging.ERROR)
 
 
 def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
@@ -201,7 +230,11 @@ def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
         yield probe_row(path, layout, options, done)
 
 
-def _run_dask(jobs, options, done, client) -> Iterator[dict[str, Any]]:
+def _run_dask(jobs, options, done, client, chunk: int | None = None
+              ) -> Iterator[dict[str, Any]]:
+    """Rows from tasks of :func:`chunk_size` probes, largest files first. A task that fails
+    (its worker died too often) is split into one task per probe, so only the probe that
+    kills workers becomes an error row."""
     from distributed import as_completed
 
     try:
@@ -209,27 +242,39 @@ def _run_dask(jobs, options, done, client) -> Iterator[dict[str, Any]]:
     except Exception:  # an old scheduler without plugins: workers warm on their first task
         pass
     done_f = client.scatter(done, broadcast=True) if done else done
-    path_of = {}
-    for i, (path, layout) in enumerate(jobs):
-        f = client.submit(_task, path, layout, options, done_f, pure=False,
-                          key=f"shprobe-probe-{i}-{secrets.token_hex(4)}")
-        path_of[f] = path
-    left = set(path_of)
     try:
-        for f in as_completed(list(path_of)):
-            left.discard(f)
-            path = path_of.pop(f)
+        threads = sum(client.nthreads().values())
+    except Exception:
+        threads = os.cpu_count() or 1
+    jobs = _by_size(list(jobs))
+    k = int(chunk) if chunk else chunk_size(len(jobs), threads)
+    jobs_of = {}
+
+    def submit(part: list[tuple[str, str]]):
+        f = client.submit(_task, part, options, done_f, pure=False,
+                          key=f"shprobe-probes-{len(jobs_of)}-{secrets.token_hex(4)}")
+        jobs_of[f] = part
+        return f
+
+    pending = as_completed([submit(jobs[i:i + k]) for i in range(0, len(jobs), k)])
+    try:
+        for f in pending:
+            part = jobs_of.pop(f)
             try:
-                row = f.result()
+                rows = f.result()
             except Exception as e:  # the task itself never raises: a worker died too often
-                row = empty_row(path) | {
-                    "error": f"{path}: worker failed: {type(e).__name__}: "
-                             + " ".join(str(e).split())[:300]}
+                rows = [empty_row(part[0][0]) | {
+                    "error": f"{part[0][0]}: worker failed: {type(e).__name__}: "
+                             + " ".join(str(e).split())[:300]}]
+                if len(part) > 1:  # find the probe that does it: one task each
+                    rows = []
+                    for job in part:
+                        pending.add(submit([job]))
             f.release()
-            yield row
+            yield from rows
     finally:
-        if left:
-            client.cancel(list(left), force=True)
+        if jobs_of:
+            client.cancel(list(jobs_of), force=True)
 
 
 def _plugin():
@@ -248,7 +293,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               workers: int | None = None,
               client: Any = None, force: bool = False, flush_rows: int = 256,
               flush_seconds: float = 30.0, progress: Progress | None = None,
-              block_bytes: int = 16 << 20):
+              block_bytes: int = 16 << 20, chunk: int | None = None):
     """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
     it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
 
@@ -256,6 +301,9 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
     runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS`` when
     ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again.
+
+    On Dask, each task computes ``chunk`` probes (default :func:`chunk_size`: up to 8, fewer
+    for small batches), the largest files first.
 
     ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
     doc). An existing table made with other options is refused unless ``force``, which
@@ -313,7 +361,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
                 client = own = Client(cluster)
                 own._shprobe_cluster = cluster  # closed below
         rows = (_run_inline(jobs, options, done) if client is None
-                else _run_dask(jobs, options, done, client))
+                else _run_dask(jobs, options, done, client, chunk))
         for row in rows:
             if row.pop("skipped", False):
                 src = good[row["content_hash"]]
