@@ -81,7 +81,7 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     else:
         if ext in (".hdr", ".rgbe", ".pic"):
             try:  # shprobe's decoder first: one compiled pass, the (m + 0.5) step built in
-                img = read_rgbe(p)
+                return read_rgbe(p)  # finite and ≥ 0 by construction: nothing to check
             except ShprobeError as own:
                 try:  # what it refuses (other FORMATs) OpenImageIO may still read
                     img = _rgbe_half_step(_read_oiio(p)[0])
@@ -278,6 +278,7 @@ class ImageRows:
         _check_readable(p, ext)
         self._rgbe = ext in (".hdr", ".rgbe", ".pic")
         self._rgbe_f = None
+        self._own_rgbe = False  # decoded by read_rgbe / decode_rgbe: no pixel checks needed
         if ext == ".pfm":
             self.height, self.width = self._open_pfm()
         elif self._rgbe:
@@ -307,6 +308,7 @@ class ImageRows:
         s1, a1, s2, n1, n2, offset = _rgbe_header(p, head)
         check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=p.stat().st_size - offset,
                             whole=False)
+        self._own_rgbe = True
         if (s1, a1, s2) != (b"-", b"Y", b"+"):
             self._whole = read_rgbe(p)
             return self._whole.shape[0], self._whole.shape[1]
@@ -350,6 +352,7 @@ class ImageRows:
                 msg = _oneline(oiio.geterror() or c_messages()) or "corrupt"
                 if self._rgbe:  # old-style RLE and other files OIIO refuses
                     self._whole = read_rgbe(p)
+                    self._own_rgbe = True
                     return self._whole.shape[0], self._whole.shape[1]
                 raise ShprobeError("cannot read image: " + msg, p)
         spec = inp.spec()
@@ -384,7 +387,10 @@ class ImageRows:
                           "values are not radiance", LDRWarning, stacklevel=2)
         for y0 in range(0, self.height, n):
             y1 = min(self.height, y0 + n)
-            yield y0, check_pixels(self._read(y0, y1), self.path, self.clamp)
+            blk = self._read(y0, y1)
+            # shprobe's RGBE decode is finite and ≥ 0 by construction: (m + 0.5) · 2^(e − 136)
+            # ≤ 255.5 · 2^119 < float32 max
+            yield y0, blk if self._own_rgbe else check_pixels(blk, self.path, self.clamp)
 
     def _read(self, y0: int, y1: int) -> NDArray[np.float32]:
         p = self.path
