@@ -149,8 +149,10 @@ def test_table_errors_and_schema(library, tmp_path):
     assert [rows[k]["layout"] for k in ("a.exr", "sub/b.hdr", "sub/c.pfm", "d.exr")] == [
         "latlong", "latlong", "cube", "angular"]
     for k in ("a.exr", "sub/b.hdr", "sub/c.pfm", "d.exr"):
-        np.testing.assert_allclose(rows[k]["coefficients"],
-                                   project(load_env(library / k), 3), atol=1e-12)
+        ref = project(load_env(library / k), 3)  # .hdr: float32 row sums fused with decoding
+        np.testing.assert_allclose(rows[k]["coefficients"], ref, rtol=0,
+                                   atol=(1e-6 if k.endswith(".hdr") else 1e-12)
+                                   * np.abs(ref).max())
         assert rows[k]["min_irradiance_certified"] is False  # lmax 3: numerical
     # typed, documented, readable as is
     back = pq.read_table(out)

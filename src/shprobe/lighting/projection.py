@@ -326,11 +326,14 @@ def _stream_latlong(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
     h, w = LatLong().check_grid((im.height, im.width), im.path)
     trig, by_m, mi, li = _latlong_tables(h, w, lmax)
     g = np.zeros((by_m.shape[0], by_m.shape[1], 3))
+    if on_block is None:  # per row Σ_ψ L cos/sin(mψ); fused with decoding for Radiance files
+        for y0, f in im.row_sums(trig):
+            g += np.matmul(by_m[:, :, y0:y0 + f.shape[0]], f.transpose(1, 0, 2))
+        return _from_pole_y(g[mi, li])
     for y0, blk in im.blocks():
         f = np.matmul(trig[None], blk)  # (rows, M, C) float32, as _project_latlong
         g += np.matmul(by_m[:, :, y0:y0 + blk.shape[0]], f.transpose(1, 0, 2).astype(np.float64))
-        if on_block is not None:
-            on_block(y0, blk)
+        on_block(y0, blk)
     return _from_pole_y(g[mi, li])
 
 
