@@ -290,7 +290,13 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
     """:func:`project` of an image file, streamed: the file is read a block of rows at a time
     (:class:`shprobe.probes.images.ImageRows`) and each block's share of R&H eq. 10 is added
     up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
-    image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding.
+    image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding. This is
+    shprobe's streaming entry point, the equivalent of a lazy ``load_env`` for projection
+    (``shprobe prefilter`` takes it for big probes, ``shprobe batch`` always).
+
+    Radiance files are decoded and reduced in one pass (each scanline's Σ_ψ L cos/sin(mψ)
+    while it is in cache, :meth:`~shprobe.probes.images.ImageRows.row_sums`), in float32 as
+    :func:`project`'s matrix product but in another order: equal to it to float32 rounding.
 
     Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row
     block at a time); cube crosses and strips sum each face's rows as they pass (directions
