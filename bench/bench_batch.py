@@ -76,7 +76,8 @@ def bench_decoders(hdr: Path, repeat: int) -> list[str]:
         return a
 
     readers = [
-        ("shprobe.read_image (fused numba RGBE decoder + checks)", lambda: read_image(hdr)),
+        ("shprobe.read_image (numba RGBE decoder, (m + 0.5) step built in)",
+         lambda: read_image(hdr)),
         ("before: OpenImageIO + half-step pass (read_image until this issue)",
          lambda: _rgbe_half_step(_read_oiio(hdr)[0])),
         ("peer: OpenImageIO read_image (m·2^k, no half step)", oiio_raw)]
