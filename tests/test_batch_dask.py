@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from shprobe.batch import run_batch
+from shprobe.batch.engine import LOCAL_CLUSTER_CONFIG, _local_cluster
 from shprobe.probes.environments import procedural_env
 from shprobe.probes.layouts import env_from_function, write_env
 
@@ -98,3 +99,34 @@ def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
     finally:
         client.close()
     _same_rows(t, inline)
+
+
+def _worker_state():
+    """In a worker: its Dask settings, and the page faults of a second 16 MiB buffer."""
+    import resource
+
+    import dask
+
+    a = bytearray(16 << 20)
+    del a
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    a = bytearray(16 << 20)
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+    del a
+    return {k: dask.config.get(k) for k in LOCAL_CLUSTER_CONFIG} | {"faults": faults}
+
+
+def test_own_local_cluster(library, inline):
+    """The cluster `shprobe batch` starts: its settings reach the workers, the batch plugin
+    lets them reuse freed buffers (Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536), rows as
+    in-process."""
+    cluster = _local_cluster(1)
+    try:
+        with distributed.Client(cluster) as client:
+            t = run_batch([library], None, client=client, reference=4)
+            state = next(iter(client.run(_worker_state).values()))
+    finally:
+        cluster.close()
+    _same_rows(t, inline)
+    assert state.pop("faults") < 300
+    assert state == LOCAL_CLUSTER_CONFIG

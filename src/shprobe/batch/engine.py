@@ -191,14 +191,15 @@ def _task(jobs: list[tuple[str, str]], options: BatchOptions, done: frozenset[st
 #: Probes per Dask task: at most this many, and few enough that every worker gets
 #: ``TASKS_PER_WORKER`` tasks or more (the last tasks of a batch keep all workers busy).
 MAX_CHUNK = 8
-TASKS_PER_WORKER = 8
+TASKS_PER_WORKER = 4
 
 
 def chunk_size(n: int, workers: int) -> int:
     """Probes per task for ``n`` probes on ``workers`` worker threads: one task costs the
-    scheduler, the client and the worker a few ms of CPU, a tenth of a 2k probe's work on
-    two cores, so large batches send ``MAX_CHUNK`` probes a task; small ones keep
-    ``TASKS_PER_WORKER`` tasks per worker so that none idles at the end."""
+    scheduler, the client and the worker 7–10 ms of CPU on the 2-core box (a tenth of a 2k
+    probe's work), so large batches send ``MAX_CHUNK`` probes a task; small ones keep
+    ``TASKS_PER_WORKER`` tasks per worker so that none idles long at the end (tasks go
+    largest files first: the last ones are the cheapest)."""
     return max(1, min(MAX_CHUNK, n // max(1, TASKS_PER_WORKER * workers)))
 
 
