@@ -263,7 +263,7 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
     except Exception:
         threads = os.cpu_count() or 1
     jobs = _by_size(list(jobs))
-    k = int(chunk) if chunk else chunk_size(len(jobs), threads)
+    k = max(1, int(chunk)) if chunk else chunk_size(len(jobs), threads)
     jobs_of = {}
 
     def submit(part: list[tuple[str, str]]):
