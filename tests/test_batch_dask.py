@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from shprobe.batch import run_batch
+from shprobe.batch.engine import LOCAL_CLUSTER_CONFIG, _local_cluster
 from shprobe.probes.environments import procedural_env
 from shprobe.probes.layouts import env_from_function, write_env
 
@@ -73,6 +74,9 @@ def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     assert t.num_rows == 8 and t.column("error").null_count == 7
     _same_rows(t, inline)
     assert np.isfinite(np.asarray(t.column("seconds"))).all()
+    # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
+    _same_rows(run_batch([library], None, scheduler=cluster.scheduler_address, reference=4,
+                         chunk=3), inline)
 
 
 def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
@@ -95,3 +99,34 @@ def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
     finally:
         client.close()
     _same_rows(t, inline)
+
+
+def _worker_state():
+    """In a worker: its Dask settings, and the page faults of a second 16 MiB buffer."""
+    import resource
+
+    import dask
+
+    a = bytearray(16 << 20)
+    del a
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    a = bytearray(16 << 20)
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+    del a
+    return {k: dask.config.get(k) for k in LOCAL_CLUSTER_CONFIG} | {"faults": faults}
+
+
+def test_own_local_cluster(library, inline):
+    """The cluster `shprobe batch` starts: its settings reach the workers, the batch plugin
+    lets them reuse freed buffers (Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536), rows as
+    in-process."""
+    cluster = _local_cluster(1)
+    try:
+        with distributed.Client(cluster) as client:
+            t = run_batch([library], None, client=client, reference=4)
+            state = next(iter(client.run(_worker_state).values()))
+    finally:
+        cluster.close()
+    _same_rows(t, inline)
+    assert state.pop("faults") < 300
+    assert state == LOCAL_CLUSTER_CONFIG

@@ -97,7 +97,13 @@ def _existing_rows(output: Path, meta: dict[str, Any]) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
     for p, t in tables:
         have = table_meta(t).get("options")
-        if have != meta["options"]:
+        want = meta["options"]
+        old_hash = (have or {}).get("hash")
+        if isinstance(have, dict) and old_hash != want["hash"]:
+            raise ShprobeError(f"its content hashes are {old_hash} and this shprobe makes "
+                               f"{want['hash']}: they cannot be matched to resume; choose "
+                               "another output or pass --force to start afresh", p)
+        if have != want:
             raise ShprobeError(f"was made with other options ({have}, now {meta['options']}); "
                                "choose another output or pass --force to start afresh", p)
         rows += t.to_pylist()
@@ -118,10 +124,12 @@ def _warm() -> None:
 
     from ..lighting import auto_window, min_irradiance
     from ..lighting.projection import _project_kernel
-    from ..probes.images import _rgbe_half_step
+    from ..probes.images import _rgbe_half_step, _rgbe_row_sums, _rgbe_rows
     from ..probes.presets import get_preset
 
     _rgbe_half_step(np.ones((2, 2, 3), np.float32))
+    _rgbe_rows(np.zeros(0, np.uint8), 0, np.empty((0, 8, 3), np.float32))
+    _rgbe_row_sums(np.zeros(0, np.uint8), 0, np.empty((0, 1, 3)), np.ones((1, 8), np.float32))
     _project_kernel(np.array([[0.0, 0.0, 1.0]]), np.ones((1, 3)), np.ones(1), 2)
     c = get_preset("grace")
     min_irradiance(c)
@@ -129,27 +137,107 @@ def _warm() -> None:
     import pyarrow  # noqa: F401  (the driver reads rows as Arrow; warm the import too)
 
 
+#: glibc ``mallopt`` parameters (malloc.h) and the values a batch worker runs with.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: Blocks up to this size come from the heap and are reused, not mapped and unmapped per probe
+#: (glibc's ceiling for the mmap threshold on 64-bit).
+WORKER_MMAP_THRESHOLD = 32 << 20
+#: Free memory at the top of the heap kept for the next probe instead of being returned.
+WORKER_TRIM_THRESHOLD = 64 << 20
+
+
+def _keep_heap() -> bool:
+    """Let a worker reuse its freed image buffers (glibc only; False where it cannot).
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which also freezes
+    glibc's mmap threshold at 128 KiB: every block of decoded rows, every image buffer of the
+    decoder, is a fresh ``mmap`` that the kernel zero-fills page by page and unmaps when
+    freed — 31 000 page faults and ~50 ms of a 2048×1024 EXR probe's 190 ms
+    (bench/bench_batch.py). With the thresholds above, buffers up to 32 MiB are reused from
+    the heap (no faults) and at most 64 MiB of free heap is kept; larger buffers are still
+    mapped and returned at once, so memory stays bounded."""
+    import ctypes
+    import ctypes.util
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):  # musl and others: no mallopt
+        return False
+    return bool(mallopt(_M_MMAP_THRESHOLD, WORKER_MMAP_THRESHOLD)
+                and mallopt(_M_TRIM_THRESHOLD, WORKER_TRIM_THRESHOLD))
+
+
 class _WarmPlugin:
-    """Dask worker plugin: warm numba in every worker, including ones started later."""
+    """Dask worker plugin: warm numba and let the heap keep freed image buffers
+    (:func:`_keep_heap`) in every worker, including ones started later."""
 
     name = "shprobe-warm"
     idempotent = True  # registered once per cluster, not again by every batch
 
     def setup(self, worker: Any) -> None:
+        _keep_heap()
         _warm()
 
 
-def _task(path: str, layout: str, options: BatchOptions, done: frozenset[str]) -> dict:
-    return probe_row(path, layout, options, done)
+def _task(jobs: list[tuple[str, str]], options: BatchOptions, done: frozenset[str]
+          ) -> list[dict]:
+    return [probe_row(path, layout, options, done) for path, layout in jobs]
+
+
+#: Probes per Dask task: at most this many, and few enough that every worker gets
+#: ``TASKS_PER_WORKER`` tasks or more (the last tasks of a batch keep all workers busy).
+MAX_CHUNK = 8
+TASKS_PER_WORKER = 4
+
+
+def chunk_size(n: int, workers: int) -> int:
+    """Probes per task for ``n`` probes on ``workers`` worker threads: one task costs the
+    scheduler, the client and the worker 7–10 ms of CPU on the 2-core box (a tenth of a 2k
+    probe's work), so large batches send ``MAX_CHUNK`` probes a task; small ones keep
+    ``TASKS_PER_WORKER`` tasks per worker so that none idles long at the end (tasks go
+    largest files first: the last ones are the cheapest)."""
+    return max(1, min(MAX_CHUNK, n // max(1, TASKS_PER_WORKER * workers)))
+
+
+def _by_size(jobs: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """Largest files first (a batch ends on small probes, not on one big one)."""
+    def size(job: tuple[str, str]) -> int:
+        try:
+            return os.stat(job[0]).st_size
+        except OSError:
+            return 0
+
+    return sorted(jobs, key=size, reverse=True)
+
+
+#: Dask settings of the local cluster ``shprobe batch`` starts. It has no dashboard, so no use
+#: for the workers' statistical profiler (a stack sample every 10 ms) or for system metrics
+#: every 0.5 s; the event-loop tick (a blocked-loop diagnostic, every 20 ms in each process)
+#: runs every second; work stealing and the memory monitor look every second and 0.5 s.
+#: Together they halve what an idle 2-worker cluster costs (0.074 → 0.032 CPU-s per second on
+#: the 2-core box, bench/bench_batch.py) — CPU the probes then have.
+LOCAL_CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.scheduler.work-stealing-interval": "1s",
+    "distributed.worker.memory.monitor-interval": "500ms",
+}
 
 
 def _local_cluster(workers: int | None):
+    import dask
     from distributed import LocalCluster
 
     n = int(workers) if workers else (os.cpu_count() or 1)
-    return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
-                        dashboard_address=None, host="127.0.0.1",
-                        silence_logs=logging.ERROR)
+    with dask.config.set(LOCAL_CLUSTER_CONFIG):
+        return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
+                            dashboard_address=None, host="127.0.0.1",
+                            silence_logs=logging.ERROR)
 
 
 def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
@@ -158,7 +246,11 @@ def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
         yield probe_row(path, layout, options, done)
 
 
-def _run_dask(jobs, options, done, client) -> Iterator[dict[str, Any]]:
+def _run_dask(jobs, options, done, client, chunk: int | None = None
+              ) -> Iterator[dict[str, Any]]:
+    """Rows from tasks of :func:`chunk_size` probes, largest files first. A task that fails
+    (its worker died too often) is split into one task per probe, so only the probe that
+    kills workers becomes an error row."""
     from distributed import as_completed
 
     try:
@@ -166,27 +258,39 @@ def _run_dask(jobs, options, done, client) -> Iterator[dict[str, Any]]:
     except Exception:  # an old scheduler without plugins: workers warm on their first task
         pass
     done_f = client.scatter(done, broadcast=True) if done else done
-    path_of = {}
-    for i, (path, layout) in enumerate(jobs):
-        f = client.submit(_task, path, layout, options, done_f, pure=False,
-                          key=f"shprobe-probe-{i}-{secrets.token_hex(4)}")
-        path_of[f] = path
-    left = set(path_of)
     try:
-        for f in as_completed(list(path_of)):
-            left.discard(f)
-            path = path_of.pop(f)
+        threads = sum(client.nthreads().values())
+    except Exception:
+        threads = os.cpu_count() or 1
+    jobs = _by_size(list(jobs))
+    k = max(1, int(chunk)) if chunk else chunk_size(len(jobs), threads)
+    jobs_of = {}
+
+    def submit(part: list[tuple[str, str]]):
+        f = client.submit(_task, part, options, done_f, pure=False,
+                          key=f"shprobe-probes-{len(jobs_of)}-{secrets.token_hex(4)}")
+        jobs_of[f] = part
+        return f
+
+    pending = as_completed([submit(jobs[i:i + k]) for i in range(0, len(jobs), k)])
+    try:
+        for f in pending:
+            part = jobs_of.pop(f)
             try:
-                row = f.result()
+                rows = f.result()
             except Exception as e:  # the task itself never raises: a worker died too often
-                row = empty_row(path) | {
-                    "error": f"{path}: worker failed: {type(e).__name__}: "
-                             + " ".join(str(e).split())[:300]}
+                rows = [empty_row(part[0][0]) | {
+                    "error": f"{part[0][0]}: worker failed: {type(e).__name__}: "
+                             + " ".join(str(e).split())[:300]}]
+                if len(part) > 1:  # find the probe that does it: one task each
+                    rows = []
+                    for job in part:
+                        pending.add(submit([job]))
             f.release()
-            yield row
+            yield from rows
     finally:
-        if left:
-            client.cancel(list(left), force=True)
+        if jobs_of:
+            client.cancel(list(jobs_of), force=True)
 
 
 def _plugin():
@@ -205,7 +309,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               workers: int | None = None,
               client: Any = None, force: bool = False, flush_rows: int = 256,
               flush_seconds: float = 30.0, progress: Progress | None = None,
-              block_bytes: int = 16 << 20):
+              block_bytes: int = 16 << 20, chunk: int | None = None):
     """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
     it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
 
@@ -213,6 +317,9 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
     runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS`` when
     ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again.
+
+    On Dask, each task computes ``chunk`` probes (default :func:`chunk_size`: up to 8, fewer
+    for small batches), the largest files first.
 
     ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
     doc). An existing table made with other options is refused unless ``force``, which
@@ -270,7 +377,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
                 client = own = Client(cluster)
                 own._shprobe_cluster = cluster  # closed below
         rows = (_run_inline(jobs, options, done) if client is None
-                else _run_dask(jobs, options, done, client))
+                else _run_dask(jobs, options, done, client, chunk))
         for row in rows:
             if row.pop("skipped", False):
                 src = good[row["content_hash"]]

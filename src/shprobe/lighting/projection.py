@@ -290,7 +290,13 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
     """:func:`project` of an image file, streamed: the file is read a block of rows at a time
     (:class:`shprobe.probes.images.ImageRows`) and each block's share of R&H eq. 10 is added
     up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
-    image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding.
+    image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding. This is
+    shprobe's streaming entry point, the equivalent of a lazy ``load_env`` for projection
+    (``shprobe prefilter`` takes it for big probes, ``shprobe batch`` always).
+
+    Radiance files are decoded and reduced in one pass (each scanline's Σ_ψ L cos/sin(mψ)
+    while it is in cache, :meth:`~shprobe.probes.images.ImageRows.row_sums`), in float32 as
+    :func:`project`'s matrix product but in another order: equal to it to float32 rounding.
 
     Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row
     block at a time); cube crosses and strips sum each face's rows as they pass (directions
@@ -326,11 +332,14 @@ def _stream_latlong(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
     h, w = LatLong().check_grid((im.height, im.width), im.path)
     trig, by_m, mi, li = _latlong_tables(h, w, lmax)
     g = np.zeros((by_m.shape[0], by_m.shape[1], 3))
+    if on_block is None:  # per row Σ_ψ L cos/sin(mψ); fused with decoding for Radiance files
+        for y0, f in im.row_sums(trig):
+            g += np.matmul(by_m[:, :, y0:y0 + f.shape[0]], f.transpose(1, 0, 2))
+        return _from_pole_y(g[mi, li])
     for y0, blk in im.blocks():
         f = np.matmul(trig[None], blk)  # (rows, M, C) float32, as _project_latlong
         g += np.matmul(by_m[:, :, y0:y0 + blk.shape[0]], f.transpose(1, 0, 2).astype(np.float64))
-        if on_block is not None:
-            on_block(y0, blk)
+        on_block(y0, blk)
     return _from_pole_y(g[mi, li])
 
 

@@ -81,7 +81,7 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     else:
         if ext in (".hdr", ".rgbe", ".pic"):
             try:  # shprobe's decoder first: one compiled pass, the (m + 0.5) step built in
-                img = read_rgbe(p)
+                return read_rgbe(p)  # finite and ≥ 0 by construction: nothing to check
             except ShprobeError as own:
                 try:  # what it refuses (other FORMATs) OpenImageIO may still read
                     img = _rgbe_half_step(_read_oiio(p)[0])
@@ -278,6 +278,7 @@ class ImageRows:
         _check_readable(p, ext)
         self._rgbe = ext in (".hdr", ".rgbe", ".pic")
         self._rgbe_f = None
+        self._own_rgbe = False  # decoded by read_rgbe / decode_rgbe: no pixel checks needed
         if ext == ".pfm":
             self.height, self.width = self._open_pfm()
         elif self._rgbe:
@@ -307,6 +308,7 @@ class ImageRows:
         s1, a1, s2, n1, n2, offset = _rgbe_header(p, head)
         check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=p.stat().st_size - offset,
                             whole=False)
+        self._own_rgbe = True
         if (s1, a1, s2) != (b"-", b"Y", b"+"):
             self._whole = read_rgbe(p)
             return self._whole.shape[0], self._whole.shape[1]
@@ -317,14 +319,23 @@ class ImageRows:
         self._next = 0
         return n1, n2
 
-    def _read_rgbe(self, y0: int, y1: int) -> NDArray[np.float32]:
+    def _read_rgbe(self, y0: int, y1: int, weights: NDArray[np.float32] | None = None
+                   ) -> NDArray:
+        """Rows y0..y1 decoded (float32), or with ``weights`` their row sums (float64)."""
         if y0 != self._next:
             raise ShprobeError("RGBE rows must be read in order", self.path)
-        out = np.empty((y1 - y0, self.width, 3), np.float32)
+        if weights is None:
+            out = np.empty((y1 - y0, self.width, 3), np.float32)
+        else:
+            out = np.empty((y1 - y0, weights.shape[0], 3), np.float64)
         done = 0
         chunk = max(4096, min(1 << 22, self.block_bytes // 4))
         while done < out.shape[0]:
-            status, rows, self._pos = _rgbe_rows(self._buf, self._pos, out[done:])
+            if weights is None:
+                status, rows, self._pos = _rgbe_rows(self._buf, self._pos, out[done:])
+            else:
+                status, rows, self._pos = _rgbe_row_sums(self._buf, self._pos, out[done:],
+                                                         weights)
             done += rows
             if status == 2:
                 raise ShprobeError("truncated or corrupt .hdr pixel data", self.path)
@@ -350,6 +361,7 @@ class ImageRows:
                 msg = _oneline(oiio.geterror() or c_messages()) or "corrupt"
                 if self._rgbe:  # old-style RLE and other files OIIO refuses
                     self._whole = read_rgbe(p)
+                    self._own_rgbe = True
                     return self._whole.shape[0], self._whole.shape[1]
                 raise ShprobeError("cannot read image: " + msg, p)
         spec = inp.spec()
@@ -384,7 +396,30 @@ class ImageRows:
                           "values are not radiance", LDRWarning, stacklevel=2)
         for y0 in range(0, self.height, n):
             y1 = min(self.height, y0 + n)
-            yield y0, check_pixels(self._read(y0, y1), self.path, self.clamp)
+            blk = self._read(y0, y1)
+            # shprobe's RGBE decode is finite and ≥ 0 by construction: (m + 0.5) · 2^(e − 136)
+            # ≤ 255.5 · 2^119 < float32 max
+            yield y0, blk if self._own_rgbe else check_pixels(blk, self.path, self.clamp)
+
+    def row_sums(self, weights: ArrayLike) -> Iterator[tuple[int, NDArray[np.float64]]]:
+        """Yield ``(y0, sums)`` top to bottom, ``sums`` ``(rows, M, 3) float64`` with
+        ``sums[r, m, c]`` = Σ_x ``weights[m, x]`` · pixel(y0 + r, x, c): what
+        ``np.matmul(weights[None], block)`` gives for each block of :meth:`blocks` (weights
+        ``(M, W)``, used as float32). Radiance files streamed by shprobe's decoder are decoded
+        and summed in one compiled pass, each scanline while it is in cache (no block of
+        floats is written; float32 products and sums, as the matrix product); other files go through
+        :meth:`blocks` and one float32 matrix product per row."""
+        w32 = np.ascontiguousarray(weights, dtype=np.float32)
+        if w32.ndim != 2 or w32.shape[1] != self.width:
+            raise ValueError(f"weights must be (M, {self.width}), got {w32.shape}")
+        if self._rgbe_f is None:
+            for y0, blk in self.blocks():
+                yield y0, np.matmul(w32[None], blk).astype(np.float64)
+            return
+        n = self.rows_per_block()
+        for y0 in range(0, self.height, n):
+            y1 = min(self.height, y0 + n)
+            yield y0, self._read_rgbe(y0, y1, w32)
 
     def _read(self, y0: int, y1: int) -> NDArray[np.float32]:
         p = self.path
@@ -524,6 +559,14 @@ def _rgbe_rows(buf: NDArray[np.uint8], pos: int, out: NDArray[np.float32]
     from ._kernels_rgbe import decode_rgbe  # numba, imported lazily
 
     status, rows, end = decode_rgbe(buf, pos, out, _rgbe_scale())
+    return int(status), int(rows), int(end)
+
+
+def _rgbe_row_sums(buf: NDArray[np.uint8], pos: int, sums: NDArray[np.float64],
+                   weights: NDArray[np.float32]) -> tuple[int, int, int]:
+    from ._kernels_rgbe import rgbe_row_sums  # numba, imported lazily
+
+    status, rows, end = rgbe_row_sums(buf, pos, sums, weights, _rgbe_scale())
     return int(status), int(rows), int(end)
 
 

@@ -635,6 +635,11 @@ def load_env(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     ``layout`` None / 'auto' detects it from the shape (:func:`detect_layout`); a requested
     layout whose aspect does not fit is a one-line ShprobeError naming the file. A sequence of
     six paths is a cube map given as six face images, in the order +X −X +Y −Y +Z −Z.
+
+    The whole image is decoded into memory. For probes too big for that, the streaming
+    entry points are :func:`shprobe.lighting.projection.project_file` (SH coefficients of a
+    lat-long or cube file, read a block of rows at a time: what a lazy ``load_env`` would be
+    used for) and :class:`shprobe.probes.images.ImageRows` (your own pass over the rows).
     """
     from .images import read_image
 
