@@ -6,7 +6,9 @@ Three diffuse models, all with the radiance scale of :mod:`shprobe.prt.transfer`
 - unshadowed: analytic, b_lm = π H_l y_lm(n) = Â_l y_lm(n) (LH eq. 9–10), times ρ/π;
 - shadowed: ρ/π Σ_j V(ω_j) max(0, n·ω_j) y(ω_j) 4π/N over N seeded spherical-Fibonacci
   directions, visibility V by Embree occlusion rays from the vertex offset along its normal
-  (only directions with n·ω > 0 are traced);
+  (:meth:`~shprobe.scene.raycast.RayCaster.offset_points`: a step that would cross another
+  surface, as at a vertex touching the ground, is put back; only directions with n·ω > 0 are
+  traced);
 - interreflected: the shadowed term plus k bounces; bounce b gathers, along every blocked ray
   that hits a front face, the previous bounce's transfer interpolated barycentrically over the
   hit triangle: T_b(v) = ρ_v/π Σ_j max(0, n·ω_j) T_{b−1}(hit_j) 4π/N. Back-face hits block
@@ -204,7 +206,10 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
     caster = RayCaster(sc.vertices, sc.faces)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
-    p32 = caster.local(sc.vertices + eps * sc.normals)  # ray origins in the caster's frame
+    # ray origins in the caster's frame: the one offset rule (RayCaster.offset_points)
+    on = np.full(sc.n_vertices, -1, dtype=np.int64)  # a face of each vertex
+    on[sc.faces.ravel()] = np.repeat(np.arange(len(sc.faces)), 3)
+    p32 = caster.local(caster.offset_points(sc.vertices, sc.normals, eps, on)[0])
     n32 = sc.normals.astype(np.float32)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces

@@ -54,7 +54,7 @@ __all__ = ["REFINE_TOL", "RefineRound", "bake_refined", "split_edges", "transfer
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
 #: Default smallest edge that is still split, as a fraction of the scene's bounding diagonal.
-MIN_EDGE_FRACTION = 2e-3
+MIN_EDGE_FRACTION = 2e-4
 
 
 @dataclass(frozen=True)
@@ -135,7 +135,7 @@ def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64
 def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, samples: int = 1024,
                  bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = True,
                  threads: int | None = None, progress: Any = None, *, tol: float = REFINE_TOL,
-                 max_rounds: int = 4, refine_mesh: bool = True,
+                 max_rounds: int = 8, refine_mesh: bool = True,
                  driver_samples: int | None = None,
                  min_edge: float | None = None, ground_resolution: int = 64,
                  max_vertices: int = 2_000_000, mesh_albedo: Any = None,
@@ -143,7 +143,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
-    2e-3 × the scene's diagonal) stops splitting; ``max_rounds`` bounds the re-bakes;
+    2e-4 × the scene's diagonal; the gap under the bunny's belly is ~8e-4 of it) stops
+    splitting; ``max_rounds`` bounds the re-bakes;
     ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
     least 64): directions of the bakes that only decide where to split — the final geometry is
     baked once more with ``samples``. The returned transfer's
