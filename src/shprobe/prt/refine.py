@@ -20,7 +20,11 @@ puts them where the transfer says they are needed:
    marked as well, repeated to closure; then 3 marked → 4 triangles, 1 marked → 2), new
    vertices get the mean of their endpoints' normals (normalised) and albedo;
 4. re-bake the refined scene and repeat until no edge is marked or ``max_rounds`` is reached;
-   the final geometry is baked with the full samples.
+   the final geometry is baked with the full samples;
+5. ... and with ``dense_factor`` (4) times as many at the vertices the refinement reached at
+   depth ``dense_depth`` (3: edges an eighth of the ground's cells or shorter) — the crevice
+   under the object, where visibility is intricate and the light dim, so that the bake's
+   quadrature noise *relative to the radiance there* approaches the rest's.
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -47,12 +51,16 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from .bake import bake
 from .scene import Scene, load_scene, mesh_hash
-from .transfer import Transfer
+from .transfer import Transfer, check_int
 
 __all__ = ["REFINE_TOL", "RefineRound", "bake_refined", "split_edges", "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
+#: The vertices the refinement reaches at this depth (round index) or deeper get
+#: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
+DENSE_DEPTH = 3
+DENSE_FACTOR = 4
 #: Default smallest edge that is still split, as a fraction of the scene's bounding diagonal.
 MIN_EDGE_FRACTION = 2e-4
 
@@ -139,7 +147,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  driver_samples: int | None = None,
                  min_edge: float | None = None, ground_resolution: int = 64,
                  max_vertices: int = 2_000_000, mesh_albedo: Any = None,
-                 ground_albedo: Any = None) -> Transfer:
+                 ground_albedo: Any = None, dense_factor: int = DENSE_FACTOR,
+                 dense_depth: int = DENSE_DEPTH) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -147,7 +156,10 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     splitting; ``max_rounds`` bounds the re-bakes;
     ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
     least 64): directions of the bakes that only decide where to split — the final geometry is
-    baked once more with ``samples``. The returned transfer's
+    baked once more with ``samples``, except the vertices the refinement reached at depth
+    ``dense_depth`` or deeper (new, or the ends of an edge split, in round ``dense_depth`` or
+    later: the crevice), which get ``dense_factor`` × ``samples`` directions (module doc, step
+    5; ``dense_factor=1``: none). The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode == "unshadowed":
         raise ShprobeError("refinement needs a traced bake (shadowed or interreflected)")
@@ -165,10 +177,19 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     kw = dict(mode=mode, lmax=lmax, bounces=bounces, seed=seed, threads=threads,
               progress=progress)
     drive = max(64, int(samples) // 4) if driver_samples is None else int(driver_samples)
+    deep = np.zeros(sc.n_vertices, dtype=bool)  # touched at depth >= dense_depth
+    factor = check_int(dense_factor, 1, "dense_factor")
+
+    def final(sc: Scene) -> Transfer:
+        if factor > 1 and deep.any():
+            return bake(sc, samples=samples, refine=False, dense=deep,
+                        dense_samples=factor * int(samples), **kw)
+        return bake(sc, samples=samples, refine=False, **kw)
+
     for r in range(int(max_rounds) + 1):
         t0 = time.perf_counter()
         last = r == int(max_rounds)
-        t = bake(sc, samples=samples if last else min(drive, samples), refine=False, **kw)
+        t = final(sc) if last else bake(sc, samples=min(drive, samples), refine=False, **kw)
         secs = time.perf_counter() - t0
         if last:
             rounds.append(RefineRound(sc.n_vertices, 0, secs))
@@ -183,7 +204,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         if not marked.any():
             if drive < samples:  # the geometry is final: bake it with the full samples
                 t0 = time.perf_counter()
-                t = bake(sc, samples=samples, refine=False, **kw)
+                t = final(sc)
                 rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
             break
         new = split_edges(sc, marked, edges, face_edges)
@@ -192,6 +213,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                                "raise tol or min_edge")
         # new vertices on ground edges are ground; with refine_mesh a mesh edge gives mesh
         added = new.n_vertices - sc.n_vertices
+        deep = np.concatenate([deep, np.full(added, r >= dense_depth)])
+        if r >= dense_depth:
+            deep[edges[_closure_edges(marked, face_edges)].ravel()] = True
         is_ground = np.concatenate([is_ground, np.zeros(added, dtype=bool)])
         mids = _closure_edges(marked, face_edges)
         is_ground[sc.n_vertices:] = is_ground[edges[mids, 0]] & is_ground[edges[mids, 1]]
@@ -200,6 +224,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     meta["refine"] = {
         "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
+        "dense_factor": factor, "dense_depth": int(dense_depth),
+        "dense_vertices": int(deep.sum()) if factor > 1 else 0,
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in rounds],
     }
