@@ -61,6 +61,10 @@ REFINE_TOL = 0.25
 #: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
 DENSE_DEPTH = 3
 DENSE_FACTOR = 4
+#: Default ``floor`` of :func:`transfer_jumps`: 1, jumps judged on the scene's scale only. A
+#: floor of 0.2 brings the bunny's dimmest contact vertex from 14 % to 1.9 % (2 bounces) but
+#: at 4× the vertices (84k) — docs/benchmarks.md, issue 17 run 2.
+FLOOR = 1.0
 #: Default smallest edge that is still split, as a fraction of the scene's bounding diagonal.
 MIN_EDGE_FRACTION = 2e-4
 
@@ -83,10 +87,12 @@ def _edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int6
     return uniq, inv.reshape(3, -1).T
 
 
-def transfer_jumps(t: Transfer) -> NDArray[np.float64]:
+def transfer_jumps(t: Transfer, floor: float = 1.0) -> NDArray[np.float64]:
     """Per vertex pair (edge of ``t.faces``): the largest relative jump over the layers (shadowed
-    and each bounce increment), ‖ΔT_b‖ / s_b with s_b the 90th percentile of ‖T_b‖ (module doc).
-    Returns (edges (E, 2), jumps (E,))."""
+    and each bounce increment), ‖ΔT_b‖ / scale, the scale being s_b, the 90th percentile of
+    ‖T_b‖ (module doc) — or, with ``floor`` < 1, the edge's brighter end's ‖T_b‖ clipped to
+    [floor·s_b, s_b], so that dim regions are judged on their own level (up to 1/floor times
+    stricter). Returns (edges (E, 2), jumps (E,))."""
     edges, _ = _edges(np.asarray(t.faces, dtype=np.int64))
     tr = np.asarray(t.traced, dtype=np.float64)
     layers = [tr[0]] + [tr[i] - tr[i - 1] for i in range(1, tr.shape[0])]
@@ -97,7 +103,10 @@ def transfer_jumps(t: Transfer) -> NDArray[np.float64]:
         s = float(np.percentile(norms, 90))
         if s <= 0:
             continue
-        d = np.linalg.norm(flat[edges[:, 0]] - flat[edges[:, 1]], axis=1) / s
+        # the scale of an edge: its brighter end's ‖T_b‖, clipped to [floor·s_b, s_b]
+        local = np.maximum(norms[edges[:, 0]], norms[edges[:, 1]])
+        scale = np.clip(local, floor * s, s)
+        d = np.linalg.norm(flat[edges[:, 0]] - flat[edges[:, 1]], axis=1) / scale
         jump = np.maximum(jump, d)
     return edges, jump
 
@@ -148,7 +157,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  min_edge: float | None = None, ground_resolution: int = 64,
                  max_vertices: int = 2_000_000, mesh_albedo: Any = None,
                  ground_albedo: Any = None, dense_factor: int = DENSE_FACTOR,
-                 dense_depth: int = DENSE_DEPTH) -> Transfer:
+                 dense_depth: int = DENSE_DEPTH, floor: float = FLOOR) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -159,12 +168,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     baked once more with ``samples``, except the vertices the refinement reached at depth
     ``dense_depth`` or deeper (new, or the ends of an edge split, in round ``dense_depth`` or
     later: the crevice), which get ``dense_factor`` × ``samples`` directions (module doc, step
-    5; ``dense_factor=1``: none). The returned transfer's
+    5; ``dense_factor=1``: none); ``floor``: see :func:`transfer_jumps`. The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode == "unshadowed":
         raise ShprobeError("refinement needs a traced bake (shadowed or interreflected)")
     if not (np.isfinite(tol) and tol > 0):
         raise ShprobeError(f"refinement tolerance must be > 0, got {tol}")
+    if not (np.isfinite(floor) and 0 < floor <= 1):
+        raise ShprobeError(f"refinement floor must be in (0, 1], got {floor}")
     base = load_scene(scene, albedo=albedo, ground=ground, ground_albedo=ground_albedo,
                       ground_resolution=ground_resolution, mesh_albedo=mesh_albedo)
     n_mesh = (load_scene(scene, albedo=albedo, mesh_albedo=mesh_albedo).n_vertices if ground
@@ -195,7 +206,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             rounds.append(RefineRound(sc.n_vertices, 0, secs))
             break
         edges, face_edges = _edges(sc.faces)
-        _, jump = transfer_jumps(t)
+        _, jump = transfer_jumps(t, floor)
         length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
         refinable = (is_ground[edges].all(1) if not refine_mesh
                      else np.ones(len(edges), dtype=bool))
@@ -224,7 +235,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     meta["refine"] = {
         "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
-        "dense_factor": factor, "dense_depth": int(dense_depth),
+        "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
         "dense_vertices": int(deep.sum()) if factor > 1 else 0,
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in rounds],
