@@ -8,8 +8,10 @@ albedo interpolated at every hit, and the lighting evaluated as radiance L(ω) =
     B_0(x) = ρ/π ∫ L(ω) V(x, ω) max(0, n·ω) dω              ≈ ρ/N Σ_j L(ω_j) V_j
     B_k(x) = ρ/π ∫ B_{k−1}(hit(x, ω)) max(0, n·ω) dω         ≈ ρ/N Σ_j B_{k−1}(hit_j)
 
-(cosine-weighted ω_j: pdf cos/π). Rays leave from x + ε n; back-face hits block and send nothing,
-as in the bake (shprobe.prt.bake); a ray that escapes sees L (direct) or nothing (bounces).
+(cosine-weighted ω_j: pdf cos/π). Rays leave from x + ε n, by the one offset rule of the bake
+(shprobe.scene.raycast.RayCaster.offset_points: a step that crosses another surface is put back);
+back-face hits block and send nothing, as in the bake; a ray that escapes sees L (direct) or
+nothing (bounces). Only the origins come from the library's ray caster; the rays are cast here.
 """
 
 from __future__ import annotations
@@ -37,6 +39,17 @@ class Gather:
         self.fn = fn / np.linalg.norm(fn, axis=1, keepdims=True)
         self.eps = eps_fraction * float(np.linalg.norm(np.ptp(self.v, axis=0)))
         self.rng = np.random.default_rng(seed)
+        from shprobe.scene.raycast import RayCaster
+
+        self.caster = RayCaster(self.v, self.f)
+
+    def _vertex_ids(self, points):
+        from scipy.spatial import cKDTree
+
+        d, i = cKDTree(self.v).query(points)
+        if d.max() > 0:
+            raise ValueError("radiance without `on` takes mesh vertices")
+        return i
 
     def _dirs(self, normals, n):
         """Stratified cosine-weighted directions (P, n, 3) about each normal (Malley)."""
@@ -58,13 +71,18 @@ class Gather:
         r = self.scene.run(o.astype(np.float32), d.astype(np.float32), output=1)
         return r["primID"].astype(np.int64), r["tfar"].astype(np.float64)
 
-    def radiance(self, points, normals, albedo, bounce, n_dirs):
+    def radiance(self, points, normals, albedo, bounce, n_dirs, on=None):
         """B_bounce (the bounce-th term alone, not cumulative) at points (P, 3) with normals and
-        albedo (P,); ``n_dirs``: directions per level, outermost first (len ≥ bounce + 1)."""
+        albedo (P,); ``n_dirs``: directions per level, outermost first (len ≥ bounce + 1); on:
+        the face each point lies on (default: the points are vertices; any face using them)."""
+        if on is None:
+            first = np.full(len(self.v), -1, dtype=np.int64)
+            first[self.f.ravel()] = np.repeat(np.arange(len(self.f)), 3)
+            on = first[self._vertex_ids(points)]
         p = points.shape[0]
         nd = int(np.sqrt(n_dirs[0])) ** 2
         d = self._dirs(normals, n_dirs[0]).reshape(-1, 3)
-        o = np.repeat(points + self.eps * normals, nd, axis=0)
+        o = np.repeat(self.caster.offset_points(points, normals, self.eps, on)[0], nd, axis=0)
         prim, tfar = self._cast(o, d)
         miss = prim < 0
         if bounce == 0:
@@ -81,7 +99,7 @@ class Gather:
             nn = np.einsum("ij,ijk->ik", w, self.n[fv])
             nn /= np.linalg.norm(nn, axis=1, keepdims=True)
             rho = np.einsum("ij,ij->i", w, self.rho[fv])
-            val[hit] = self.radiance(x, nn, rho, bounce - 1, n_dirs[1:])
+            val[hit] = self.radiance(x, nn, rho, bounce - 1, n_dirs[1:], prim[hit])
         return albedo * val.reshape(p, nd).mean(1)
 
 

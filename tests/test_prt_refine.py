@@ -124,3 +124,49 @@ def test_refined_bake_is_the_default_with_a_ground_and_loads_against_its_mesh(tm
     assert "refine" not in plain.metadata and plain.n_vertices == 42 + 65 * 65
     with pytest.raises(ShprobeError, match="traced"):
         bake_refined(str(p), mode="unshadowed")
+
+
+def test_dense_vertices_get_their_own_direction_set():
+    """bake(dense=…, dense_samples=…): the dense vertices' shadowed rows are exactly those of a
+    bake at dense_samples, the others' those of a bake at samples; with dense_samples ==
+    samples the interreflected bake is unchanged (the bounce matrix rows are assembled by
+    vertex, whatever the groups)."""
+    sc = load_scene(trimesh.creation.icosphere(subdivisions=2, radius=0.5), ground=True,
+                    ground_resolution=8)
+    mask = np.zeros(sc.n_vertices, dtype=bool)
+    mask[::3] = True
+    lo, hi = (bake(sc, mode="shadowed", lmax=2, samples=s) for s in (64, 256))
+    mixed = bake(sc, mode="shadowed", lmax=2, samples=64, dense=mask, dense_samples=256)
+    np.testing.assert_array_equal(mixed.traced[0][mask], hi.traced[0][mask])
+    np.testing.assert_array_equal(mixed.traced[0][~mask], lo.traced[0][~mask])
+    assert mixed.metadata["dense_vertices"] == mask.sum()
+    a = bake(sc, mode="interreflected", lmax=2, samples=64, bounces=2)
+    b = bake(sc, mode="interreflected", lmax=2, samples=64, bounces=2,
+             dense=np.flatnonzero(mask), dense_samples=64)
+    np.testing.assert_allclose(b.traced, a.traced, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ShprobeError, match="dense"):
+        bake(sc, mode="shadowed", samples=64, dense=[sc.n_vertices])
+
+
+def test_jumps_judged_on_the_edges_own_level_above_the_floor():
+    """transfer_jumps(floor=1): ‖ΔT‖ / s (s the 90th percentile of ‖T‖); with floor < 1 a dim
+    edge is judged on its brighter end's ‖T‖, never below floor·s, a bright one still on s."""
+    from shprobe.prt.refine import transfer_jumps
+    from shprobe.prt.transfer import Transfer
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    f = np.array([[0, 1, 2], [1, 3, 2]])
+    val = np.array([0.01, 0.03, 1.0, 1.5])  # a dim edge (0, 1) and bright ones
+    t = Transfer(v, np.tile([0, 0, 1.0], (4, 1)), f, np.full((4, 3), 0.8), 0,
+                 val[None, :, None].astype(np.float32), (0,))
+    s = np.percentile(val, 90)
+    edges, j1 = transfer_jumps(t)
+    _, j2 = transfer_jumps(t, floor=0.01)
+    _, j3 = transfer_jumps(t, floor=0.5)
+    d = np.abs(val[edges[:, 0]] - val[edges[:, 1]])
+    dim = (edges == [0, 1]).all(1)
+    np.testing.assert_allclose(j1, d / s, rtol=1e-6)
+    np.testing.assert_allclose(j2[dim], 0.02 / 0.03, rtol=1e-5)  # its own level
+    np.testing.assert_allclose(j3[dim], 0.02 / (0.5 * s), rtol=1e-5)  # the floor
+    np.testing.assert_allclose(j2[~dim], d[~dim] / np.clip(
+        np.maximum(val[edges[~dim, 0]], val[edges[~dim, 1]]), 0.01 * s, s), rtol=1e-5)

@@ -128,3 +128,28 @@ def test_bad_meshes_are_refused_in_one_line(verts, faces, msg):
     with pytest.raises(ShprobeError, match=msg) as e:
         RayCaster(verts, faces)
     assert "\n" not in str(e.value)
+
+
+def test_offset_origin_is_put_back_where_the_step_crosses_another_part():
+    """A box corner touching a ground plane, its normal pointing down: p + ε n would lie under
+    the plane (open sky below); the origin is put back just above the plane. A point whose step
+    crosses nothing keeps p + ε n, whatever its own part's surface does at p."""
+    ground_v = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], float)
+    ground_f = np.array([[0, 2, 1], [0, 3, 2]])  # normal +y
+    tri_v = np.array([[0, 0, 0], [0.5, 0.5, 0], [0, 0.5, 0.5]], float)  # touches y = 0 at (0,0,0)
+    v = np.concatenate([ground_v, tri_v])
+    f = np.concatenate([ground_f, np.array([[4, 5, 6]])])
+    rc = RayCaster(v, f)
+    eps = 1e-3
+    p = np.array([[0, 0, 0], tri_v.mean(0), [0.5, 0, 0.5]], float)
+    n = np.array([[0, -1, 0], [0, -1, 0], [0, 1, 0]], float)
+    o, crossed = rc.offset_points(p, n, eps, np.array([2, 2, 0]))
+    # 1: on the triangle, touching the ground, normal down: back above the ground by eps/100
+    np.testing.assert_allclose(o[0], [0, 0.01 * eps, 0], atol=1e-7)  # float32 distances
+    # 2: the triangle's centroid, 1/3 above the ground: the step crosses nothing
+    np.testing.assert_allclose(o[1], p[1] + eps * n[1], atol=1e-12)
+    # 3: on the ground itself, normal up (its own part is not "another surface")
+    np.testing.assert_allclose(o[2], p[2] + eps * n[2], atol=1e-12)
+    assert crossed.tolist() == [True, False, False]
+    with pytest.raises(ShprobeError, match="one face index per point"):
+        rc.offset_points(p, n, eps, np.array([0, 1]))

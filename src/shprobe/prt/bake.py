@@ -6,7 +6,9 @@ Three diffuse models, all with the radiance scale of :mod:`shprobe.prt.transfer`
 - unshadowed: analytic, b_lm = π H_l y_lm(n) = Â_l y_lm(n) (LH eq. 9–10), times ρ/π;
 - shadowed: ρ/π Σ_j V(ω_j) max(0, n·ω_j) y(ω_j) 4π/N over N seeded spherical-Fibonacci
   directions, visibility V by Embree occlusion rays from the vertex offset along its normal
-  (only directions with n·ω > 0 are traced);
+  (:meth:`~shprobe.scene.raycast.RayCaster.offset_points`: a step that would cross another
+  surface, as at a vertex touching the ground, is put back; only directions with n·ω > 0 are
+  traced);
 - interreflected: the shadowed term plus k bounces; bounce b gathers, along every blocked ray
   that hits a front face, the previous bounce's transfer interpolated barycentrically over the
   hit triangle: T_b(v) = ρ_v/π Σ_j max(0, n·ω_j) T_{b−1}(hit_j) 4π/N. Back-face hits block
@@ -100,7 +102,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
          threads: int | None = None, progress: ProgressFn | None = None, *,
          mesh_albedo: Any = None, ground_albedo: Any = None,
-         refine: bool | None = None) -> Transfer:
+         refine: bool | None = None, dense: Any = None,
+         dense_samples: int | None = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
     scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
@@ -118,6 +121,11 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
 
     refine: adaptive refinement of the scene where the transfer varies fast
     (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground.
+    dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
+    directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
+    intricate and the light is dim, as in a crevice, so that the quadrature noise relative to
+    the vertex's radiance stays at the level of the rest (the refinement passes the vertices
+    it touched).
 
     Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
     is coloured) is the baked model, with transfer · L = exit radiance
@@ -130,6 +138,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     if refine:
         from .refine import bake_refined
 
+        if dense is not None:
+            raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo)
     lmax = check_lmax(lmax)
@@ -141,28 +151,33 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     sc = load_scene(scene, albedo=albedo, ground=ground, ground_albedo=ground_albedo,
                     mesh_albedo=mesh_albedo)
     wrap = progress or _quiet
+    groups = _sample_groups(sc.n_vertices, samples, dense, dense_samples) if traced_mode else []
     k = num_coeffs(lmax)
     shape = (sc.n_vertices, k) + ((3,) if coloured(sc.albedo) else ())
     counts = tuple(range(bounces + 1)) if traced_mode else ()
     # the layers (float32), the float64 running sums, one worker block of SH rows per thread
     check_memory(4.0 * np.prod(shape) * len(counts) + 16.0 * np.prod(shape) * bool(counts)
-                 + 8.0 * samples * k * nthreads,
+                 + 8.0 * max([samples] + [g[1] for g in groups]) * k * nthreads,
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
                  "samples")
     traced = np.empty((len(counts), *shape), dtype=np.float32)
     if traced_mode:
         with ThreadPoolExecutor(nthreads) as pool:
             pmap = pool.map if nthreads > 1 else map
-            spans = _chunks(sc.n_vertices, samples)
-            t0, blocks = _trace(sc, lmax, samples, seed, mode == "interreflected", spans, pmap,
-                                wrap)
+            t0 = np.empty((sc.n_vertices, k), dtype=np.float64)
+            blocks: list[tuple[NDArray[np.int64], Any]] = []
+            for rows, n_dirs in groups:
+                t0_g, b_g = _trace(sc, lmax, n_dirs, seed, mode == "interreflected", rows,
+                                   pmap, wrap)
+                t0[rows] = t0_g
+                blocks += b_g
             # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
             total = times_albedo(t0, sc.albedo)  # (V, K, C), C = 1 or 3
             traced[0] = as_stored(total)
             prev = total
             rho = sc.albedo[:, None, : total.shape[2]] / np.pi
             for b in wrap(range(1, bounces + 1), "bounces", bounces):
-                prev = _gather(blocks, spans, prev, pmap) * rho
+                prev = _gather(blocks, prev, pmap) * rho
                 total = total + prev
                 traced[b] = as_stored(total)
     meta = {
@@ -171,40 +186,67 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         "albedo": {"min": sc.albedo.min(0).tolist(), "max": sc.albedo.max(0).tolist(),
                    "mean": sc.albedo.mean(0).tolist()},
         "directions": "spherical Fibonacci, seeded random rotation" if samples else "none",
+        **({"dense_samples": groups[1][1], "dense_vertices": len(groups[1][0])}
+           if len(groups) > 1 else {}),
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }
     return Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
                     lmax=lmax, traced=traced, bounce_counts=counts, metadata=meta)
 
 
-def _gather(blocks: list[Any], spans: list[tuple[int, int]], prev: NDArray[np.float64],
+def _gather(blocks: list[tuple[NDArray[np.int64], Any]], prev: NDArray[np.float64],
             pmap: Callable[..., Iterable[Any]]) -> NDArray[np.float64]:
-    """One bounce: (gather matrix) @ previous bounce, block rows in parallel (scipy's sparse
-    product releases the GIL)."""
+    """One bounce: (gather matrix) @ previous bounce, one CSR block of rows (with the vertex
+    index of each row) at a time, in parallel (scipy's sparse product releases the GIL)."""
     v, k, c = prev.shape
     flat = prev.reshape(v, k * c)
     out = np.empty_like(flat)
 
     def one(i: int) -> None:
-        i0, i1 = spans[i]
-        out[i0:i1] = blocks[i] @ flat
+        rows, g = blocks[i]
+        out[rows] = g @ flat
 
     for _ in pmap(one, range(len(blocks))):
         pass
     return out.reshape(v, k, c)
 
 
+def _sample_groups(n_vertices: int, samples: int, dense: Any, dense_samples: int | None
+                   ) -> list[tuple[NDArray[np.int64], int]]:
+    """(vertex indices, directions) of each group: every vertex at ``samples``, or the
+    ``dense`` ones at ``dense_samples`` and the rest at ``samples``."""
+    if dense is None:
+        return [(np.arange(n_vertices), samples)]
+    d = np.asarray(dense)
+    if d.dtype == bool:
+        if d.shape != (n_vertices,):
+            raise ShprobeError(f"dense mask has shape {d.shape}, not ({n_vertices},)")
+        d = np.flatnonzero(d)
+    elif d.dtype.kind not in "iu" or d.ndim != 1 or (d.size and (d.min() < 0
+                                                                 or d.max() >= n_vertices)):
+        raise ShprobeError(f"dense must be vertex indices in 0..{n_vertices - 1} or a mask")
+    ns = check_int(dense_samples, 16, "dense samples per vertex")
+    mask = np.zeros(n_vertices, dtype=bool)
+    mask[d] = True
+    return [(np.flatnonzero(~mask), samples), (np.flatnonzero(mask), ns)]
+
+
 def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
-           spans: list[tuple[int, int]], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn):
-    """Visibility-weighted projection Σ V cos y 4π/N (V, K), and the bounce gather matrix as
-    one CSR block of rows per span (None without gather)."""
+           rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn):
+    """For the vertices ``rows``: the visibility-weighted projection Σ V cos y 4π/N
+    (len(rows), K), and the bounce gather matrix's rows as (vertex indices, CSR block) per
+    span of ``rows`` (None without gather)."""
+    spans = _chunks(len(rows), samples)
     dirs = sample_directions(samples, seed)
     dirs32 = dirs.astype(np.float32)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
     caster = RayCaster(sc.vertices, sc.faces)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
-    p32 = caster.local(sc.vertices + eps * sc.normals)  # ray origins in the caster's frame
+    # ray origins in the caster's frame: the one offset rule (RayCaster.offset_points)
+    on = np.full(sc.n_vertices, -1, dtype=np.int64)  # a face of each vertex
+    on[sc.faces.ravel()] = np.repeat(np.arange(len(sc.faces)), 3)
+    p32 = caster.local(caster.offset_points(sc.vertices, sc.normals, eps, on)[0])
     n32 = sc.normals.astype(np.float32)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
@@ -217,13 +259,14 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
 
     def work(span: tuple[int, int]):
         i0, i1 = span
+        idx = rows[i0:i1]
         cap = (i1 - i0) * samples
         o = np.empty((cap, 3), np.float32)
         d = np.empty((cap, 3), np.float32)
         cw = np.empty(cap, np.float32)
         vid = np.empty(cap, np.int64)
         did = np.empty(cap, np.int64)
-        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
+        m = hemisphere_rays(p32[idx], n32[idx], dirs32, o, d, cw, vid, did)
         o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
         proj = np.zeros((i1 - i0, k))
         if not gather:
@@ -238,17 +281,17 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
         ph = prim[sel]
         w = cw[sel] * np.float32(4.0 * np.pi / samples)
         uu, vv = u[sel], v[sel]
-        rows = np.repeat(vid[sel], 3)
+        rr = np.repeat(vid[sel], 3)
         cols = faces[ph].ravel()
         vals = (np.stack([1.0 - uu - vv, uu, vv], axis=1) * w[:, None]).ravel()
         # this block's rows of the gather matrix; CSR sums the many repeated (row, col) pairs
-        g = coo_matrix((vals.astype(np.float64), (rows, cols)), shape=(i1 - i0, sc.n_vertices))
+        g = coo_matrix((vals.astype(np.float64), (rr, cols)), shape=(i1 - i0, sc.n_vertices))
         return proj, g.tocsr()
 
-    t0 = np.empty((sc.n_vertices, num_coeffs(lmax)), dtype=np.float64)
+    t0 = np.empty((len(rows), num_coeffs(lmax)), dtype=np.float64)
     blocks = []
     for (i0, i1), (proj, g) in zip(spans, wrap(pmap(work, spans), "tracing rays", len(spans)),
                                    strict=True):
         t0[i0:i1] = proj
-        blocks.append(g)
+        blocks.append((rows[i0:i1], g))
     return t0, blocks

@@ -7,13 +7,21 @@ the mesh wherever it sits and whatever its units (a mesh at x = 10⁶ keeps its 
 :meth:`RayCaster.local` maps world points into that frame; directions only change length,
 and hits are reported as (face, u, v), which the frame does not change.
 
+Ray origins (:meth:`RayCaster.offset_points`): rays leave a surface point from a copy moved a
+small distance along its normal, so that they do not hit the surface they leave. Where that step
+crosses *another* surface — a mesh vertex touching the ground, whose downward normal would put
+the origin under the ground, where it sees the open sky — the origin is put back on the point's
+side of the surface crossed, a hundredth of the step from it. The bake
+(:mod:`shprobe.prt.bake`) and the independent reference of the tests use this one rule.
+
 Threads: the BVH is committed in the constructor, so that concurrent queries only read it;
 embreex releases the GIL while Embree traces, so worker threads run queries in parallel.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -53,9 +61,16 @@ class RayCaster:
         self.center = 0.5 * (lo + hi)
         self.scale = 1.0 / ext if ext > 0 else 1.0
         self.n_faces = len(f)
+        fv = v[f]
+        fn = np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0])
+        ln = np.linalg.norm(fn, axis=1, keepdims=True)
+        self._face_normals = fn / np.where(ln > 0, ln, 1.0)  # unit; zero for degenerate faces
+        self._faces = np.ascontiguousarray(f, dtype=np.int32)
+        self._local_vertices = self.local(v)
+        self._other_scenes: dict[int, Any] = {}
+        self._other_ids: dict[int, NDArray[np.int64]] = {}
         self._scene = rtcore_scene.EmbreeScene()
-        mesh_construction.TriangleMesh(self._scene, self.local(v),
-                                       np.ascontiguousarray(f, dtype=np.int32))
+        mesh_construction.TriangleMesh(self._scene, self._local_vertices, self._faces)
         # commit (build the BVH) now: worker threads must never race the lazy first commit
         one = np.zeros((1, 3), np.float32)
         self._scene.run(one, one + np.float32(1.0), query="OCCLUDED")
@@ -69,6 +84,82 @@ class RayCaster:
         """World points (..., 3) → the caster's frame, float32 (N, 3) C-contiguous."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         return np.ascontiguousarray((p - self.center) * self.scale, dtype=np.float32)
+
+    def offset_points(self, points: ArrayLike, normals: ArrayLike, offset: float,
+                      faces: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Ray origins for surface points (N, 3) with unit normals (N, 3), each lying on the
+        face ``faces[i]`` (for a vertex: any face that uses it; −1: on none): p + offset·n,
+        except where the step from p crosses, or starts on, a surface of *another* connected
+        part of the mesh (module doc): there, the point where it crosses, moved offset/100
+        along that surface's normal back to p's side. Returns the world-space origins (N, 3)
+        float64 and which of them were put back.
+
+        The point's own part is left out of the test (its own surface passes through p, and a
+        ray cast towards p cannot tell it from another surface through p, as at a vertex
+        touching the ground); parts are the connected components of the faces' vertices.
+        """
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        on = np.asarray(faces, dtype=np.int64).reshape(-1)
+        off = float(offset)
+        o = p + off * n
+        crossed = np.zeros(len(p), dtype=bool)
+        if len(p) == 0 or off <= 0:
+            return o, crossed
+        if on.shape != (len(p),) or on.max(initial=-1) >= self.n_faces:
+            raise ShprobeError(f"offset_points needs one face index per point (< "
+                               f"{self.n_faces}), got shape {on.shape}")
+        part = np.where(on >= 0, self._parts[np.maximum(on, 0)], -1)
+        for c in np.unique(part):
+            scene = self._others(int(c))
+            if scene is None:
+                continue
+            i = np.flatnonzero(part == c)
+            # from the offset origin back to p and a hair beyond (a surface through p counts)
+            reach = np.full(len(i), 1.001 * off * self.scale, dtype=np.float32)
+            r = scene.run(self.local(o[i]), self._dirs(-n[i]), dists=reach, output=1)
+            hit = r["primID"] >= 0
+            if not hit.any():
+                continue
+            i, prim = i[hit], self._other_ids[int(c)][r["primID"][hit]]
+            t = r["tfar"][hit].astype(np.float64) / self.scale  # world distance back from o
+            x = o[i] - t[:, None] * n[i]
+            fn = self._face_normals[prim]
+            side = np.where(np.einsum("ij,ij->i", -n[i], fn) >= 0, 1.0, -1.0)
+            o[i] = x + (0.01 * off * side)[:, None] * fn
+            crossed[i] = True
+        return o, crossed
+
+    @cached_property
+    def _parts(self) -> NDArray[np.int64]:
+        """Connected part of each face (faces sharing a vertex are connected)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        f = self._faces
+        nv = int(f.max()) + 1
+        rows = np.concatenate([f[:, 0], f[:, 1]])
+        cols = np.concatenate([f[:, 1], f[:, 2]])
+        g = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(nv, nv))
+        _, label = connected_components(g, directed=False)
+        return label[f[:, 0]].astype(np.int64)
+
+    def _others(self, part: int) -> Any:
+        """An Embree scene of every face not in ``part`` (−1: all faces); None if none, cached."""
+        if part not in self._other_scenes:
+            from embreex import mesh_construction, rtcore_scene
+
+            keep = np.flatnonzero(self._parts != part)
+            scene = None
+            if len(keep):
+                scene = rtcore_scene.EmbreeScene()
+                mesh_construction.TriangleMesh(scene, self._local_vertices,
+                                               np.ascontiguousarray(self._faces[keep]))
+                one = np.zeros((1, 3), np.float32)
+                scene.run(one, one + np.float32(1.0), query="OCCLUDED")  # commit now
+            self._other_scenes[part] = scene
+            self._other_ids[part] = keep
+        return self._other_scenes[part]
 
     @staticmethod
     def _dirs(dirs: ArrayLike) -> NDArray[np.float32]:
