@@ -8,10 +8,12 @@ for speed:
 - the interior step is P̄_lm = A_lm z P̄_{l−1,m} − AB_lm P̄_{l−2,m} with A = a, AB = a·b
   precomputed, so the loop-carried chain is one fused multiply-add (``fastmath={"contract"}``)
   instead of multiply, subtract, multiply;
-- four directions go through the loops together (rows of ≤ ``FOUR_MAX_ROW_BYTES``): four
-  independent chains per step sharing each table load and index
-  for longer rows one
+- four directions go through the loops together (rows of ≤ ``BUF_FOUR_MAX_ROW_BYTES``): four
+  independent chains per step sharing each table load and index; for longer rows one
   direction at a time with the columns m run two at a time (m, m+1) through the same l loop;
+- rows longer than ``FOUR_MAX_ROW_BYTES`` of an output larger than L2 are computed four at a
+  time into a small buffer and copied out in one sequential pass (four long rows written in
+  place at once defeat the store prefetching into memory not in the cache);
 - the arithmetic is done in the type of the tables (float32 tables for float32 output up to
   the degree where P̄ could overflow float32, see ``shprobe.sh.basis``);
 - an output much larger than the caches is written with streaming (non-temporal) stores:
@@ -29,10 +31,20 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-#: Rows of at most this many bytes are computed four directions at a time (above, the four
-#: rows being written no longer sit in L1 together, and one direction at a time, with two
-#: columns in flight, is faster).
+#: Rows of at most this many bytes, written with plain stores, are computed in place, four
+#: directions at a time (the four rows sit in L1 together).
 FOUR_MAX_ROW_BYTES = 4608
+#: Longer rows (and every row written with streaming stores) are computed into a buffer of
+#: about this many bytes (at least four rows), then copied out in one sequential pass: four
+#: rows written in place at once, 8.7 KB apart and more, defeat the hardware's store
+#: prefetching on memory not in the cache.
+BUF_BYTES = 16384
+#: ... unless the whole output is at most this size (it stays in L2: in place is faster).
+IN_PLACE_MAX_BYTES = 2 << 20
+#: Rows up to this size go through the buffer four directions at a time (four independent
+#: recurrence chains sharing each table load); longer rows one at a time, with two columns in
+#: flight.
+BUF_FOUR_MAX_ROW_BYTES = 65536
 
 
 @intrinsic
@@ -310,6 +322,12 @@ def _rows(dirs, i0, cnt, out, r0, lmax, R, d0, d1, four):  # pragma: no cover - 
         j += 1
 
 
+@nb.njit(inline="always")
+def _copy(dst, d0, src, n):  # pragma: no cover - compiled
+    """dst[d0 : d0 + n] = src[:n] with plain stores (one sequential stream)."""
+    dst[d0:d0 + n] = src[:n]
+
+
 @nb.njit(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compiled
     """out[i, k] = y_k(dirs[i]) for dirs (N, 3), out (N, (lmax+1)²), lmax ≥ 2.
@@ -317,22 +335,35 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compil
     ``R``: the interior recurrence's (a_lm, a_lm·b_lm) pairs, column by column (m = 0, 1, …;
     l = m+2 … lmax within a column), so that every column reads one sequential stream;
     ``d0[m]`` = P̄_mm, ``d1[l]`` = √(2l+1) P̄_{l−1,l−1} (so P̄_{l,l−1} = d1[l] z). The
-    arithmetic is done in R's type. ``stream_a0`` < 0: plain stores
-    otherwise streaming
+    arithmetic is done in R's type. ``stream_a0`` < 0: plain stores; otherwise streaming
     stores, and flat output index j is 64-byte aligned iff j ≡ stream_a0 (mod 64/itemsize).
+
+    With plain stores, rows of ≤ ``FOUR_MAX_ROW_BYTES``, outputs of ≤ ``IN_PLACE_MAX_BYTES``
+    and rows over ``BUF_FOUR_MAX_ROW_BYTES`` are written in place (four directions at a time
+    up to that size, else one at a time). Otherwise rows are computed in blocks into a small
+    buffer (four at a time up to ``BUF_FOUR_MAX_ROW_BYTES``, one at a time above) and each
+    block, one contiguous span of the output, is copied out in one sequential pass: with
+    streaming stores, or plain.
     """
     n = dirs.shape[0]
     K = out.shape[1]
-    four = K * out.itemsize <= FOUR_MAX_ROW_BYTES
-    if stream_a0 < 0:
+    row_bytes = K * out.itemsize
+    four = row_bytes <= BUF_FOUR_MAX_ROW_BYTES
+    if stream_a0 < 0 and (row_bytes <= FOUR_MAX_ROW_BYTES or not four
+                          or n * row_bytes <= IN_PLACE_MAX_BYTES):
         _rows(dirs, 0, n, out, 0, lmax, R, d0, d1, four)
         return
-    B = max(4, 16384 // (K * out.itemsize) // 4 * 4)  # rows per block: ~16 KiB of buffer
+    B = max(4, BUF_BYTES // row_bytes // 4 * 4)  # rows per block
+    B = min(B, (n + 3) // 4 * 4)
     buf = np.empty((B, K), out.dtype)
     flat_buf = buf.reshape(-1)
     flat = out.reshape(-1)
     for i0 in range(0, n, B):
         cnt = min(B, n - i0)
         _rows(dirs, i0, cnt, buf, 0, lmax, R, d0, d1, four)
-        _stream_copy(flat, i0 * K, flat_buf, cnt * K, stream_a0)
-    _fence()
+        if stream_a0 < 0:
+            _copy(flat, i0 * K, flat_buf, cnt * K)
+        else:
+            _stream_copy(flat, i0 * K, flat_buf, cnt * K, stream_a0)
+    if stream_a0 >= 0:
+        _fence()
