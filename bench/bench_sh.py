@@ -1,6 +1,8 @@
 """Benchmark: SH basis and rotation against their peers (issue: foundation).
 
-Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed). Prints
+Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
+``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at every
+lmax 9–30). Prints
 markdown tables; one thread everywhere. Peers: sphericart (preallocated output, through its
 ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y, pyshtools
 SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are installed).
@@ -155,6 +157,49 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 
                           for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
 
 
+def bench_basis_sweep(lmaxes=(9, 12, 14, 18, 22, 23, 24, 26, 28, 30), repeat=7):
+    """shprobe `out=` / sphericart `out`, best times, at every lmax of ``lmaxes`` (the kernel's
+    switch points 22–24 included): a 256 MiB output (streamed by shprobe) and a ~1 MiB one
+    (in cache), float64 and float32, the two calls interleaved in alternating order."""
+    import sphericart
+
+    from shprobe.sh import sh_basis
+
+    table = {}
+    for size, dt in ((256 << 20, np.float64), (256 << 20, np.float32), (1 << 20, np.float64),
+                     (1 << 20, np.float32)):
+        for lmax in lmaxes:
+            K = (lmax + 1) ** 2
+            n = max(8, size // (np.dtype(dt).itemsize * K)) // 4 * 4
+            d = unit_dirs(n).astype(dt)
+            out = np.zeros((n, K), dt)
+            calc = sphericart.SphericalHarmonics(lmax)
+            calls = {"ours": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+                     "sc": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                              None)}
+            reps = max(1, int(5e6 / (n * K)))
+            t = {k: [] for k in calls}
+            for f in calls.values():
+                f()
+            for r in range(repeat):
+                for k in calls if r % 2 == 0 else list(calls)[::-1]:
+                    t0 = time.process_time()
+                    for _ in range(reps):
+                        calls[k]()
+                    t[k].append(time.process_time() - t0)
+            table[(size, np.dtype(dt).name, lmax)] = min(t["ours"]) / min(t["sc"])
+    print("### sh_basis `out=` / sphericart, every lmax (ratio of best process CPU times, "
+          f"{repeat} interleaved repeats)\n")
+    print("| output | dtype | " + " | ".join(str(l) for l in lmaxes) + " |")
+    print("| --- | --- | " + " | ".join("---:" for _ in lmaxes) + " |")
+    for size, dt in ((256 << 20, "float64"), (256 << 20, "float32"), (1 << 20, "float64"),
+                     (1 << 20, "float32")):
+        print(f"| {size >> 20} MiB | {dt} | "
+              + " | ".join(f"{table[(size, dt, l)]:.2f}" for l in lmaxes) + " |")
+    print("\nload average at the end: "
+          + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + "\n")
+
+
 def bench_rotation(rows, batch_rows):
     from scipy.spatial.transform import Rotation
 
@@ -268,6 +313,11 @@ def bench_import(rows):
 
 def main():
     print(f"Machine: {machine()}\n")
+    if "--sweep" in sys.argv:
+        print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
+              + "\n")
+        bench_basis_sweep()
+        return
     grid = []
     print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
           + "\n")
