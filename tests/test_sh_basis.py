@@ -208,15 +208,15 @@ def test_streamed_output_equals_plain_stores(monkeypatch):
         monkeypatch.undo()
 
 
-def test_long_rows_through_the_buffer_equal_rows_in_place():
-    # rows longer than FOUR_MAX_ROW_BYTES of an output larger than L2 are computed four at a
-    # time into a buffer and copied out; a small output is computed in place: the same values,
-    # and the recurrence's values (scipy's, independently, for float64)
+def test_rows_through_the_buffer_equal_rows_in_place():
+    # an output larger than L2 is computed block by block into a buffer and copied out; a
+    # small output is computed in place: the same values, and the recurrence's values
+    # (scipy's, independently, for float64)
     from shprobe.sh import _kernels
 
-    for lmax, dtype, n in ((24, np.float64, 1001), (40, np.float32, 1003)):
+    for lmax, dtype, n in ((12, np.float64, 1603), (24, np.float64, 1001),
+                           (40, np.float32, 1003)):
         K = (lmax + 1) ** 2
-        assert K * np.dtype(dtype).itemsize > _kernels.FOUR_MAX_ROW_BYTES
         assert n * K * np.dtype(dtype).itemsize > _kernels.IN_PLACE_MAX_BYTES
         d = random_dirs(n, seed=17).astype(dtype)
         big = sh_basis(d, lmax)

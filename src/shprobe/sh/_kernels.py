@@ -8,12 +8,12 @@ for speed:
 - the interior step is P̄_lm = A_lm z P̄_{l−1,m} − AB_lm P̄_{l−2,m} with A = a, AB = a·b
   precomputed, so the loop-carried chain is one fused multiply-add (``fastmath={"contract"}``)
   instead of multiply, subtract, multiply;
-- four directions go through the loops together (rows of ≤ ``BUF_FOUR_MAX_ROW_BYTES``): four
+- four directions go through the loops together (rows of ≤ ``FOUR_MAX_ROW_BYTES``): four
   independent chains per step sharing each table load and index; for longer rows one
   direction at a time with the columns m run two at a time (m, m+1) through the same l loop;
-- rows longer than ``FOUR_MAX_ROW_BYTES`` of an output larger than L2 are computed four at a
-  time into a small buffer and copied out in one sequential pass (four long rows written in
-  place at once defeat the store prefetching into memory not in the cache);
+- an output larger than L2 is computed in blocks into a small buffer, each copied out in one
+  sequential pass (four rows written in place at once, column by column, scatter stores
+  that the store prefetching does not follow into memory not in the cache);
 - the arithmetic is done in the type of the tables (float32 tables for float32 output up to
   the degree where P̄ could overflow float32, see ``shprobe.sh.basis``);
 - an output much larger than the caches is written with streaming (non-temporal) stores:
@@ -31,20 +31,19 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-#: Rows of at most this many bytes, written with plain stores, are computed in place, four
-#: directions at a time (the four rows sit in L1 together).
-FOUR_MAX_ROW_BYTES = 4608
-#: Longer rows (and every row written with streaming stores) are computed into a buffer of
-#: about this many bytes (at least four rows), then copied out in one sequential pass: four
-#: rows written in place at once, 8.7 KB apart and more, defeat the hardware's store
-#: prefetching on memory not in the cache.
-BUF_BYTES = 16384
-#: ... unless the whole output is at most this size (it stays in L2: in place is faster).
+#: Rows of at most this many bytes are computed four directions at a time (four independent
+#: recurrence chains sharing each table load); longer rows one at a time, with two columns
+#: in flight.
+FOUR_MAX_ROW_BYTES = 65536
+#: Outputs of at most this many bytes (they stay in L2), and rows over
+#: ``FOUR_MAX_ROW_BYTES``, are written in place.
 IN_PLACE_MAX_BYTES = 2 << 20
-#: Rows up to this size go through the buffer four directions at a time (four independent
-#: recurrence chains sharing each table load); longer rows one at a time, with two columns in
-#: flight.
-BUF_FOUR_MAX_ROW_BYTES = 65536
+#: Larger outputs are computed in blocks of about this many bytes (at least four rows) into a
+#: buffer that stays in L1, each block then copied out in one sequential pass, with plain or
+#: streaming stores: four rows written in place at once, column by column, scatter stores
+#: over memory not in the cache, which the store prefetchers do not follow (a fresh array's
+#: pages, just zeroed by the kernel, included).
+BUF_BYTES = 16384
 
 
 @intrinsic
@@ -338,19 +337,17 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compil
     arithmetic is done in R's type. ``stream_a0`` < 0: plain stores; otherwise streaming
     stores, and flat output index j is 64-byte aligned iff j ≡ stream_a0 (mod 64/itemsize).
 
-    With plain stores, rows of ≤ ``FOUR_MAX_ROW_BYTES``, outputs of ≤ ``IN_PLACE_MAX_BYTES``
-    and rows over ``BUF_FOUR_MAX_ROW_BYTES`` are written in place (four directions at a time
-    up to that size, else one at a time). Otherwise rows are computed in blocks into a small
-    buffer (four at a time up to ``BUF_FOUR_MAX_ROW_BYTES``, one at a time above) and each
+    Rows of ≤ ``FOUR_MAX_ROW_BYTES`` are computed four directions at a time. With plain
+    stores, outputs of ≤ ``IN_PLACE_MAX_BYTES`` and rows over ``FOUR_MAX_ROW_BYTES`` are
+    written in place; otherwise rows are computed in blocks into a small buffer and each
     block, one contiguous span of the output, is copied out in one sequential pass: with
     streaming stores, or plain.
     """
     n = dirs.shape[0]
     K = out.shape[1]
     row_bytes = K * out.itemsize
-    four = row_bytes <= BUF_FOUR_MAX_ROW_BYTES
-    if stream_a0 < 0 and (row_bytes <= FOUR_MAX_ROW_BYTES or not four
-                          or n * row_bytes <= IN_PLACE_MAX_BYTES):
+    four = row_bytes <= FOUR_MAX_ROW_BYTES
+    if stream_a0 < 0 and (not four or n * row_bytes <= IN_PLACE_MAX_BYTES):
         _rows(dirs, 0, n, out, 0, lmax, R, d0, d1, four)
         return
     B = max(4, BUF_BYTES // row_bytes // 4 * 4)  # rows per block
