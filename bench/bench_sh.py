@@ -1,6 +1,8 @@
 """Benchmark: SH basis and rotation against their peers (issue: foundation).
 
-Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed). Prints
+Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
+``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at every
+lmax 9–30). Prints
 markdown tables; one thread everywhere. Peers: sphericart (preallocated output, through its
 ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y, pyshtools
 SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are installed).
@@ -75,9 +77,15 @@ def bench_basis(rows):
 
 
 def _timed(f):
+    """(process CPU seconds, of them system seconds, minor page faults) of one call."""
+    import resource
+
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
     t = time.process_time()
     f()
-    return time.process_time() - t
+    t = time.process_time() - t
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    return t, r1.ru_stime - r0.ru_stime, r1.ru_minflt - r0.ru_minflt
 
 
 def f32_error(fn, d32, lmax):
@@ -92,12 +100,18 @@ def f32_error(fn, d32, lmax):
     return err.max() / np.finfo(np.float32).eps
 
 
-def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=7, budget=1 << 30):
+def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 30):
     """shprobe and sphericart, output preallocated and allocated by the call, float64 and
-    float32, in the same run: each repeat times the four calls in turn, in alternating order
-    (interleaved, so that load drift and the state of free memory hit them alike); best and
-    median per call. 10⁶ directions, fewer where the
-    output would pass ``budget`` bytes (the box is shared)."""
+    float32, in the same run, 10⁶ directions, fewer where the output would pass ``budget``
+    bytes (the box is shared); best and median per call.
+
+    The two preallocated calls are interleaved, in alternating order. The two allocating
+    calls are interleaved among themselves in alternating order (o s | s o | o s …), so that
+    each follows the freeing of the other's gigabyte as often as its own: how fast a fresh
+    array's pages come back depends on what was freed just before (the kernel hands back
+    the huge pages just freed at once; pages free for longer may have been returned to the
+    hypervisor, or need compacting) — an order in which one call always ran right after an
+    allocating call and the other only half the time favoured the first."""
     import sphericart
 
     from shprobe.sh import sh_basis
@@ -111,30 +125,79 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=7, budget=1 << 
             out = np.empty((n, K), dt)
             out.fill(0)  # pages touched once, as a reused buffer is
             calc = sphericart.SphericalHarmonics(lmax)
-            calls = {
-                "ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
-                "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
-                                                                             None),
-                "ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
-                "sc_alloc": lambda d=d, calc=calc: calc.compute(d),
-            }
-            for f in calls.values():
-                f()
-            t = {k: [] for k in calls}
-            order = list(calls)
-            for r in range(repeat):
-                # alternate the order: a call that runs just after another one freed its
-                # gigabyte gets those (huge) pages back at once, the other pays for fresh ones
-                for k in order if r % 2 == 0 else order[::-1]:
-                    t[k].append(_timed(calls[k]) * 1e9 / n)
+            groups = (
+                {"ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+                 "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                              None)},
+                {"ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+                 "sc_alloc": lambda d=d, calc=calc: calc.compute(d)},
+            )
+            t, sys_t, flt = {}, {}, {}
+            for calls in groups:
+                for f in calls.values():
+                    f()
+                order = list(calls)
+                for k in calls:
+                    t[k], sys_t[k], flt[k] = [], [], []
+                for r in range(repeat):
+                    for k in order if r % 2 == 0 else order[::-1]:
+                        cpu, sy, fl = _timed(calls[k])
+                        t[k].append(cpu * 1e9 / n)
+                        sys_t[k].append(sy * 1e3)
+                        flt[k].append(fl)
+            del out
             e_ours = e_sc = float("nan")
             if dt == np.float32:
                 few = d[:2000]
                 e_ours = f32_error(lambda x, lmax=lmax: sh_basis(x, lmax), few, lmax)
                 e_sc = f32_error(calc.compute, few, lmax)
-            rows.append((lmax, np.dtype(dt).name, n, {k: (min(v), float(np.median(v)))
-                                                      for k, v in t.items()}, e_ours, e_sc))
-            del out
+            rows.append((lmax, np.dtype(dt).name, n,
+                         {k: (min(v), float(np.median(v))) for k, v in t.items()},
+                         {k: (float(np.median(sys_t[k])), float(np.median(flt[k])))
+                          for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
+
+
+def bench_basis_sweep(lmaxes=(9, 12, 14, 18, 22, 23, 24, 26, 28, 30), repeat=7):
+    """shprobe `out=` / sphericart `out`, best times, at every lmax of ``lmaxes`` (the kernel's
+    switch points 22–24 included): a 256 MiB output (streamed by shprobe) and a ~1 MiB one
+    (in cache), float64 and float32, the two calls interleaved in alternating order."""
+    import sphericart
+
+    from shprobe.sh import sh_basis
+
+    table = {}
+    for size, dt in ((256 << 20, np.float64), (256 << 20, np.float32), (1 << 20, np.float64),
+                     (1 << 20, np.float32)):
+        for lmax in lmaxes:
+            K = (lmax + 1) ** 2
+            n = max(8, size // (np.dtype(dt).itemsize * K)) // 4 * 4
+            d = unit_dirs(n).astype(dt)
+            out = np.zeros((n, K), dt)
+            calc = sphericart.SphericalHarmonics(lmax)
+            calls = {"ours": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+                     "sc": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                              None)}
+            reps = max(1, int(5e6 / (n * K)))
+            t = {k: [] for k in calls}
+            for f in calls.values():
+                f()
+            for r in range(repeat):
+                for k in calls if r % 2 == 0 else list(calls)[::-1]:
+                    t0 = time.process_time()
+                    for _ in range(reps):
+                        calls[k]()
+                    t[k].append(time.process_time() - t0)
+            table[(size, np.dtype(dt).name, lmax)] = min(t["ours"]) / min(t["sc"])
+    print("### sh_basis `out=` / sphericart, every lmax (ratio of best process CPU times, "
+          f"{repeat} interleaved repeats)\n")
+    print("| output | dtype | " + " | ".join(str(l) for l in lmaxes) + " |")
+    print("| --- | --- | " + " | ".join("---:" for _ in lmaxes) + " |")
+    for size, dt in ((256 << 20, "float64"), (256 << 20, "float32"), (1 << 20, "float64"),
+                     (1 << 20, "float32")):
+        print(f"| {size >> 20} MiB | {dt} | "
+              + " | ".join(f"{table[(size, dt, l)]:.2f}" for l in lmaxes) + " |")
+    print("\nload average at the end: "
+          + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + "\n")
 
 
 def bench_rotation(rows, batch_rows):
@@ -250,24 +313,38 @@ def bench_import(rows):
 
 def main():
     print(f"Machine: {machine()}\n")
+    if "--sweep" in sys.argv:
+        print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
+              + "\n")
+        bench_basis_sweep()
+        return
     grid = []
+    print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
+          + "\n")
     bench_basis_grid(grid)
     print("### sh_basis against sphericart: random unit directions, one thread\n")
-    print("ns per direction, best / median of 7 interleaved repeats (process CPU time); "
-          "`out`: output preallocated (and touched before), `alloc`: the call allocates; "
-          "ratios of best times. f32 error: largest |y₃₂ − y₆₄| over the band scale "
-          "√((2l+1)/4π) in float32 epsilons (inf: nan/inf in the output).\n")
+    print("ns per direction, best / median of 9 interleaved repeats (process CPU time, "
+          "page-fault time included); `out`: output preallocated (and touched before), "
+          "`alloc`: the call allocates; × = ratio of best times (median ratio in brackets). "
+          "alloc sys: median system time per allocating call (ms, page faults: zeroing the "
+          "fresh pages) and minor faults, shprobe / sphericart. f32 error: largest "
+          "|y₃₂ − y₆₄| over the band scale √((2l+1)/4π) in float32 epsilons (inf: nan/inf "
+          "in the output).\n")
     print("| lmax | dtype | directions | shprobe out | sphericart out | × | shprobe alloc "
-          "| sphericart alloc | × | f32 error shprobe / sphericart |")
-    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
-    for lmax, dt, n, t, e1, e2 in grid:
+          "| sphericart alloc | × | alloc sys ms (faults) | f32 error shprobe / sphericart |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |")
+    for lmax, dt, n, t, fa, e1, e2 in grid:
         err = "" if dt == "float64" else f"{e1:.0f} / {e2:.3g}"
         print(f"| {lmax} | {dt} | {n:,} | {t['ours_out'][0]:.1f} / {t['ours_out'][1]:.1f} "
               f"| {t['sc_out'][0]:.1f} / {t['sc_out'][1]:.1f} "
               f"| {t['ours_out'][0] / t['sc_out'][0]:.2f} "
+              f"({t['ours_out'][1] / t['sc_out'][1]:.2f}) "
               f"| {t['ours_alloc'][0]:.1f} / {t['ours_alloc'][1]:.1f} "
               f"| {t['sc_alloc'][0]:.1f} / {t['sc_alloc'][1]:.1f} "
-              f"| {t['ours_alloc'][0] / t['sc_alloc'][0]:.2f} | {err} |")
+              f"| {t['ours_alloc'][0] / t['sc_alloc'][0]:.2f} "
+              f"({t['ours_alloc'][1] / t['sc_alloc'][1]:.2f}) "
+              f"| {fa['ours_alloc'][0]:.0f} ({fa['ours_alloc'][1]:.0f}) / "
+              f"{fa['sc_alloc'][0]:.0f} ({fa['sc_alloc'][1]:.0f}) | {err} |")
     print("\nload average at the end of the table: "
           + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + "\n")
     if "--grid" in sys.argv:

@@ -206,3 +206,25 @@ def test_streamed_output_equals_plain_stores(monkeypatch):
             np.testing.assert_array_equal(sh_basis(dd, lmax, out=out), plain)
         assert np.isnan(big[len(d) * K + 3:]).all()  # nothing written past the end
         monkeypatch.undo()
+
+
+def test_rows_through_the_buffer_equal_rows_in_place():
+    # an output larger than L2 is computed block by block into a buffer and copied out; a
+    # small output is computed in place: the same values, and the recurrence's values
+    # (scipy's, independently, for float64)
+    from shprobe.sh import _kernels
+
+    for lmax, dtype, n in ((12, np.float64, 1603), (24, np.float64, 1001),
+                           (40, np.float32, 1003)):
+        K = (lmax + 1) ** 2
+        assert n * K * np.dtype(dtype).itemsize > _kernels.IN_PLACE_MAX_BYTES
+        d = random_dirs(n, seed=17).astype(dtype)
+        big = sh_basis(d, lmax)
+        small = np.concatenate([sh_basis(d[i:i + 8], lmax) for i in range(0, n, 8)])
+        np.testing.assert_array_equal(big, small)
+        if dtype == np.float64:
+            assert (np.abs(big - sh_basis_scipy(d, lmax)) / band_norm(lmax)).max() <= 1e-12
+        else:  # as in the float32 test above: against float64 on the same rounded directions
+            err = np.abs(big - sh_basis(d.astype(np.float64), lmax)) / band_norm(lmax)
+            l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
+            assert np.all(err <= 1.5 * (l + 1) * np.finfo(np.float32).eps)

@@ -9,9 +9,11 @@ for speed:
   precomputed, so the loop-carried chain is one fused multiply-add (``fastmath={"contract"}``)
   instead of multiply, subtract, multiply;
 - four directions go through the loops together (rows of ≤ ``FOUR_MAX_ROW_BYTES``): four
-  independent chains per step sharing each table load and index
-  for longer rows one
+  independent chains per step sharing each table load and index; for longer rows one
   direction at a time with the columns m run two at a time (m, m+1) through the same l loop;
+- an output larger than L2 is computed in blocks into a small buffer, each copied out in one
+  sequential pass (four rows written in place at once, column by column, scatter stores
+  that the store prefetching does not follow into memory not in the cache);
 - the arithmetic is done in the type of the tables (float32 tables for float32 output up to
   the degree where P̄ could overflow float32, see ``shprobe.sh.basis``);
 - an output much larger than the caches is written with streaming (non-temporal) stores:
@@ -29,10 +31,19 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-#: Rows of at most this many bytes are computed four directions at a time (above, the four
-#: rows being written no longer sit in L1 together, and one direction at a time, with two
-#: columns in flight, is faster).
-FOUR_MAX_ROW_BYTES = 4608
+#: Rows of at most this many bytes are computed four directions at a time (four independent
+#: recurrence chains sharing each table load); longer rows one at a time, with two columns
+#: in flight.
+FOUR_MAX_ROW_BYTES = 65536
+#: Outputs of at most this many bytes (they stay in L2), and rows over
+#: ``FOUR_MAX_ROW_BYTES``, are written in place.
+IN_PLACE_MAX_BYTES = 2 << 20
+#: Larger outputs are computed in blocks of about this many bytes (at least four rows) into a
+#: buffer that stays in L1, each block then copied out in one sequential pass, with plain or
+#: streaming stores: four rows written in place at once, column by column, scatter stores
+#: over memory not in the cache, which the store prefetchers do not follow (a fresh array's
+#: pages, just zeroed by the kernel, included).
+BUF_BYTES = 16384
 
 
 @intrinsic
@@ -310,6 +321,12 @@ def _rows(dirs, i0, cnt, out, r0, lmax, R, d0, d1, four):  # pragma: no cover - 
         j += 1
 
 
+@nb.njit(inline="always")
+def _copy(dst, d0, src, n):  # pragma: no cover - compiled
+    """dst[d0 : d0 + n] = src[:n] with plain stores (one sequential stream)."""
+    dst[d0:d0 + n] = src[:n]
+
+
 @nb.njit(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
 def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compiled
     """out[i, k] = y_k(dirs[i]) for dirs (N, 3), out (N, (lmax+1)²), lmax ≥ 2.
@@ -317,22 +334,33 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compil
     ``R``: the interior recurrence's (a_lm, a_lm·b_lm) pairs, column by column (m = 0, 1, …;
     l = m+2 … lmax within a column), so that every column reads one sequential stream;
     ``d0[m]`` = P̄_mm, ``d1[l]`` = √(2l+1) P̄_{l−1,l−1} (so P̄_{l,l−1} = d1[l] z). The
-    arithmetic is done in R's type. ``stream_a0`` < 0: plain stores
-    otherwise streaming
+    arithmetic is done in R's type. ``stream_a0`` < 0: plain stores; otherwise streaming
     stores, and flat output index j is 64-byte aligned iff j ≡ stream_a0 (mod 64/itemsize).
+
+    Rows of ≤ ``FOUR_MAX_ROW_BYTES`` are computed four directions at a time. With plain
+    stores, outputs of ≤ ``IN_PLACE_MAX_BYTES`` and rows over ``FOUR_MAX_ROW_BYTES`` are
+    written in place; otherwise rows are computed in blocks into a small buffer and each
+    block, one contiguous span of the output, is copied out in one sequential pass: with
+    streaming stores, or plain.
     """
     n = dirs.shape[0]
     K = out.shape[1]
-    four = K * out.itemsize <= FOUR_MAX_ROW_BYTES
-    if stream_a0 < 0:
+    row_bytes = K * out.itemsize
+    four = row_bytes <= FOUR_MAX_ROW_BYTES
+    if stream_a0 < 0 and (not four or n * row_bytes <= IN_PLACE_MAX_BYTES):
         _rows(dirs, 0, n, out, 0, lmax, R, d0, d1, four)
         return
-    B = max(4, 16384 // (K * out.itemsize) // 4 * 4)  # rows per block: ~16 KiB of buffer
+    B = max(4, BUF_BYTES // row_bytes // 4 * 4)  # rows per block
+    B = min(B, (n + 3) // 4 * 4)
     buf = np.empty((B, K), out.dtype)
     flat_buf = buf.reshape(-1)
     flat = out.reshape(-1)
     for i0 in range(0, n, B):
         cnt = min(B, n - i0)
         _rows(dirs, i0, cnt, buf, 0, lmax, R, d0, d1, four)
-        _stream_copy(flat, i0 * K, flat_buf, cnt * K, stream_a0)
-    _fence()
+        if stream_a0 < 0:
+            _copy(flat, i0 * K, flat_buf, cnt * K)
+        else:
+            _stream_copy(flat, i0 * K, flat_buf, cnt * K, stream_a0)
+    if stream_a0 >= 0:
+        _fence()
