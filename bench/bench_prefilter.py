@@ -75,38 +75,44 @@ def naive_angular_peer(env: Env, lmax: int) -> np.ndarray:
     return (sh_basis(d, lmax) * dw[:, None]).T @ L.astype(np.float64)
 
 
-def latlong_table(rng, sizes, lmaxes, repeat: int = 9) -> None:
+LAT_LMAXES = (2, 6, 10, 16, 20, 32)  # issue 16's degrees
+
+
+def latlong_table(rng, sizes, lmaxes, repeat: int = 9,
+                  dtypes=(np.float32, np.float64)) -> None:
     """shprobe.project (threads picked by size), its one-thread path and the separable numpy
     peer on random float32 lat-long images; each repeat runs the three in turn (interleaved),
-    wall time, best / median; the ratio is of best times."""
-    print("### Lat-long projection (R&H eq. 10), float32 radiance, 3 channels\n")
+    wall time, best / median; the ratio is of best times. Both radiance types; the peer computes
+    in the radiance's type as numpy's matmul does."""
+    print("### Lat-long projection (R&H eq. 10), float32 and float64 radiance, 3 channels\n")
     print("ms, best / median of interleaved repeats; × = shprobe.project / peer (best)\n")
-    print("| size | lmax | shprobe.project | threads (at the end) | shprobe, one thread "
+    print("| size | dtype | lmax | shprobe.project | threads (at the end) | shprobe, one thread "
           "| separable numpy (peer) | × |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     from shprobe.lighting.projection import _latlong_threads
 
-    for w, h in sizes:
-        rad = rng.random((h, w, 3), dtype=np.float32)
-        env = Env(rad, "latlong")
-        for lmax in lmaxes:
-            calls = {"auto": lambda lm=lmax, e=env: project(e, lm),
-                     "one": lambda lm=lmax, r=rad: _project_latlong(r, lm, threads=1),
-                     "peer": lambda lm=lmax, r=rad: separable_numpy_peer(r, lm)}
-            t = {k: [] for k in calls}
-            for f in calls.values():
+    for (w, h), dtype, lmax in ((s, d, lm) for s in sizes for d in dtypes for lm in lmaxes):
+        if lmax == lmaxes[0]:
+            rad = rng.random((h, w, 3)).astype(dtype)
+            env = Env(rad, "latlong")
+        calls = {"auto": lambda lm=lmax, e=env: project(e, lm),
+                 "one": lambda lm=lmax, r=rad: _project_latlong(r, lm, threads=1),
+                 "peer": lambda lm=lmax, r=rad: separable_numpy_peer(r, lm)}
+        t = {k: [] for k in calls}
+        for f in calls.values():
+            f()
+        for _ in range(repeat):
+            for k, f in calls.items():
+                t0 = time.perf_counter()
                 f()
-            for _ in range(repeat):
-                for k, f in calls.items():
-                    t0 = time.perf_counter()
-                    f()
-                    t[k].append(1e3 * (time.perf_counter() - t0))
-            nthr = _latlong_threads(h * w * 3 * (2 * lmax + 1))
-            b = {k: (min(v), float(np.median(v))) for k, v in t.items()}
-            print(f"| {w}×{h} | {lmax} | {b['auto'][0]:.2f} / {b['auto'][1]:.2f} | {nthr} "
-                  f"| {b['one'][0]:.2f} / {b['one'][1]:.2f} "
-                  f"| {b['peer'][0]:.2f} / {b['peer'][1]:.2f} "
-                  f"| {b['auto'][0] / b['peer'][0]:.2f} |")
+                t[k].append(1e3 * (time.perf_counter() - t0))
+        nthr = _latlong_threads(h * w * 3 * (2 * lmax + 1))
+        b = {k: (min(v), float(np.median(v))) for k, v in t.items()}
+        print(f"| {w}×{h} | {np.dtype(dtype).name} | {lmax} "
+              f"| {b['auto'][0]:.2f} / {b['auto'][1]:.2f} | {nthr} "
+              f"| {b['one'][0]:.2f} / {b['one'][1]:.2f} "
+              f"| {b['peer'][0]:.2f} / {b['peer'][1]:.2f} "
+              f"| {b['auto'][0] / b['peer'][0]:.2f} |")
     print(f"\nload average after the table: {os.getloadavg()[0]:.2f}\n")
 
 
@@ -118,13 +124,13 @@ def main() -> None:
     rng = np.random.default_rng(0)
     rows: list[tuple[str, str, float]] = []
     if "--latlong" in sys.argv:
-        latlong_table(rng, ((512, 256), (1024, 512), (4096, 2048)), (2, 8, 16))
+        latlong_table(rng, ((512, 256), (1024, 512), (4096, 2048)), LAT_LMAXES)
         return
 
     # --- lat-long: three sizes, interleaved with the peers ----------------------------------
     sizes = ((512, 256), (1024, 512)) + (((2048, 1024),) if quick else ((4096, 2048),))
     h, w = sizes[-1][1], sizes[-1][0]
-    latlong_table(rng, sizes, (2, 8, 16))
+    latlong_table(rng, sizes, LAT_LMAXES)
     rad = rng.random((h, w, 3), dtype=np.float32)
     for lmax in (2, 8):
         try:
