@@ -8,6 +8,7 @@ import logging
 import os
 import signal
 
+import dask
 import numpy as np
 import pytest
 
@@ -130,3 +131,50 @@ def test_own_local_cluster(library, inline):
     _same_rows(t, inline)
     assert state.pop("faults") < 300
     assert state == LOCAL_CLUSTER_CONFIG
+
+
+class _Poison:
+    """Worker plugin: in every worker (restarted ones too), a probe named ``poison*`` kills
+    the worker process, as a decoder crash would."""
+
+    name = "shprobe-test-poison"
+
+    def setup(self, worker):
+        from shprobe.batch import engine
+
+        real = engine.probe_row
+
+        def probe_row(path, *a, **k):
+            if os.path.basename(path).startswith("poison"):
+                os._exit(1)
+            return real(path, *a, **k)
+
+        engine.probe_row = probe_row
+
+
+def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
+    """A task of several probes whose worker dies is split into one task per probe: only the
+    probe that kills workers becomes an error row, every other row is as in-process."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    poison = tmp_path / "poison.hdr"
+    poison.write_bytes((library / "p0.hdr").read_bytes())
+    # one worker, one task on it at a time, no retries: the task that dies is exactly the one
+    # that held the poison (a queued innocent probe would otherwise die with it)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                          "distributed.scheduler.worker-saturation": 1.0}):
+        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, host="127.0.0.1",
+                                           silence_logs=logging.CRITICAL)
+    try:
+        with distributed.Client(cluster) as client:
+            client.register_plugin(type("Poison", (_Poison, WorkerPlugin), {})())
+            t = run_batch([library, poison], None, client=client, reference=4, chunk=3)
+    finally:
+        cluster.close()
+    paths = t.column("path").to_pylist()
+    errors = dict(zip(paths, t.column("error").to_pylist(), strict=True))
+    assert "worker failed" in errors.pop(str(poison))
+    assert [os.path.basename(n) for n, e in errors.items() if e] == ["broken.hdr"]
+    keep = [i for i, n in enumerate(paths) if n != str(poison)]
+    _same_rows(t.take(keep).sort_by("path"), inline.sort_by("path"))
