@@ -548,30 +548,44 @@ class Session:
                             self._mesh_bytes = data[0]
                     elif kind == "ready":
                         break
-        except EOFError:
-            raise ShprobeError("the loading process ended unexpectedly") from None
-        except BaseException:
-            for proc, _ in self._child:
-                proc.terminate()
+        except BaseException as e:
+            self._stop_loader()
+            if isinstance(e, EOFError):
+                raise ShprobeError("the loading process ended unexpectedly") from None
             raise
+        child = self._child
 
         def rest() -> None:  # the Env and what is made from it, after the first frame's data
             got = None
             if src is not None:
                 try:
-                    kind, *data = self._child[0][1].recv()
+                    kind, *data = child[0][1].recv()
                     if kind == "env":
                         got = data
                 except (EOFError, OSError):
                     pass
                 src.arrive(*(got[:3] if got else (None,)))
-            for proc, recv in self._child:
+            for proc, recv in child:
                 recv.close()
                 proc.join()
 
         threading.Thread(target=rest, daemon=True).start()
 
+    def _stop_loader(self) -> None:
+        """Close the receive ends of the loader's pipes (a grandchild still sending then
+        fails and exits) and end the loader process (terminate + join: no zombie)."""
+        child, self._child = self._child, None
+        for _, recv in child or []:
+            recv.close()
+        for proc in {id(p): p for p, _ in child or []}.values():  # one loader, 1-2 pipes
+            if proc.is_alive():
+                proc.terminate()
+            proc.join(5)
+            if proc.exitcode is not None:
+                proc.close()  # its sentinel fd
+
     def close(self) -> None:
+        self._stop_loader()
         self._dir.cleanup()
 
     # sources ----------------------------------------------------------------
