@@ -3,9 +3,11 @@ unpacker's malformed bodies."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import sys
 
+import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
@@ -41,3 +43,41 @@ def test_forked_loader_bad_probe_with_mesh_is_cleaned_up(tmp_path):
             proc.is_alive()
     s.close()
     assert _fds() <= before
+
+
+def _fake_loader(conn, tail: str) -> None:
+    """A loader whose first frame arrives and whose Env does not: garbage on the pipe (an
+    unpickling error in the server) or an ("error", line) after "ready"."""
+    conn.send(("source", np.ones((9, 3)), "latlong", {}))
+    conn.send(("ready", {}))
+    if tail == "garbage":
+        conn.send_bytes(b"not a pickle")
+    else:
+        conn.send(("error", "x.hdr: boom"))
+    conn.close()
+
+
+@linux
+@pytest.mark.parametrize("tail", ["garbage", "error"])
+def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
+    ctx = multiprocessing.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_fake_loader, args=(send, tail), daemon=True)
+    proc.start()
+    send.close()
+    s = Session("x.hdr", load=False)
+    s._child = [(proc, recv)]
+    try:
+        s.load()
+        src = s.source
+        assert src._arrived.wait(30)  # the Env's wait ends
+        assert np.array_equal(s.base(2), np.ones((9, 3)))  # the first frame's data stands
+        for f in (lambda: src.env, lambda: src.coeffs, lambda: src.coeffs_at(3),
+                  lambda: s.base(3), s.background_bytes):
+            with pytest.raises(ShprobeError) as e:
+                f()
+            msg = str(e.value)
+            assert "\n" not in msg and msg.startswith("x.hdr: ")
+            assert ("boom" in msg) if tail == "error" else ("Unpickling" in msg)
+    finally:
+        s.close()

@@ -337,6 +337,8 @@ class Source:
         self.layout_name = None if env is None else env.layout.name
         self._coeffs: NDArray[np.float64] | None = None if self.has_env else coeffs2
         self._by_lmax: dict[int, NDArray[np.float64]] = {}
+        #: why a pending probe never arrived (one line), raised by :attr:`env`
+        self.error: str | None = None
         self._arrived = threading.Event()
         if not pending:
             self._arrived.set()
@@ -347,16 +349,20 @@ class Source:
 
     @property
     def env(self) -> Any:
-        """The probe (None for presets); waits for one still being loaded."""
+        """The probe (None for presets); waits for one still being loaded; a one-line
+        :class:`ShprobeError` when its loading failed."""
         self._arrived.wait()
+        if self.error is not None:
+            raise ShprobeError(self.error)
         return self._env
 
     def arrive(self, env: Any, coeffs: NDArray[np.float64] | None = None,
-               background: bytes | None = None) -> None:
-        """The pending probe (None: its loading failed), its lmax-:data:`MAX_LMAX`
-        coefficients and background texture, from the loader process."""
+               background: bytes | None = None, error: str | None = None) -> None:
+        """The pending probe (None: its loading failed, ``error`` saying why), its
+        lmax-:data:`MAX_LMAX` coefficients and background texture, from the loader process."""
         with self._lock:
             self._env = env
+            self.error = error
             if coeffs is not None:
                 self._coeffs = coeffs
             if background is not None:
@@ -556,18 +562,29 @@ class Session:
         child = self._child
 
         def rest() -> None:  # the Env and what is made from it, after the first frame's data
-            got = None
-            if src is not None:
-                try:
+            got, err = None, None
+            try:
+                if src is not None:
                     kind, *data = child[0][1].recv()
                     if kind == "env":
                         got = data
-                except (EOFError, OSError):
-                    pass
-                src.arrive(*(got[:3] if got else (None,)))
-            for proc, recv in child:
-                recv.close()
-                proc.join()
+                    elif kind == "error":  # one line naming the file already
+                        err = str(data[0])
+                    else:
+                        err = f"{probe}: unexpected message {kind!r} from the loading process"
+            except (EOFError, OSError):
+                err = f"{probe}: the loading process ended before the probe arrived"
+            except BaseException as e:  # unpickling, MemoryError: one line, never a hang
+                err = f"{probe}: {type(e).__name__}: {e}".splitlines()[0]
+            finally:
+                if src is not None:  # Source.env waits for this
+                    if got:
+                        src.arrive(*got[:3])
+                    else:
+                        src.arrive(None, error=err or f"{probe}: the probe could not be loaded")
+                for proc, recv in child:
+                    recv.close()
+                    proc.join()
 
         threading.Thread(target=rest, daemon=True).start()
 
@@ -669,6 +686,8 @@ class Session:
         """The coefficients the edits start from at degree ``lmax``: a probe projected to
         max(lmax, 2), as ``shprobe edit`` projects its source."""
         s = self.source
+        if lmax > 2 and s.error is not None:
+            raise ShprobeError(s.error)
         return s.coeffs2 if lmax <= 2 or not s.has_env else s.coeffs_at(lmax)
 
     def probe_source(self, path: str | list[str], name: str | None = None) -> Source:
