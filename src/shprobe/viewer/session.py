@@ -794,8 +794,8 @@ class Session:
     def background_bytes(self) -> bytes | None:
         """The source's background texture (:func:`background_payload`), None for a preset."""
         src = self.source
+        env = src.env  # first: a probe still loading brings its background with it
         if src.background is None:
-            env = src.env
             if env is None:
                 return None
             src.background = background_payload(env)
