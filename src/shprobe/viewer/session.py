@@ -582,22 +582,26 @@ class Session:
                         src.arrive(*got[:3])
                     else:
                         src.arrive(None, error=err or f"{probe}: the probe could not be loaded")
-                for proc, recv in child:
-                    recv.close()
-                    proc.join()
+                self._stop_loader(child)
 
         threading.Thread(target=rest, daemon=True).start()
 
-    def _stop_loader(self) -> None:
+    def _stop_loader(self, done: Any = None) -> None:
         """Close the receive ends of the loader's pipes (a grandchild still sending then
-        fails and exits) and end the loader process (terminate + join: no zombie)."""
-        child, self._child = self._child, None
-        for _, recv in child or []:
+        fails and exits) and end the loader process (terminate + join: no zombie); once,
+        by whoever comes first. ``done``: the pipes of a loader that sent everything (the
+        Env thread): it is joined, not terminated."""
+        with self.lock:
+            child = self._child
+            if child is None or (done is not None and child is not done):
+                return
+            self._child = None
+        for _, recv in child:
             recv.close()
-        for proc in {id(p): p for p, _ in child or []}.values():  # one loader, 1-2 pipes
-            if proc.is_alive():
+        for proc in {id(p): p for p, _ in child}.values():  # one loader, 1-2 pipes
+            if done is None and proc.is_alive():
                 proc.terminate()
-            proc.join(5)
+            proc.join(None if done is not None else 5)
             if proc.exitcode is not None:
                 proc.close()  # its sentinel fd
 
