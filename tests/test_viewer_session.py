@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.viewer.session import Session
+from shprobe.viewer.session import Session, unpack_files
 
 from .conftest import data_file
 
@@ -81,3 +81,18 @@ def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
             assert ("boom" in msg) if tail == "error" else ("Unpickling" in msg)
     finally:
         s.close()
+
+
+def _body(header: bytes, payload: bytes = b"") -> bytes:
+    return len(header).to_bytes(4, "little") + header + payload
+
+
+def test_unpack_files_malformed_is_one_line():
+    assert unpack_files(_body(b'{"files": [{"name": "a.hdr", "size": 2}]}', b"xy")) == \
+        [("a.hdr", b"xy")]
+    for head in (b'{"files": [{"name": "a", "size": 1e999}]}',  # int(inf): OverflowError
+                 b'{"files": [{"name": "a", "size": NaN}]}', b'{"files": [{"name": "a"}]}',
+                 b'{"files": [{"name": "a", "size": [1]}]}', b'{"files": 3}', b"\xff\xfe",
+                 b'{"files": [{"name": "a", "size": 5}]}'):
+        with pytest.raises(ShprobeError, match=r"^malformed multi-file upload$"):
+            unpack_files(_body(head, b"xy"))

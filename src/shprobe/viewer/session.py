@@ -819,8 +819,8 @@ def unpack_files(data: bytes, most: int = 6) -> list[tuple[str, bytes]]:
     try:
         files = json.loads(data[4: 4 + n].decode())["files"]
         items = [(str(f["name"]), int(f["size"])) for f in files]
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
-        raise bad from None
+    except (ValueError, KeyError, TypeError, OverflowError, UnicodeDecodeError):
+        raise bad from None  # OverflowError: "size": 1e999 → int(inf)
     if not 0 < len(items) <= most or any(s < 0 for _, s in items) \
             or sum(s for _, s in items) != len(data) - 4 - n:
         raise bad
