@@ -832,9 +832,13 @@ def unpack_files(data: bytes, most: int = 6) -> list[tuple[str, bytes]]:
 
 
 def _fork_context() -> Any:
-    """multiprocessing's fork context where the platform has one (Linux), else None."""
+    """multiprocessing's fork context on Linux, else None (macOS has fork, but forking a
+    process that has loaded system frameworks is unsafe there)."""
     import multiprocessing
+    import sys
 
+    if not sys.platform.startswith("linux"):
+        return None
     try:
         return multiprocessing.get_context("fork")
     except ValueError:
