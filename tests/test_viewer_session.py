@@ -96,3 +96,25 @@ def test_unpack_files_malformed_is_one_line():
                  b'{"files": [{"name": "a", "size": 5}]}'):
         with pytest.raises(ShprobeError, match=r"^malformed multi-file upload$"):
             unpack_files(_body(head, b"xy"))
+
+
+def test_probe_coeffs_every_degree_equals_projection():
+    """A registered probe blended at any degree is the probe projected to exactly that degree
+    (R&H eq. 10), as `shprobe edit --blend FILE:W` projects it."""
+    from shprobe.lighting.projection import project
+    from shprobe.probes.environments import procedural_env
+
+    s = Session(preset="grace", load=False)
+    try:
+        env = procedural_env(32, 16)
+        pid = s.register_probe(s.env_source(env, "sky"), "dir/sky.hdr")
+        assert s.probe_list() == [{"id": pid, "name": "sky.hdr"}]
+        assert s.probe_names() == {pid: "dir/sky.hdr"}
+        for lmax in range(6):
+            c = s.probe_coeffs(pid, lmax)
+            assert c.shape == ((lmax + 1) ** 2, 3)
+            np.testing.assert_allclose(c, project(env, lmax), rtol=1e-12, atol=1e-12)
+        with pytest.raises(ShprobeError):
+            s.probe_coeffs(pid[:-1] + "9", 2)
+    finally:
+        s.close()

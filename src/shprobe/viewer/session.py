@@ -384,7 +384,11 @@ class Source:
             return self._coeffs
 
     def coeffs_at(self, lmax: int) -> NDArray[np.float64]:
-        """The probe projected to exactly ``lmax`` > 2 (R&H eq. 10; cached)."""
+        """The probe projected to exactly ``lmax`` (R&H eq. 10; cached): :attr:`coeffs2` at 2,
+        :attr:`coeffs` at :data:`MAX_LMAX` — as ``shprobe edit --blend FILE:W`` projects a
+        blended probe to the edit's degree."""
+        if lmax == 2:
+            return self.coeffs2
         if lmax == MAX_LMAX:
             return self.coeffs
         with self._lock:
@@ -443,7 +447,6 @@ class Session:
         #: probes loaded (command line, uploads): id → (file name as the user gave it, Source)
         self.probes: dict[str, tuple[str, Source]] = {}
         self._probe_tag = f"p{secrets.token_hex(3)}"  # ids of another server never match
-        self._probe_cache: dict[tuple[str, int], NDArray[np.float64]] = {}
         if load:
             self.load()
 
@@ -655,36 +658,25 @@ class Session:
             self.probes[pid] = (name, src)
         return pid
 
+    def _probe_items(self) -> list[tuple[str, tuple[str, Source]]]:
+        with self.lock:  # register_probe adds from a worker thread
+            return list(self.probes.items())
+
     def probe_names(self) -> dict[str, str]:
-        return {k: v[0] for k, v in self.probes.items()}
+        return {k: v[0] for k, v in self._probe_items()}
 
     def probe_list(self) -> list[dict[str, str]]:
         return [{"id": k, "name": os.path.basename(v[0]) or v[0]}
-                for k, v in self.probes.items()]
+                for k, v in self._probe_items()]
 
     def probe_coeffs(self, pid: str, lmax: int) -> NDArray[np.float64]:
-        """A registered probe projected to ``lmax`` (R&H eq. 10) — as ``shprobe edit --blend
-        FILE:W`` projects a blended probe to the edit's degree."""
-        if pid not in self.probes:
+        """A registered probe projected to ``lmax`` (:meth:`Source.coeffs_at`)."""
+        with self.lock:
+            hit = self.probes.get(pid)
+        if hit is None:
             raise ShprobeError(f"blend probe {pid} is not loaded in this server (load it "
                                "again)")
-        key = (pid, lmax)
-        c = self._probe_cache.get(key)
-        if c is None:
-            src = self.probes[pid][1]
-            if lmax == 2:
-                c = src.coeffs2
-            elif lmax > 2:
-                c = src.coeffs_at(lmax)
-            else:
-                from ..lighting.projection import project
-
-                env = src.env
-                if env is None:
-                    raise ShprobeError(f"{src.name}: the probe could not be loaded")
-                c = np.asarray(project(env, lmax), np.float64)
-            self._probe_cache[key] = c
-        return c
+        return hit[1].coeffs_at(lmax)
 
     def base(self, lmax: int) -> NDArray[np.float64]:
         """The coefficients the edits start from at degree ``lmax``: a probe projected to
