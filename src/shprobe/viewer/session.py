@@ -436,7 +436,7 @@ class Session:
         self._mesh: Any = None
         self._mesh_path: str | None = None  # loaded on first use (see :attr:`mesh`)
         self._mesh_bytes: bytes | None = None
-        self._mesh_lock = threading.Lock()
+        self._mesh_lock = threading.RLock()  # mesh_bytes holds it while reading .mesh
         self.mesh_name = "sphere"
         self.source: Source
         self.ready = threading.Event()
@@ -734,11 +734,12 @@ class Session:
         self.transfer_name = name or os.path.basename(path)
 
     def mesh_bytes(self) -> bytes:
-        """The page's mesh (:func:`mesh_payload`), made once per mesh."""
-        b = self._mesh_bytes
-        if b is None:
-            b = self._mesh_bytes = mesh_payload(self.mesh, self.mesh_name)
-        return b
+        """The page's mesh (:func:`mesh_payload`), made once per mesh (under the mesh lock: an
+        upload meanwhile waits, so the payload cached is always the current mesh's)."""
+        with self._mesh_lock:
+            if self._mesh_bytes is None:
+                self._mesh_bytes = mesh_payload(self.mesh, self.mesh_name)
+            return self._mesh_bytes
 
     def transfer_bytes(self, mode: str | None, bounces: int | None) -> bytes:
         t = self.transfer
