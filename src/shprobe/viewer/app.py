@@ -255,15 +255,18 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
                 else:
                     session.load_transfer(path, shown)
                 return None
-            try:
-                new = await to_thread.run_sync(load)
-            except ShprobeError as e:  # name the user's file, not the private copy
-                msg = str(e)
+            def shown_names(msg: str) -> str:  # the user's file names, not the private copies
                 for p, s in zip(paths, names, strict=True):
                     msg = msg.replace(p, s)
-                raise ShprobeError(msg) from None
+                return msg
+
+            try:
+                new = await to_thread.run_sync(load)
+            except ShprobeError as e:
+                raise ShprobeError(shown_names(str(e))) from None
             except Exception as e:  # a library bug must not take the server down
-                raise ShprobeError(f"{shown}: could not load: {e}") from None
+                line = f"{e}".splitlines()[0] if str(e) else type(e).__name__
+                raise ShprobeError(shown_names(f"{shown}: could not load: {line}")) from None
         except ShprobeError as e:
             return _error(e)
         pid = None
