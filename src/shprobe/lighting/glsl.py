@@ -18,15 +18,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..sh import check_lmax, num_coeffs
 from ..sh.basis import recurrence_tables
-from .coeffs import as_coeffs
+from .coeffs import as_coeffs, pad_coeffs
+from .export import _f
 from .irradiance import irradiance_coeffs
 
 __all__ = ["glsl_irradiance", "glsl_uniform_values"]
-
-
-def _f(x: float) -> str:
-    s = format(float(x), ".9g")
-    return s if any(ch in s for ch in ".en") else s + ".0"
 
 
 def glsl_uniform_values(coeffs: ArrayLike, lmax: int | None = None) -> NDArray[np.float64]:
@@ -34,13 +30,7 @@ def glsl_uniform_values(coeffs: ArrayLike, lmax: int | None = None) -> NDArray[n
     truncated or zero-padded to ``lmax`` (default: the coefficients' own), shape (K', 3)."""
     c = as_coeffs(coeffs)
     e = irradiance_coeffs(c)
-    if lmax is None:
-        return e
-    k = num_coeffs(check_lmax(lmax))
-    out = np.zeros((k, e.shape[1]))
-    n = min(k, e.shape[0])
-    out[:n] = e[:n]
-    return out
+    return e if lmax is None else pad_coeffs(e, lmax)
 
 
 def glsl_irradiance(lmax: int, coeffs: ArrayLike | None = None,
