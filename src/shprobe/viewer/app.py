@@ -29,6 +29,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ..errors import ShprobeError
 from .session import (
+    DESIGN_LMAX,
     MAX_LMAX,
     Session,
     Task,
@@ -139,7 +140,9 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
         t = session.transfer
         return None if t is None else {
             "name": session.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
-            "max_bounces": t.max_bounces, "mode": t.mode, "n_vertices": t.n_vertices}
+            "max_bounces": t.max_bounces, "mode": t.mode, "n_vertices": t.n_vertices,
+            # the design's degree for it (a default bake's lmax 10 is over check_state's 8)
+            "design_lmax": min(t.lmax, DESIGN_LMAX)}
 
     shader_text: dict[str, Any] = {}
 

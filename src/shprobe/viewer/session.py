@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 
 __all__ = [
+    "DESIGN_LMAX",
     "MAX_LMAX",
     "Session",
     "Source",
@@ -37,8 +38,11 @@ __all__ = [
     "pack_binary",
 ]
 
-#: highest degree the compare view projects to
+#: highest degree the compare view projects to (and the per-pixel view draws)
 MAX_LMAX = 4
+#: highest degree of a design (:func:`check_state`): the page's menu offers 0..MAX_LMAX; a PRT
+#: transfer's baked degree, capped at this, sets a higher one
+DESIGN_LMAX = 8
 #: lat-long size (H) of the background texture sent to the page
 BACKGROUND_H = 512
 #: lat-long size (H) of the irradiance lookup textures (the normals of ``error_report``)
@@ -82,7 +86,10 @@ def check_state(state: Any) -> dict[str, Any]:
     """Validate the page's edit state (a JSON object) → a normalised copy; one-line
     :class:`ShprobeError` on anything malformed. Keys (all optional):
 
-    ``lmax`` (0–8), ``weight``; ``blends``: [{"preset": NAME, "weight": w} | {"probe": ID,
+    ``lmax`` (0–:data:`DESIGN_LMAX`: the page's menu offers 0–:data:`MAX_LMAX`, the degree
+    its per-pixel view draws; a PRT transfer's baked degree, capped at :data:`DESIGN_LMAX`,
+    sets a higher one, drawn in full by the PRT view and cut at :data:`MAX_LMAX` by the
+    per-pixel one), ``weight``; ``blends``: [{"preset": NAME, "weight": w} | {"probe": ID,
     "weight": w}] (ID: a probe this server loaded, :meth:`Session.register_probe`);
     ``directional``: [{"dir": [x,y,z], "rgb": [r,g,b]}]; ``cone``: [{"dir", "aperture_deg",
     "rgb"}]; ``sky``: {"sky": rgb, "ground": rgb, "up": xyz} | null; ``scale``: {"l,m": f};
@@ -100,8 +107,8 @@ def check_state(state: Any) -> dict[str, Any]:
     s = {**_DEFAULT_STATE, **state}
     out: dict[str, Any] = {}
     lmax = s["lmax"]
-    if not isinstance(lmax, int) or not 0 <= lmax <= 8:
-        raise ShprobeError(f"lmax must be an integer 0..8, got {lmax!r}")
+    if not isinstance(lmax, int) or not 0 <= lmax <= DESIGN_LMAX:
+        raise ShprobeError(f"lmax must be an integer 0..{DESIGN_LMAX}, got {lmax!r}")
     out["lmax"] = lmax
     out["weight"] = _floats(s["weight"], 1, "weight")[0]
     out["blends"] = []

@@ -432,7 +432,7 @@ function showLegend() {
   $('errtable').tBodies[0].innerHTML = cmp.rows.map((r) => `<tr><td>${r.lmax}</td><td>${(100 * r.mean_frac).toFixed(3)}%</td><td>${(100 * r.max_frac).toFixed(3)}%</td></tr>`).join('');
 }
 const VIEW_LABELS = {
-  design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–4: lighting.glsl's generated function)",
+  design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–4: lighting.glsl's generated function; a design above lmax 4, a PRT transfer's degree, is drawn cut at 4 here and in full by the PRT view)",
   sh: "Object: E(n) of the probe (edits not applied) truncated at this lmax, per pixel by shprobe's generated GLSL (lighting.glsl) with the library's E_lm = Â_l L_lm",
   exact: 'Object: brute-force E(n) of the probe (library reference_irradiance), looked up by normal',
   error: 'Object: error heat map (legend below)',
@@ -678,7 +678,7 @@ async function main() {
   $('source').textContent = init.source.name;
   const saved = localStorage.getItem(KEY);   // the edit state survives a reload
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
-  else if (init.transfer) state.lmax = init.transfer.lmax;
+  else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most check_state's
   wire(init); refreshControls();
   const jobs = [requestDesign().then(() => mark('design'))];
   // the first lit frame needs the lighting and the mesh; the background follows
