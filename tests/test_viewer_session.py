@@ -6,6 +6,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -52,6 +53,11 @@ def _fake_loader(conn, tail: str) -> None:
     conn.send(("ready", {}))
     if tail == "garbage":
         conn.send_bytes(b"not a pickle")
+    elif tail == "env":
+        from shprobe.probes.environments import procedural_env
+
+        time.sleep(0.2)  # the server asks for the background before the Env arrives
+        conn.send(("env", procedural_env(32, 16), np.full((25, 3), 2.0), b"BG", {}))
     else:
         conn.send(("error", "x.hdr: boom"))
     conn.close()
@@ -116,5 +122,23 @@ def test_probe_coeffs_every_degree_equals_projection():
             np.testing.assert_allclose(c, project(env, lmax), rtol=1e-12, atol=1e-12)
         with pytest.raises(ShprobeError):
             s.probe_coeffs(pid[:-1] + "9", 2)
+    finally:
+        s.close()
+
+
+@linux
+def test_background_comes_from_the_loader_not_recomputed():
+    """background_bytes waits for the pending Env and serves the loader's texture."""
+    ctx = multiprocessing.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_fake_loader, args=(send, "env"), daemon=True)
+    proc.start()
+    send.close()
+    s = Session("x.hdr", load=False)
+    s._child = [(proc, recv)]
+    try:
+        s.load()
+        assert s.background_bytes() == b"BG"
+        assert np.array_equal(s.source.coeffs, np.full((25, 3), 2.0))
     finally:
         s.close()
