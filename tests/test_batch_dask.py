@@ -131,9 +131,13 @@ def test_own_local_cluster(library, inline):
         with distributed.Client(cluster) as client:
             t = run_batch([library], None, client=client, reference=4)
             state = next(iter(client.run(_worker_state).values()))
+            with distributed.get_task_stream(client) as stream:  # chunk below 1: one a task
+                t0 = run_batch([library], None, client=client, reference=4, chunk=0)
     finally:
         cluster.close()
     _same_rows(t, inline)
+    _same_rows(t0, inline)
+    assert sum(str(d["key"]).startswith("shprobe-probes-") for d in stream.data) == 8
     assert state.pop("faults") < 300
     assert state == LOCAL_CLUSTER_CONFIG
 

@@ -273,7 +273,7 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
     except Exception:
         threads = os.cpu_count() or 1
     jobs = _by_size(list(jobs))
-    k = max(1, int(chunk)) if chunk else chunk_size(len(jobs), threads)
+    k = max(1, int(chunk)) if chunk is not None else chunk_size(len(jobs), threads)
     jobs_of = {}
 
     def submit(part: list[tuple[str, str]]):
@@ -328,8 +328,8 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
     ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again.
 
-    On Dask, each task computes ``chunk`` probes (default :func:`chunk_size`: up to 8, fewer
-    for small batches), the largest files first.
+    On Dask, each task computes ``chunk`` probes (below 1 means 1; default
+    :func:`chunk_size`: up to 8, fewer for small batches), the largest files first.
 
     ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
     doc). An existing table made with other options is refused unless ``force``, which
