@@ -213,7 +213,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         marked = (jump > tol) & (length > min_len) & refinable
         rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
-            if drive < samples:  # the geometry is final: bake it with the full samples
+            if drive < samples or (factor > 1 and deep.any()):
+                # the geometry is final: bake it with the full samples, the crevice dense
                 t0 = time.perf_counter()
                 t = final(sc)
                 rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
