@@ -78,6 +78,11 @@ def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
     _same_rows(run_batch([library], None, scheduler=cluster.scheduler_address, reference=4,
                          chunk=3), inline)
+    # a user's cluster keeps its heap (Dask's MALLOC_TRIM_THRESHOLD_=65536): a second 16 MiB
+    # buffer is mapped afresh, page by page
+    with distributed.Client(cluster) as client:
+        for state in client.run(_worker_state).values():
+            assert state["faults"] > 3000, state
 
 
 def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
@@ -126,9 +131,13 @@ def test_own_local_cluster(library, inline):
         with distributed.Client(cluster) as client:
             t = run_batch([library], None, client=client, reference=4)
             state = next(iter(client.run(_worker_state).values()))
+            with distributed.get_task_stream(client) as stream:  # chunk below 1: one a task
+                t0 = run_batch([library], None, client=client, reference=4, chunk=0)
     finally:
         cluster.close()
     _same_rows(t, inline)
+    _same_rows(t0, inline)
+    assert sum(str(d["key"]).startswith("shprobe-probes-") for d in stream.data) == 8
     assert state.pop("faults") < 300
     assert state == LOCAL_CLUSTER_CONFIG
 

@@ -170,3 +170,15 @@ def test_jumps_judged_on_the_edges_own_level_above_the_floor():
     np.testing.assert_allclose(j3[dim], 0.02 / (0.5 * s), rtol=1e-5)  # the floor
     np.testing.assert_allclose(j2[~dim], d[~dim] / np.clip(
         np.maximum(val[edges[~dim, 0]], val[edges[~dim, 1]]), 0.01 * s, s), rtol=1e-5)
+
+
+def test_early_stop_still_bakes_the_crevice_dense():
+    """Refinement that stops before max_rounds with driver bakes at the full samples (samples
+    ≤ 64) still gives the deep vertices their dense_factor × samples bake."""
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    t = bake_refined(m, mode="shadowed", lmax=1, samples=64, ground_resolution=8,
+                     dense_depth=0, dense_factor=2, max_rounds=50, tol=0.5)
+    r = t.metadata["refine"]
+    assert len(r["rounds"]) < 51 and any(x["split"] == 0 for x in r["rounds"])  # stopped early
+    assert r["dense_vertices"] > 0
+    assert t.metadata["dense_vertices"] == r["dense_vertices"]  # the final bake's own count

@@ -172,14 +172,21 @@ def _keep_heap() -> bool:
 
 
 class _WarmPlugin:
-    """Dask worker plugin: warm numba and let the heap keep freed image buffers
-    (:func:`_keep_heap`) in every worker, including ones started later."""
+    """Dask worker plugin: warm numba in every worker, including ones started later; with
+    ``keep_heap`` (only in the cluster shprobe starts itself, :func:`_local_cluster`) also let
+    the heap keep freed image buffers (:func:`_keep_heap`). A user's cluster keeps its heap."""
 
     name = "shprobe-warm"
     idempotent = True  # registered once per cluster, not again by every batch
 
+    def __init__(self, keep_heap: bool = False) -> None:
+        self.keep_heap = keep_heap
+        if keep_heap:
+            self.name = "shprobe-warm-heap"
+
     def setup(self, worker: Any) -> None:
-        _keep_heap()
+        if self.keep_heap:
+            _keep_heap()
         _warm()
 
 
@@ -235,9 +242,11 @@ def _local_cluster(workers: int | None):
 
     n = int(workers) if workers else (os.cpu_count() or 1)
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
-        return LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
-                            dashboard_address=None, host="127.0.0.1",
-                            silence_logs=logging.ERROR)
+        cluster = LocalCluster(n_workers=max(1, n), threads_per_worker=1, processes=True,
+                               dashboard_address=None, host="127.0.0.1",
+                               silence_logs=logging.ERROR)
+    cluster._shprobe_keep_heap = True  # shprobe's own workers: see _WarmPlugin
+    return cluster
 
 
 def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
@@ -254,7 +263,8 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
     from distributed import as_completed
 
     try:
-        client.register_plugin(_plugin())
+        own = getattr(getattr(client, "cluster", None), "_shprobe_keep_heap", False)
+        client.register_plugin(_plugin(keep_heap=own is True))
     except Exception:  # an old scheduler without plugins: workers warm on their first task
         pass
     done_f = client.scatter(done, broadcast=True) if done else done
@@ -263,7 +273,7 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
     except Exception:
         threads = os.cpu_count() or 1
     jobs = _by_size(list(jobs))
-    k = max(1, int(chunk)) if chunk else chunk_size(len(jobs), threads)
+    k = max(1, int(chunk)) if chunk is not None else chunk_size(len(jobs), threads)
     jobs_of = {}
 
     def submit(part: list[tuple[str, str]]):
@@ -293,13 +303,13 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
             client.cancel(list(jobs_of), force=True)
 
 
-def _plugin():
+def _plugin(keep_heap: bool = False):
     from distributed.diagnostics.plugin import WorkerPlugin
 
     class WarmPlugin(_WarmPlugin, WorkerPlugin):
         pass
 
-    return WarmPlugin()
+    return WarmPlugin(keep_heap)
 
 
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
@@ -318,8 +328,8 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
     ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again.
 
-    On Dask, each task computes ``chunk`` probes (default :func:`chunk_size`: up to 8, fewer
-    for small batches), the largest files first.
+    On Dask, each task computes ``chunk`` probes (below 1 means 1; default
+    :func:`chunk_size`: up to 8, fewer for small batches), the largest files first.
 
     ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
     doc). An existing table made with other options is refused unless ``force``, which

@@ -108,7 +108,8 @@ class _Exact:
     Lat-long maps: the lit pixels of a row are one cyclic run of columns, so the sum is read off
     per-row prefix sums of L dω, L dω ω_x, L dω ω_z (:func:`._kernels.latlong_exact_into`):
     O(H) per normal instead of O(H·W), the same pixels and products re-associated (exact to
-    rounding; checked against :func:`reference_irradiance` in the tests), 72 bytes per pixel.
+    rounding; checked against :func:`reference_irradiance` in the tests), 72 bytes per pixel
+    kept, 120 at the peak of the build (the weighted radiance and one product beside them).
     Other layouts: the brute-force sum, serially (48 bytes per sample, built on first use).
     """
 
@@ -117,14 +118,18 @@ class _Exact:
         self.latlong = env.layout.name == "latlong"
         if self.latlong:
             h, w, nch = rad.shape
-            check_memory(8.0 * h * (w + 1) * 3 * nch, f"row sums of a {w}x{h} map", env.path)
+            # the tables (3 sums) + L dω + one product of it, float64 per channel
+            check_memory(8.0 * nch * (3 * h * (w + 1) + 2 * h * w),
+                         f"row sums of a {w}x{h} map", env.path)
             self.ct, self.st = LatLong.row_cos_theta(h), LatLong.row_sin_theta(h)
             self.cx, self.cz = LatLong.column_xz(w)
-            ldw = rad.astype(np.float64) * LatLong.row_solid_angle(h, w)[:, None, None]
+            ldw = rad.astype(np.float64)  # a copy: scaled in place
+            ldw *= LatLong.row_solid_angle(h, w)[:, None, None]
             pre = np.zeros((h, w + 1, nch, 3))
             np.cumsum(ldw, axis=1, out=pre[:, 1:, :, 0])
             np.cumsum(ldw * self.cx[None, :, None], axis=1, out=pre[:, 1:, :, 1])
-            np.cumsum(ldw * self.cz[None, :, None], axis=1, out=pre[:, 1:, :, 2])
+            ldw *= self.cz[None, :, None]  # its last use
+            np.cumsum(ldw, axis=1, out=pre[:, 1:, :, 2])
             self.pre = pre.reshape(h, w + 1, 3 * nch)
             self.nch = nch
         else:
@@ -299,9 +304,16 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     if not (np.isfinite(tol) and tol > 0):
         raise ShprobeError(f"tolerance must be > 0, got {tol}")
     wts = wts / wts.sum()
-    exact = _Exact(env)
-    if reference is None and exact.latlong:
-        ref = exact(unit_normals(nrm))  # milliseconds
+    latlong = env.layout.name == "latlong"
+    tables: list[_Exact] = []
+
+    def exact() -> _Exact:  # the tables, built on first need only
+        if not tables:
+            tables.append(_Exact(env))
+        return tables[0]
+
+    if reference is None and latlong:
+        ref = exact()(unit_normals(nrm))  # milliseconds
         if progress is not None:
             progress(1, 1)
     elif reference is None:  # pixel by pixel: the parallel kernel, with progress
@@ -316,7 +328,8 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     half = None
     if normals is None and normal_grid >= 4:
         hn, hw = _normal_grid(normal_grid // 2)
-        half = (hn, hw / hw.sum(), exact(hn) if exact.latlong else reference_irradiance(env, hn))
+        half = (hn, hw / hw.sum(),
+                exact()(hn) if latlong else reference_irradiance(env, hn))
     step = np.pi / max(2, int(normal_grid)) if normals is None else _spacing(nrm)
     rows = []
     done: dict[int, tuple] = {}  # effective degree → refined max (odd l ≥ 3 adds nothing: Â_l = 0)
@@ -330,7 +343,7 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
         if refine:
             eff = lm - 1 if (lm >= 3 and lm % 2 == 1) else lm
             if eff not in done:
-                err = exact.error_fn(coeffs[: num_coeffs(eff)], tot)
+                err = exact().error_fn(coeffs[: num_coeffs(eff)], tot)
                 sm = refine_max(lambda n, err=err: err(n)[0], nrm, frac.max(axis=1),
                                 step=step, tol=tol)
                 done[eff] = (sm, int(err(sm.direction[None])[1][0]))

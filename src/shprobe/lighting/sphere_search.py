@@ -80,7 +80,8 @@ def tangent_patch(centre: NDArray[np.float64], half: float, n: int) -> NDArray[n
     """n×n unit vectors within ±``half`` rad of ``centre`` ((n², 3); a square grid in the
     tangent plane, projected back to the sphere): the dense checks of a refined extremum."""
     c = np.asarray(centre, dtype=np.float64).reshape(1, 3)
-    u, w = _tangent_frames(c / np.linalg.norm(c))
+    c = c / np.linalg.norm(c)  # the frame and the offsets: one unit centre
+    u, w = _tangent_frames(c)
     t = np.linspace(-half, half, int(n))
     x, y = np.meshgrid(t, t)
     p = c + x[..., None] * u + y[..., None] * w

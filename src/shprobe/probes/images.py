@@ -308,15 +308,16 @@ class ImageRows:
         s1, a1, s2, n1, n2, offset = _rgbe_header(p, head)
         check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=p.stat().st_size - offset,
                             whole=False)
-        self._own_rgbe = True
         if (s1, a1, s2) != (b"-", b"Y", b"+"):
             self._whole = read_rgbe(p)
+            self._own_rgbe = True  # only once decoded: OIIO's fallback pixels are checked
             return self._whole.shape[0], self._whole.shape[1]
         self._rgbe_f = open(p, "rb")  # closed by close()
         self._rgbe_f.seek(offset)
         self._buf = np.zeros(0, np.uint8)
         self._pos = 0
         self._next = 0
+        self._own_rgbe = True
         return n1, n2
 
     def _read_rgbe(self, y0: int, y1: int, weights: NDArray[np.float32] | None = None

@@ -166,9 +166,10 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
             pmap = pool.map if nthreads > 1 else map
             t0 = np.empty((sc.n_vertices, k), dtype=np.float64)
             blocks: list[tuple[NDArray[np.int64], Any]] = []
+            caster = RayCaster(sc.vertices, sc.faces)  # one BVH for every sample group
             for rows, n_dirs in groups:
-                t0_g, b_g = _trace(sc, lmax, n_dirs, seed, mode == "interreflected", rows,
-                                   pmap, wrap)
+                t0_g, b_g = _trace(sc, caster, lmax, n_dirs, seed, mode == "interreflected",
+                                   rows, pmap, wrap)
                 t0[rows] = t0_g
                 blocks += b_g
             # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
@@ -231,23 +232,24 @@ def _sample_groups(n_vertices: int, samples: int, dense: Any, dense_samples: int
     return [(np.flatnonzero(~mask), samples), (np.flatnonzero(mask), ns)]
 
 
-def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
+def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gather: bool,
            rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn):
-    """For the vertices ``rows``: the visibility-weighted projection Σ V cos y 4π/N
-    (len(rows), K), and the bounce gather matrix's rows as (vertex indices, CSR block) per
-    span of ``rows`` (None without gather)."""
+    """For the vertices ``rows`` (rays cast by ``caster``, over ``sc``'s mesh): the
+    visibility-weighted projection Σ V cos y 4π/N (len(rows), K), and the bounce gather
+    matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather)."""
     spans = _chunks(len(rows), samples)
     dirs = sample_directions(samples, seed)
     dirs32 = dirs.astype(np.float32)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
-    caster = RayCaster(sc.vertices, sc.faces)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
     # ray origins in the caster's frame: the one offset rule (RayCaster.offset_points)
     on = np.full(sc.n_vertices, -1, dtype=np.int64)  # a face of each vertex
     on[sc.faces.ravel()] = np.repeat(np.arange(len(sc.faces)), 3)
-    p32 = caster.local(caster.offset_points(sc.vertices, sc.normals, eps, on)[0])
-    n32 = sc.normals.astype(np.float32)
+    # of ``rows`` only: p32[i] and n32[i] belong to vertex rows[i]
+    p32 = caster.local(caster.offset_points(sc.vertices[rows], sc.normals[rows], eps,
+                                            on[rows])[0])
+    n32 = sc.normals[rows].astype(np.float32)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
@@ -259,14 +261,13 @@ def _trace(sc: Scene, lmax: int, samples: int, seed: int, gather: bool,
 
     def work(span: tuple[int, int]):
         i0, i1 = span
-        idx = rows[i0:i1]
         cap = (i1 - i0) * samples
         o = np.empty((cap, 3), np.float32)
         d = np.empty((cap, 3), np.float32)
         cw = np.empty(cap, np.float32)
         vid = np.empty(cap, np.int64)
         did = np.empty(cap, np.int64)
-        m = hemisphere_rays(p32[idx], n32[idx], dirs32, o, d, cw, vid, did)
+        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
         o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
         proj = np.zeros((i1 - i0, k))
         if not gather:

@@ -87,7 +87,7 @@ def _edges(faces: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int6
     return uniq, inv.reshape(3, -1).T
 
 
-def transfer_jumps(t: Transfer, floor: float = 1.0) -> NDArray[np.float64]:
+def transfer_jumps(t: Transfer, floor: float = FLOOR) -> NDArray[np.float64]:
     """Per vertex pair (edge of ``t.faces``): the largest relative jump over the layers (shadowed
     and each bounce increment), ‖ΔT_b‖ / scale, the scale being s_b, the 90th percentile of
     ‖T_b‖ (module doc) — or, with ``floor`` < 1, the edge's brighter end's ‖T_b‖ clipped to
@@ -115,7 +115,12 @@ def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64
                 face_edges: NDArray[np.int64]) -> Scene:
     """Split the ``marked`` edges (closure: a face with 2 marked edges gets its 3rd marked) at
     their midpoints; faces with 3 marked → 4, with 1 → 2 (module doc, step 3)."""
-    sel = _closure_edges(marked, face_edges)
+    return _split(scene, _closure_edges(marked, face_edges), edges, face_edges)
+
+
+def _split(scene: Scene, sel: NDArray[np.int64], edges: NDArray[np.int64],
+           face_edges: NDArray[np.int64]) -> Scene:
+    """:func:`split_edges` of the closed edge set ``sel`` (:func:`_closure_edges`)."""
     nv = scene.n_vertices
     mid = np.full(len(edges), -1, dtype=np.int64)
     mid[sel] = nv + np.arange(len(sel))
@@ -213,12 +218,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         marked = (jump > tol) & (length > min_len) & refinable
         rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
-            if drive < samples:  # the geometry is final: bake it with the full samples
+            if drive < samples or (factor > 1 and deep.any()):
+                # the geometry is final: bake it with the full samples, the crevice dense
                 t0 = time.perf_counter()
                 t = final(sc)
                 rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
             break
-        new = split_edges(sc, marked, edges, face_edges)
+        mids = _closure_edges(marked, face_edges)  # the edges split, in _split's order
+        new = _split(sc, mids, edges, face_edges)
         if new.n_vertices > max_vertices:
             raise ShprobeError(f"refinement would grow the scene past {max_vertices} vertices; "
                                "raise tol or min_edge")
@@ -226,9 +233,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         added = new.n_vertices - sc.n_vertices
         deep = np.concatenate([deep, np.full(added, r >= dense_depth)])
         if r >= dense_depth:
-            deep[edges[_closure_edges(marked, face_edges)].ravel()] = True
+            deep[edges[mids].ravel()] = True
         is_ground = np.concatenate([is_ground, np.zeros(added, dtype=bool)])
-        mids = _closure_edges(marked, face_edges)
         is_ground[sc.n_vertices:] = is_ground[edges[mids, 0]] & is_ground[edges[mids, 1]]
         sc = new
     meta = dict(t.metadata)

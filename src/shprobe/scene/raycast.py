@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..sh.rotation import unit_vectors
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -61,10 +62,7 @@ class RayCaster:
         self.center = 0.5 * (lo + hi)
         self.scale = 1.0 / ext if ext > 0 else 1.0
         self.n_faces = len(f)
-        fv = v[f]
-        fn = np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0])
-        ln = np.linalg.norm(fn, axis=1, keepdims=True)
-        self._face_normals = fn / np.where(ln > 0, ln, 1.0)  # unit; zero for degenerate faces
+        self._vertices = v
         self._faces = np.ascontiguousarray(f, dtype=np.int32)
         self._local_vertices = self.local(v)
         self._other_scenes: dict[int, Any] = {}
@@ -129,6 +127,13 @@ class RayCaster:
             o[i] = x + (0.01 * off * side)[:, None] * fn
             crossed[i] = True
         return o, crossed
+
+    @cached_property
+    def _face_normals(self) -> NDArray[np.float64]:
+        """Unit geometric normals (F, 3) of the faces; zero for degenerate faces (only
+        :meth:`offset_points` needs them, where an origin crossed another surface)."""
+        fv = self._vertices[self._faces]
+        return unit_vectors(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), zero="keep")
 
     @cached_property
     def _parts(self) -> NDArray[np.int64]:
