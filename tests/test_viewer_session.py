@@ -3,6 +3,7 @@ unpacker's malformed bodies."""
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import sys
@@ -63,9 +64,10 @@ def _fake_loader(conn, tail: str) -> None:
     conn.close()
 
 
-@linux
-@pytest.mark.parametrize("tail", ["garbage", "error"])
-def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
+@contextlib.contextmanager
+def _fake_session(tail: str):
+    """A Session whose forked loader is :func:`_fake_loader` (sending ``tail`` after the
+    first frame's data), loaded; closed on exit."""
     ctx = multiprocessing.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_fake_loader, args=(send, tail), daemon=True)
@@ -75,6 +77,15 @@ def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
     s._child = [(proc, recv)]
     try:
         s.load()
+        yield s
+    finally:
+        s.close()
+
+
+@linux
+@pytest.mark.parametrize("tail", ["garbage", "error"])
+def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
+    with _fake_session(tail) as s:
         src = s.source
         assert src._arrived.wait(30)  # the Env's wait ends
         assert np.array_equal(s.base(2), np.ones((9, 3)))  # the first frame's data stands
@@ -85,8 +96,6 @@ def test_env_failure_after_first_frame_is_one_line_not_a_hang(tail):
             msg = str(e.value)
             assert "\n" not in msg and msg.startswith("x.hdr: ")
             assert ("boom" in msg) if tail == "error" else ("Unpickling" in msg)
-    finally:
-        s.close()
 
 
 def _body(header: bytes, payload: bytes = b"") -> bytes:
@@ -129,16 +138,6 @@ def test_probe_coeffs_every_degree_equals_projection():
 @linux
 def test_background_comes_from_the_loader_not_recomputed():
     """background_bytes waits for the pending Env and serves the loader's texture."""
-    ctx = multiprocessing.get_context("fork")
-    recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_fake_loader, args=(send, "env"), daemon=True)
-    proc.start()
-    send.close()
-    s = Session("x.hdr", load=False)
-    s._child = [(proc, recv)]
-    try:
-        s.load()
+    with _fake_session("env") as s:
         assert s.background_bytes() == b"BG"
         assert np.array_equal(s.source.coeffs, np.full((25, 3), 2.0))
-    finally:
-        s.close()
