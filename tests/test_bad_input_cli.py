@@ -3,6 +3,8 @@ the file, no traceback, and nothing left at the target or beside it."""
 
 from __future__ import annotations
 
+import warnings
+
 from pathlib import Path
 
 import numpy as np
@@ -125,9 +127,12 @@ def test_bad_file_is_one_line_and_leaves_nothing(corpus, tmp_path, capfd, cmd, k
     argv = cmd.format(**{kind: bad}, out=out, good_mesh=good_mesh, npz_good=npz_good,
                       good_probe=data_file("probes", "grace.hdr")).split()
     capfd.readouterr()
-    rc = main(argv)
+    with warnings.catch_warnings(record=True) as caught:  # a warning is stderr output too
+        warnings.simplefilter("always")
+        rc = main(argv)
     err = capfd.readouterr().err.strip().splitlines()
     assert rc != 0, f"{cmd} accepted {name}"
+    assert not caught, [str(w.message) for w in caught]
     assert len(err) == 1, err
     assert "Traceback" not in err[0] and "internal error" not in err[0], err[0]
     assert bad.name in err[0], err[0]

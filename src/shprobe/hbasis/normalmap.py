@@ -283,12 +283,12 @@ def read_lighting(path: str | os.PathLike[str]) -> Env | NDArray[np.float64]:
     try:
         if p.suffix.lower() == ".npy":
             c = np.load(p, allow_pickle=False)
-        else:
-            with np.load(p, allow_pickle=False) as data:
-                key = next((k for k in ("L", "coeffs") if k in data.files), None)
-                if key is None and not data.files:
-                    raise ShprobeError("holds no array of SH coefficients", p)
-                c = data[key or data.files[0]]
+        else:  # the checked reader (headers and sizes first; no file left open on a bad one)
+            data = load_npz(p, what="file of SH coefficients")
+            key = next((k for k in ("L", "coeffs") if k in data), None)
+            if key is None and not data:
+                raise ShprobeError("holds no array of SH coefficients", p)
+            c = data[key or next(iter(data))]
     except ShprobeError:
         raise
     except Exception as e:  # numpy/zipfile raise many types on bad files

@@ -232,7 +232,8 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
                  f"projecting a {'x'.join(map(str, env.grid[::-1]))} {env.layout.name} map to "
                  f"lmax {lmax}", env.path)
     if env.layout.name == "latlong":
-        c = _project_latlong(env.radiance, lmax)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is reported below
+            c = _project_latlong(env.radiance, lmax)
     else:
         d = np.ascontiguousarray(env.directions(), dtype=np.float64).reshape(-1, 3)
         dw = np.ascontiguousarray(env.solid_angles(), dtype=np.float64).reshape(-1)
