@@ -39,3 +39,31 @@ def test_bare_groups_print_their_help(capsys):
         out = capsys.readouterr()
         assert out.out.startswith("Usage: shprobe") and "Commands:" in out.out
         assert out.err == ""
+
+
+def test_lazy_command_map_matches_the_modules():
+    """Every command a ``shprobe.cli`` module registers is in ``COMMANDS`` under that module,
+    and nothing else is (the group imports a module only when one of its commands is used)."""
+    import importlib
+    import pkgutil
+
+    import click
+
+    import shprobe.cli as pkg
+    from shprobe.cli.main import COMMANDS
+
+    registered = {}
+    for info in pkgutil.iter_modules(pkg.__path__):
+        mod = importlib.import_module(f"shprobe.cli.{info.name}")
+        if hasattr(mod, "register"):
+            g = click.Group()
+            mod.register(g)
+            registered.update(dict.fromkeys(g.commands, info.name))
+    assert registered == COMMANDS
+
+
+def test_a_command_imports_only_its_own_modules():
+    code = ("import sys; from shprobe.cli.main import main; main(['view', '--help']); "
+            "print(sorted(m for m in sys.modules if m.startswith('shprobe.cli.')))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip().splitlines()[-1] == "['shprobe.cli.main', 'shprobe.cli.view']"

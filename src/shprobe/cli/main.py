@@ -8,18 +8,38 @@ import click
 
 from .._version import __version__
 from ..errors import ShprobeError
-from . import batch as _batch
-from . import fit as _fit
-from . import hbasis as _hbasis
-from . import prefilter as _prefilter
-from . import prt as _prt
-from . import render as _render
-from . import report as _report
-from . import sh as _sh
-from . import view as _view
+
+#: Each command → the module of ``shprobe.cli`` whose ``register(group)`` adds it. A module is
+#: imported when one of its commands is first looked up (click's lazily loaded subcommands), so
+#: a command pays only for its own layers: ``shprobe view`` forks its file loaders ~0.2 s
+#: sooner than with every module imported first. ``tests/test_cli_basics.py`` checks this map
+#: against what the modules register.
+COMMANDS: dict[str, str] = {
+    "sh": "sh",
+    "demo": "prefilter", "error": "prefilter", "irradiance": "prefilter", "prefilter": "prefilter",
+    "basis-images": "render", "edit": "render", "export": "render", "render": "render",
+    "window": "render",
+    "hbasis": "hbasis", "prt": "prt", "fit": "fit", "report": "report", "batch": "batch",
+    "view": "view",
+}
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class LazyGroup(click.Group):
+    """The top-level group: commands from :data:`COMMANDS`, their modules imported on use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(set(self.commands) | set(COMMANDS))
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in self.commands and cmd_name in COMMANDS:
+            import importlib
+
+            importlib.import_module(f"{__package__}.{COMMANDS[cmd_name]}").register(self)
+        return self.commands.get(cmd_name)
+
+
+@click.group(cls=LazyGroup,
+             context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", "-V", prog_name="shprobe")
 @click.option("--max-memory", metavar="SIZE", default=None,
               help="Refuse work estimated to need more memory than SIZE (e.g. 2G); default: "
@@ -37,10 +57,6 @@ def cli(max_memory: str | None) -> None:
         from ..limits import parse_bytes
 
         os.environ["SHPROBE_MAX_MEMORY"] = str(parse_bytes(max_memory))
-
-
-for _mod in (_sh, _prefilter, _render, _hbasis, _prt, _fit, _report, _batch, _view):
-    _mod.register(cli)
 
 
 def _err(msg: str) -> None:
