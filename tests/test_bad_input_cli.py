@@ -4,7 +4,6 @@ the file, no traceback, and nothing left at the target or beside it."""
 from __future__ import annotations
 
 import warnings
-
 from pathlib import Path
 
 import numpy as np
