@@ -66,7 +66,8 @@ def start(args: list[str], src: Path | None = None) -> tuple[subprocess.Popen, s
 
 STAGES = [  # (label, start event, end event): the stages of the first lit frame
     ("python start + imports → `view` command", "t0", "cli"),
-    ("command → URL printed (loaders forked, server built, socket bound)", "cli", "url"),
+    ("command → URL printed (loader forked, socket bound; server built after)", "cli",
+     "url"),
     ("probe read + projected to lmax 2 (resolve_lighting; loader process)", "load_start",
      "decoded"),
     ("probe checks, coefficients to the server", "decoded", "source_done"),
@@ -75,11 +76,13 @@ STAGES = [  # (label, start event, end event): the stages of the first lit frame
     ("URL → page navigation starts (browser)", "url", "nav"),
     ("navigation → page HTML received", "nav", "html"),
     ("navigation → viewer.js runs (three.js fetched + parsed)", "nav", "script"),
-    ("viewer.js → WebGL contexts + shader programs compiled", "script", "gl"),
+    ("viewer.js → WebGL renderer + the first frame's programs built (drawn once)", "script",
+     "gl"),
     ("→ /api/init answered (it waits for the files)", "gl", "init"),
     ("init → design answered", "init", "design"),
     ("init → mesh received", "init", "mesh"),
     ("design + mesh → first lit frame drawn", "data", "first"),
+    ("first lit frame → probe and irradiance panels made and drawn", "first", "panels"),
 ]
 
 

@@ -56,7 +56,8 @@ class Served:
     def __init__(self, session: Session):
         import uvicorn
 
-        from shprobe.viewer.app import create_app, new_token
+        from shprobe.viewer import new_token
+        from shprobe.viewer.app import create_app
 
         self.session = session
         self.sock = socket.socket()

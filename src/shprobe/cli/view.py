@@ -36,14 +36,39 @@ def register(group: click.Group) -> None:
         import webbrowser
 
         t_cli = time.time()
+        if probe and preset:
+            raise ShprobeError("give either PROBE or --preset, not both")
+        # the files start loading first, before numpy is imported here (viewer.loader) ...
+        from ..viewer.loader import fork_loader, mesh_to_load
+
+        child = fork_loader(probe, layout, mesh_to_load(mesh, transfer))
+        t_fork = time.time()
+        if host not in ("127.0.0.1", "localhost", "::1"):
+            click.echo(f"warning: --host {host} makes the viewer reachable from other "
+                       "machines; anyone with the URL's token can read what it serves", err=True)
+        # ... then the socket listens and the URL is out: the browser's connection waits in
+        # the backlog while the server below is imported and built
+        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as e:
+            raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
+        sock.listen(128)
+        port = sock.getsockname()[1]
+        from ..viewer import new_token
+
+        token = new_token()
+        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+        url = f"http://{shown}:{port}/?token={token}"
+        click.echo(f"shprobe view: {url}", nl=True)
+        t_url = time.time()
 
         from ..viewer.session import Session
 
-        if probe and preset:
-            raise ShprobeError("give either PROBE or --preset, not both")
         session = Session(probe, preset, mesh, transfer, layout, load=False)
-        session.timings["cli"] = t_cli
-        session.fork_loader()  # before any thread starts
+        session.timings.update(cli=t_cli, url=t_url, **({"load_start": t_fork} if child else {}))
+        session.adopt_loader(child)
         stop: list = []  # the server, once it exists
 
         def load() -> None:  # the files load while the server starts and the page opens
@@ -57,26 +82,10 @@ def register(group: click.Group) -> None:
 
         import uvicorn
 
-        from ..viewer.app import create_app, new_token
+        from ..viewer.app import create_app
 
-        if host not in ("127.0.0.1", "localhost", "::1"):
-            click.echo(f"warning: --host {host} makes the viewer reachable from other "
-                       "machines; anyone with the URL's token can read what it serves", err=True)
-        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            sock.bind((host, port))
-        except OSError as e:
-            raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
-        sock.listen(128)  # connections wait in the backlog until uvicorn accepts them
-        port = sock.getsockname()[1]
-        token = new_token()
         local = host in ("127.0.0.1", "localhost", "::1")
         app = create_app(session, token, host, port, check_host=local)
-        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-        url = f"http://{shown}:{port}/?token={token}"
-        click.echo(f"shprobe view: {url}", nl=True)
-        session.timings["url"] = time.time()
         server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
         stop.append(server)
         if session.ready.is_set() and session.error is not None:

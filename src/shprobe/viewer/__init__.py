@@ -4,4 +4,11 @@ app (:mod:`.app`) serving a page that draws with three.js (installed from npm by
 come from the library. See docs/viewer.md.
 """
 
-__all__: list[str] = []
+import secrets
+
+__all__ = ["new_token"]
+
+
+def new_token() -> str:
+    """A random URL-safe token (192 bits): every request to the viewer must carry it."""
+    return secrets.token_urlsafe(24)

@@ -144,20 +144,22 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             # the design's degree for it (a default bake's lmax 10 is over check_state's 8)
             "design_lmax": min(t.lmax, DESIGN_LMAX)}
 
-    shader_text: dict[str, Any] = {}
+    # the page's shader functions, made now: the page asks for them first, before the files
+    # are read, and the modules the first design needs are imported with them
+    from ..lighting import design as _design  # noqa: F401
+    from ..lighting import windows as _windows  # noqa: F401
+    from ..lighting.export import export_coeffs
+    from ..lighting.glsl import glsl_irradiance
+
+    shader_text = JSONResponse({
+        # shprobe's own GLSL export (R&H eq. 11-13), its constants made uniforms
+        "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
+        # above l = 2: the library's generated per-pixel function (lighting.glsl)
+        "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX}).body
 
     async def shaders(req: Request) -> Response:
         """The page's shader functions (no file needed: served before the files are read)."""
-        if not shader_text:
-            from ..lighting.export import export_coeffs
-            from ..lighting.glsl import glsl_irradiance
-
-            shader_text.update({
-                # shprobe's own GLSL export (R&H eq. 11-13), its constants made uniforms
-                "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
-                # above l = 2: the library's generated per-pixel function (lighting.glsl)
-                "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX})
-        return JSONResponse(shader_text)
+        return Response(shader_text, media_type="application/json")
 
     async def init(req: Request) -> Response:
         from ..lighting.export import FORMATS
@@ -381,9 +383,4 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
     app.add_middleware(Guard, token=token, hosts=hosts, cookie=COOKIE.format(port=port))
     app.state.session = session
     return app
-
-
-def new_token() -> str:
-    """A random URL-safe token (192 bits)."""
-    return secrets.token_urlsafe(24)
 

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from .loader import default_mesh_path, fork_loader, mesh_to_load
 
 __all__ = [
     "DESIGN_LMAX",
@@ -52,16 +53,6 @@ MAX_UPLOAD = 512 << 20
 _PROBE_EXT = (".hdr", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg", ".jpeg")
 _MESH_EXT = (".obj", ".ply", ".gltf", ".glb", ".stl", ".off")
 _COEFF_EXT = (".json", ".txt", ".glsl", ".hlsl", ".wgsl")
-
-
-def default_mesh_path() -> Path | None:
-    """The bunny of the test data (``$SHPROBE_TEST_DATA/meshes/bunny.obj``) when present; the
-    viewer falls back to a built-in sphere otherwise (no mesh data ships with shprobe)."""
-    root = os.environ.get("SHPROBE_TEST_DATA")
-    if not root:
-        return None
-    p = Path(root) / "meshes" / "bunny.obj"
-    return p if p.is_file() else None
 
 
 # ----------------------------------------------------------------------------- edit state
@@ -458,40 +449,25 @@ class Session:
             self.load()
 
     def _mesh_arg(self) -> str | None:
-        mesh, transfer = self._args[2:]
-        if mesh or transfer:
-            return mesh
-        p = default_mesh_path()
-        return None if p is None else str(p)
+        return mesh_to_load(*self._args[2:])
 
     def fork_loader(self) -> None:
         """Start loading the probe and the mesh named on the command line in a forked
-        process (``shprobe view``; call before any thread starts): numba's first call and
-        trimesh's import take most of a second, and in a thread here they would hold the GIL
-        the server needs while the page loads. :meth:`load` then takes the lmax-2
+        process (:func:`shprobe.viewer.loader.fork_loader`; call before any thread starts)."""
+        import time
+
+        self.timings["load_start"] = time.time()
+        self.adopt_loader(fork_loader(self._args[0], self.layout, self._mesh_arg()))
+
+    def adopt_loader(self, child: list[tuple[Any, Any]] | None) -> None:
+        """Take the loader :func:`~shprobe.viewer.loader.fork_loader` started (``shprobe view``
+        starts it before this module is even imported): :meth:`load` then takes the lmax-2
         coefficients and the page's mesh arrays from it (the first frame needs no more); the
         :class:`Env` (compare, H-basis, lmax > 2), its lmax-:data:`MAX_LMAX` coefficients and
         the background texture follow in a thread. The trimesh object is loaded in this
-        process only when a view needs it (:attr:`mesh`). Without a fork (not Linux) nothing
-        happens and :meth:`load` reads the files itself."""
-        import time
-
-        probe, mesh = self._args[0], self._mesh_arg()
-        ctx = _fork_context()
-        if ctx is None or not (probe or mesh):
-            return
-        self.timings["load_start"] = time.time()
-        name = os.path.basename(mesh) if mesh else None
-        pipes = [ctx.Pipe(duplex=False) if p else (None, None) for p in (probe, mesh)]
-        proc = ctx.Process(target=_loader, args=(pipes[0][1], pipes[1][1], probe, self.layout,
-                                                 mesh, name, [r for r, _ in pipes if r]),
-                           daemon=True)
-        proc.start()
-        self._child = []
-        for recv, send in pipes:  # [probe's pipe,] [mesh's pipe]
-            if send is not None:
-                send.close()
-                self._child.append((proc, recv))
+        process only when a view needs it (:attr:`mesh`). ``None`` (no fork: not Linux, or
+        nothing to load): :meth:`load` reads the files itself."""
+        self._child = child
 
     def load(self) -> None:
         """Read the files named on the command line (probe and mesh in parallel, or from the
@@ -829,84 +805,6 @@ def unpack_files(data: bytes, most: int = 6) -> list[tuple[str, bytes]]:
         out.append((name, data[off: off + size]))
         off += size
     return out
-
-
-def _fork_context() -> Any:
-    """multiprocessing's fork context on Linux, else None (macOS has fork, but forking a
-    process that has loaded system frameworks is unsafe there)."""
-    import multiprocessing
-    import sys
-
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        return multiprocessing.get_context("fork")
-    except ValueError:
-        return None
-
-
-def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
-            mesh_name: str | None, theirs: list[Any]) -> None:
-    """The process :meth:`Session.fork_loader` starts (``theirs``: the parent's pipe ends,
-    closed here): imports scipy once (numba's first call
-    imports scipy.linalg for its BLAS check, trimesh imports scipy.spatial: a third of a
-    second each time on this machine), then, given both, forks again so that the probe
-    (numba) and the mesh (trimesh) load on two cores (:func:`_load_child`)."""
-    import signal
-
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
-        c.close()
-    try:
-        import scipy.linalg  # noqa: F401
-    except ImportError:  # pragma: no cover - scipy is a dependency
-        pass
-    if probe and mesh:
-        pid = os.fork()
-        if pid == 0:  # the mesh's process
-            pconn.close()
-            _load_child(mconn, None, layout, mesh, mesh_name)
-        mconn.close()
-        _load_child(pconn, probe, layout, None, None, wait=pid)
-    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name)
-
-
-def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None, wait: int = 0) -> None:
-    """In the process :meth:`Session.load` forks: the probe's lmax-2 coefficients, the page's
-    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
-    background texture, sent as they are ready (with wall-clock stamps); a failure is one
-    ("error", line) message. Ends the process itself (``os._exit``, after reaping the
-    process ``wait``): nothing of the parent's (threads, exit handlers, the CLI's signal
-    handlers) runs here."""
-    import time
-
-    try:
-        src = None
-        if probe:
-            src = load_probe(probe, layout)
-            conn.send(("source", src.coeffs2, src.layout_name,
-                       {"decoded": src.decoded_at, "source_done": time.time()}))
-        if mesh:
-            from ..scene import load_mesh
-
-            data = mesh_payload(load_mesh(mesh), mesh_name or os.path.basename(mesh))
-            conn.send(("mesh", data, {"geometry_done": time.time()}))
-        conn.send(("ready", {}))
-        if src is not None:
-            env = src.env
-            conn.send(("env", env, src.coeffs, background_payload(env),
-                       {"env_sent": time.time()}))
-    except ShprobeError as e:
-        conn.send(("error", str(e)))
-    except Exception as e:  # a library bug: one line, the server stops
-        conn.send(("error", f"{type(e).__name__}: {e}".splitlines()[0]))
-    finally:
-        conn.close()
-        if wait:
-            os.waitpid(wait, 0)
-        os._exit(0)
 
 
 def load_probe(path: str | list[str], layout: str = "auto", name: str | None = None) -> Source:

@@ -16,4 +16,19 @@
     background: fetch('/api/background'),
   };
   window.__boot['design:' + body] = fetch('/api/design', { method: 'POST', body });
+  // The object's WebGL context, made now (with the attributes three.js's WebGLRenderer asks
+  // for) and drawn to once: a software GL's start-up, a few tenths of a second, then runs
+  // while three.js downloads and compiles. viewer.js puts this canvas in place of #view.
+  try {
+    const c = document.createElement('canvas');
+    c.id = 'view'; c.width = 512; c.height = 512;
+    const gl = c.getContext('webgl2', { alpha: true, depth: true, stencil: false, antialias: false,
+      premultipliedAlpha: true, preserveDrawingBuffer: true, powerPreference: 'default',
+      failIfMajorPerformanceCaveat: false });
+    if (gl) {
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
+      window.__boot.canvas = c; window.__boot.gl = gl;
+    }
+  } catch (e) { /* viewer.js makes its own */ }
 })();

@@ -194,14 +194,14 @@ function shaderFromExport(text) {
     .replace(/const vec3 SHPROBE_L\[9\] = vec3\[9\]\([\s\S]*?\n\);/, 'uniform vec3 SHPROBE_L[9];');
 }
 let SH_LMAX = 4;  // the degree of the library's generated per-pixel function (init.glsl_sh)
-// E(n) per pixel: R&H eq. 13 (the export) at lmax <= 2, the library's generated GLSL above it
-const IRRADIANCE = `uniform int uSH;
-vec3 shprobe_E(vec3 n) { return uSH == 1 ? shprobe_irradiance_sh(n) : shprobe_irradiance_poly(n); }
-`;
+// E(n) per pixel: R&H eq. 13 (the export) at lmax <= 2, the library's generated GLSL above it.
+// One program per case (a define picks it), not a branch on a uniform: a software GL
+// (SwiftShader) pays for every branch of a program, ~2× the frame time and the first draw.
+const irradianceGLSL = (sh) => (sh ? SHPROBE_GLSL_SH + 'vec3 shprobe_E(vec3 n) { return shprobe_irradiance_sh(n); }\n'
+  : SHPROBE_GLSL + 'vec3 shprobe_E(vec3 n) { return shprobe_irradiance_poly(n); }\n');
 const commonUniforms = () => ({
   SHPROBE_L: { value: Array.from({ length: 9 }, () => new THREE.Vector3()) },
   SHPROBE_E: { value: Array.from({ length: (SH_LMAX + 1) ** 2 }, () => new THREE.Vector3()) },
-  uSH: { value: 0 },
   SHPROBE_M_R: { value: new THREE.Matrix4() }, SHPROBE_M_G: { value: new THREE.Matrix4() },
   SHPROBE_M_B: { value: new THREE.Matrix4() },
   uExposure: { value: 0 }, uRotInv: { value: new THREE.Matrix3() },
@@ -209,35 +209,45 @@ const commonUniforms = () => ({
 });
 
 // ------------------------------------------------------------------ three.js scene
-let renderer, scene, camera, controls, meshObj, bgMesh, objMat, bgMat;
-let panel, panelScene, panelCam, probeMat, irrMat, panelRenderer2, irrScene;
+let renderer, scene, camera, controls, meshObj, bgMesh, objUniforms, bgMat;
+let panel, panelScene, panelCam, probeMat, irrMats, irrMesh, panelRenderer2, irrScene;
+const objMats = {};  // the object's programs, one per view (OBJ_VIEWS), made on first use
 let bgTex = null, cmp = null, prt = null;
 const lookTex = {};
 
-function makeObjectMaterial() {
-  return new THREE.ShaderMaterial({
+// the object's views: E from eq. 13 | E from the generated function (design above lmax 2,
+// compare "SH lmax l") | the library's brute force | the error heat map | PRT vertex colours
+const OBJ_VIEWS = { poly: 0, sh: 1, exact: 2, error: 3, prt: 4 };
+function objectMaterial(view) {
+  if (objMats[view]) return objMats[view];
+  objUniforms = objUniforms || { ...commonUniforms(), uA: { value: null }, uRef: { value: null },
+                                 uTot: { value: new THREE.Vector3(1, 1, 1) }, uErrMax: { value: 1 } };
+  const v = OBJ_VIEWS[view];
+  return (objMats[view] = new THREE.ShaderMaterial({
     glslVersion: THREE.GLSL3,
-    uniforms: { ...commonUniforms(), uMode: { value: 0 }, uA: { value: null }, uRef: { value: null },
-                uTot: { value: new THREE.Vector3(1, 1, 1) }, uErrMax: { value: 1 } },
+    uniforms: objUniforms,  // shared by every view
+    defines: { OBJ_VIEW: v },
     vertexShader: `in vec3 albedo; in vec3 prtColor; out vec3 vN; out vec3 vAlb; out vec3 vPrt;
       void main() { vN = normal; vAlb = albedo; vPrt = prtColor;
         gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
-    fragmentShader: PI + SRGB + SHPROBE_GLSL + SHPROBE_GLSL_SH + IRRADIANCE + `
-      uniform int uMode; uniform float uExposure; uniform sampler2D uA; uniform sampler2D uRef;
+    fragmentShader: PI + SRGB + (v <= 1 ? irradianceGLSL(v === 1) : '') + `
+      uniform float uExposure; uniform sampler2D uA; uniform sampler2D uRef;
       uniform vec3 uTot; uniform float uErrMax;
       in vec3 vN; in vec3 vAlb; in vec3 vPrt;
       void main() {
-        vec3 n = normalize(vN), E;
-        if (uMode == 0) E = shprobe_E(n);                        // per pixel: eq. 13 or any lmax
-        else if (uMode == 1) E = shprobe_irradiance_sh(n);       // the probe at lmax l, per pixel
-        else if (uMode == 2) E = texture(uRef, dirToUV(n)).rgb;  // library brute force
-        else if (uMode == 3) {
-          vec3 d = abs(texture(uA, dirToUV(n)).rgb - texture(uRef, dirToUV(n)).rgb) / uTot;
-          fragColor = vec4(heat(max(d.r, max(d.g, d.b)) / uErrMax), 1.0); return; }
-        else { fragColor = vec4(srgb(vPrt * exp2(uExposure)), 1.0); return; }
-        fragColor = vec4(srgb(vAlb * E / PI * exp2(uExposure)), 1.0);
+        vec3 n = normalize(vN);
+      #if OBJ_VIEW <= 1
+        fragColor = vec4(srgb(vAlb * shprobe_E(n) / PI * exp2(uExposure)), 1.0);  // per pixel
+      #elif OBJ_VIEW == 2
+        fragColor = vec4(srgb(vAlb * texture(uRef, dirToUV(n)).rgb / PI * exp2(uExposure)), 1.0);
+      #elif OBJ_VIEW == 3
+        vec3 d = abs(texture(uA, dirToUV(n)).rgb - texture(uRef, dirToUV(n)).rgb) / uTot;
+        fragColor = vec4(heat(max(d.r, max(d.g, d.b)) / uErrMax), 1.0);
+      #else
+        fragColor = vec4(srgb(vPrt * exp2(uExposure)), 1.0);
+      #endif
       }`,
-  });
+  }));
 }
 function makeBgMaterial() {  // full-screen pass: the probe seen along each camera ray
   return new THREE.ShaderMaterial({
@@ -251,12 +261,12 @@ function makeBgMaterial() {  // full-screen pass: the probe seen along each came
         fragColor = vec4(srgb(c * exp2(uExposure)), 1.0); }`,
   });
 }
-function makePanelMaterial(kind) {  // lat-long panels: the probe, or E/π of the lighting
+function makePanelMaterial(kind, uniforms) {  // lat-long panels: the probe, or E/π (eq. 13 | sh)
   return new THREE.ShaderMaterial({
     glslVersion: THREE.GLSL3, depthTest: false,
-    uniforms: commonUniforms(),
+    uniforms: uniforms || commonUniforms(),
     vertexShader: `out vec2 vUv; void main() { vUv = vec2(uv.x, 1.0 - uv.y); gl_Position = vec4(position.xy, 0.0, 1.0); }`,
-    fragmentShader: PI + SRGB + SHPROBE_GLSL + SHPROBE_GLSL_SH + IRRADIANCE + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
+    fragmentShader: PI + SRGB + (kind === 'probe' ? '' : irradianceGLSL(kind === 'sh')) + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
       uniform mat3 uRotInv; in vec2 vUv;
       void main() { vec3 d = uvToDir(vUv);
         vec3 c = ${kind === 'probe' ? 'uHasBg == 1 ? rgbe(uBg, dirToUV(uRotInv * d)) : vec3(0.18)' : 'shprobe_E(d) / PI'};
@@ -276,15 +286,13 @@ function setE(u, E, lmax) {  // E_lm = Â_l L_lm of the library, zero above lmax
   const K = (lmax + 1) ** 2;
   u.SHPROBE_E.value.forEach((v, k) => { const c = (k < K && E && E[k]) || [0, 0, 0]; v.set(c[0], c[1], c[2]); });
 }
-function setLightingUniforms(mat) {
-  const u = mat.uniforms;
+// above l = 2 there is no quadratic form: the generated function, with the library's E_lm
+const highLmax = () => !!(coeffs && coeffs.length > 9 && irrE);
+function setLightingUniforms(u) {
   if (coeffs) for (let k = 0; k < 9; k++) {
     const c = coeffs[k] || [0, 0, 0]; u.SHPROBE_L.value[k].set(c[0], c[1], c[2]);
   }
-  // above l = 2 there is no quadratic form: the generated function, with the library's E_lm
-  const high = !!(coeffs && coeffs.length > 9 && irrE);
-  u.uSH.value = high ? 1 : 0;
-  if (high) setE(u, irrE, Math.sqrt(coeffs.length) - 1);
+  if (highLmax()) setE(u, irrE, Math.sqrt(coeffs.length) - 1);
   u.uExposure.value = Number($('exposure').value);
   const R = stateRotation(state);  // R⁻¹ = Rᵀ: the rotated lighting at ω is the probe at R⁻¹ω
   u.uRotInv.value.set(R[0][0], R[1][0], R[2][0], R[0][1], R[1][1], R[2][1], R[0][2], R[1][2], R[2][2]);
@@ -293,17 +301,20 @@ function setLightingUniforms(mat) {
 
 const MODES = { design: 0, sh1: 1, sh2: 1, sh3: 1, sh4: 1, exact: 2, error: 3, prt: 4 };
 let frameTimes = [];
+let booting = true;  // until the first frame's data is in: one draw then, none before
 let moveAt = null;  // when the last drag move arrived (for the move → frame time)
 function draw() {
-  if (!renderer || !coeffs) return;
+  if (!renderer || !coeffs || booting) return;
   const tf = performance.now();
   const mode = $('mode').value;
   if (mode === 'prt') relightPRT();
-  for (const m of [objMat, bgMat, probeMat, irrMat]) setLightingUniforms(m);
-  objMat.uniforms.uMode.value = MODES[mode];
-  if (cmp && MODES[mode] === 1) setE(objMat.uniforms, cmp.irradiance, Number(mode.slice(2)));
-  if (cmp && MODES[mode] === 3) objMat.uniforms.uA.value = lookTex['sh' + $('errlmax').value];
-  if (cmp) { objMat.uniforms.uRef.value = lookTex.reference; }
+  const m = MODES[mode];
+  if (meshObj) meshObj.material = objectMaterial(m === 4 ? 'prt' : m === 2 ? 'exact' : m === 3 ? 'error'
+    : m === 1 || highLmax() ? 'sh' : 'poly');
+  for (const u of [objUniforms, bgMat.uniforms]) setLightingUniforms(u);
+  if (cmp && m === 1) setE(objUniforms, cmp.irradiance, Number(mode.slice(2)));
+  if (cmp && m === 3) objUniforms.uA.value = lookTex['sh' + $('errlmax').value];
+  if (cmp) { objUniforms.uRef.value = lookTex.reference; }
   camera.updateMatrixWorld();
   bgMat.uniforms.uInvVP.value.multiplyMatrices(camera.matrixWorld, camera.projectionMatrixInverse);
   bgMat.uniforms.uEye.value.setFromMatrixPosition(camera.matrixWorld);
@@ -312,13 +323,31 @@ function draw() {
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
   api.mainFrameMs = performance.now() - tf;
   // the first lit frame: the object drawn with the lighting, finished (the panels follow)
-  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
-  panel.render(panelScene, panelCam);
-  panelRenderer2.render(irrScene, panelCam);
+  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); api.firstMainMs = api.mainFrameMs; }
+  drawPanels();
   const dt = performance.now() - tf;
   if (moveAt !== null) { (api.moveToFrame = api.moveToFrame || []).push(performance.now() - moveAt); moveAt = null; }
   frameTimes.push(dt); if (frameTimes.length > 200) frameTimes.shift();
   api.frames = (api.frames || 0) + 1;
+}
+function drawPanels() {  // the probe and the irradiance map (made after the first frame)
+  if (!panel) return;
+  setLightingUniforms(probeMat.uniforms); setLightingUniforms(irrMesh.material.uniforms);
+  irrMesh.material = irrMats[highLmax() ? 1 : 0];
+  panel.render(panelScene, panelCam);
+  panelRenderer2.render(irrScene, panelCam);
+}
+function makePanels() {  // two more WebGL contexts: after the object's first frame
+  panel = new THREE.WebGLRenderer({ canvas: $('probe'), antialias: false });
+  panel.setPixelRatio(1); panel.setSize(512, 256, false); panel.outputColorSpace = THREE.LinearSRGBColorSpace;
+  panelRenderer2 = new THREE.WebGLRenderer({ canvas: $('irrmap'), antialias: false });
+  panelRenderer2.setPixelRatio(1); panelRenderer2.setSize(512, 256, false); panelRenderer2.outputColorSpace = THREE.LinearSRGBColorSpace;
+  panelCam = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1);
+  probeMat = makePanelMaterial('probe');
+  const u = commonUniforms(); irrMats = [makePanelMaterial('poly', u), makePanelMaterial('sh', u)];
+  irrMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), irrMats[0]);
+  panelScene = new THREE.Scene(); panelScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), probeMat));
+  irrScene = new THREE.Scene(); irrScene.add(irrMesh);
 }
 api.draw = draw;
 api.frameTimes = () => frameTimes.slice();
@@ -347,7 +376,7 @@ function setGeometry(g, cam) {
   geo.setAttribute('prtColor', new THREE.BufferAttribute(new Float32Array(nv * 3), 3));
   geo.setIndex(new THREE.BufferAttribute(g.index, 1));
   if (meshObj) { scene.remove(meshObj); meshObj.geometry.dispose(); }
-  meshObj = new THREE.Mesh(geo, objMat);
+  meshObj = new THREE.Mesh(geo, objectMaterial('poly'));  // draw() picks the view's program
   meshObj.frustumCulled = false;
   scene.add(meshObj);
   // the library's camera (shprobe.scene.render.Camera, fitted to the bounding sphere)
@@ -409,7 +438,7 @@ async function loadCompare() {
       lookTex.reference = floatTex(r.reference, h, w);
       for (let l = 1; l <= 4; l++) if (r['sh' + l]) lookTex['sh' + l] = floatTex(r['sh' + l], h, w);
       cmp = r.head;
-      objMat.uniforms.uTot.value.set(...cmp.total_intensity);
+      objUniforms.uTot.value.set(...cmp.total_intensity);
       break;
     }
     if (r.status === 'error') { $('progress').hidden = true; throw new Error(r.error); }
@@ -425,7 +454,7 @@ function showLegend() {
   $('legend').hidden = !(mode === 'error' || mode.startsWith('sh') || mode === 'exact') || !cmp;
   if (!cmp) return;
   const row = cmp.rows.find((r) => r.lmax === Number($('errlmax').value));
-  objMat.uniforms.uErrMax.value = row.max_frac;
+  objUniforms.uErrMax.value = row.max_frac;
   $('legendbar').style.background = HEAT_CSS;
   $('legendmax').textContent = row.max_frac.toPrecision(3);
   $('legendmid').textContent = (row.max_frac / 2).toPrecision(3);
@@ -644,32 +673,35 @@ function wireDrag() {
 async function main() {
   mark('script');
   // the shaders need no file: WebGL and the programs are set up while the server loads them
+  const boot = window.__boot || {};  // boot.js's context, if it made one
+  if (boot.gl) $('view').replaceWith(boot.canvas);
+  renderer = new THREE.WebGLRenderer({ canvas: $('view'), context: boot.gl || null, antialias: false, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(1); renderer.setSize(512, 512, false);
+  renderer.outputColorSpace = THREE.LinearSRGBColorSpace;  // our shaders write sRGB themselves
   const sh = await first('shaders', () => call('/api/shaders'));
   SHPROBE_GLSL = shaderFromExport(sh.glsl);
   SHPROBE_GLSL_SH = sh.glsl_sh; SH_LMAX = sh.max_lmax;
-  renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: false, preserveDrawingBuffer: true });
-  renderer.setPixelRatio(1); renderer.setSize(512, 512, false);
-  renderer.outputColorSpace = THREE.LinearSRGBColorSpace;  // our shaders write sRGB themselves
   scene = new THREE.Scene();
   camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
   controls = new OrbitControls(camera, $('view'));
   controls.addEventListener('change', draw);
-  objMat = makeObjectMaterial(); bgMat = makeBgMaterial();
+  bgMat = makeBgMaterial();
   bgMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), bgMat); bgMesh.frustumCulled = false; bgMesh.renderOrder = -1;
   scene.add(bgMesh);
-  panel = new THREE.WebGLRenderer({ canvas: $('probe'), antialias: false });
-  panel.setPixelRatio(1); panel.setSize(512, 256, false); panel.outputColorSpace = THREE.LinearSRGBColorSpace;
-  panelRenderer2 = new THREE.WebGLRenderer({ canvas: $('irrmap'), antialias: false });
-  panelRenderer2.setPixelRatio(1); panelRenderer2.setSize(512, 256, false); panelRenderer2.outputColorSpace = THREE.LinearSRGBColorSpace;
-  panelCam = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1);
-  probeMat = makePanelMaterial('probe'); irrMat = makePanelMaterial('irr');
-  panelScene = new THREE.Scene(); panelScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), probeMat));
-  irrScene = new THREE.Scene(); irrScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), irrMat));
-  // compile every program now (a stand-in triangle carries the object's material)
-  const stand = new THREE.Mesh(new THREE.BufferGeometry(), objMat);
-  for (const [n, k] of [['position', 3], ['normal', 3], ['albedo', 3], ['prtColor', 3]]) stand.geometry.setAttribute(n, new THREE.BufferAttribute(new Float32Array(9), k));
+  // compile the program of the first frame now (the saved edit state's degree picks it; a
+  // stand-in triangle carries it)
+  let lmax0 = 2;
+  try { lmax0 = JSON.parse(localStorage.getItem(KEY) || '{}').lmax ?? 2; } catch (e) { /* default */ }
+  const stand = new THREE.Mesh(new THREE.BufferGeometry(), objectMaterial(lmax0 > 2 ? 'sh' : 'poly'));
+  for (const [n, k] of [['position', 3], ['normal', 3], ['albedo', 3], ['prtColor', 3]]) stand.geometry.setAttribute(n, new THREE.BufferAttribute(new Float32Array([0, 0, -1, 0.01, 0, -1, 0, 0.01, -1]), k));
+  stand.geometry.setIndex(new THREE.BufferAttribute(new Uint32Array([0, 1, 2]), 1));
+  stand.frustumCulled = false;
   scene.add(stand);
-  renderer.compile(scene, camera); panel.compile(panelScene, panelCam); panelRenderer2.compile(irrScene, panelCam);
+  renderer.compile(scene, camera);
+  // and draw it once: a software GL (SwiftShader) translates and builds its pipeline at the
+  // first draw, ~0.2 s that would otherwise come after the files
+  renderer.render(scene, camera);
+  { const gl = renderer.getContext(); gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4)); }
   scene.remove(stand); stand.geometry.dispose();
   mark('gl');
   const init = await first('init', () => call('/api/init'));
@@ -689,15 +721,17 @@ async function main() {
   } else {
     jobs.push(first('mesh', () => call('/api/mesh')).then((g) => { mark('mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; }));
   }
-  await Promise.all(jobs);
+  try { await Promise.all(jobs); } finally { booting = false; }  // a failed load still draws later
   mark('data');
   draw();
   mark('frame');
+  makePanels(); drawPanels();  // the probe and irradiance panels follow the object's frame
+  mark('panels');
   if (bg) await bg;
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
-main().catch(showError);
+main().catch((e) => { booting = false; if (!panel) makePanels(); showError(e); });
 
 // three.js LightProbe driven by shprobe's `three` export: its irradiance vs the library's
 api.threeCheck = async () => {

@@ -1,0 +1,142 @@
+"""The viewer's file loader: a forked process that reads the probe and the mesh named on the
+command line while the server starts and the page loads (``shprobe view``).
+
+This module imports nothing but the standard library, so that ``shprobe view`` can fork the
+loader before numpy is imported in the server process: the loader's imports (numpy, scipy,
+numba's first call, trimesh) — most of a second of CPU — start on the second core at once. Its
+children send the first frame's data (the probe's lmax-2 coefficients, the page's mesh arrays)
+first; the Env, its higher coefficients and the background texture follow
+(:meth:`shprobe.viewer.session.Session.adopt_loader` takes them).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from ..errors import ShprobeError
+
+__all__ = ["default_mesh_path", "fork_loader", "mesh_to_load"]
+
+
+def default_mesh_path() -> Path | None:
+    """The bunny of the test data (``$SHPROBE_TEST_DATA/meshes/bunny.obj``) when present; the
+    viewer falls back to a built-in sphere otherwise (no mesh data ships with shprobe)."""
+    root = os.environ.get("SHPROBE_TEST_DATA")
+    if not root:
+        return None
+    p = Path(root) / "meshes" / "bunny.obj"
+    return p if p.is_file() else None
+
+
+def mesh_to_load(mesh: str | None, transfer: str | None) -> str | None:
+    """The mesh file ``shprobe view`` loads: ``--mesh``; none with ``--transfer`` alone (the
+    transfer carries its geometry); else :func:`default_mesh_path`."""
+    if mesh or transfer:
+        return mesh
+    p = default_mesh_path()
+    return None if p is None else str(p)
+
+
+def fork_loader(probe: str | None, layout: str, mesh: str | None
+                ) -> list[tuple[Any, Any]] | None:
+    """Fork the loader of ``probe`` and ``mesh`` (:func:`_loader`; call before any thread
+    starts): one (process, receiving pipe end) per file, the probe's first; ``None`` where
+    there is nothing to load or no fork (not Linux)."""
+    ctx = _fork_context()
+    if ctx is None or not (probe or mesh):
+        return None
+    name = os.path.basename(mesh) if mesh else None
+    pipes = [ctx.Pipe(duplex=False) if p else (None, None) for p in (probe, mesh)]
+    proc = ctx.Process(target=_loader, args=(pipes[0][1], pipes[1][1], probe, layout, mesh,
+                                             name, [r for r, _ in pipes if r]), daemon=True)
+    proc.start()
+    child = []
+    for recv, send in pipes:  # [probe's pipe,] [mesh's pipe]
+        if send is not None:
+            send.close()
+            child.append((proc, recv))
+    return child
+
+
+def _fork_context() -> Any:
+    """multiprocessing's fork context on Linux, else None (macOS has fork, but forking a
+    process that has loaded system frameworks is unsafe there)."""
+    import multiprocessing
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return multiprocessing.get_context("fork")
+    except ValueError:
+        return None
+
+
+def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
+            mesh_name: str | None, theirs: list[Any]) -> None:
+    """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
+    here): imports what both files need once — numpy, the viewer's model, scipy (numba's
+    first call imports scipy.linalg for its BLAS check, trimesh imports scipy.spatial: a
+    third of a second each time on this machine) — then, given both, forks again so that the
+    probe (numba) and the mesh (trimesh) load on two cores (:func:`_load_child`)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
+        c.close()
+    try:
+        import scipy.linalg  # noqa: F401
+
+        from . import session  # noqa: F401
+    except ImportError:  # pragma: no cover - dependencies; _load_child reports it
+        pass
+    if probe and mesh:
+        pid = os.fork()
+        if pid == 0:  # the mesh's process
+            pconn.close()
+            _load_child(mconn, None, layout, mesh, mesh_name)
+        mconn.close()
+        _load_child(pconn, probe, layout, None, None, wait=pid)
+    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name)
+
+
+def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
+                mesh_name: str | None, wait: int = 0) -> None:
+    """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
+    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
+    background texture, sent as they are ready (with wall-clock stamps); a failure is one
+    ("error", line) message. Ends the process itself (``os._exit``, after reaping the
+    process ``wait``): nothing of the parent's (threads, exit handlers, the CLI's signal
+    handlers) runs here."""
+    import time
+
+    try:
+        from .session import background_payload, load_probe, mesh_payload
+
+        src = None
+        if probe:
+            src = load_probe(probe, layout)
+            conn.send(("source", src.coeffs2, src.layout_name,
+                       {"decoded": src.decoded_at, "source_done": time.time()}))
+        if mesh:
+            from ..scene import load_mesh
+
+            data = mesh_payload(load_mesh(mesh), mesh_name or os.path.basename(mesh))
+            conn.send(("mesh", data, {"geometry_done": time.time()}))
+        conn.send(("ready", {}))
+        if src is not None:
+            env = src.env
+            conn.send(("env", env, src.coeffs, background_payload(env),
+                       {"env_sent": time.time()}))
+    except ShprobeError as e:
+        conn.send(("error", str(e)))
+    except Exception as e:  # a library bug: one line, the server stops
+        conn.send(("error", f"{type(e).__name__}: {e}".splitlines()[0]))
+    finally:
+        conn.close()
+        if wait:
+            os.waitpid(wait, 0)
+        os._exit(0)
