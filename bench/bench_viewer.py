@@ -83,6 +83,7 @@ STAGES = [  # (label, start event, end event): the stages of the first lit frame
     ("init → mesh received", "init", "mesh"),
     ("design + mesh → first lit frame drawn", "data", "first"),
     ("first lit frame → probe and irradiance panels made and drawn", "first", "panels"),
+    ("first lit frame → the probe's background texture drawn", "first", "background"),
 ]
 
 

@@ -141,3 +141,31 @@ def test_background_comes_from_the_loader_not_recomputed():
     with _fake_session("env") as s:
         assert s.background_bytes() == b"BG"
         assert np.array_equal(s.source.coeffs, np.full((25, 3), 2.0))
+
+
+@linux
+def test_env_is_sent_when_a_view_asks_for_it(monkeypatch):
+    """A real forked loader: after the first frame's data (lmax-2 coefficients, mesh) the
+    decoded probe waits in the loader until a view needs it, then arrives equal to the
+    library's own decode and projection."""
+    from shprobe.lighting.projection import project
+    from shprobe.probes.layouts import load_env
+    from shprobe.viewer import loader
+
+    monkeypatch.setattr(loader, "ENV_WAIT", 120.0)  # read by the forked process
+    probe = data_file("probes", "grace.hdr")
+    s = Session(str(probe), mesh=str(data_file("meshes", "bunny.obj")), load=False)
+    try:
+        s.fork_loader()
+        s.load()
+        src = s.source
+        assert s.mesh_bytes()  # the first frame's data is here ...
+        time.sleep(0.5)
+        assert not src._arrived.is_set()  # ... and the Env is not, unasked
+        env = src.env  # asks for it
+        want = load_env(probe)
+        assert np.array_equal(env.radiance, want.radiance)
+        np.testing.assert_allclose(src.coeffs, project(want, 4), rtol=0, atol=1e-12)
+        assert s.background_bytes()
+    finally:
+        s.close()

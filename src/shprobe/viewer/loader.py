@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..errors import ShprobeError
 
-__all__ = ["default_mesh_path", "fork_loader", "mesh_to_load"]
+__all__ = ["ENV_WAIT", "Loader", "default_mesh_path", "fork_loader", "mesh_to_load"]
 
 
 def default_mesh_path() -> Path | None:
@@ -39,25 +39,38 @@ def mesh_to_load(mesh: str | None, transfer: str | None) -> str | None:
     return None if p is None else str(p)
 
 
-def fork_loader(probe: str | None, layout: str, mesh: str | None
-                ) -> list[tuple[Any, Any]] | None:
+#: The probe's Env (and what is made from it) is sent when the server asks for it
+#: (:class:`Loader` ``.go``) or this many seconds after the first frame's data at the latest.
+ENV_WAIT = 2.0
+
+
+class Loader(NamedTuple):
+    """The forked loader: one (process, receiving pipe end) per file, the probe's first, and
+    the event that lets the probe's process send the Env (set when a view needs it: until
+    then the first frame has the two cores)."""
+
+    child: list[tuple[Any, Any]]
+    go: Any
+
+
+def fork_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | None:
     """Fork the loader of ``probe`` and ``mesh`` (:func:`_loader`; call before any thread
-    starts): one (process, receiving pipe end) per file, the probe's first; ``None`` where
-    there is nothing to load or no fork (not Linux)."""
+    starts); ``None`` where there is nothing to load or no fork (not Linux)."""
     ctx = _fork_context()
     if ctx is None or not (probe or mesh):
         return None
     name = os.path.basename(mesh) if mesh else None
+    go = ctx.Event()
     pipes = [ctx.Pipe(duplex=False) if p else (None, None) for p in (probe, mesh)]
     proc = ctx.Process(target=_loader, args=(pipes[0][1], pipes[1][1], probe, layout, mesh,
-                                             name, [r for r, _ in pipes if r]), daemon=True)
+                                             name, [r for r, _ in pipes if r], go), daemon=True)
     proc.start()
     child = []
     for recv, send in pipes:  # [probe's pipe,] [mesh's pipe]
         if send is not None:
             send.close()
             child.append((proc, recv))
-    return child
+    return Loader(child, go)
 
 
 def _fork_context() -> Any:
@@ -75,7 +88,7 @@ def _fork_context() -> Any:
 
 
 def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
-            mesh_name: str | None, theirs: list[Any]) -> None:
+            mesh_name: str | None, theirs: list[Any], go: Any = None) -> None:
     """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
     here): imports what both files need once — numpy, the viewer's model, scipy (numba's
     first call imports scipy.linalg for its BLAS check, trimesh imports scipy.spatial: a
@@ -99,15 +112,16 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
             pconn.close()
             _load_child(mconn, None, layout, mesh, mesh_name)
         mconn.close()
-        _load_child(pconn, probe, layout, None, None, wait=pid)
-    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name)
+        _load_child(pconn, probe, layout, None, None, wait=pid, go=go)
+    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name, go=go)
 
 
 def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None, wait: int = 0) -> None:
+                mesh_name: str | None, wait: int = 0, go: Any = None) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
-    mesh arrays, then the :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the
-    background texture, sent as they are ready (with wall-clock stamps); a failure is one
+    mesh arrays, then — once ``go`` is set, or :data:`ENV_WAIT` seconds later — the
+    :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the background texture, each
+    sent when ready (with wall-clock stamps); a failure is one
     ("error", line) message. Ends the process itself (``os._exit``, after reaping the
     process ``wait``): nothing of the parent's (threads, exit handlers, the CLI's signal
     handlers) runs here."""
@@ -128,6 +142,8 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
             conn.send(("mesh", data, {"geometry_done": time.time()}))
         conn.send(("ready", {}))
         if src is not None:
+            if go is not None:  # the first frame first: its data is out, the Env waits
+                go.wait(ENV_WAIT)
             env = src.env
             conn.send(("env", env, src.coeffs, background_payload(env),
                        {"env_sent": time.time()}))

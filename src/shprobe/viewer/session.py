@@ -340,6 +340,8 @@ class Source:
         self._arrived = threading.Event()
         if not pending:
             self._arrived.set()
+        #: called before waiting for a pending probe (asks the loader to send it now)
+        self.request: Callable[[], None] | None = None
         self._lock = threading.Lock()
         #: the page's background texture (:func:`background_payload`), once made
         self.background: bytes | None = None
@@ -349,6 +351,8 @@ class Source:
     def env(self) -> Any:
         """The probe (None for presets); waits for one still being loaded; a one-line
         :class:`ShprobeError` when its loading failed."""
+        if not self._arrived.is_set() and self.request is not None:
+            self.request()
         self._arrived.wait()
         if self.error is not None:
             raise ShprobeError(self.error)
@@ -441,7 +445,8 @@ class Session:
         self.error: ShprobeError | None = None
         #: wall-clock stamps (time.time()) of the loading stages, for the first-frame benchmark
         self.timings: dict[str, float] = {}
-        self._child: Any = None  # (process, pipe) of fork_loader
+        self._child: Any = None  # [(process, pipe)] of fork_loader
+        self._go: Any = None  # its event: send the Env now
         #: probes loaded (command line, uploads): id → (file name as the user gave it, Source)
         self.probes: dict[str, tuple[str, Source]] = {}
         self._probe_tag = f"p{secrets.token_hex(3)}"  # ids of another server never match
@@ -459,15 +464,17 @@ class Session:
         self.timings["load_start"] = time.time()
         self.adopt_loader(fork_loader(self._args[0], self.layout, self._mesh_arg()))
 
-    def adopt_loader(self, child: list[tuple[Any, Any]] | None) -> None:
+    def adopt_loader(self, loader: Any) -> None:
         """Take the loader :func:`~shprobe.viewer.loader.fork_loader` started (``shprobe view``
         starts it before this module is even imported): :meth:`load` then takes the lmax-2
         coefficients and the page's mesh arrays from it (the first frame needs no more); the
         :class:`Env` (compare, H-basis, lmax > 2), its lmax-:data:`MAX_LMAX` coefficients and
         the background texture follow in a thread. The trimesh object is loaded in this
-        process only when a view needs it (:attr:`mesh`). ``None`` (no fork: not Linux, or
-        nothing to load): :meth:`load` reads the files itself."""
-        self._child = child
+        process only when a view needs it (:attr:`mesh`); the Env is sent when a view first
+        needs it (:attr:`Source.env` sets the loader's ``go``), so that until then the first
+        frame has the cores. ``None`` (no fork: not Linux, or nothing to load): :meth:`load`
+        reads the files itself."""
+        self._child, self._go = (None, None) if loader is None else loader
 
     def load(self) -> None:
         """Read the files named on the command line (probe and mesh in parallel, or from the
@@ -532,6 +539,8 @@ class Session:
                     if kind == "source":
                         src = Source(probe, data[0], pending=True)
                         src.layout_name = data[1]
+                        if self._go is not None:
+                            src.request = self._go.set
                         self.source = src
                         self.register_probe(src, probe)
                     elif kind == "mesh":

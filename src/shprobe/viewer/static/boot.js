@@ -13,7 +13,6 @@
     shaders: fetch('/api/shaders'),
     init: fetch('/api/init'),
     mesh: fetch('/api/mesh'),
-    background: fetch('/api/background'),
   };
   window.__boot['design:' + body] = fetch('/api/design', { method: 'POST', body });
   // The object's WebGL context, made now (with the attributes three.js's WebGLRenderer asks

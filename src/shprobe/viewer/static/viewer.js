@@ -713,8 +713,6 @@ async function main() {
   else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most check_state's
   wire(init); refreshControls();
   const jobs = [requestDesign().then(() => mark('design'))];
-  // the first lit frame needs the lighting and the mesh; the background follows
-  const bg = init.source.has_env ? loadBackground().then(() => { mark('background'); draw(); }) : null;
   if (init.transfer) {
     $('mode').value = 'prt'; $('viewlabel').textContent = VIEW_LABELS.prt;
     jobs.push(loadTransfer($('prtmode').value, $('prtbounces').value));
@@ -727,7 +725,9 @@ async function main() {
   mark('frame');
   makePanels(); drawPanels();  // the probe and irradiance panels follow the object's frame
   mark('panels');
-  if (bg) await bg;
+  // the first lit frame needs the lighting and the mesh; the background follows (the server
+  // has the loader send the decoded probe now)
+  if (init.source.has_env) { await loadBackground(); mark('background'); draw(); }
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
