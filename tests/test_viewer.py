@@ -189,6 +189,21 @@ def test_webgl_pixels_at_lmax_4_equal_library_render(page, served):
     _state(page, {})
 
 
+def test_webgl_pixels_above_lmax_4_equal_library_render(page, served):
+    """A design above the compare view's degree (lmax 6, as a PRT transfer's degree sets it)
+    is drawn in full by the second generated function: equal to the library's render, and
+    not the design cut at lmax 4 (Â_6 L_6m of grace moves most pixels by more than 1/255)."""
+    from shprobe.scene.render import Camera, render
+
+    _state(page, {"lmax": 6})
+    L6 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
+    assert L6.shape == (49, 3)
+    img, _, inner = _pixels_match_render(page, served, L6)
+    cut = render(served.session.mesh, L6[:25], Camera(512, 512)).tonemapped().astype(int)
+    assert np.abs(img[inner] - cut[inner]).max() >= 3
+    _state(page, {})
+
+
 def test_drag_on_probe_rotates_lighting_by_wigner(page):
     """A horizontal drag of 64 px on the 512 px wide probe turns the lighting by −45° about +Y
     (features follow the cursor); the page's coefficients are the library's rotation."""

@@ -154,8 +154,10 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
     shader_text = JSONResponse({
         # shprobe's own GLSL export (R&H eq. 11-13), its constants made uniforms
         "glsl": export_coeffs(np.zeros((9, 3)), "glsl", source="viewer"),
-        # above l = 2: the library's generated per-pixel function (lighting.glsl)
-        "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX}).body
+        # above l = 2: the library's generated per-pixel function (lighting.glsl), to the
+        # compare view's degree and, for designs above it (a PRT transfer's), to the highest
+        "glsl_sh": glsl_irradiance(MAX_LMAX), "max_lmax": MAX_LMAX,
+        "glsl_sh_design": glsl_irradiance(DESIGN_LMAX), "design_lmax": DESIGN_LMAX}).body
 
     async def shaders(req: Request) -> Response:
         """The page's shader functions (no file needed: served before the files are read)."""
@@ -196,7 +198,8 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
 
         return JSONResponse({"coeffs": L.tolist(), "lmax": st["lmax"], "window": wdesc,
                              # E_lm = Â_l L_lm for the generated per-pixel GLSL (lmax > 2)
-                             "irradiance": glsl_uniform_values(L, MAX_LMAX).tolist(),
+                             "irradiance": glsl_uniform_values(
+                                 L, max(MAX_LMAX, st["lmax"])).tolist(),
                              # the edits before the rotation and the window's band factors:
                              # the page turns these itself while dragging (lmax <= 2)
                              "unrotated": L0.tolist(),

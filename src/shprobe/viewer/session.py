@@ -42,7 +42,8 @@ __all__ = [
 #: highest degree the compare view projects to (and the per-pixel view draws)
 MAX_LMAX = 4
 #: highest degree of a design (:func:`check_state`): the page's menu offers 0..MAX_LMAX; a PRT
-#: transfer's baked degree, capped at this, sets a higher one
+#: transfer's baked degree, capped at this, sets a higher one (drawn per pixel by a second
+#: generated GLSL function to this degree)
 DESIGN_LMAX = 8
 #: lat-long size (H) of the background texture sent to the page
 BACKGROUND_H = 512
@@ -77,11 +78,11 @@ def check_state(state: Any) -> dict[str, Any]:
     """Validate the page's edit state (a JSON object) → a normalised copy; one-line
     :class:`ShprobeError` on anything malformed. Keys (all optional):
 
-    ``lmax`` (0–:data:`DESIGN_LMAX`: the page's menu offers 0–:data:`MAX_LMAX`, the degree
-    its per-pixel view draws; a PRT transfer's baked degree, capped at :data:`DESIGN_LMAX`,
-    sets a higher one, drawn in full by the PRT view and cut at :data:`MAX_LMAX` by the
-    per-pixel one), ``weight``; ``blends``: [{"preset": NAME, "weight": w} | {"probe": ID,
-    "weight": w}] (ID: a probe this server loaded, :meth:`Session.register_probe`);
+    ``lmax`` (0–:data:`DESIGN_LMAX`: the page's menu offers 0–:data:`MAX_LMAX`, the compare
+    view's degree; a PRT transfer's baked degree, capped at :data:`DESIGN_LMAX`, sets a
+    higher one; the per-pixel view draws every degree), ``weight``; ``blends``:
+    [{"preset": NAME, "weight": w} | {"probe": ID, "weight": w}] (ID: a probe this server
+    loaded, :meth:`Session.register_probe`);
     ``directional``: [{"dir": [x,y,z], "rgb": [r,g,b]}]; ``cone``: [{"dir", "aperture_deg",
     "rgb"}]; ``sky``: {"sky": rgb, "ground": rgb, "up": xyz} | null; ``scale``: {"l,m": f};
     ``scale_band``: {"l": f}; ``rotation``: {"axis": xyz, "degrees": d} | null; ``window``:

@@ -194,14 +194,18 @@ function shaderFromExport(text) {
     .replace(/const vec3 SHPROBE_L\[9\] = vec3\[9\]\([\s\S]*?\n\);/, 'uniform vec3 SHPROBE_L[9];');
 }
 let SH_LMAX = 4;  // the degree of the library's generated per-pixel function (init.glsl_sh)
+let SHPROBE_GLSL_SH_DESIGN = '', SH_DESIGN_LMAX = 8;  // the same to a design's highest degree
 // E(n) per pixel: R&H eq. 13 (the export) at lmax <= 2, the library's generated GLSL above it.
 // One program per case (a define picks it), not a branch on a uniform: a software GL
 // (SwiftShader) pays for every branch of a program, ~2× the frame time and the first draw.
-const irradianceGLSL = (sh) => (sh ? SHPROBE_GLSL_SH + 'vec3 shprobe_E(vec3 n) { return shprobe_irradiance_sh(n); }\n'
-  : SHPROBE_GLSL + 'vec3 shprobe_E(vec3 n) { return shprobe_irradiance_poly(n); }\n');
-const commonUniforms = () => ({
+// 'poly': eq. 13; 'sh': the generated function to SH_LMAX; 'shd': to SH_DESIGN_LMAX (a design
+// above SH_LMAX, e.g. a PRT transfer's degree)
+const irradianceGLSL = (kind) => ({ poly: SHPROBE_GLSL, sh: SHPROBE_GLSL_SH, shd: SHPROBE_GLSL_SH_DESIGN }[kind]
+  + `vec3 shprobe_E(vec3 n) { return shprobe_irradiance_${kind === 'poly' ? 'poly' : 'sh'}(n); }\n`);
+const eKind = (lmax) => (lmax <= 2 ? 'poly' : lmax <= SH_LMAX ? 'sh' : 'shd');
+const commonUniforms = (lmaxE = SH_LMAX) => ({
   SHPROBE_L: { value: Array.from({ length: 9 }, () => new THREE.Vector3()) },
-  SHPROBE_E: { value: Array.from({ length: (SH_LMAX + 1) ** 2 }, () => new THREE.Vector3()) },
+  SHPROBE_E: { value: Array.from({ length: (lmaxE + 1) ** 2 }, () => new THREE.Vector3()) },
   SHPROBE_M_R: { value: new THREE.Matrix4() }, SHPROBE_M_G: { value: new THREE.Matrix4() },
   SHPROBE_M_B: { value: new THREE.Matrix4() },
   uExposure: { value: 0 }, uRotInv: { value: new THREE.Matrix3() },
@@ -210,33 +214,35 @@ const commonUniforms = () => ({
 
 // ------------------------------------------------------------------ three.js scene
 let renderer, scene, camera, controls, meshObj, bgMesh, objUniforms, bgMat;
-let panel, panelScene, panelCam, probeMat, irrMats, irrMesh, panelRenderer2, irrScene;
+let panel, panelScene, panelCam, probeMat, irrMats, irrMesh, panelRenderer2, irrScene, objUniformsD;
 const objMats = {};  // the object's programs, one per view (OBJ_VIEWS), made on first use
 let bgTex = null, cmp = null, prt = null;
 const lookTex = {};
 
-// the object's views: E from eq. 13 | E from the generated function (design above lmax 2,
-// compare "SH lmax l") | the library's brute force | the error heat map | PRT vertex colours
-const OBJ_VIEWS = { poly: 0, sh: 1, exact: 2, error: 3, prt: 4 };
+// the object's views: albedo · E/π per pixel with E from eq. 13 | from the generated function
+// (a design above lmax 2, compare "SH lmax l") | from it to a design's highest degree | the
+// library's brute force | the error heat map | PRT vertex colours
+const OBJ_VIEWS = { poly: 0, sh: 0, shd: 0, exact: 2, error: 3, prt: 4 };
 function objectMaterial(view) {
   if (objMats[view]) return objMats[view];
   objUniforms = objUniforms || { ...commonUniforms(), uA: { value: null }, uRef: { value: null },
                                  uTot: { value: new THREE.Vector3(1, 1, 1) }, uErrMax: { value: 1 } };
+  if (view === 'shd') objUniformsD = objUniformsD || { ...commonUniforms(SH_DESIGN_LMAX) };
   const v = OBJ_VIEWS[view];
   return (objMats[view] = new THREE.ShaderMaterial({
     glslVersion: THREE.GLSL3,
-    uniforms: objUniforms,  // shared by every view
+    uniforms: view === 'shd' ? objUniformsD : objUniforms,  // shared by the other views
     defines: { OBJ_VIEW: v },
     vertexShader: `in vec3 albedo; in vec3 prtColor; out vec3 vN; out vec3 vAlb; out vec3 vPrt;
       void main() { vN = normal; vAlb = albedo; vPrt = prtColor;
         gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
-    fragmentShader: PI + SRGB + (v <= 1 ? irradianceGLSL(v === 1) : '') + `
+    fragmentShader: PI + SRGB + (v === 0 ? irradianceGLSL(view) : '') + `
       uniform float uExposure; uniform sampler2D uA; uniform sampler2D uRef;
       uniform vec3 uTot; uniform float uErrMax;
       in vec3 vN; in vec3 vAlb; in vec3 vPrt;
       void main() {
         vec3 n = normalize(vN);
-      #if OBJ_VIEW <= 1
+      #if OBJ_VIEW == 0
         fragColor = vec4(srgb(vAlb * shprobe_E(n) / PI * exp2(uExposure)), 1.0);  // per pixel
       #elif OBJ_VIEW == 2
         fragColor = vec4(srgb(vAlb * texture(uRef, dirToUV(n)).rgb / PI * exp2(uExposure)), 1.0);
@@ -266,7 +272,7 @@ function makePanelMaterial(kind, uniforms) {  // lat-long panels: the probe, or 
     glslVersion: THREE.GLSL3, depthTest: false,
     uniforms: uniforms || commonUniforms(),
     vertexShader: `out vec2 vUv; void main() { vUv = vec2(uv.x, 1.0 - uv.y); gl_Position = vec4(position.xy, 0.0, 1.0); }`,
-    fragmentShader: PI + SRGB + (kind === 'probe' ? '' : irradianceGLSL(kind === 'sh')) + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
+    fragmentShader: PI + SRGB + (kind === 'probe' ? '' : irradianceGLSL(kind)) + `uniform sampler2D uBg; uniform int uHasBg; uniform float uExposure;
       uniform mat3 uRotInv; in vec2 vUv;
       void main() { vec3 d = uvToDir(vUv);
         vec3 c = ${kind === 'probe' ? 'uHasBg == 1 ? rgbe(uBg, dirToUV(uRotInv * d)) : vec3(0.18)' : 'shprobe_E(d) / PI'};
@@ -288,6 +294,7 @@ function setE(u, E, lmax) {  // E_lm = Â_l L_lm of the library, zero above lmax
 }
 // above l = 2 there is no quadratic form: the generated function, with the library's E_lm
 const highLmax = () => !!(coeffs && coeffs.length > 9 && irrE);
+const designLmax = () => (highLmax() ? Math.sqrt(coeffs.length) - 1 : 2);
 function setLightingUniforms(u) {
   if (coeffs) for (let k = 0; k < 9; k++) {
     const c = coeffs[k] || [0, 0, 0]; u.SHPROBE_L.value[k].set(c[0], c[1], c[2]);
@@ -310,8 +317,8 @@ function draw() {
   if (mode === 'prt') relightPRT();
   const m = MODES[mode];
   if (meshObj) meshObj.material = objectMaterial(m === 4 ? 'prt' : m === 2 ? 'exact' : m === 3 ? 'error'
-    : m === 1 || highLmax() ? 'sh' : 'poly');
-  for (const u of [objUniforms, bgMat.uniforms]) setLightingUniforms(u);
+    : m === 1 ? 'sh' : eKind(designLmax()));
+  for (const u of [meshObj ? meshObj.material.uniforms : objUniforms, bgMat.uniforms]) setLightingUniforms(u);
   if (cmp && m === 1) setE(objUniforms, cmp.irradiance, Number(mode.slice(2)));
   if (cmp && m === 3) objUniforms.uA.value = lookTex['sh' + $('errlmax').value];
   if (cmp) { objUniforms.uRef.value = lookTex.reference; }
@@ -332,8 +339,8 @@ function draw() {
 }
 function drawPanels() {  // the probe and the irradiance map (made after the first frame)
   if (!panel) return;
+  irrMesh.material = irrMats[eKind(designLmax())];
   setLightingUniforms(probeMat.uniforms); setLightingUniforms(irrMesh.material.uniforms);
-  irrMesh.material = irrMats[highLmax() ? 1 : 0];
   panel.render(panelScene, panelCam);
   panelRenderer2.render(irrScene, panelCam);
 }
@@ -344,8 +351,10 @@ function makePanels() {  // two more WebGL contexts: after the object's first fr
   panelRenderer2.setPixelRatio(1); panelRenderer2.setSize(512, 256, false); panelRenderer2.outputColorSpace = THREE.LinearSRGBColorSpace;
   panelCam = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1);
   probeMat = makePanelMaterial('probe');
-  const u = commonUniforms(); irrMats = [makePanelMaterial('poly', u), makePanelMaterial('sh', u)];
-  irrMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), irrMats[0]);
+  const u = commonUniforms();
+  irrMats = { poly: makePanelMaterial('poly', u), sh: makePanelMaterial('sh', u),
+              shd: makePanelMaterial('shd', commonUniforms(SH_DESIGN_LMAX)) };
+  irrMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), irrMats.poly);
   panelScene = new THREE.Scene(); panelScene.add(new THREE.Mesh(new THREE.PlaneGeometry(2, 2), probeMat));
   irrScene = new THREE.Scene(); irrScene.add(irrMesh);
 }
@@ -461,7 +470,7 @@ function showLegend() {
   $('errtable').tBodies[0].innerHTML = cmp.rows.map((r) => `<tr><td>${r.lmax}</td><td>${(100 * r.mean_frac).toFixed(3)}%</td><td>${(100 * r.max_frac).toFixed(3)}%</td></tr>`).join('');
 }
 const VIEW_LABELS = {
-  design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–4: lighting.glsl's generated function; a design above lmax 4, a PRT transfer's degree, is drawn cut at 4 here and in full by the PRT view)",
+  design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–8: lighting.glsl's generated function; above 4, e.g. a PRT transfer's degree, with a second program to lmax 8)",
   sh: "Object: E(n) of the probe (edits not applied) truncated at this lmax, per pixel by shprobe's generated GLSL (lighting.glsl) with the library's E_lm = Â_l L_lm",
   exact: 'Object: brute-force E(n) of the probe (library reference_irradiance), looked up by normal',
   error: 'Object: error heat map (legend below)',
@@ -681,6 +690,7 @@ async function main() {
   const sh = await first('shaders', () => call('/api/shaders'));
   SHPROBE_GLSL = shaderFromExport(sh.glsl);
   SHPROBE_GLSL_SH = sh.glsl_sh; SH_LMAX = sh.max_lmax;
+  SHPROBE_GLSL_SH_DESIGN = sh.glsl_sh_design; SH_DESIGN_LMAX = sh.design_lmax;
   scene = new THREE.Scene();
   camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
   controls = new OrbitControls(camera, $('view'));
@@ -692,7 +702,7 @@ async function main() {
   // stand-in triangle carries it)
   let lmax0 = 2;
   try { lmax0 = JSON.parse(localStorage.getItem(KEY) || '{}').lmax ?? 2; } catch (e) { /* default */ }
-  const stand = new THREE.Mesh(new THREE.BufferGeometry(), objectMaterial(lmax0 > 2 ? 'sh' : 'poly'));
+  const stand = new THREE.Mesh(new THREE.BufferGeometry(), objectMaterial(eKind(lmax0)));
   for (const [n, k] of [['position', 3], ['normal', 3], ['albedo', 3], ['prtColor', 3]]) stand.geometry.setAttribute(n, new THREE.BufferAttribute(new Float32Array([0, 0, -1, 0.01, 0, -1, 0, 0.01, -1]), k));
   stand.geometry.setIndex(new THREE.BufferAttribute(new Uint32Array([0, 1, 2]), 1));
   stand.frustumCulled = false;
