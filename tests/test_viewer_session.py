@@ -169,3 +169,32 @@ def test_env_is_sent_when_a_view_asks_for_it(monkeypatch):
         assert s.background_bytes()
     finally:
         s.close()
+
+
+def test_blend_only_probes_keep_coefficients_not_images():
+    """Probes that are only blend sources (uploaded, then replaced as the source) drop their
+    decoded image but keep their coefficients at every design degree, equal to the
+    projections of the image they had; the current source and the latest upload keep theirs."""
+    from shprobe.lighting.projection import project
+    from shprobe.probes.environments import procedural_env
+    from shprobe.viewer.session import DESIGN_LMAX, Source
+
+    s = Session(None, load=False)
+    try:
+        envs = [procedural_env(32 + 8 * i, 16 + 4 * i) for i in range(3)]
+        srcs = [Source(f"p{i}", project(e, 2), e) for i, e in enumerate(envs)]
+        for i, src in enumerate(srcs):
+            s.register_probe(src, f"p{i}")
+            s.source = src
+        deadline = time.time() + 30
+        while srcs[0]._env is not None or srcs[1]._env is not None:
+            assert time.time() < deadline
+            time.sleep(0.01)
+        assert srcs[2].env is envs[2]
+        for src, env in zip(srcs[:2], envs[:2], strict=True):
+            assert src.background is None
+            for lmax in range(DESIGN_LMAX + 1):
+                np.testing.assert_allclose(src.coeffs_at(lmax), project(env, lmax), rtol=0,
+                                           atol=1e-12)
+    finally:
+        s.close()

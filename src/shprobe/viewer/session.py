@@ -407,6 +407,17 @@ class Source:
                 self._by_lmax[lmax] = c
         return c
 
+    def keep_coeffs_only(self, lmax: int) -> None:
+        """Project to every degree 0…``lmax`` (cached, :meth:`coeffs_at`), then drop the
+        probe image and background: what a blend source needs, without its memory."""
+        try:
+            for l in range(lmax + 1):
+                self.coeffs_at(l)
+        except ShprobeError:  # a probe that failed to load has nothing to keep
+            return
+        with self._lock:
+            self._env, self.background = None, None
+
     def __repr__(self) -> str:
         return f"Source({self.name!r}, env={self.has_env})"
 
@@ -441,7 +452,7 @@ class Session:
         self._mesh_bytes: bytes | None = None
         self._mesh_lock = threading.RLock()  # mesh_bytes holds it while reading .mesh
         self.mesh_name = "sphere"
-        self.source: Source
+        self._source: Source | None = None
         self.ready = threading.Event()
         self.error: ShprobeError | None = None
         #: wall-clock stamps (time.time()) of the loading stages, for the first-frame benchmark
@@ -644,12 +655,38 @@ class Session:
         self.last_base = (L0, f)  # what the page rotates itself during a drag (lmax ≤ 2)
         return (L if f is None else apply_window(L, f)), wdesc, cert
 
+    @property
+    def source(self) -> Source:
+        """The lighting the edits start from."""
+        if self._source is None:
+            raise ShprobeError("no lighting source is loaded yet")
+        return self._source
+
+    @source.setter
+    def source(self, src: Source) -> None:
+        self._source = src
+        self._trim_probes()
+
     def register_probe(self, src: Source, name: str) -> str:
         """Keep a loaded probe for blending; → its id (what the page names it by)."""
         with self.lock:
             pid = f"{self._probe_tag}.{len(self.probes)}"
             self.probes[pid] = (name, src)
+        self._trim_probes(keep=src)  # it may become the source next
         return pid
+
+    def _trim_probes(self, keep: Source | None = None) -> None:
+        """A probe that is only a blend source now (not :attr:`source`, not ``keep``) keeps
+        its coefficients at every degree a design can ask for and lets its decoded image go
+        (in a thread: up to :data:`DESIGN_LMAX` + 1 projections), so that uploads do not pile
+        up images in memory: at most the source's and the latest upload's are held."""
+        current = self._source
+        old = [src for _, (_, src) in self._probe_items()
+               if src is not current and src is not keep and src._arrived.is_set()
+               and src._env is not None]
+        if old:
+            threading.Thread(target=lambda: [o.keep_coeffs_only(DESIGN_LMAX) for o in old],
+                             daemon=True).start()
 
     def _probe_items(self) -> list[tuple[str, tuple[str, Source]]]:
         with self.lock:  # register_probe adds from a worker thread
