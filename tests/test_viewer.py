@@ -638,3 +638,16 @@ def test_upload_coefficients_as_source(served):
             assert r.status_code == 400 and "x.json" in r.json()["error"]
     finally:
         served.session.source = keep
+
+
+def test_every_three_name_the_page_uses_is_bundled():
+    """viewer.js's THREE.* names are exported by the bundle's entry (tools/js/entry.js): a
+    name missing there is undefined in the page, found otherwise only when that code runs."""
+    import re
+
+    root = Path(__file__).resolve().parents[1]
+    used = set(re.findall(r"\bTHREE\.(\w+)", (root / "src/shprobe/viewer/static/viewer.js")
+                          .read_text()))
+    entry = (root / "tools/js/entry.js").read_text()
+    exported = set(re.findall(r"\b(\w+)\b", entry.split("export {", 1)[1].split("}", 1)[0]))
+    assert used and used <= exported, sorted(used - exported)

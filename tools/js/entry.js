@@ -3,7 +3,7 @@
 // parses ~0.5 MB instead of three.js's 2 MB of modules before its first frame. Keep it in step
 // with the THREE.* names viewer.js uses (tests/test_viewer.py checks that the page loads).
 export {
-  BufferAttribute, BufferGeometry, ClampToEdgeWrapping, DataTexture, FloatType, GLSL3,
+  BufferAttribute, BufferGeometry, ClampToEdgeWrapping, Color, DataTexture, FloatType, GLSL3,
   HalfFloatType, LightProbe, LinearFilter, LinearSRGBColorSpace, Matrix3, Matrix4, Mesh,
   OrthographicCamera, PerspectiveCamera, PlaneGeometry, RGBAFormat, RepeatWrapping, Scene,
   ShaderMaterial, SphericalHarmonics3, Vector3, WebGLRenderer,

@@ -293,6 +293,7 @@ function setE(u, E, lmax) {  // E_lm = Â_l L_lm of the library, zero above lmax
   u.SHPROBE_E.value.forEach((v, k) => { const c = (k < K && E && E[k]) || [0, 0, 0]; v.set(c[0], c[1], c[2]); });
 }
 // above l = 2 there is no quadratic form: the generated function, with the library's E_lm
+const srgbJS = (v) => { v = Math.min(Math.max(v, 0), 1); return v < 0.0031308 ? 12.92 * v : 1.055 * v ** (1 / 2.4) - 0.055; };  // SRGB's srgb()
 const highLmax = () => !!(coeffs && coeffs.length > 9 && irrE);
 const designLmax = () => (highLmax() ? Math.sqrt(coeffs.length) - 1 : 2);
 function setLightingUniforms(u) {
@@ -325,6 +326,10 @@ function draw() {
   camera.updateMatrixWorld();
   bgMat.uniforms.uInvVP.value.multiplyMatrices(camera.matrixWorld, camera.projectionMatrixInverse);
   bgMat.uniforms.uEye.value.setFromMatrixPosition(camera.matrixWorld);
+  // until the probe's texture is here the background is the flat grey the pass would draw
+  // (radiance 0.18, same tone mapping): a clear, not a full-screen pass
+  bgMesh.visible = !!bgTex;
+  if (!bgTex) { const g = srgbJS(0.18 * 2 ** Number($('exposure').value)); renderer.setClearColor(new THREE.Color().setRGB(g, g, g, THREE.LinearSRGBColorSpace), 1); }
   renderer.render(scene, camera);
   const gl = renderer.getContext(); const px = new Uint8Array(4);
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
@@ -697,6 +702,7 @@ async function main() {
   controls.addEventListener('change', draw);
   bgMat = makeBgMaterial();
   bgMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), bgMat); bgMesh.frustumCulled = false; bgMesh.renderOrder = -1;
+  bgMesh.visible = false;  // drawn once the probe's texture is here (draw())
   scene.add(bgMesh);
   // compile the program of the first frame now (the saved edit state's degree picks it; a
   // stand-in triangle carries it)
