@@ -2,14 +2,14 @@
 of issue 17's second run (shprobe.prt.refine with ``gather_tol=None``: edge jumps on the scene's
 scale only, min_edge 2e-4, up to 8 rounds, 4× the directions at the vertices refined 3 levels
 deep) and the default refinement (+ the gather criterion: edges split where the vertices that
-gather from them lean on them, 16× the directions at the input's vertices the refinement
+gather from them lean on them, 8× the directions at the input's vertices the refinement
 touched) — against an independent per-point gather (tests/prt_gather.py: its own Embree ray
 loop, cosine-weighted stratified sampling, exact hit points, no transfer vectors; only its ray
 origins come from the library's one offset rule) under band-limited lighting (lmax 2, so PRT at
 lmax 2 is exact up to noise).
 
     PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
-        [--n-contact 40] [--n-far 30] [--rays 4096]
+        [--n-contact 40] [--n-far 30] [--rays 4096] [--timing N]
 
 Vertices: the original scene's (the refinement keeps them, with their indices): "contact" =
 within 8 % of the object's size of its lowest 3 %, "far" = beyond 30 % (random subsets).
@@ -74,6 +74,8 @@ def main() -> None:
     ap.add_argument("--n-contact", type=int, default=40)
     ap.add_argument("--n-far", type=int, default=30)
     ap.add_argument("--rays", type=int, default=4096, help="far vertices' outer rays")
+    ap.add_argument("--timing", type=int, default=0,
+                    help="only time the run-2 and the default refinement, alternately, N times")
     a = ap.parse_args()
     import trimesh
     from scipy.spatial import cKDTree
@@ -81,6 +83,20 @@ def main() -> None:
     print(machine())
     m = trimesh.load(a.mesh, process=False)
     kw = dict(mode="interreflected", lmax=2, samples=a.samples, bounces=2, albedo=0.8)
+    if a.timing:
+        runs: dict[str, list[float]] = {"run-2 default": [], "default": []}
+        for _ in range(a.timing):
+            for name, extra in (("run-2 default", dict(gather_tol=None, dense_factor=4,
+                                                         dense_depth=3, dense_new=True)),
+                                ("default", {})):
+                t0 = time.perf_counter()
+                t = bake_refined(m, **kw, **extra)
+                runs[name].append(time.perf_counter() - t0)
+                print(f"{name}: {t.n_vertices} vertices, {runs[name][-1]:.1f} s", flush=True)
+        for name, x in runs.items():
+            print(f"{name}: best {min(x):.1f} s, median {np.median(x):.1f} s of {len(x)}")
+        print("\n" + machine().split(", load")[1].join(["end: load", ""]))
+        return
     bakes, secs = {}, {}
     for name, fn in (
             ("uniform 64×64 ground", lambda: bake(m, ground=True, refine=False, **kw)),

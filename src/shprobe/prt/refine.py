@@ -38,7 +38,7 @@ puts them where the transfer says they are needed:
    vertices get the mean of their endpoints' normals (normalised) and albedo;
 4. re-bake the refined scene and repeat until no edge is marked or ``max_rounds`` is reached;
    the final geometry is baked with the full samples;
-5. ... and with ``dense_factor`` (16) times as many at the *input scene's* vertices that the
+5. ... and with ``dense_factor`` (8) times as many at the *input scene's* vertices that the
    refinement touched (an edge of theirs split in round ``dense_depth`` (0) or later) — the
    contact, where visibility is intricate and the light dim, so that the bake's quadrature
    noise *relative to the radiance there* falls below the open vertices' (the error there
@@ -82,7 +82,7 @@ REFINE_TOL = 0.25
 #: The input scene's vertices that the refinement touches in this round or later get
 #: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
 DENSE_DEPTH = 0
-DENSE_FACTOR = 16
+DENSE_FACTOR = 8
 #: Default ``floor`` of :func:`transfer_jumps`: 1, jumps judged on the scene's scale only. A
 #: floor of 0.2 brings the bunny's dimmest contact vertex from 14 % to 1.9 % (2 bounces) but
 #: at 4× the vertices (84k) — docs/benchmarks.md, issue 17 run 2.
