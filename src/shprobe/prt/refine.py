@@ -92,8 +92,9 @@ MIN_EDGE_FRACTION = 2e-4
 #: Default tolerance on an edge's estimated share of a gathering vertex's exit transfer that its
 #: interpolation gets wrong (module doc, step 2b); None turns that criterion off. 0.03 (with
 #: dense directions at the input's contact vertices) brings the bunny's worst contact vertex to
-#: 0.15 % / 0.5 % (1 / 2 bounces) at ~4× the vertices of ``None`` (docs/benchmarks.md, issue 17
-#: run 3); 0.05 leaves 0.4 % / 0.7 % at 2.6×; 0.02 gives 0.19 % / 0.37 % at 5×.
+#: 0.15 % / 0.49 % (1 / 2 bounces; run 2: 0.77 % / 14.5 %) at 3.8× the vertices and 2.8× the
+#: time of ``None`` (docs/benchmarks.md, issue 17 run 3); 0.05 leaves 0.42 % / 0.68 % at 2.6×
+#: the vertices; 0.02 gives 0.19 % / 0.37 % at 4.9×.
 GATHER_TOL = 0.03
 #: Gathering vertices dimmer than this fraction of the scene's median ‖T‖ are judged as if that
 #: bright (the relative error of a black vertex is meaningless; the bench scores vertices above
