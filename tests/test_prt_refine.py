@@ -124,6 +124,8 @@ def test_refined_bake_is_the_default_with_a_ground_and_loads_against_its_mesh(tm
     assert "refine" not in plain.metadata and plain.n_vertices == 42 + 65 * 65
     with pytest.raises(ShprobeError, match="traced"):
         bake_refined(str(p), mode="unshadowed")
+    with pytest.raises(ShprobeError, match="unknown PRT mode"):
+        bake_refined(str(p), mode="glossy")
 
 
 def test_dense_vertices_get_their_own_direction_set():

@@ -72,7 +72,7 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from .bake import _bake, bake
 from .scene import Scene, load_scene, mesh_hash
-from .transfer import Transfer, check_int
+from .transfer import MODES, Transfer, check_int
 
 __all__ = ["GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined", "gather_errors",
            "gather_importance", "split_edges", "transfer_jumps"]
@@ -256,6 +256,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     criterion (module doc, step 2b; ``gather_gate`` is :func:`gather_errors`' ``tol``;
     ``gather_tol=None``: off, as before issue 17's third run). The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
+    if mode not in MODES:
+        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     if mode == "unshadowed":
         raise ShprobeError("refinement needs a traced bake (shadowed or interreflected)")
     if not (np.isfinite(tol) and tol > 0):
@@ -280,6 +282,10 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     gtol = float(gather_tol) if gather_tol is not None else np.inf
     if gathered and not (np.isfinite(gtol) and gtol > 0):
         raise ShprobeError(f"refinement gather tolerance must be > 0, got {gather_tol}")
+    if not (np.isfinite(gather_floor) and np.isfinite(gather_gate) and gather_floor >= 0
+            and gather_gate >= 0):
+        raise ShprobeError(f"gather_floor and gather_gate must be >= 0, got {gather_floor} and "
+                           f"{gather_gate}")
 
     def dense_mask() -> NDArray[np.bool_]:
         return deep if dense_new else deep & (np.arange(len(deep)) < base.n_vertices)
