@@ -1,13 +1,15 @@
-"""Issue 17: interreflected PRT at the object–ground contact — a uniform ground, the previous
-refinement (min_edge 2e-3 of the diagonal, 4 rounds, every vertex at the same samples) and the
-default refinement (shprobe.prt.refine: min_edge 2e-4, up to 8 rounds, 4× the directions at
-the vertices refined 3 levels deep) — against an independent per-point gather
-(tests/prt_gather.py: its own Embree ray loop, cosine-weighted stratified sampling, exact hit
-points, no transfer vectors; only its ray origins come from the library's one offset rule)
-under band-limited lighting (lmax 2, so PRT at lmax 2 is exact up to noise).
+"""Issue 17: interreflected PRT at the object–ground contact — a uniform ground, the refinement
+of issue 17's second run (shprobe.prt.refine with ``gather_tol=None``: edge jumps on the scene's
+scale only, min_edge 2e-4, up to 8 rounds, 4× the directions at the vertices refined 3 levels
+deep) and the default refinement (+ the gather criterion: edges split where the vertices that
+gather from them lean on them, 8× the directions at the input's vertices the refinement
+touched) — against an independent per-point gather (tests/prt_gather.py: its own Embree ray
+loop, cosine-weighted stratified sampling, exact hit points, no transfer vectors; only its ray
+origins come from the library's one offset rule) under band-limited lighting (lmax 2, so PRT at
+lmax 2 is exact up to noise).
 
     PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
-        [--n-contact 40] [--n-far 30] [--rays 4096]
+        [--n-contact 40] [--n-far 30] [--rays 4096] [--timing N]
 
 Vertices: the original scene's (the refinement keeps them, with their indices): "contact" =
 within 8 % of the object's size of its lowest 3 %, "far" = beyond 30 % (random subsets).
@@ -36,7 +38,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 from tests.prt_gather import Gather  # noqa: E402
 
 from _machine import machine  # noqa: E402
-from shprobe.prt import bake, load_scene, relight  # noqa: E402
+from shprobe.prt import bake, relight  # noqa: E402
 from shprobe.prt.refine import bake_refined  # noqa: E402
 
 DATA = os.environ.get("SHPROBE_TEST_DATA", os.path.join(HERE, "..", "..", "shared"))
@@ -72,6 +74,8 @@ def main() -> None:
     ap.add_argument("--n-contact", type=int, default=40)
     ap.add_argument("--n-far", type=int, default=30)
     ap.add_argument("--rays", type=int, default=4096, help="far vertices' outer rays")
+    ap.add_argument("--timing", type=int, default=0,
+                    help="only time the run-2 and the default refinement, alternately, N times")
     a = ap.parse_args()
     import trimesh
     from scipy.spatial import cKDTree
@@ -79,12 +83,26 @@ def main() -> None:
     print(machine())
     m = trimesh.load(a.mesh, process=False)
     kw = dict(mode="interreflected", lmax=2, samples=a.samples, bounces=2, albedo=0.8)
+    if a.timing:
+        runs: dict[str, list[float]] = {"run-2 default": [], "default": []}
+        for _ in range(a.timing):
+            for name, extra in (("run-2 default", dict(gather_tol=None, dense_factor=4,
+                                                         dense_depth=3, dense_new=True)),
+                                ("default", {})):
+                t0 = time.perf_counter()
+                t = bake_refined(m, **kw, **extra)
+                runs[name].append(time.perf_counter() - t0)
+                print(f"{name}: {t.n_vertices} vertices, {runs[name][-1]:.1f} s", flush=True)
+        for name, x in runs.items():
+            print(f"{name}: best {min(x):.1f} s, median {np.median(x):.1f} s of {len(x)}")
+        print("\n" + machine().split(", load")[1].join(["end: load", ""]))
+        return
     bakes, secs = {}, {}
-    diag = float(np.linalg.norm(np.ptp(load_scene(m, ground=True).vertices, axis=0)))
     for name, fn in (
             ("uniform 64×64 ground", lambda: bake(m, ground=True, refine=False, **kw)),
-            ("previous refinement (min_edge 2e-3, 4 rounds, no dense)",
-             lambda: bake_refined(m, min_edge=2e-3 * diag, max_rounds=4, dense_factor=1, **kw)),
+            ("run-2 default (no gather criterion, 4× at depth 3)",
+             lambda: bake_refined(m, gather_tol=None, dense_factor=4, dense_depth=3,
+                                  dense_new=True, **kw)),
             ("default refinement without dense directions",
              lambda: bake_refined(m, dense_factor=1, **kw)),
             ("default refinement", lambda: bake_refined(m, **kw)),

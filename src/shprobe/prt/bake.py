@@ -142,6 +142,17 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo)
+    return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
+                 mesh_albedo, ground_albedo, dense, dense_samples)[0]
+
+
+def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: Any, seed: int,
+          ground: bool, threads: int | None, progress: ProgressFn | None, mesh_albedo: Any,
+          ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False
+          ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
+    """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
+    bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
+    ρ/π · G @ bounce b (:mod:`shprobe.prt.refine` reads where each vertex gathers from)."""
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
@@ -191,8 +202,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
            if len(groups) > 1 else {}),
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }
-    return Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
-                    lmax=lmax, traced=traced, bounce_counts=counts, metadata=meta)
+    t = Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
+                 lmax=lmax, traced=traced, bounce_counts=counts, metadata=meta)
+    return t, (blocks if keep_gather and mode == "interreflected" else None)
 
 
 def _gather(blocks: list[tuple[NDArray[np.int64], Any]], prev: NDArray[np.float64],

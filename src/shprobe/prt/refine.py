@@ -16,15 +16,36 @@ puts them where the transfer says they are needed:
    ‖T_b‖ over the scene's vertices (so a bounce, a few per cent of the direct light, is judged
    on its own scale); mark the edges where some layer exceeds ``tol`` and that are longer than
    ``min_edge``;
+
+   2b. ... and mark as well the edges whose interpolation matters to the vertices that gather
+   from them (``gather_tol``): bounce b+1 at a vertex v is ρ_v/π Σ_c G[v, c] T_b(c) (LH §4:
+   the interreflected transfer gathers the previous bounce's transfer along the blocked rays;
+   G holds each ray's cosine-weighted solid angle times the barycentric weights of its hit).
+   A vertex close to a surface — the ground under the belly, 0.4 mm below 2 mm triangles of the
+   underside — leans on a few of that surface's vertices, where a linear interpolant of a
+   transfer that varies 4× across a triangle is tens of per cent off, although the jump is
+   small on the *scene's* scale s_b. The share of v's exit transfer that passes through vertex
+   c is ρ_v/π G[v, c] / ‖T(v)‖ (:func:`gather_importance`, the largest over v; ‖T(v)‖ the
+   cumulative transfer, at least ``gather_floor`` × the scene's median); an edge's estimated
+   error is its jump ‖T_b(a) − T_b(c)‖ times the larger share of its ends, over the layers that
+   are gathered (:func:`gather_errors`). Jumps below ``gather_gate`` (0.25) of the edge's own
+   level are left out: that is the driving bake's quadrature noise, which the gather averages,
+   not a shape the interpolant misses. This is the irradiance-caching argument in matrix form:
+   a triangle matters in proportion to the solid angle it fills as seen from its closest
+   gatherer;
 3. split the marked edges at their midpoints (a triangle with two marked edges gets its third
    marked as well, repeated to closure; then 3 marked → 4 triangles, 1 marked → 2), new
    vertices get the mean of their endpoints' normals (normalised) and albedo;
 4. re-bake the refined scene and repeat until no edge is marked or ``max_rounds`` is reached;
    the final geometry is baked with the full samples;
-5. ... and with ``dense_factor`` (4) times as many at the vertices the refinement reached at
-   depth ``dense_depth`` (3: edges an eighth of the ground's cells or shorter) — the crevice
-   under the object, where visibility is intricate and the light dim, so that the bake's
-   quadrature noise *relative to the radiance there* approaches the rest's.
+5. ... and with ``dense_factor`` (8) times as many at the *input scene's* vertices that the
+   refinement touched (an edge of theirs split in round ``dense_depth`` (0) or later) — the
+   contact, where visibility is intricate and the light dim, so that the bake's quadrature
+   noise *relative to the radiance there* falls below the open vertices' (the error there
+   must be at the level of the noise elsewhere). The new vertices keep ``samples``: they
+   support the interpolation, and the gathers that read them average their noise over many
+   rays; ``dense_new=True`` gives them the dense directions as well (as before issue 17's
+   third run: factor 4, depth 3), at several times the bake time.
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -49,24 +70,36 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .bake import bake
+from .bake import _bake, bake
 from .scene import Scene, load_scene, mesh_hash
-from .transfer import Transfer, check_int
+from .transfer import MODES, Transfer, check_int
 
-__all__ = ["REFINE_TOL", "RefineRound", "bake_refined", "split_edges", "transfer_jumps"]
+__all__ = ["GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined", "gather_errors",
+           "gather_importance", "split_edges", "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
-#: The vertices the refinement reaches at this depth (round index) or deeper get
+#: The input scene's vertices that the refinement touches in this round or later get
 #: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
-DENSE_DEPTH = 3
-DENSE_FACTOR = 4
+DENSE_DEPTH = 0
+DENSE_FACTOR = 8
 #: Default ``floor`` of :func:`transfer_jumps`: 1, jumps judged on the scene's scale only. A
 #: floor of 0.2 brings the bunny's dimmest contact vertex from 14 % to 1.9 % (2 bounces) but
 #: at 4× the vertices (84k) — docs/benchmarks.md, issue 17 run 2.
 FLOOR = 1.0
 #: Default smallest edge that is still split, as a fraction of the scene's bounding diagonal.
 MIN_EDGE_FRACTION = 2e-4
+#: Default tolerance on an edge's estimated share of a gathering vertex's exit transfer that its
+#: interpolation gets wrong (module doc, step 2b); None turns that criterion off. 0.03 (with
+#: dense directions at the input's contact vertices) brings the bunny's worst contact vertex to
+#: 0.15 % / 0.49 % (1 / 2 bounces; run 2: 0.77 % / 14.5 %) at 3.8× the vertices and 2.8× the
+#: time of ``None`` (docs/benchmarks.md, issue 17 run 3); 0.05 leaves 0.42 % / 0.68 % at 2.6×
+#: the vertices; 0.02 gives 0.19 % / 0.37 % at 4.9×.
+GATHER_TOL = 0.03
+#: Gathering vertices dimmer than this fraction of the scene's median ‖T‖ are judged as if that
+#: bright (the relative error of a black vertex is meaningless; the bench scores vertices above
+#: 2 % of the far vertices' median).
+GATHER_FLOOR = 0.02
 
 
 @dataclass(frozen=True)
@@ -109,6 +142,48 @@ def transfer_jumps(t: Transfer, floor: float = FLOOR) -> NDArray[np.float64]:
         d = np.linalg.norm(flat[edges[:, 0]] - flat[edges[:, 1]], axis=1) / scale
         jump = np.maximum(jump, d)
     return edges, jump
+
+
+def gather_importance(t: Transfer, blocks: list[tuple[NDArray[np.int64], Any]],
+                      floor: float = GATHER_FLOOR) -> NDArray[np.float64]:
+    """Per vertex c: the largest share of any gathering vertex's exit transfer that passes
+    through c's barycentric weight in a bounce, max_v ρ_v/π G[v, c] / ‖T(v)‖ (module doc, step
+    2b), with G the bake's gather matrix (``blocks``: :func:`shprobe.prt.bake._bake` with
+    ``keep_gather``) and ‖T(v)‖ v's cumulative transfer, at least ``floor`` × its median over
+    the scene (dimmer vertices are judged as if that bright)."""
+    tr = np.asarray(t.traced[-1], dtype=np.float64)
+    norms = np.linalg.norm(tr.reshape(tr.shape[0], -1), axis=1)
+    scale = np.maximum(norms, floor * float(np.median(norms)))
+    scale = np.where(scale > 0, scale, np.inf)
+    rho = np.asarray(t.albedo, dtype=np.float64).max(axis=1) / np.pi
+    imp = np.zeros(t.n_vertices)
+    from scipy.sparse import diags
+
+    for rows, g in blocks:
+        w = diags(rho[rows] / scale[rows]) @ g
+        imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
+    return imp
+
+
+def gather_errors(t: Transfer, edges: NDArray[np.int64], importance: NDArray[np.float64],
+                  tol: float = REFINE_TOL) -> NDArray[np.float64]:
+    """Per edge (a, c): the estimated relative error its linear interpolation brings to the
+    next bounce of the vertex that leans on it most, max over the layers gathered (shadowed and
+    each bounce increment but the last) of ‖T_b(a) − T_b(c)‖ · max(importance[a],
+    importance[c]) (module doc, step 2b); a jump below ``tol`` × the edge's brighter end's
+    ‖T_b‖ counts zero (the driving bake's noise, not a shape)."""
+    tr = np.asarray(t.traced, dtype=np.float64)
+    layers = [tr[0]] + [tr[i] - tr[i - 1] for i in range(1, tr.shape[0] - 1)]
+    imp = np.maximum(importance[edges[:, 0]], importance[edges[:, 1]])
+    err = np.zeros(len(edges))
+    for lay in layers:
+        flat = lay.reshape(lay.shape[0], -1)
+        norms = np.linalg.norm(flat, axis=1)
+        d = np.linalg.norm(flat[edges[:, 0]] - flat[edges[:, 1]], axis=1)
+        # only jumps beyond ``tol`` of the edge's own level: not the bake's noise
+        big = d > tol * np.maximum(norms[edges[:, 0]], norms[edges[:, 1]])
+        err = np.maximum(err, np.where(big, d * imp, 0.0))
+    return err
 
 
 def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64],
@@ -162,7 +237,10 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  min_edge: float | None = None, ground_resolution: int = 64,
                  max_vertices: int = 2_000_000, mesh_albedo: Any = None,
                  ground_albedo: Any = None, dense_factor: int = DENSE_FACTOR,
-                 dense_depth: int = DENSE_DEPTH, floor: float = FLOOR) -> Transfer:
+                 dense_depth: int = DENSE_DEPTH, floor: float = FLOOR,
+                 gather_tol: float | None = GATHER_TOL,
+                 gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
+                 dense_new: bool = False) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -170,11 +248,16 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     splitting; ``max_rounds`` bounds the re-bakes;
     ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
     least 64): directions of the bakes that only decide where to split — the final geometry is
-    baked once more with ``samples``, except the vertices the refinement reached at depth
-    ``dense_depth`` or deeper (new, or the ends of an edge split, in round ``dense_depth`` or
-    later: the crevice), which get ``dense_factor`` × ``samples`` directions (module doc, step
-    5; ``dense_factor=1``: none); ``floor``: see :func:`transfer_jumps`. The returned transfer's
+    baked once more with ``samples``, except the input scene's vertices that the refinement
+    touched (the ends of an edge split in round ``dense_depth`` or later: the contact; with
+    ``dense_new`` the new vertices made in those rounds too), which get ``dense_factor`` ×
+    ``samples`` directions (module doc, step 5; ``dense_factor=1``: none); ``floor``: see
+    :func:`transfer_jumps`; ``gather_tol``, ``gather_floor``, ``gather_gate``: the gather
+    criterion (module doc, step 2b; ``gather_gate`` is :func:`gather_errors`' ``tol``;
+    ``gather_tol=None``: off, as before issue 17's third run). The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
+    if mode not in MODES:
+        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     if mode == "unshadowed":
         raise ShprobeError("refinement needs a traced bake (shadowed or interreflected)")
     if not (np.isfinite(tol) and tol > 0):
@@ -195,30 +278,48 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     drive = max(64, int(samples) // 4) if driver_samples is None else int(driver_samples)
     deep = np.zeros(sc.n_vertices, dtype=bool)  # touched at depth >= dense_depth
     factor = check_int(dense_factor, 1, "dense_factor")
+    gathered = gather_tol is not None and mode == "interreflected" and int(bounces) > 0
+    gtol = float(gather_tol) if gather_tol is not None else np.inf
+    if gathered and not (np.isfinite(gtol) and gtol > 0):
+        raise ShprobeError(f"refinement gather tolerance must be > 0, got {gather_tol}")
+    if not (np.isfinite(gather_floor) and np.isfinite(gather_gate) and gather_floor >= 0
+            and gather_gate >= 0):
+        raise ShprobeError(f"gather_floor and gather_gate must be >= 0, got {gather_floor} and "
+                           f"{gather_gate}")
+
+    def dense_mask() -> NDArray[np.bool_]:
+        return deep if dense_new else deep & (np.arange(len(deep)) < base.n_vertices)
 
     def final(sc: Scene) -> Transfer:
-        if factor > 1 and deep.any():
-            return bake(sc, samples=samples, refine=False, dense=deep,
+        mask = dense_mask()
+        if factor > 1 and mask.any():
+            return bake(sc, samples=samples, refine=False, dense=mask,
                         dense_samples=factor * int(samples), **kw)
         return bake(sc, samples=samples, refine=False, **kw)
 
     for r in range(int(max_rounds) + 1):
         t0 = time.perf_counter()
         last = r == int(max_rounds)
-        t = final(sc) if last else bake(sc, samples=min(drive, samples), refine=False, **kw)
-        secs = time.perf_counter() - t0
         if last:
-            rounds.append(RefineRound(sc.n_vertices, 0, secs))
+            t = final(sc)
+            rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
             break
+        t, blocks = _bake(sc, mode, lmax, min(drive, samples), bounces, None, seed, False,
+                          threads, progress, None, None, None, None, keep_gather=gathered)
+        secs = time.perf_counter() - t0
         edges, face_edges = _edges(sc.faces)
         _, jump = transfer_jumps(t, floor)
+        over = jump > tol
+        if gathered and blocks is not None:
+            imp = gather_importance(t, blocks, gather_floor)
+            over |= gather_errors(t, edges, imp, gather_gate) > gtol
         length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
         refinable = (is_ground[edges].all(1) if not refine_mesh
                      else np.ones(len(edges), dtype=bool))
-        marked = (jump > tol) & (length > min_len) & refinable
+        marked = over & (length > min_len) & refinable
         rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
-            if drive < samples or (factor > 1 and deep.any()):
+            if drive < samples or (factor > 1 and dense_mask().any()):
                 # the geometry is final: bake it with the full samples, the crevice dense
                 t0 = time.perf_counter()
                 t = final(sc)
@@ -242,7 +343,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
-        "dense_vertices": int(deep.sum()) if factor > 1 else 0,
+        "dense_new": bool(dense_new),
+        "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
+        "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in rounds],
     }
