@@ -38,8 +38,11 @@ def register(group: click.Group) -> None:
         t_cli = time.time()
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
-        # the files start loading first, before numpy is imported here (viewer.loader) ...
+        # the files start loading first (viewer.loader), in a fork that shares what both
+        # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
+        from .. import lighting  # noqa: F401
         from ..viewer.loader import fork_loader, mesh_to_load
+        from ..viewer.session import Session
 
         child = fork_loader(probe, layout, mesh_to_load(mesh, transfer))
         t_fork = time.time()
@@ -63,9 +66,6 @@ def register(group: click.Group) -> None:
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
         t_url = time.time()
-
-        from ..viewer.session import Session
-
         session = Session(probe, preset, mesh, transfer, layout, load=False)
         session.timings.update(cli=t_cli, url=t_url, **({"load_start": t_fork} if child else {}))
         session.adopt_loader(child)

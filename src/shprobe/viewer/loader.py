@@ -1,11 +1,12 @@
 """The viewer's file loader: a forked process that reads the probe and the mesh named on the
 command line while the server starts and the page loads (``shprobe view``).
 
-This module imports nothing but the standard library, so that ``shprobe view`` can fork the
-loader before numpy is imported in the server process: the loader's imports (numpy, scipy,
-numba's first call, trimesh) — most of a second of CPU — start on the second core at once. Its
-children send the first frame's data (the probe's lmax-2 coefficients, the page's mesh arrays)
-first; the Env, its higher coefficients and the background texture follow
+``shprobe view`` forks it as soon as numpy, the viewer's model and the lighting layer are
+imported (both sides need them: imported once, shared by the fork), before the server is
+imported or built, so that the loader's own imports (scipy, numba's first call, trimesh — most
+of a second of CPU) start at once on the second core. Its children send the first frame's data
+(the probe's lmax-2 coefficients, the page's mesh arrays) first; the Env, its higher
+coefficients and the background texture follow when the server asks
 (:meth:`shprobe.viewer.session.Session.adopt_loader` takes them).
 """
 
