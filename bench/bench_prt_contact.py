@@ -21,6 +21,9 @@ hidden. Reference: gathered twice with different seeds, the errors use the mean 
 difference gives the reference's own noise; contact vertices get 4× the far vertices' rays
 (their radiance is dim and their visibility intricate). The bake's noise: the default bake
 with seeds 0 and 1.
+Then the worst contact vertices of the default are re-checked with precise references
+(:func:`precise`) until the worst error is one measured against them: at a vertex lit through
+a slot the bench's own reference is heavy-tailed and two seeds do not show it (issue 17 run 4).
 """
 
 from __future__ import annotations
@@ -65,6 +68,57 @@ def reference(v, f, n, alb, idx, rays, seed, chunk=4):
         r2 = g.radiance(v[i], n[i], alb[i, 0], 2, (rays // 4, 16, 16))
         out.append(np.stack([r0 + r1, r0 + r1 + r2]))
     return np.concatenate(out, axis=1)
+
+
+def precise(v, f, n, alb, idx, seed):
+    """A reference for the re-check of the worst contact vertices, (2, len(idx)): at a vertex
+    whose second bounce arrives through a slot (the ground under the belly: the underside above
+    it sees the bright open ground only at grazing angles through the 0.37 mm gap), 16 inner
+    rays catch the slot rarely and the estimate is heavy-tailed (one run of (4096, 16, 16) at
+    v4612: 1.3 % of B2); here B1 (16384 outer, 256 inner) and B2 twice (4096, 64, 16)."""
+    g = Gather(v, f, n, alb, L, seed=seed)
+    out = []
+    for i in idx:
+        s = slice(i, i + 1)
+        r0 = g.radiance(v[s], n[s], alb[s, 0], 0, (65536,))[0]
+        r1 = g.radiance(v[s], n[s], alb[s, 0], 1, (16384, 256))[0]
+        r2 = np.mean([g.radiance(v[s], n[s], alb[s, 0], 2, (4096, 64, 16))[0]
+                      for _ in range(2)])
+        out.append([r0 + r1, r0 + r1 + r2])
+    return np.array(out).T
+
+
+def recheck(v, f, n, alb, idx, b, ref, ok, far_median, most=8):
+    """Re-check the worst contact vertices with :func:`precise` references (two seeds) until
+    the worst error is one measured against them (at most ``most`` vertices): the largest of
+    40 noisy errors is where the bench's own reference noise is most likely to sit. Returns
+    {k: [(vertex, error vs the bench's reference, error vs precise, precise noise)]} and the
+    worst error per bounce count after the re-check."""
+    cache: dict[int, np.ndarray] = {}
+    out, worst = {}, {}
+    for k in (1, 2):
+        e = np.abs(b[k - 1] - ref[k - 1]) / ref[k - 1]
+        e = np.where(ok[k], e, 0.0)
+        checked: dict[int, tuple[float, float]] = {}
+        while len(cache) < most:
+            cur = e.copy()
+            for j, (ep, _) in checked.items():
+                cur[j] = ep
+            j = int(np.argmax(cur))
+            if j in checked:
+                break
+            if j not in cache:
+                cache[j] = np.stack([precise(v, f, n, alb, idx[j:j + 1], s)[:, 0]
+                                     for s in (11, 12)])
+            r = cache[j][:, k - 1]
+            checked[j] = (abs(b[k - 1][j] - r.mean()) / r.mean(),
+                          abs(r[0] - r[1]) / r.mean() / 2)
+        for j, (ep, _) in checked.items():
+            e[j] = ep
+        out[k] = [(int(idx[j]), float(abs(b[k - 1][j] - ref[k - 1][j]) / ref[k - 1][j]), ep,
+                   noise) for j, (ep, noise) in checked.items()]
+        worst[k] = float(e.max()) / far_median[k]
+    return out, worst
 
 
 def main() -> None:
@@ -135,7 +189,7 @@ def main() -> None:
     print("| vertices | model | scored | ref noise (median / max) | bake noise (median / max) | "
           + " | ".join(f"{k}: max / median" for k in names) + " |")
     print("|---" * (5 + len(names)) + "|")
-    res, floor, left_out = {}, {}, []
+    res, floor, left_out, contact = {}, {}, [], {}
     for name, (pool, count, rays) in sets.items():
         idx = np.sort(rng.choice(pool, min(count, len(pool)), replace=False))
         t0 = time.perf_counter()
@@ -159,6 +213,7 @@ def main() -> None:
                       f"{100 * e.max():.2f} / {100 * np.median(e):.2f} %" for e in errs.values())
                   + " |")
             if name == "contact":
+                contact[k] = (idx, b["default refinement"], ref, ok)
                 e = errs["default refinement"]
                 w = np.argsort(-e)[:3]
                 for j in w:
@@ -184,6 +239,19 @@ def main() -> None:
         print(f"\nworst contact vertices, default refinement, {k} bounce(s):")
         for s in res["worst", k]:
             print("  - " + s)
+    idx, bdef, ref, _ = contact[2]
+    t0 = time.perf_counter()
+    checked, worst = recheck(v, f, n, alb, idx, bdef, ref,
+                             {k: contact[k][3] for k in (1, 2)},
+                             {k: np.median(res["far", k]["default refinement"]) for k in (1, 2)})
+    print(f"\nre-check of the worst contact vertices, default refinement (precise references: "
+          f"B1 (16384, 256), B2 2 × (4096, 64, 16), two seeds; {time.perf_counter() - t0:.0f} s):")
+    for k in (1, 2):
+        for vid, e0, ep, noise in checked[k]:
+            print(f"  - {k} bounce(s) v{vid}: error {100 * e0:.2f} % vs the bench's reference, "
+                  f"{100 * ep:.2f} % vs the precise one (its noise {100 * noise:.2f} %)")
+        print(f"  {k} bounce(s): worst contact / median far error after the re-check: "
+              f"{worst[k]:.1f}× (target ≤ 3×)")
     print("\nleft out (B_ref ≤ 2 % of the far median):")
     for s in left_out:
         print("  - " + s)
