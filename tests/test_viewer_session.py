@@ -162,7 +162,9 @@ def test_env_is_sent_when_a_view_asks_for_it(monkeypatch):
         assert s.mesh_bytes()  # the first frame's data is here ...
         time.sleep(0.5)
         assert not src._arrived.is_set()  # ... and the Env is not, unasked
-        env = src.env  # asks for it
+        t = time.monotonic()
+        env = src.env  # asks for it: here at once, not after ENV_WAIT
+        assert time.monotonic() - t < 30
         want = load_env(probe)
         assert np.array_equal(env.radiance, want.radiance)
         np.testing.assert_allclose(src.coeffs, project(want, 4), rtol=0, atol=1e-12)
@@ -198,3 +200,55 @@ def test_blend_only_probes_keep_coefficients_not_images():
                                            atol=1e-12)
     finally:
         s.close()
+
+
+@linux
+def test_stopping_the_loader_ends_the_mesh_process_at_once(monkeypatch):
+    """Closing a session while the loader's mesh process is still reading (here: a reader
+    that takes a minute) ends that process too, at once: terminate() reaches it through the
+    loader, and the join does not wait for it."""
+    import psutil
+
+    import shprobe.scene
+
+    def slow(path):  # what the forked mesh process runs
+        time.sleep(60)
+
+    monkeypatch.setattr(shprobe.scene, "load_mesh", slow)
+    s = Session(str(data_file("probes", "grace.hdr")),
+                mesh=str(data_file("meshes", "bunny.obj")), load=False)
+    s.fork_loader()
+    loader = s._child[0][0]
+    kids = []
+    deadline = time.time() + 10
+    while not kids and time.time() < deadline:
+        kids = psutil.Process(loader.pid).children()
+        time.sleep(0.01)
+    assert kids, "no mesh process"
+    time.sleep(0.5)  # inside the slow read
+    t = time.monotonic()
+    s.close()
+    assert time.monotonic() - t < 2
+    _, alive = psutil.wait_procs(kids, timeout=2)
+    assert not alive
+
+
+@linux
+def test_closing_while_the_env_waits_leaves_no_hang(monkeypatch):
+    """Closing a session whose loader waits to send the Env releases the wait first: a
+    process killed inside the event's wait would leave it unusable (a later set() hangs)."""
+    import threading
+
+    from shprobe.viewer import loader
+
+    monkeypatch.setattr(loader, "ENV_WAIT", 120.0)
+    s = Session(str(data_file("probes", "grace.hdr")), load=False)
+    s.fork_loader()
+    go = s._go
+    s.load()
+    time.sleep(0.3)  # the loader is inside go.wait
+    s.close()
+    th = threading.Thread(target=go.set, daemon=True)
+    th.start()
+    th.join(5)
+    assert not th.is_alive()

@@ -112,6 +112,15 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
         if pid == 0:  # the mesh's process
             pconn.close()
             _load_child(mconn, None, layout, mesh, mesh_name)
+
+        def stop(signum: int, frame: Any) -> None:  # terminate() ends the mesh's process too
+            try:  # (it holds the loader's sentinel: a join would wait for it)
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+            os._exit(1)
+
+        signal.signal(signal.SIGTERM, stop)
         mconn.close()
         _load_child(pconn, probe, layout, None, None, wait=pid, go=go)
     _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name, go=go)

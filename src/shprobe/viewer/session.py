@@ -401,6 +401,10 @@ class Source:
 
             env = self.env
             if env is None:
+                with self._lock:  # keep_coeffs_only may have cached it and let the image go
+                    c = self._by_lmax.get(lmax)
+                if c is not None:
+                    return c
                 raise ShprobeError(f"{self.name}: the probe could not be loaded")
             c = np.asarray(project(env, lmax), np.float64)
             with self._lock:
@@ -563,6 +567,8 @@ class Session:
                         break
         except BaseException as e:
             self._stop_loader()
+            if src is not None:  # its Env will not come: Source.env must not wait for it
+                src.arrive(None, error=f"{probe}: the probe could not be loaded")
             if isinstance(e, EOFError):
                 raise ShprobeError("the loading process ended unexpectedly") from None
             raise
@@ -590,6 +596,7 @@ class Session:
                     else:
                         src.arrive(None, error=err or f"{probe}: the probe could not be loaded")
                 self._stop_loader(child)
+                self._trim_probes()  # replaced as the source before it arrived: trim it now
 
         threading.Thread(target=rest, daemon=True).start()
 
@@ -605,6 +612,8 @@ class Session:
             self._child = None
         for _, recv in child:
             recv.close()
+        if self._go is not None:  # a loader waiting for it must not be killed inside the wait
+            self._go.set()  # (that leaves the event's waiter count behind: a later set hangs)
         for proc in {id(p): p for p, _ in child}.values():  # one loader, 1-2 pipes
             if done is None and proc.is_alive():
                 proc.terminate()

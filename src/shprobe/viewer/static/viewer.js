@@ -293,6 +293,11 @@ function setE(u, E, lmax) {  // E_lm = Â_l L_lm of the library, zero above lmax
   u.SHPROBE_E.value.forEach((v, k) => { const c = (k < K && E && E[k]) || [0, 0, 0]; v.set(c[0], c[1], c[2]); });
 }
 // above l = 2 there is no quadratic form: the generated function, with the library's E_lm
+// the background pass's colour without a probe texture (radiance 0.18, tone mapped), as a clear
+function clearToGrey() {
+  const g = srgbJS(0.18 * 2 ** Number($('exposure').value));
+  renderer.setClearColor(new THREE.Color().setRGB(g, g, g, THREE.LinearSRGBColorSpace), 1);
+}
 const srgbJS = (v) => { v = Math.min(Math.max(v, 0), 1); return v < 0.0031308 ? 12.92 * v : 1.055 * v ** (1 / 2.4) - 0.055; };  // SRGB's srgb()
 const highLmax = () => !!(coeffs && coeffs.length > 9 && irrE);
 const designLmax = () => (highLmax() ? Math.sqrt(coeffs.length) - 1 : 2);
@@ -329,7 +334,7 @@ function draw() {
   // until the probe's texture is here the background is the flat grey the pass would draw
   // (radiance 0.18, same tone mapping): a clear, not a full-screen pass
   bgMesh.visible = !!bgTex;
-  if (!bgTex) { const g = srgbJS(0.18 * 2 ** Number($('exposure').value)); renderer.setClearColor(new THREE.Color().setRGB(g, g, g, THREE.LinearSRGBColorSpace), 1); }
+  if (!bgTex) clearToGrey();
   renderer.render(scene, camera);
   const gl = renderer.getContext(); const px = new Uint8Array(4);
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
@@ -716,9 +721,11 @@ async function main() {
   renderer.compile(scene, camera);
   // and draw it once: a software GL (SwiftShader) translates and builds its pipeline at the
   // first draw, ~0.2 s that would otherwise come after the files
+  clearToGrey();
   renderer.render(scene, camera);
   { const gl = renderer.getContext(); gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4)); }
   scene.remove(stand); stand.geometry.dispose();
+  renderer.clear();  // the view stays the background's grey until the first frame
   mark('gl');
   const init = await first('init', () => call('/api/init'));
   mark('init');
@@ -747,7 +754,10 @@ async function main() {
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
-main().catch((e) => { booting = false; if (!panel) makePanels(); showError(e); });
+main().catch((e) => {  // the error first: making the panels fails too when WebGL does
+  booting = false; showError(e);
+  try { if (!panel) makePanels(); } catch (e2) { /* the error above says why */ }
+});
 
 // three.js LightProbe driven by shprobe's `three` export: its irradiance vs the library's
 api.threeCheck = async () => {
