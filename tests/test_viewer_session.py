@@ -193,6 +193,10 @@ def test_blend_only_probes_keep_coefficients_not_images():
             assert time.time() < deadline
             time.sleep(0.01)
         assert srcs[2].env is envs[2]
+        blend = Source("blend", project(envs[0], 2), envs[0])  # the latest upload, blend only
+        s.register_probe(blend, "blend")
+        time.sleep(0.2)
+        assert blend._env is envs[0] and srcs[2]._env is envs[2]  # kept: latest and source
         for src, env in zip(srcs[:2], envs[:2], strict=True):
             assert src.background is None
             for lmax in range(DESIGN_LMAX + 1):
