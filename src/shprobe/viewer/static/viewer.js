@@ -340,7 +340,7 @@ function draw() {
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
   api.mainFrameMs = performance.now() - tf;
   // the first lit frame: the object drawn with the lighting, finished (the panels follow)
-  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); api.firstMainMs = api.mainFrameMs; }
+  if (!api.firstFrameMs && meshObj) { api.firstFrameMs = performance.now() - t0; api.firstFrameAt = Date.now(); }
   drawPanels();
   const dt = performance.now() - tf;
   if (moveAt !== null) { (api.moveToFrame = api.moveToFrame || []).push(performance.now() - moveAt); moveAt = null; }
