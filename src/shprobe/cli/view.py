@@ -41,11 +41,11 @@ def register(group: click.Group) -> None:
         # the files start loading first (viewer.loader), in a fork that shares what both
         # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
         from .. import lighting  # noqa: F401
-        from ..viewer.loader import fork_loader, mesh_to_load
         from ..viewer.session import Session
 
-        child = fork_loader(probe, layout, mesh_to_load(mesh, transfer))
-        t_fork = time.time()
+        session = Session(probe, preset, mesh, transfer, layout, load=False)
+        session.fork_loader()  # before any thread starts
+        session.timings["cli"] = t_cli
         if host not in ("127.0.0.1", "localhost", "::1"):
             click.echo(f"warning: --host {host} makes the viewer reachable from other "
                        "machines; anyone with the URL's token can read what it serves", err=True)
@@ -65,10 +65,7 @@ def register(group: click.Group) -> None:
         shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
-        t_url = time.time()
-        session = Session(probe, preset, mesh, transfer, layout, load=False)
-        session.timings.update(cli=t_cli, url=t_url, **({"load_start": t_fork} if child else {}))
-        session.adopt_loader(child)
+        session.timings["url"] = time.time()
         stop: list = []  # the server, once it exists
 
         def load() -> None:  # the files load while the server starts and the page opens

@@ -7,7 +7,7 @@ imported or built, so that the loader's own imports (scipy, numba's first call, 
 of a second of CPU) start at once on the second core. Its children send the first frame's data
 (the probe's lmax-2 coefficients, the page's mesh arrays) first; the Env, its higher
 coefficients and the background texture follow when the server asks
-(:meth:`shprobe.viewer.session.Session.adopt_loader` takes them).
+(:meth:`shprobe.viewer.session.Session.fork_loader` takes them).
 """
 
 from __future__ import annotations

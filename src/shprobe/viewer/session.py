@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .loader import default_mesh_path, fork_loader, mesh_to_load
+from .loader import fork_loader as _fork_loader
+from .loader import mesh_to_load
 
 __all__ = [
     "DESIGN_LMAX",
@@ -34,7 +35,6 @@ __all__ = [
     "Source",
     "check_state",
     "cli_args",
-    "default_mesh_path",
     "design_coeffs",
     "pack_binary",
 ]
@@ -474,23 +474,21 @@ class Session:
 
     def fork_loader(self) -> None:
         """Start loading the probe and the mesh named on the command line in a forked
-        process (:func:`shprobe.viewer.loader.fork_loader`; call before any thread starts)."""
-        import time
-
-        self.timings["load_start"] = time.time()
-        self.adopt_loader(fork_loader(self._args[0], self.layout, self._mesh_arg()))
-
-    def adopt_loader(self, loader: Any) -> None:
-        """Take the loader :func:`~shprobe.viewer.loader.fork_loader` started (``shprobe view``
-        starts it before this module is even imported): :meth:`load` then takes the lmax-2
+        process (:func:`shprobe.viewer.loader.fork_loader`; ``shprobe view`` calls it before
+        any thread starts and before the server is imported): :meth:`load` then takes the lmax-2
         coefficients and the page's mesh arrays from it (the first frame needs no more); the
         :class:`Env` (compare, H-basis, lmax > 2), its lmax-:data:`MAX_LMAX` coefficients and
         the background texture follow in a thread. The trimesh object is loaded in this
         process only when a view needs it (:attr:`mesh`); the Env is sent when a view first
         needs it (:attr:`Source.env` sets the loader's ``go``), so that until then the first
-        frame has the cores. ``None`` (no fork: not Linux, or nothing to load): :meth:`load`
-        reads the files itself."""
-        self._child, self._go = (None, None) if loader is None else loader
+        frame has the cores. Without a fork (not Linux, or nothing to load) :meth:`load` reads
+        the files itself."""
+        import time
+
+        loader = _fork_loader(self._args[0], self.layout, self._mesh_arg())
+        if loader is not None:
+            self.timings["load_start"] = time.time()
+            self._child, self._go = loader
 
     def load(self) -> None:
         """Read the files named on the command line (probe and mesh in parallel, or from the
