@@ -8,7 +8,8 @@ markdown tables.
    2048×1024 .hdr probe (grace resampled), the browser already running with its tab open and
    idle (as a user's is: :func:`browser_settled` waits out the new window's own start-up); the
    clock runs from just before the process starts until the page has drawn the lit bunny
-   (``window.__shprobe.firstFrameAt``). Numba's cache is warmed by one run first.
+   (``window.__shprobe.firstFrameAt``). Numba's cache and the mesh payload cache are
+   warmed by one run first.
 2. A lighting drag: each pointer move on the probe is one ``/api/design`` call (the library's
    Wigner rotation, window and certificate) plus one frame; the time per move as the page sees
    it (request + redraw), and the frame alone (per-pixel bunny, 512×512).

@@ -11,6 +11,19 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _own_cache_dir(tmp_path_factory: pytest.TempPathFactory):
+    """shprobe's on-disk cache (shprobe.files.cache_dir) in a folder of this test run (the
+    commands the tests start inherit it): tests never read or fill the user's cache."""
+    old = os.environ.get("SHPROBE_CACHE_DIR")
+    os.environ["SHPROBE_CACHE_DIR"] = str(tmp_path_factory.mktemp("shprobe-cache"))
+    yield
+    if old is None:
+        os.environ.pop("SHPROBE_CACHE_DIR", None)
+    else:
+        os.environ["SHPROBE_CACHE_DIR"] = old
+
+
 def shared_dir() -> Path:
     """$SHPROBE_TEST_DATA, default ../shared beside the checkout."""
     env = os.environ.get("SHPROBE_TEST_DATA")

@@ -3,8 +3,10 @@ command line while the server starts and the page loads (``shprobe view``).
 
 ``shprobe view`` forks it as soon as numpy, the viewer's model and the lighting layer are
 imported (both sides need them: imported once, shared by the fork), before the server is
-imported or built, so that the loader's own imports (scipy, numba's first call, trimesh — most
-of a second of CPU) start at once on the second core. Its children send the first frame's data
+imported or built, so that the loader's own imports (numba's first call with the scipy.linalg
+it imports, trimesh — most of a second of CPU) start at once on the second core. A mesh opened
+before needs no trimesh: its page arrays come from shprobe's on-disk cache
+(:func:`shprobe.viewer.session.cached_mesh_payload`). The children send the first frame's data
 (the probe's lmax-2 coefficients, the page's mesh arrays) first; the Env, its higher
 coefficients and the background texture follow when the server asks
 (:meth:`shprobe.viewer.session.Session.fork_loader` takes them).
@@ -91,22 +93,15 @@ def _fork_context() -> Any:
 def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
             mesh_name: str | None, theirs: list[Any], go: Any = None) -> None:
     """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
-    here): imports what both files need once — numpy, the viewer's model, scipy (numba's
-    first call imports scipy.linalg for its BLAS check, trimesh imports scipy.spatial: a
-    third of a second each time on this machine) — then, given both, forks again so that the
-    probe (numba) and the mesh (trimesh) load on two cores (:func:`_load_child`)."""
+    here); given both files it forks again at once, so that the probe (numba, whose first
+    call imports scipy.linalg) and the mesh (the payload cache, or trimesh) load on two cores
+    (:func:`_load_child`), each importing only what it needs."""
     import signal
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
         c.close()
-    try:
-        import scipy.linalg  # noqa: F401
-
-        from . import session  # noqa: F401
-    except ImportError:  # pragma: no cover - dependencies; _load_child reports it
-        pass
     if probe and mesh:
         pid = os.fork()
         if pid == 0:  # the mesh's process
@@ -138,7 +133,7 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
     import time
 
     try:
-        from .session import background_payload, load_probe, mesh_payload
+        from .session import background_payload, cached_mesh_payload, load_probe
 
         src = None
         if probe:
@@ -146,9 +141,7 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
             conn.send(("source", src.coeffs2, src.layout_name,
                        {"decoded": src.decoded_at, "source_done": time.time()}))
         if mesh:
-            from ..scene import load_mesh
-
-            data = mesh_payload(load_mesh(mesh), mesh_name or os.path.basename(mesh))
+            data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh))
             conn.send(("mesh", data, {"geometry_done": time.time()}))
         conn.send(("ready", {}))
         if src is not None:

@@ -907,6 +907,55 @@ def mesh_payload(mesh: Any, name: str) -> bytes:
                         "index": np.asarray(m.faces)})
 
 
+def cached_mesh_payload(path: str, name: str) -> bytes:
+    """:func:`mesh_payload` of the mesh file ``path``, kept in shprobe's on-disk cache
+    (:func:`shprobe.files.read_cache`, kind ``viewer-mesh``) under the file's content and the
+    code that makes the payload, so that a mesh opened before — the default bunny, a user's
+    own model — reaches the page without importing trimesh (0.4 CPU-s on this machine, most
+    of what the mesh costs the first frame). A bad file is never cached: it is read, and
+    refused, each time."""
+    from ..files import file_digest, read_cache, write_cache
+
+    try:
+        key = file_digest(path, name, _payload_code_stamp())
+    except OSError:
+        key = None  # unreadable: load_mesh names the problem
+    if key is not None:
+        data = read_cache("viewer_mesh", key)
+        if data is not None:
+            return data
+    from ..scene import load_mesh
+
+    data = mesh_payload(load_mesh(path), name)
+    if key is not None:
+        write_cache("viewer_mesh", key, data)
+    return data
+
+
+def _payload_code_stamp() -> str:
+    """Identifies the code behind :func:`mesh_payload` (this module, the scene layer, trimesh,
+    shprobe's version): any change of it, an edit or an upgrade, makes a new cache key. Read
+    from the files' sizes and times, without importing trimesh."""
+    import importlib.util
+
+    from .. import __version__
+
+    here = Path(__file__).resolve()
+    files = [here, *sorted((here.parents[1] / "scene").glob("*.py"))]
+    spec = importlib.util.find_spec("trimesh")
+    if spec is not None and spec.origin:
+        files.append(Path(spec.origin))
+        files.append(Path(spec.origin).with_name("version.py"))
+    stamp = [__version__, "mesh_payload 1"]
+    for f in files:
+        try:
+            st = f.stat()
+            stamp.append(f"{f.name}:{st.st_size}:{st.st_mtime_ns}")
+        except OSError:
+            stamp.append(f"{f.name}:-")
+    return "|".join(stamp)
+
+
 def background_payload(env: Any) -> bytes:
     """The probe resampled to a :data:`BACKGROUND_H` × 2·:data:`BACKGROUND_H` lat-long grid
     (the library's directions and bilinear lookup, :meth:`Env.sample`; lat-long probes larger
