@@ -37,8 +37,13 @@ sys.path.insert(0, str(REPO / "bench"))
 from _machine import machine  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
+#: Chromium as it runs on a machine without a GPU: the page composited in software and WebGL on
+#: SwiftShader — Chromium's "WebGL fallback" mode (docs/gpu/swiftshader.md in Chromium's source).
+#: ``--gpu-compositing`` selects ``--use-angle=swiftshader`` instead, SwiftShader as the GL
+#: driver of everything, compositing included (a test-bot mode: the compositor's frames then
+#: cost 0.3–0.4 CPU-s of the first frame here).
 FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
-         "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+         "--disable-sync", "--use-angle=swiftshader-webgl", "--enable-unsafe-swiftshader"]
 
 
 def make_probe(folder: Path) -> Path:
@@ -53,8 +58,11 @@ def make_probe(folder: Path) -> Path:
     return p
 
 
-def start(args: list[str], src: Path | None = None) -> tuple[subprocess.Popen, str, float]:
+def start(args: list[str], src: Path | None = None, cache: Path | None = None
+          ) -> tuple[subprocess.Popen, str, float]:
     env = dict(os.environ, PYTHONPATH=str(src or REPO / "src"))
+    if cache is not None:  # shprobe's on-disk cache (the viewer's mesh payloads)
+        env["SHPROBE_CACHE_DIR"] = str(cache)
     t0 = time.time()
     p = subprocess.Popen([sys.executable, "-m", "shprobe", "view", *args, "--no-browser"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
@@ -123,10 +131,10 @@ def browser_settled(quiet: float = 0.02, window: float = 0.25, limit: float = 8.
     return time.time() - t0
 
 
-def first_frame(browser, args: list[str], src: Path | None = None
+def first_frame(browser, args: list[str], src: Path | None = None, cache: Path | None = None
                 ) -> tuple[float, float, dict[str, float]]:
     """(seconds from command to first lit frame, seconds to the URL line, stage stamps in
-    seconds since the command started)."""
+    seconds since the command started); ``cache``: the server's SHPROBE_CACHE_DIR."""
     import resource
 
     ctx = browser.new_context(viewport={"width": 1100, "height": 900})
@@ -135,7 +143,7 @@ def first_frame(browser, args: list[str], src: Path | None = None
     settled = browser_settled()  # ... and settled: a new window's start-up is not the viewer's
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     b0 = browser_cpu()
-    p, url, t0 = start(args, src)
+    p, url, t0 = start(args, src, cache)
     t_url = time.time() - t0
     try:
         page.goto(url)
@@ -251,6 +259,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5, help="timed first-frame runs (default 5)")
     ap.add_argument("--first-only", action="store_true", help="only the first-frame figure")
+    ap.add_argument("--gpu-compositing", action="store_true",
+                    help="SwiftShader as the GL of everything, compositing included "
+                         "(--use-angle=swiftshader) instead of the WebGL fallback mode")
+    ap.add_argument("--cold-mesh", action="store_true",
+                    help="also time this tree with an empty cache (the mesh read by trimesh)")
     ap.add_argument("--before", type=Path, default=None,
                     help="another checkout's src/ to time interleaved with this one (before/after)")
     a = ap.parse_args()
@@ -258,17 +271,25 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d, sync_playwright() as pw:
         folder = Path(d)
         probe = make_probe(folder)
-        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=FLAGS)
-        trees = {"this tree": None}
+        flags = [f.replace("swiftshader-webgl", "swiftshader") if a.gpu_compositing else f
+                 for f in FLAGS]
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=flags)
+        print(f"Chromium flags: {' '.join(flags)}\n")
+        warm = folder / "cache"  # the servers' own cache, warmed below (not the user's)
+        os.environ["SHPROBE_CACHE_DIR"] = str(warm)
+        trees: dict[str, tuple[Path | None, bool]] = {"this tree": (None, False)}
         if a.before is not None:
-            trees = {"before": a.before.resolve(), "this tree": None}
-        for src in trees.values():  # warm numba's cache and the OS file cache
-            first_frame(browser, [str(probe)], src)
+            trees = {"before": (a.before.resolve(), False), **trees}
+        if a.cold_mesh:  # every run with an empty cache: the mesh read by trimesh
+            trees["this tree, mesh not cached"] = (None, True)
+        for src, _ in trees.values():  # warm numba's cache, the mesh cache, the OS file cache
+            first_frame(browser, [str(probe)], src, warm)
         load0 = os.getloadavg()[0]
         res: dict[str, list] = {k: [] for k in trees}
-        for _ in range(a.runs):  # interleaved, so that both see the same load
-            for k, src in trees.items():
-                res[k].append(first_frame(browser, [str(probe)], src))
+        for i in range(a.runs):  # interleaved, so that all see the same load
+            for k, (src, cold) in trees.items():
+                cache = folder / f"cold{i}" if cold else warm
+                res[k].append(first_frame(browser, [str(probe)], src, cache))
         load1 = os.getloadavg()[0]
         print(f"### Command to first lit frame (2048×1024 .hdr probe, bunny, 512×512; "
               f"{a.runs} runs after a warm-up)\n")

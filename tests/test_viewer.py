@@ -28,7 +28,7 @@ from .conftest import data_file
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
-         "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+         "--disable-sync", "--use-angle=swiftshader-webgl", "--enable-unsafe-swiftshader"]
 VENDOR = (Path(__file__).resolve().parents[1] / "src" / "shprobe" / "viewer" / "static" / "vendor"
           / "three" / "three.min.js")
 
