@@ -238,21 +238,38 @@ def test_stopping_the_loader_ends_the_mesh_process_at_once(monkeypatch):
 
 
 @linux
-def test_closing_while_the_env_waits_leaves_no_hang(monkeypatch):
-    """Closing a session whose loader waits to send the Env releases the wait first: a
-    process killed inside the event's wait would leave it unusable (a later set() hangs)."""
+def test_killing_the_loader_around_the_env_signal_leaves_no_hang(monkeypatch):
+    """The loader can be killed at any moment — inside its wait for the Env signal, or just
+    after the server gave it (a multiprocessing.Event then stays locked by the dead process
+    and every later set() hangs: the viewer's request threads would block forever). Killed
+    with SIGKILL right after the signal, and closed while waiting, later signals return."""
+    import signal
     import threading
 
     from shprobe.viewer import loader
 
     monkeypatch.setattr(loader, "ENV_WAIT", 120.0)
-    s = Session(str(data_file("probes", "grace.hdr")), load=False)
-    s.fork_loader()
-    go = s._go
-    s.load()
-    time.sleep(0.3)  # the loader is inside go.wait
-    s.close()
-    th = threading.Thread(target=go.set, daemon=True)
-    th.start()
-    th.join(5)
-    assert not th.is_alive()
+    probe = str(data_file("probes", "grace.hdr"))
+    for delay, signal_first in ((0.5, False), (0.0, True), (0.2, True), (0.5, None)):
+        s = Session(probe, load=False)
+        s.fork_loader()
+        go, proc = s._go, s._child[0][0]
+        s.load()  # the lmax-2 coefficients are in: the loader is at (or inside) its wait
+        time.sleep(delay)
+        if signal_first is not None:  # killed inside the wait, or right after the signal
+            if signal_first:
+                go.set()
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.join(5)
+        th = [threading.Thread(target=go.set, daemon=True) for _ in range(3)]
+        for t in th:
+            t.start()
+        th.append(threading.Thread(target=s.close, daemon=True))  # signals the loader too
+        th[-1].start()
+        for t in th:
+            t.join(5)
+        assert not any(t.is_alive() for t in th), (delay, signal_first)
+        t = threading.Thread(target=go.set, daemon=True)  # and after close
+        t.start()
+        t.join(5)
+        assert not t.is_alive()

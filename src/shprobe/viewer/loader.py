@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 
 from ..errors import ShprobeError
 
-__all__ = ["ENV_WAIT", "Loader", "default_mesh_path", "fork_loader", "mesh_to_load"]
+__all__ = ["ENV_WAIT", "Go", "Loader", "default_mesh_path", "fork_loader", "mesh_to_load"]
 
 
 def default_mesh_path() -> Path | None:
@@ -47,13 +47,58 @@ def mesh_to_load(mesh: str | None, transfer: str | None) -> str | None:
 ENV_WAIT = 2.0
 
 
+class Go:
+    """The server's "send the Env now" to the loader: one byte down a pipe, which the loader
+    waits for with a timeout. A pipe, not a ``multiprocessing.Event``: the loader may be
+    killed at any moment (a new probe, Ctrl-C), and a process killed inside an Event's wait,
+    or between a set() and its wake-up, takes the event's lock with it — every later set()
+    then hangs. Writing to a pipe whose reader is gone just fails (ignored)."""
+
+    def __init__(self) -> None:
+        self._r, self._w = os.pipe()
+        os.set_blocking(self._w, False)
+        import threading
+
+        self._lock = threading.Lock()
+
+    def set(self) -> None:
+        """Tell the loader (any thread; a no-op once closed, when the pipe is full — it was
+        told already — or when the loader is gone)."""
+        with self._lock:
+            if self._w >= 0:
+                try:
+                    os.write(self._w, b"g")
+                except OSError:  # EAGAIN: told already; EPIPE: the loader has ended
+                    pass
+
+    def wait(self, timeout: float) -> bool:
+        """In the loader: True once told, False after ``timeout`` seconds."""
+        import select
+
+        return bool(select.select([self._r], [], [], timeout)[0])
+
+    def close_reader(self) -> None:
+        """The server's side, after the fork: it only writes."""
+        if self._r >= 0:
+            os.close(self._r)
+            self._r = -1
+
+    def close(self) -> None:
+        """Close the writing end (the server's side, when the loader is stopped); set() is a
+        no-op from then on (the descriptor number is never written again)."""
+        with self._lock:
+            if self._w >= 0:
+                os.close(self._w)
+                self._w = -1
+
+
 class Loader(NamedTuple):
     """The forked loader: one (process, receiving pipe end) per file, the probe's first, and
-    the event that lets the probe's process send the Env (set when a view needs it: until
-    then the first frame has the two cores)."""
+    the :class:`Go` that lets the probe's process send the Env (set when a view needs it:
+    until then the first frame has the two cores)."""
 
     child: list[tuple[Any, Any]]
-    go: Any
+    go: Go
 
 
 def fork_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | None:
@@ -63,11 +108,12 @@ def fork_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | No
     if ctx is None or not (probe or mesh):
         return None
     name = os.path.basename(mesh) if mesh else None
-    go = ctx.Event()
+    go = Go()
     pipes = [ctx.Pipe(duplex=False) if p else (None, None) for p in (probe, mesh)]
     proc = ctx.Process(target=_loader, args=(pipes[0][1], pipes[1][1], probe, layout, mesh,
                                              name, [r for r, _ in pipes if r], go), daemon=True)
     proc.start()
+    go.close_reader()
     child = []
     for recv, send in pipes:  # [probe's pipe,] [mesh's pipe]
         if send is not None:
@@ -91,7 +137,7 @@ def _fork_context() -> Any:
 
 
 def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
-            mesh_name: str | None, theirs: list[Any], go: Any = None) -> None:
+            mesh_name: str | None, theirs: list[Any], go: Go | None = None) -> None:
     """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
     here); given both files it forks again at once, so that the probe (numba, whose first
     call imports scipy.linalg) and the mesh (the payload cache, or trimesh) load on two cores
@@ -102,6 +148,8 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
         c.close()
+    if go is not None:  # the parent's end
+        os.close(go._w)
     if probe and mesh:
         pid = os.fork()
         if pid == 0:  # the mesh's process
@@ -122,7 +170,7 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
 
 
 def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None, wait: int = 0, go: Any = None) -> None:
+                mesh_name: str | None, wait: int = 0, go: Go | None = None) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
     mesh arrays, then — once ``go`` is set, or :data:`ENV_WAIT` seconds later — the
     :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the background texture, each

@@ -610,14 +610,14 @@ class Session:
             self._child = None
         for _, recv in child:
             recv.close()
-        if self._go is not None:  # a loader waiting for it must not be killed inside the wait
-            self._go.set()  # (that leaves the event's waiter count behind: a later set hangs)
         for proc in {id(p): p for p, _ in child}.values():  # one loader, 1-2 pipes
             if done is None and proc.is_alive():
                 proc.terminate()
             proc.join(None if done is not None else 5)
             if proc.exitcode is not None:
                 proc.close()  # its sentinel fd
+        if self._go is not None:  # a Source's request() is a no-op from now on
+            self._go.close()
 
     def close(self) -> None:
         self._stop_loader()
