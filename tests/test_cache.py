@@ -8,8 +8,10 @@ import hashlib
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
@@ -115,3 +117,28 @@ def test_cached_mesh_payload_follows_the_file_and_survives_damage(bunny_path, ca
         with pytest.raises(ShprobeError, match=r"bad\.obj"):
             cached_mesh_payload(str(bad), "bad.obj")
     assert len(list((cache / "viewer_mesh").glob("*.bin"))) == n
+
+
+def test_viewer_loader_sends_the_same_mesh_cached_or_not(bunny_path, grace_path, cache):
+    """`shprobe view`'s forked loader: the first start reads the mesh with trimesh (and fills
+    the cache), the next sends the cached arrays from the loader itself; the page gets the
+    same bytes, and the probe's coefficients, either way."""
+    from shprobe.viewer.session import Session
+
+    want = _direct(bunny_path, "bunny.obj")
+    got = []
+    for _ in range(2):
+        s = Session(str(grace_path), mesh=str(bunny_path), load=False)
+        try:
+            s.fork_loader()
+            assert s._child is not None
+            t = threading.Thread(target=s.load, daemon=True)  # a deadlock fails, not hangs
+            t.start()
+            t.join(60)
+            assert not t.is_alive(), "the loader's pipes deadlocked"
+            got.append((s.mesh_bytes(), np.array(s.source.coeffs2)))
+        finally:
+            s.close()
+    assert len(list((cache / "viewer_mesh").glob("*.bin"))) == 1
+    assert got[0][0] == want and got[1][0] == want
+    np.testing.assert_array_equal(got[0][1], got[1][1])

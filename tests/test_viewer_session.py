@@ -207,13 +207,15 @@ def test_blend_only_probes_keep_coefficients_not_images():
 
 
 @linux
-def test_stopping_the_loader_ends_the_mesh_process_at_once(monkeypatch):
+def test_stopping_the_loader_ends_the_mesh_process_at_once(monkeypatch, tmp_path):
     """Closing a session while the loader's mesh process is still reading (here: a reader
     that takes a minute) ends that process too, at once: terminate() reaches it through the
     loader, and the join does not wait for it."""
     import psutil
 
     import shprobe.scene
+
+    monkeypatch.setenv("SHPROBE_CACHE_DIR", str(tmp_path / "empty"))  # the mesh is read
 
     def slow(path):  # what the forked mesh process runs
         time.sleep(60)

@@ -139,10 +139,12 @@ def _fork_context() -> Any:
 def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
             mesh_name: str | None, theirs: list[Any], go: Go | None = None) -> None:
     """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
-    here); given both files it forks again at once, so that the probe (numba, whose first
-    call imports scipy.linalg) and the mesh (the payload cache, or trimesh) load on two cores
-    (:func:`_load_child`), each importing only what it needs."""
+    here). A mesh whose page arrays are cached is sent from here at once; otherwise, given
+    both files, it imports scipy.linalg once (numba's first call and trimesh both import it:
+    a third of a second each time) and forks again, so that the probe (numba) and the mesh
+    (trimesh) load on two cores (:func:`_load_child`)."""
     import signal
+    import time
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
@@ -150,7 +152,26 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
         c.close()
     if go is not None:  # the parent's end
         os.close(go._w)
+    if mesh:
+        from .session import cached_mesh_payload
+
+        try:
+            data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh), make=False)
+        except Exception:  # the cache is optional: _load_child reports a bad file
+            data = None
+        if data is not None:
+            stamp = {"geometry_done": time.time()}
+            if not probe:
+                _send_mesh(mconn, data, stamp)
+                os._exit(0)
+            # sent after the probe's coefficients: the server reads that pipe first (a
+            # payload larger than a pipe's buffer sent now would wait for it: a deadlock)
+            _load_child(pconn, probe, layout, None, None, go=go, then=(mconn, data, stamp))
     if probe and mesh:
+        try:
+            import scipy.linalg  # noqa: F401  (shared by both children)
+        except ImportError:  # pragma: no cover - a dependency; the children report it
+            pass
         pid = os.fork()
         if pid == 0:  # the mesh's process
             pconn.close()
@@ -169,15 +190,26 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
     _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name, go=go)
 
 
+def _send_mesh(conn: Any, data: bytes, stamp: dict[str, float]) -> None:
+    """The cached page arrays of the mesh, and the end of that pipe's first-frame data."""
+    try:
+        conn.send(("mesh", data, stamp))
+        conn.send(("ready", {}))
+        conn.close()
+    except OSError:  # the server has gone
+        pass
+
+
 def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None, wait: int = 0, go: Go | None = None) -> None:
+                mesh_name: str | None, wait: int = 0, go: Go | None = None,
+                then: tuple[Any, bytes, dict[str, float]] | None = None) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
-    mesh arrays, then — once ``go`` is set, or :data:`ENV_WAIT` seconds later — the
-    :class:`Env`, its lmax-:data:`MAX_LMAX` coefficients and the background texture, each
-    sent when ready (with wall-clock stamps); a failure is one
-    ("error", line) message. Ends the process itself (``os._exit``, after reaping the
-    process ``wait``): nothing of the parent's (threads, exit handlers, the CLI's signal
-    handlers) runs here."""
+    mesh arrays (or, given ``then``, the cached ones down their own pipe, read next), then —
+    once ``go`` is set, or :data:`ENV_WAIT` seconds later — the :class:`Env`, its
+    lmax-:data:`MAX_LMAX` coefficients and the background texture, each sent when ready
+    (with wall-clock stamps); a failure is one ("error", line) message. Ends the process
+    itself (``os._exit``, after reaping the process ``wait``): nothing of the parent's
+    (threads, exit handlers, the CLI's signal handlers) runs here."""
     import time
 
     try:
@@ -192,6 +224,8 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
             data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh))
             conn.send(("mesh", data, {"geometry_done": time.time()}))
         conn.send(("ready", {}))
+        if then is not None:  # the server reads this pipe next
+            _send_mesh(*then)
         if src is not None:
             if go is not None:  # the first frame first: its data is out, the Env waits
                 go.wait(ENV_WAIT)

@@ -19,7 +19,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -907,13 +907,17 @@ def mesh_payload(mesh: Any, name: str) -> bytes:
                         "index": np.asarray(m.faces)})
 
 
-def cached_mesh_payload(path: str, name: str) -> bytes:
+@overload
+def cached_mesh_payload(path: str, name: str) -> bytes: ...
+@overload
+def cached_mesh_payload(path: str, name: str, make: bool) -> bytes | None: ...
+def cached_mesh_payload(path: str, name: str, make: bool = True) -> bytes | None:
     """:func:`mesh_payload` of the mesh file ``path``, kept in shprobe's on-disk cache
-    (:func:`shprobe.files.read_cache`, kind ``viewer-mesh``) under the file's content and the
+    (:func:`shprobe.files.read_cache`, kind ``viewer_mesh``) under the file's content and the
     code that makes the payload, so that a mesh opened before — the default bunny, a user's
     own model — reaches the page without importing trimesh (0.4 CPU-s on this machine, most
     of what the mesh costs the first frame). A bad file is never cached: it is read, and
-    refused, each time."""
+    refused, each time. ``make=False``: None where it is not cached (nothing is read)."""
     from ..files import file_digest, read_cache, write_cache
 
     try:
@@ -922,8 +926,10 @@ def cached_mesh_payload(path: str, name: str) -> bytes:
         key = None  # unreadable: load_mesh names the problem
     if key is not None:
         data = read_cache("viewer_mesh", key)
-        if data is not None:
+        if data is not None or not make:
             return data
+    elif not make:
+        return None
     from ..scene import load_mesh
 
     data = mesh_payload(load_mesh(path), name)
