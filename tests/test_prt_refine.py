@@ -150,6 +150,42 @@ def test_dense_vertices_get_their_own_direction_set():
         bake(sc, mode="shadowed", samples=64, dense=[sc.n_vertices])
 
 
+def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
+    """bake(direction_sets=N): each vertex traces one of N rotated copies of the direction set
+    (issue 17 run 5). On an open plane (every vertex the same normal, nothing in the way) one
+    shared set gives every vertex the same quadrature error; with 64 sets the vertices' rows
+    differ, each equals a brute-force projection over its own rotated directions (y evaluated at
+    the turned directions, not the bake's Wigner turn), and their mean is closer to the exact
+    (unshadowed, analytic) transfer than the shared error."""
+    from shprobe.prt.bake import rotated_direction_sets, sample_directions, unshadowed_transfer
+    from shprobe.sh import sh_basis
+
+    g = np.linspace(-1.0, 1.0, 12)
+    x, z = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    v = np.stack([x, np.zeros_like(x), z], 1)
+    q = np.arange(144).reshape(12, 12)
+    f = np.concatenate([np.stack([q[:-1, :-1], q[:-1, 1:], q[1:, :-1]], -1).reshape(-1, 3),
+                        np.stack([q[1:, :-1], q[:-1, 1:], q[1:, 1:]], -1).reshape(-1, 3)])
+    plane = trimesh.Trimesh(v, f, process=False)
+    one, many = (bake(plane, mode="shadowed", lmax=2, samples=64, albedo=1.0, direction_sets=s)
+                 for s in (1, 64))
+    exact = unshadowed_transfer(one.normals, 2) / np.pi  # ρ/π ∫ max(0, n·ω) y dω, ρ = 1
+    t1, tn = (np.asarray(t.traced[0], dtype=np.float64) for t in (one, many))
+    assert np.ptp(t1, axis=0).max() == 0.0  # one shared set: one shared error
+    assert np.ptp(tn[:, 0]) > 0.01 * exact[0, 0] and many.metadata["direction_sets"] == 64
+    rots, sid = rotated_direction_sets(np.arange(len(v)), 64, 0)
+    assert len(np.unique(sid)) > 40
+    d = sample_directions(64, 0)
+    for i in (0, 1, 77, 143):
+        di = d @ rots[sid[i]].T
+        c = np.maximum(0.0, di @ one.normals[i])
+        brute = (c[:, None] * sh_basis(di, 2)).sum(0) * 4.0 * np.pi / 64 / np.pi
+        np.testing.assert_allclose(tn[i], brute, rtol=1e-5, atol=1e-6)
+    shared = np.linalg.norm(t1[0] - exact[0])
+    assert shared > 1e-3 * np.linalg.norm(exact[0])
+    assert np.linalg.norm(tn.mean(0) - exact[0]) < 0.3 * shared
+
+
 def test_jumps_judged_on_the_edges_own_level_above_the_floor():
     """transfer_jumps(floor=1): ‖ΔT‖ / s (s the 90th percentile of ‖T‖); with floor < 1 a dim
     edge is judged on its brighter end's ‖T‖, never below floor·s, a bright one still on s."""

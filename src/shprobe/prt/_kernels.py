@@ -7,18 +7,20 @@ import numba
 
 
 @numba.njit(cache=True, nogil=True)
-def hemisphere_rays(p, n, dirs, o, d, cw, vid, did):  # pragma: no cover - compiled
-    """Fill the rays (o, d) from every vertex p[v] along every direction dirs[j] of its upper
-    hemisphere (n[v]·dirs[j] > 0), with their cosines cw and (vertex, direction) indices;
-    returns the number of rays."""
+def hemisphere_rays(p, n, dirs, sid, o, d, cw, vid, did):  # pragma: no cover - compiled
+    """Fill the rays (o, d) from every vertex p[v] along every direction dirs[sid[v], j] of its
+    own direction set (dirs: (S, N, 3), one rotated copy per set) in its upper hemisphere
+    (n[v]·d > 0), with their cosines cw and (vertex, direction) indices; returns the number of
+    rays."""
     m = 0
     for v in range(p.shape[0]):
-        for j in range(dirs.shape[0]):
-            c = n[v, 0] * dirs[j, 0] + n[v, 1] * dirs[j, 1] + n[v, 2] * dirs[j, 2]
+        s = sid[v]
+        for j in range(dirs.shape[1]):
+            c = n[v, 0] * dirs[s, j, 0] + n[v, 1] * dirs[s, j, 1] + n[v, 2] * dirs[s, j, 2]
             if c > 0:
                 for a in range(3):
                     o[m, a] = p[v, a]
-                    d[m, a] = dirs[j, a]
+                    d[m, a] = dirs[s, j, a]
                 cw[m] = c
                 vid[m] = v
                 did[m] = j

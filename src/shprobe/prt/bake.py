@@ -39,7 +39,7 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..scene.raycast import RayCaster
 from ..sh import check_lmax, num_coeffs, sh_basis
-from ..sh.rotation import from_quaternion
+from ..sh.rotation import from_quaternion, wigner_d
 from .scene import Scene, load_scene
 from .transfer import (
     MODES,
@@ -51,7 +51,8 @@ from .transfer import (
     unshadowed_transfer,
 )
 
-__all__ = ["bake", "random_rotation", "sample_directions", "unshadowed_transfer"]
+__all__ = ["bake", "random_rotation", "rotated_direction_sets", "sample_directions",
+           "unshadowed_transfer"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17
@@ -103,7 +104,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          threads: int | None = None, progress: ProgressFn | None = None, *,
          mesh_albedo: Any = None, ground_albedo: Any = None,
          refine: bool | None = None, dense: Any = None,
-         dense_samples: int | None = None) -> Transfer:
+         dense_samples: int | None = None, direction_sets: int = 1) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
     scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
@@ -126,6 +127,11 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     intricate and the light is dim, as in a crevice, so that the quadrature noise relative to
     the vertex's radiance stays at the level of the rest (the refinement passes the vertices
     it touched).
+    direction_sets: 1 (default): every vertex traces the same directions; N > 1: N rotated
+    copies of the set, each vertex one of them by a hash of its index
+    (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
+    rather than shared (docs/benchmarks.md, issue 17 run 5: on the bunny it lowers the open
+    vertices' error but not the contact's, so it is not the default).
 
     Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
     is coloured) is the baked model, with transfer · L = exit radiance
@@ -141,18 +147,22 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         if dense is not None:
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
-                            progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo)
+                            progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo,
+                            direction_sets=direction_sets)
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
-                 mesh_albedo, ground_albedo, dense, dense_samples)[0]
+                 mesh_albedo, ground_albedo, dense, dense_samples,
+                 sets=check_int(direction_sets, 1, "direction_sets"))[0]
 
 
 def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: Any, seed: int,
           ground: bool, threads: int | None, progress: ProgressFn | None, mesh_albedo: Any,
-          ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False
+          ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False,
+          sets: int = 1
           ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
     """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
     bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
-    ρ/π · G @ bounce b (:mod:`shprobe.prt.refine` reads where each vertex gathers from)."""
+    ρ/π · G @ bounce b (:mod:`shprobe.prt.refine` reads where each vertex gathers from).
+    ``sets``: :func:`bake`'s ``direction_sets``."""
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
@@ -180,7 +190,7 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
             caster = RayCaster(sc.vertices, sc.faces)  # one BVH for every sample group
             for rows, n_dirs in groups:
                 t0_g, b_g = _trace(sc, caster, lmax, n_dirs, seed, mode == "interreflected",
-                                   rows, pmap, wrap)
+                                   rows, pmap, wrap, sets)
                 t0[rows] = t0_g
                 blocks += b_g
             # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
@@ -200,6 +210,7 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
         "directions": "spherical Fibonacci, seeded random rotation" if samples else "none",
         **({"dense_samples": groups[1][1], "dense_vertices": len(groups[1][0])}
            if len(groups) > 1 else {}),
+        **({"direction_sets": int(sets)} if sets > 1 else {}),
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }
     t = Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
@@ -244,15 +255,38 @@ def _sample_groups(n_vertices: int, samples: int, dense: Any, dense_samples: int
     return [(np.flatnonzero(~mask), samples), (np.flatnonzero(mask), ns)]
 
 
+def rotated_direction_sets(rows: NDArray[np.int64], sets: int, seed: int
+                           ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The rotations (S, 3, 3) of ``sets`` copies of the direction set and the copy each vertex
+    of ``rows`` traces (len(rows),): one set (the identity) for ``sets`` = 1; otherwise random
+    rotations drawn from ``seed`` and a copy picked by a hash of the vertex index, so that
+    neighbouring vertices (consecutive or not) trace different directions and a bake stays
+    reproducible. Neighbours with nearly the same normal that look past the same horizon through
+    the same few directions make one shared quadrature error that no gather of theirs averages
+    (issue 17, runs 4–5); with their own rotations the errors are independent. The SH rows are
+    projected in the copy's frame and turned to the world's by the Wigner matrix D(R) (y(Rω) =
+    D(R) y(ω)), so one table of y over the base set serves every copy."""
+    if sets <= 1:
+        return np.eye(3)[None], np.zeros(len(rows), dtype=np.int64)
+    rng = np.random.default_rng([seed, 17])
+    rots = from_quaternion(rng.normal(size=(sets, 4)))
+    h = (np.asarray(rows, dtype=np.uint64) + np.uint64(seed)) * np.uint64(0x9E3779B97F4A7C15)
+    return rots, ((h >> np.uint64(33)) % np.uint64(sets)).astype(np.int64)
+
+
 def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gather: bool,
-           rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn):
+           rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn,
+           sets: int = 1):
     """For the vertices ``rows`` (rays cast by ``caster``, over ``sc``'s mesh): the
     visibility-weighted projection Σ V cos y 4π/N (len(rows), K), and the bounce gather
-    matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather)."""
+    matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather).
+    ``sets`` > 1: each vertex traces one of that many rotated copies of the direction set
+    (:func:`rotated_direction_sets`)."""
     spans = _chunks(len(rows), samples)
     dirs = sample_directions(samples, seed)
-    dirs32 = dirs.astype(np.float32)
-    yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K)
+    yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K), in the base set's frame
+    rots, sid = rotated_direction_sets(rows, sets, seed)
+    dirs32 = np.ascontiguousarray((dirs @ rots.transpose(0, 2, 1)).astype(np.float32))
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
     # ray origins in the caster's frame: the one offset rule (RayCaster.offset_points)
@@ -279,7 +313,7 @@ def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gat
         cw = np.empty(cap, np.float32)
         vid = np.empty(cap, np.int64)
         did = np.empty(cap, np.int64)
-        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, o, d, cw, vid, did)
+        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, sid[i0:i1], o, d, cw, vid, did)
         o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
         proj = np.zeros((i1 - i0, k))
         if not gather:
@@ -307,4 +341,9 @@ def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gat
                                    strict=True):
         t0[i0:i1] = proj
         blocks.append((rows[i0:i1], g))
+    if sets > 1:  # y(R ω) = D(R) y(ω): each row turned from its set's frame to the world's
+        dm = wigner_d(rots, lmax)
+        for s in range(sets):
+            sel = np.flatnonzero(sid == s)
+            t0[sel] = t0[sel] @ dm[s].T
     return t0, blocks

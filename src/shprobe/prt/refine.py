@@ -240,7 +240,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  dense_depth: int = DENSE_DEPTH, floor: float = FLOOR,
                  gather_tol: float | None = GATHER_TOL,
                  gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
-                 dense_new: bool = False) -> Transfer:
+                 dense_new: bool = False, direction_sets: int = 1) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -254,7 +254,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     ``samples`` directions (module doc, step 5; ``dense_factor=1``: none); ``floor``: see
     :func:`transfer_jumps`; ``gather_tol``, ``gather_floor``, ``gather_gate``: the gather
     criterion (module doc, step 2b; ``gather_gate`` is :func:`gather_errors`' ``tol``;
-    ``gather_tol=None``: off, as before issue 17's third run). The returned transfer's
+    ``gather_tol=None``: off, as before issue 17's third run); ``direction_sets``: of the final
+    bake (:func:`~shprobe.prt.bake.bake`; the driving bakes keep one set). The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
@@ -294,8 +295,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         mask = dense_mask()
         if factor > 1 and mask.any():
             return bake(sc, samples=samples, refine=False, dense=mask,
-                        dense_samples=factor * int(samples), **kw)
-        return bake(sc, samples=samples, refine=False, **kw)
+                        dense_samples=factor * int(samples), direction_sets=direction_sets,
+                        **kw)
+        return bake(sc, samples=samples, refine=False, direction_sets=direction_sets, **kw)
 
     for r in range(int(max_rounds) + 1):
         t0 = time.perf_counter()
