@@ -2,7 +2,7 @@
 
 Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
 ``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at every
-lmax 9–30). Prints
+lmax 9–30; ``--alloc-pairs``: the allocating calls paired, with an interval). Prints
 markdown tables; one thread everywhere. Peers: sphericart (preallocated output, through its
 ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y, pyshtools
 SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are installed).
@@ -155,6 +155,43 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 
                          {k: (min(v), float(np.median(v))) for k, v in t.items()},
                          {k: (float(np.median(sys_t[k])), float(np.median(flt[k])))
                           for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
+
+
+def bench_alloc_pairs(lmaxes=(2, 6, 10, 16, 20, 32), pairs=31, budget=1 << 30):
+    """Issue 16's allocating-path question, paired: shprobe's and sphericart's allocating calls
+    run back to back ``pairs`` times in alternating order (as in :func:`bench_basis_grid`);
+    per lmax and dtype the median of the per-pair ratios shprobe / sphericart, a bootstrap 95 %
+    interval of that median, and in how many pairs shprobe was the cheaper. A ratio whose
+    interval holds 1 is a tie within what this machine can resolve."""
+    import sphericart
+
+    from shprobe.sh import sh_basis
+
+    rng = np.random.default_rng(0)
+    print("| lmax | dtype | directions | pairs | median ratio | 95 % interval | shprobe cheaper "
+          "| shprobe ns (median) | sphericart ns (median) |")
+    print("| ---: | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: |")
+    for lmax in lmaxes:
+        K = (lmax + 1) ** 2
+        n = min(10**6, budget // (8 * K))
+        d64 = unit_dirs(n)
+        for dt in (np.float64, np.float32):
+            d = d64.astype(dt)
+            calc = sphericart.SphericalHarmonics(lmax)
+            calls = {"ours": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+                     "sc": lambda d=d, calc=calc: calc.compute(d)}
+            for f in calls.values():
+                f()
+            t = {k: [] for k in calls}
+            for r in range(pairs):
+                for k in ("ours", "sc") if r % 2 == 0 else ("sc", "ours"):
+                    t[k].append(_timed(calls[k])[0] * 1e9 / n)
+            ratio = np.array(t["ours"]) / np.array(t["sc"])
+            boot = np.median(rng.choice(ratio, (2000, ratio.size)), axis=1)
+            lo, hi = np.percentile(boot, [2.5, 97.5])
+            print(f"| {lmax} | {np.dtype(dt).name} | {n:,} | {pairs} | {np.median(ratio):.3f} "
+                  f"| {lo:.3f} – {hi:.3f} | {int((ratio <= 1).sum())} of {pairs} "
+                  f"| {np.median(t['ours']):.1f} | {np.median(t['sc']):.1f} |", flush=True)
 
 
 def bench_basis_sweep(lmaxes=(9, 12, 14, 18, 22, 23, 24, 26, 28, 30), repeat=7):
@@ -313,6 +350,12 @@ def bench_import(rows):
 
 def main():
     print(f"Machine: {machine()}\n")
+    if "--alloc-pairs" in sys.argv:
+        print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
+              + "\n")
+        bench_alloc_pairs()
+        print("\nload average at the end: " + " / ".join(f"{x:.2f}" for x in os.getloadavg()))
+        return
     if "--sweep" in sys.argv:
         print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
               + "\n")
