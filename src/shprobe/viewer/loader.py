@@ -84,8 +84,9 @@ class Go:
             self._r = -1
 
     def close(self) -> None:
-        """Close the writing end (the server's side, when the loader is stopped); set() is a
-        no-op from then on (the descriptor number is never written again)."""
+        """Close the writing end (the server's side when the loader is stopped, and the
+        loader's copy at its start); set() is a no-op from then on (the descriptor number is
+        never written again)."""
         with self._lock:
             if self._w >= 0:
                 os.close(self._w)
@@ -150,8 +151,8 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     for c in theirs:  # the parent's ends: a send fails (and the process ends) once it is gone
         c.close()
-    if go is not None:  # the parent's end
-        os.close(go._w)
+    if go is not None:  # the parent's end (the loader only reads)
+        go.close()
     if mesh:
         from .session import cached_mesh_payload
 
