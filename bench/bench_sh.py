@@ -100,6 +100,18 @@ def f32_error(fn, d32, lmax):
     return err.max() / np.finfo(np.float32).eps
 
 
+def grid_inputs(lmaxes, budget):
+    """(lmax, directions n, dtype, directions (n, 3) of it, a sphericart calculator) of the
+    grid: 10⁶ directions, fewer where the float64 output would pass ``budget`` bytes."""
+    import sphericart
+
+    for lmax in lmaxes:
+        n = min(10**6, budget // (8 * (lmax + 1) ** 2))
+        d64 = unit_dirs(n)
+        for dt in (np.float64, np.float32):
+            yield lmax, n, dt, d64.astype(dt), sphericart.SphericalHarmonics(lmax)
+
+
 def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 30):
     """shprobe and sphericart, output preallocated and allocated by the call, float64 and
     float32, in the same run, 10⁶ directions, fewer where the output would pass ``budget``
@@ -112,49 +124,41 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 
     the huge pages just freed at once; pages free for longer may have been returned to the
     hypervisor, or need compacting) — an order in which one call always ran right after an
     allocating call and the other only half the time favoured the first."""
-    import sphericart
-
     from shprobe.sh import sh_basis
 
-    for lmax in lmaxes:
-        K = (lmax + 1) ** 2
-        n = min(10**6, budget // (8 * K))
-        d64 = unit_dirs(n)
-        for dt in (np.float64, np.float32):
-            d = d64.astype(dt)
-            out = np.empty((n, K), dt)
-            out.fill(0)  # pages touched once, as a reused buffer is
-            calc = sphericart.SphericalHarmonics(lmax)
-            groups = (
-                {"ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
-                 "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
-                                                                              None)},
-                {"ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
-                 "sc_alloc": lambda d=d, calc=calc: calc.compute(d)},
-            )
-            t, sys_t, flt = {}, {}, {}
-            for calls in groups:
-                for f in calls.values():
-                    f()
-                order = list(calls)
-                for k in calls:
-                    t[k], sys_t[k], flt[k] = [], [], []
-                for r in range(repeat):
-                    for k in order if r % 2 == 0 else order[::-1]:
-                        cpu, sy, fl = _timed(calls[k])
-                        t[k].append(cpu * 1e9 / n)
-                        sys_t[k].append(sy * 1e3)
-                        flt[k].append(fl)
-            del out
-            e_ours = e_sc = float("nan")
-            if dt == np.float32:
-                few = d[:2000]
-                e_ours = f32_error(lambda x, lmax=lmax: sh_basis(x, lmax), few, lmax)
-                e_sc = f32_error(calc.compute, few, lmax)
-            rows.append((lmax, np.dtype(dt).name, n,
-                         {k: (min(v), float(np.median(v))) for k, v in t.items()},
-                         {k: (float(np.median(sys_t[k])), float(np.median(flt[k])))
-                          for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
+    for lmax, n, dt, d, calc in grid_inputs(lmaxes, budget):
+        out = np.empty((n, (lmax + 1) ** 2), dt)
+        out.fill(0)  # pages touched once, as a reused buffer is
+        groups = (
+            {"ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+             "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                          None)},
+            {"ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+             "sc_alloc": lambda d=d, calc=calc: calc.compute(d)},
+        )
+        t, sys_t, flt = {}, {}, {}
+        for calls in groups:
+            for f in calls.values():
+                f()
+            order = list(calls)
+            for k in calls:
+                t[k], sys_t[k], flt[k] = [], [], []
+            for r in range(repeat):
+                for k in order if r % 2 == 0 else order[::-1]:
+                    cpu, sy, fl = _timed(calls[k])
+                    t[k].append(cpu * 1e9 / n)
+                    sys_t[k].append(sy * 1e3)
+                    flt[k].append(fl)
+        del out
+        e_ours = e_sc = float("nan")
+        if dt == np.float32:
+            few = d[:2000]
+            e_ours = f32_error(lambda x, lmax=lmax: sh_basis(x, lmax), few, lmax)
+            e_sc = f32_error(calc.compute, few, lmax)
+        rows.append((lmax, np.dtype(dt).name, n,
+                     {k: (min(v), float(np.median(v))) for k, v in t.items()},
+                     {k: (float(np.median(sys_t[k])), float(np.median(flt[k])))
+                      for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
 
 
 def bench_alloc_pairs(lmaxes=(2, 6, 10, 16, 20, 32), pairs=31, budget=1 << 30):
@@ -163,35 +167,27 @@ def bench_alloc_pairs(lmaxes=(2, 6, 10, 16, 20, 32), pairs=31, budget=1 << 30):
     per lmax and dtype the median of the per-pair ratios shprobe / sphericart, a bootstrap 95 %
     interval of that median, and in how many pairs shprobe was the cheaper. A ratio whose
     interval holds 1 is a tie within what this machine can resolve."""
-    import sphericart
-
     from shprobe.sh import sh_basis
 
     rng = np.random.default_rng(0)
     print("| lmax | dtype | directions | pairs | median ratio | 95 % interval | shprobe cheaper "
           "| shprobe ns (median) | sphericart ns (median) |")
     print("| ---: | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: |")
-    for lmax in lmaxes:
-        K = (lmax + 1) ** 2
-        n = min(10**6, budget // (8 * K))
-        d64 = unit_dirs(n)
-        for dt in (np.float64, np.float32):
-            d = d64.astype(dt)
-            calc = sphericart.SphericalHarmonics(lmax)
-            calls = {"ours": lambda d=d, lmax=lmax: sh_basis(d, lmax),
-                     "sc": lambda d=d, calc=calc: calc.compute(d)}
-            for f in calls.values():
-                f()
-            t = {k: [] for k in calls}
-            for r in range(pairs):
-                for k in ("ours", "sc") if r % 2 == 0 else ("sc", "ours"):
-                    t[k].append(_timed(calls[k])[0] * 1e9 / n)
-            ratio = np.array(t["ours"]) / np.array(t["sc"])
-            boot = np.median(rng.choice(ratio, (2000, ratio.size)), axis=1)
-            lo, hi = np.percentile(boot, [2.5, 97.5])
-            print(f"| {lmax} | {np.dtype(dt).name} | {n:,} | {pairs} | {np.median(ratio):.3f} "
-                  f"| {lo:.3f} – {hi:.3f} | {int((ratio <= 1).sum())} of {pairs} "
-                  f"| {np.median(t['ours']):.1f} | {np.median(t['sc']):.1f} |", flush=True)
+    for lmax, n, dt, d, calc in grid_inputs(lmaxes, budget):
+        calls = {"ours": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+                 "sc": lambda d=d, calc=calc: calc.compute(d)}
+        for f in calls.values():
+            f()
+        t = {k: [] for k in calls}
+        for r in range(pairs):
+            for k in ("ours", "sc") if r % 2 == 0 else ("sc", "ours"):
+                t[k].append(_timed(calls[k])[0] * 1e9 / n)
+        ratio = np.array(t["ours"]) / np.array(t["sc"])
+        boot = np.median(rng.choice(ratio, (2000, ratio.size)), axis=1)
+        lo, hi = np.percentile(boot, [2.5, 97.5])
+        print(f"| {lmax} | {np.dtype(dt).name} | {n:,} | {pairs} | {np.median(ratio):.3f} "
+              f"| {lo:.3f} – {hi:.3f} | {int((ratio <= 1).sum())} of {pairs} "
+              f"| {np.median(t['ours']):.1f} | {np.median(t['sc']):.1f} |", flush=True)
 
 
 def bench_basis_sweep(lmaxes=(9, 12, 14, 18, 22, 23, 24, 26, 28, 30), repeat=7):
