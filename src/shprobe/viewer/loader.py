@@ -15,6 +15,7 @@ coefficients and the background texture follow when the server asks
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -57,8 +58,6 @@ class Go:
     def __init__(self) -> None:
         self._r, self._w = os.pipe()
         os.set_blocking(self._w, False)
-        import threading
-
         self._lock = threading.Lock()
 
     def set(self) -> None:

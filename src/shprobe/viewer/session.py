@@ -462,7 +462,7 @@ class Session:
         #: wall-clock stamps (time.time()) of the loading stages, for the first-frame benchmark
         self.timings: dict[str, float] = {}
         self._child: Any = None  # [(process, pipe)] of fork_loader
-        self._go: Any = None  # its event: send the Env now
+        self._go: Any = None  # its Go: send the Env now
         #: probes loaded (command line, uploads): id → (file name as the user gave it, Source)
         self.probes: dict[str, tuple[str, Source]] = {}
         self._probe_tag = f"p{secrets.token_hex(3)}"  # ids of another server never match
