@@ -13,7 +13,10 @@ for speed:
   direction at a time with the columns m run two at a time (m, m+1) through the same l loop;
 - an output larger than L2 is computed in blocks into a small buffer, each copied out in one
   sequential pass (four rows written in place at once, column by column, scatter stores
-  that the store prefetching does not follow into memory not in the cache);
+  that the store prefetching does not follow into memory not in the cache) — except a
+  *fresh* output (just allocated by ``sh_basis``) whose four rows fit in half of L1: its
+  pages are faulted in, and zeroed by the kernel, as the stores reach them, so the lines are
+  in the cache when written and the copy would only add a second pass;
 - the arithmetic is done in the type of the tables (float32 tables for float32 output up to
   the degree where P̄ could overflow float32, see ``shprobe.sh.basis``);
 - an output much larger than the caches is written with streaming (non-temporal) stores:
@@ -44,6 +47,13 @@ IN_PLACE_MAX_BYTES = 2 << 20
 #: over memory not in the cache, which the store prefetchers do not follow (a fresh array's
 #: pages, just zeroed by the kernel, included).
 BUF_BYTES = 16384
+#: A fresh output (``sh_rows(..., fresh=True)``) is written in place when four of its rows
+#: take at most this many bytes (half of a 48 KiB L1): each huge page is zeroed by the kernel
+#: on the first store into it and is in the cache for the stores that follow, which then
+#: cost less than computing into the buffer and copying (process CPU, allocating calls,
+#: lmax 10–32: 0.75–0.89× in float32, 0.91–1.0× in float64 up to lmax 20; four rows of 8.7
+#: KB at lmax 32 float64, 1.13×, keep the buffer: docs/benchmarks.md, issue 16).
+FRESH_FOUR_MAX_BYTES = 24 << 10
 
 
 @intrinsic
@@ -328,7 +338,7 @@ def _copy(dst, d0, src, n):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, nogil=True, fastmath={"contract"}, error_model="numpy")
-def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compiled
+def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0, fresh):  # pragma: no cover - compiled
     """out[i, k] = y_k(dirs[i]) for dirs (N, 3), out (N, (lmax+1)²), lmax ≥ 2.
 
     ``R``: the interior recurrence's (a_lm, a_lm·b_lm) pairs, column by column (m = 0, 1, …;
@@ -336,18 +346,20 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0):  # pragma: no cover - compil
     ``d0[m]`` = P̄_mm, ``d1[l]`` = √(2l+1) P̄_{l−1,l−1} (so P̄_{l,l−1} = d1[l] z). The
     arithmetic is done in R's type. ``stream_a0`` < 0: plain stores; otherwise streaming
     stores, and flat output index j is 64-byte aligned iff j ≡ stream_a0 (mod 64/itemsize).
+    ``fresh``: ``out`` was just allocated (no page of it touched yet).
 
     Rows of ≤ ``FOUR_MAX_ROW_BYTES`` are computed four directions at a time. With plain
-    stores, outputs of ≤ ``IN_PLACE_MAX_BYTES`` and rows over ``FOUR_MAX_ROW_BYTES`` are
-    written in place; otherwise rows are computed in blocks into a small buffer and each
-    block, one contiguous span of the output, is copied out in one sequential pass: with
-    streaming stores, or plain.
+    stores, outputs of ≤ ``IN_PLACE_MAX_BYTES``, rows over ``FOUR_MAX_ROW_BYTES`` and fresh
+    outputs whose four rows take ≤ ``FRESH_FOUR_MAX_BYTES`` are written in place; otherwise
+    rows are computed in blocks into a small buffer and each block, one contiguous span of
+    the output, is copied out in one sequential pass: with streaming stores, or plain.
     """
     n = dirs.shape[0]
     K = out.shape[1]
     row_bytes = K * out.itemsize
     four = row_bytes <= FOUR_MAX_ROW_BYTES
-    if stream_a0 < 0 and (not four or n * row_bytes <= IN_PLACE_MAX_BYTES):
+    if stream_a0 < 0 and (not four or n * row_bytes <= IN_PLACE_MAX_BYTES
+                          or (fresh and 4 * row_bytes <= FRESH_FOUR_MAX_BYTES)):
         _rows(dirs, 0, n, out, 0, lmax, R, d0, d1, four)
         return
     B = max(4, BUF_BYTES // row_bytes // 4 * 4)  # rows per block

@@ -298,5 +298,5 @@ def sh_basis(
 
     f32 = out.dtype == np.float32 and lmax <= F32_ARITHMETIC_LMAX
     sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64),
-            out.reshape(-1, K), _stream_start(out) if stream else -1)
+            out.reshape(-1, K), _stream_start(out) if stream else -1, not stream)
     return out
