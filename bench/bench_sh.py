@@ -2,7 +2,8 @@
 
 Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
 ``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at every
-lmax 9–30; ``--alloc-pairs``: the allocating calls paired, with an interval). Prints
+lmax 9–30; ``--alloc-pairs [--pairs N]``: the allocating calls paired (31 pairs), with an
+interval). Prints
 markdown tables; one thread everywhere. Peers: sphericart (preallocated output, through its
 ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y, pyshtools
 SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are installed).
@@ -349,7 +350,8 @@ def main():
     if "--alloc-pairs" in sys.argv:
         print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
               + "\n")
-        bench_alloc_pairs()
+        pairs = int(sys.argv[sys.argv.index("--pairs") + 1]) if "--pairs" in sys.argv else 31
+        bench_alloc_pairs(pairs=pairs)
         print("\nload average at the end: " + " / ".join(f"{x:.2f}" for x in os.getloadavg()))
         return
     if "--sweep" in sys.argv:
