@@ -303,3 +303,38 @@ def test_gather_criterion_splits_the_surface_a_close_vertex_gathers_from():
     print(f"\nsecond bounce at the centre: off {100 * e_off:+.1f} %, on {100 * e_on:+.1f} %")
     assert e_off > 0.5
     assert abs(e_on) < 0.1
+
+
+def test_new_vertices_take_the_input_surfaces_interpolated_normal(sphere_bakes):
+    """A refined vertex is shaded as the input mesh is there: its normal is the barycentric
+    interpolation of its input triangle's vertex normals, normalised (what a renderer and the
+    independent gather use), at every depth of refinement — not the drifting normalised mean of
+    normalised means."""
+    m, uni, ref = sphere_bakes
+    n0 = uni.n_vertices
+    v, f, n = uni.vertices, uni.faces[: len(m.faces)], uni.normals  # the sphere's own faces
+    new = np.flatnonzero(np.arange(ref.n_vertices) >= n0)
+    new = new[ref.vertices[new, 1] > v[:, 1].min() + 1e-9]  # on the sphere, not the ground
+    assert len(new) > 50
+    p = ref.vertices[new]
+    tri = v[f]  # (F, 3, 3)
+    e0, e1 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    fn = np.cross(e0, e1)
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    # each new vertex against every input triangle: in its plane and inside it
+    q = p[:, None, :] - tri[None, :, 0]
+    off = np.abs(np.einsum("pfk,fk->pf", q, fn))
+    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+    d20, d21 = np.einsum("pfk,fk->pf", q, e0), np.einsum("pfk,fk->pf", q, e1)
+    den = d00 * d11 - d01 ** 2
+    wb = (d11 * d20 - d01 * d21) / den
+    wc = (d00 * d21 - d01 * d20) / den
+    inside = (off < 1e-9) & (wb > -1e-9) & (wc > -1e-9) & (wb + wc < 1 + 1e-9)
+    assert inside.any(1).all()
+    j = np.argmax(inside, axis=1)
+    r = np.arange(len(new))
+    w = np.stack([1 - wb[r, j] - wc[r, j], wb[r, j], wc[r, j]], 1)
+    want = np.einsum("pi,pik->pk", w, n[f[j]])
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    ang = np.arccos(np.clip(np.einsum("pk,pk->p", want, ref.normals[new]), -1, 1))
+    assert ang.max() < 1e-6, np.degrees(ang.max())

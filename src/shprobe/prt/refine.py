@@ -35,7 +35,13 @@ puts them where the transfer says they are needed:
    gatherer;
 3. split the marked edges at their midpoints (a triangle with two marked edges gets its third
    marked as well, repeated to closure; then 3 marked → 4 triangles, 1 marked → 2), new
-   vertices get the mean of their endpoints' normals (normalised) and albedo;
+   vertices get the mean of their endpoints' albedo and the input surface's shading normal
+   there: the barycentric interpolation of the input triangle's vertex normals, normalised,
+   as a renderer (and the independent gather of the tests) shades the input mesh — kept
+   exact through the rounds by carrying the unnormalised interpolants (the mean of the
+   ends' *unit* normals, normalised, drifts by up to a degree or more after a few levels,
+   enough to move the light under the bunny's belly, lit through a 0.4 mm slot at grazing
+   angles, by 0.4 %: issue 17, run 6a);
 4. re-bake the refined scene and repeat until no edge is marked or ``max_rounds`` is reached;
    the final geometry is baked with the full samples;
 5. ... and with ``dense_factor`` (8) times as many at the *input scene's* vertices that the
@@ -190,20 +196,26 @@ def split_edges(scene: Scene, marked: NDArray[np.bool_], edges: NDArray[np.int64
                 face_edges: NDArray[np.int64]) -> Scene:
     """Split the ``marked`` edges (closure: a face with 2 marked edges gets its 3rd marked) at
     their midpoints; faces with 3 marked → 4, with 1 → 2 (module doc, step 3)."""
-    return _split(scene, _closure_edges(marked, face_edges), edges, face_edges)
+    return _split(scene, _closure_edges(marked, face_edges), edges, face_edges)[0]
 
 
 def _split(scene: Scene, sel: NDArray[np.int64], edges: NDArray[np.int64],
-           face_edges: NDArray[np.int64]) -> Scene:
-    """:func:`split_edges` of the closed edge set ``sel`` (:func:`_closure_edges`)."""
+           face_edges: NDArray[np.int64], raw: NDArray[np.float64] | None = None
+           ) -> tuple[Scene, NDArray[np.float64]]:
+    """:func:`split_edges` of the closed edge set ``sel`` (:func:`_closure_edges`), and the
+    unnormalised normals of the result: ``raw`` (default: the scene's normals) holds, for
+    every vertex, the barycentric interpolation of its input triangle's vertex normals (an
+    input vertex: its own), so a midpoint's is the mean of its ends' and the scene's normal
+    is that normalised (module doc, step 3)."""
     nv = scene.n_vertices
     mid = np.full(len(edges), -1, dtype=np.int64)
     mid[sel] = nv + np.arange(len(sel))
     a, b = edges[sel, 0], edges[sel, 1]
     v = np.concatenate([scene.vertices, 0.5 * (scene.vertices[a] + scene.vertices[b])])
-    n = scene.normals[a] + scene.normals[b]
-    ln = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.where(ln > 1e-12, n / np.where(ln > 1e-12, ln, 1.0), scene.normals[a])
+    raw = scene.normals if raw is None else raw
+    rn = 0.5 * (raw[a] + raw[b])
+    ln = np.linalg.norm(rn, axis=1, keepdims=True)
+    n = np.where(ln > 1e-12, rn / np.where(ln > 1e-12, ln, 1.0), scene.normals[a])
     nrm = np.concatenate([scene.normals, n])
     alb = np.concatenate([scene.albedo, 0.5 * (scene.albedo[a] + scene.albedo[b])])
     f = scene.faces
@@ -226,7 +238,7 @@ def _split(scene: Scene, sel: NDArray[np.int64], edges: NDArray[np.int64],
         q = mm[r, k]
         out += [np.stack([p0, q, p2], 1), np.stack([q, p1, p2], 1)]
     faces = np.concatenate(out).astype(np.int64)
-    return Scene(v, nrm, faces, alb, mesh_hash(v, faces))
+    return Scene(v, nrm, faces, alb, mesh_hash(v, faces)), np.concatenate([raw, rn])
 
 
 def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, samples: int = 1024,
@@ -270,6 +282,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     n_mesh = (load_scene(scene, albedo=albedo, mesh_albedo=mesh_albedo).n_vertices if ground
               else base.n_vertices)
     sc = base
+    raw = base.normals  # the input surface's interpolated normals, unnormalised (_split)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     min_len = MIN_EDGE_FRACTION * diag if min_edge is None else float(min_edge)
     is_ground = np.arange(sc.n_vertices) >= n_mesh
@@ -328,7 +341,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                 rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
             break
         mids = _closure_edges(marked, face_edges)  # the edges split, in _split's order
-        new = _split(sc, mids, edges, face_edges)
+        new, raw = _split(sc, mids, edges, face_edges, raw)
         if new.n_vertices > max_vertices:
             raise ShprobeError(f"refinement would grow the scene past {max_vertices} vertices; "
                                "raise tol or min_edge")
