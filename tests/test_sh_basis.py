@@ -190,11 +190,13 @@ def test_degree_1024_near_the_poles():
 
 def test_streamed_output_equals_plain_stores(monkeypatch):
     # outputs ≥ STREAM_MIN_BYTES are written block by block with aligned non-temporal
-    # stores: same values as plain stores, whatever the output's alignment and row count
+    # stores: same values as plain stores, whatever the output's alignment and row count —
+    # by the table kernel and by the unrolled ones (lmax ≤ 8, several blocks of rows)
     import shprobe.sh.basis as basis
 
     d = random_dirs(1001, seed=13)
-    for lmax, dtype in ((9, np.float64), (12, np.float32), (21, np.float64)):
+    for lmax, dtype in ((0, np.float64), (2, np.float32), (2, np.float64), (8, np.float32),
+                        (9, np.float64), (12, np.float32), (21, np.float64)):
         dd = d.astype(dtype)
         plain = sh_basis(dd, lmax)
         monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
@@ -206,6 +208,28 @@ def test_streamed_output_equals_plain_stores(monkeypatch):
             np.testing.assert_array_equal(sh_basis(dd, lmax, out=out), plain)
         assert np.isnan(big[len(d) * K + 3:]).all()  # nothing written past the end
         monkeypatch.undo()
+
+
+def test_large_out_at_unrolled_degrees_goes_through_the_stream_kernels(monkeypatch):
+    # (the values are checked above; here: that a large out= takes the streaming path)
+    import shprobe.sh.basis as basis
+    from shprobe.sh import _unrolled
+
+    calls, real = [], _unrolled.STREAM_KERNELS
+
+    def spy(k):
+        def f(*args):
+            calls.append(k)
+            return real[k](*args)
+        return f
+
+    monkeypatch.setattr(_unrolled, "STREAM_KERNELS", tuple(spy(k) for k in range(9)))
+    monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
+    d = random_dirs(100, seed=3)
+    out = np.empty((100, 9))
+    sh_basis(d, 2, out=out)
+    sh_basis(d, 2)  # a fresh array: plain stores (see _stream_start)
+    assert calls == [2]
 
 
 def test_rows_through_the_buffer_equal_rows_in_place():

@@ -107,6 +107,25 @@ def _stream_copy(dst, d0, src, n, a0):  # pragma: no cover - compiled
 
 
 @nb.njit(inline="always")
+def stream_rows(kern, dirs, out, a0):  # pragma: no cover - compiled
+    """out = kern's rows of dirs, computed ``BUF_BYTES`` at a time into a buffer that stays in
+    L1 and copied out with streaming stores (``_stream_copy``; flat index j of ``out`` is
+    64-byte aligned iff j ≡ a0); ``kern(dirs, out)`` fills rows in place (the generated
+    unrolled kernels, ``shprobe.sh._unrolled``, whose ``*_stream`` variants inline this)."""
+    n = dirs.shape[0]
+    K = out.shape[1]
+    B = max(16, BUF_BYTES // (K * out.itemsize))
+    buf = np.empty((min(B, n), K), out.dtype)
+    flat_buf = buf.reshape(-1)
+    flat = out.reshape(-1)
+    for i0 in range(0, n, B):
+        cnt = min(B, n - i0)
+        kern(dirs[i0:i0 + cnt], buf[:cnt])
+        _stream_copy(flat, i0 * K, flat_buf, cnt * K, a0)
+    _fence()
+
+
+@nb.njit(inline="always")
 def _column(out, i, m, lo, hi, z, c, s, R, o, p1, p2):  # pragma: no cover - compiled
     """Column m from l = lo to hi − 1, given P̄_{lo−1,m} = p1, P̄_{lo−2,m} = p2; its
     (A, AB) pairs from R[o] on."""

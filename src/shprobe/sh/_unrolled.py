@@ -2,12 +2,16 @@
 
 sh_basis kernels unrolled for lmax ≤ 8: the normalised recurrence of ``shprobe.sh`` with
 its constants folded in (√2 included for m > 0), in the arithmetic of the output's type.
-``KERNELS[lmax](dirs (N, 3), out (N, K))``.
+``KERNELS[lmax](dirs (N, 3), out (N, K))``; ``STREAM_KERNELS[lmax](dirs, out, a0)`` the same
+rows copied out of an L1 buffer with streaming stores (``shprobe.sh._kernels.stream_rows``;
+flat index j of ``out`` is 64-byte aligned iff j ≡ a0).
 """
 
 from __future__ import annotations
 
 import numba as nb
+
+from ._kernels import stream_rows
 
 UNROLL_MAX = 8
 
@@ -660,4 +664,60 @@ def sh_l8(dirs, out):
         o[64] = T.type(0.72892666017483) * s
 
 
+@nb.njit(cache=True, nogil=True)
+def sh_l0_stream(dirs, out, a0):
+    stream_rows(sh_l0, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l1_stream(dirs, out, a0):
+    stream_rows(sh_l1, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l2_stream(dirs, out, a0):
+    stream_rows(sh_l2, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l3_stream(dirs, out, a0):
+    stream_rows(sh_l3, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l4_stream(dirs, out, a0):
+    stream_rows(sh_l4, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l5_stream(dirs, out, a0):
+    stream_rows(sh_l5, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l6_stream(dirs, out, a0):
+    stream_rows(sh_l6, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l7_stream(dirs, out, a0):
+    stream_rows(sh_l7, dirs, out, a0)
+
+
+@nb.njit(cache=True, nogil=True)
+def sh_l8_stream(dirs, out, a0):
+    stream_rows(sh_l8, dirs, out, a0)
+
+
 KERNELS = (sh_l0, sh_l1, sh_l2, sh_l3, sh_l4, sh_l5, sh_l6, sh_l7, sh_l8)
+STREAM_KERNELS = (
+    sh_l0_stream,
+    sh_l1_stream,
+    sh_l2_stream,
+    sh_l3_stream,
+    sh_l4_stream,
+    sh_l5_stream,
+    sh_l6_stream,
+    sh_l7_stream,
+    sh_l8_stream,
+)

@@ -289,9 +289,15 @@ def sh_basis(
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
     if lmax <= 8:
-        from ._unrolled import KERNELS
+        a0 = _stream_start(out) if stream else -1
+        if a0 >= 0:
+            from ._unrolled import STREAM_KERNELS
 
-        KERNELS[lmax](flat, out.reshape(-1, K))
+            STREAM_KERNELS[lmax](flat, out.reshape(-1, K), a0)
+        else:
+            from ._unrolled import KERNELS
+
+            KERNELS[lmax](flat, out.reshape(-1, K))
         return out
     from ._kernels import sh_rows
 
