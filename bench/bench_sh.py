@@ -5,8 +5,8 @@ Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not instal
 lmax 9–30; ``--alloc-pairs [--pairs N]``: the allocating calls paired (31 pairs), with an
 interval). Prints markdown tables; one thread everywhere. Peers: sphericart (preallocated
 output, through its ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y,
-pyshtools
-SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are installed).
+pyshtools SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are
+installed).
 Timings are the best of several repeats of process CPU time (the machine is shared).
 """
 
