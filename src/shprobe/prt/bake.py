@@ -104,7 +104,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          threads: int | None = None, progress: ProgressFn | None = None, *,
          mesh_albedo: Any = None, ground_albedo: Any = None,
          refine: bool | None = None, dense: Any = None,
-         dense_samples: int | None = None, direction_sets: int = 1) -> Transfer:
+         dense_samples: int | None = None, direction_sets: int = 1,
+         final_gather: int = 0, final_gather_inner: int = 0) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
     scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
@@ -148,21 +149,25 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo,
-                            direction_sets=direction_sets)
+                            direction_sets=direction_sets, final_gather=final_gather,
+                            final_gather_inner=final_gather_inner)
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
-                 sets=check_int(direction_sets, 1, "direction_sets"))[0]
+                 sets=check_int(direction_sets, 1, "direction_sets"),
+                 final_gather=check_int(final_gather, 0, "final_gather"),
+                 final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"))[0]
 
 
 def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: Any, seed: int,
           ground: bool, threads: int | None, progress: ProgressFn | None, mesh_albedo: Any,
           ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False,
-          sets: int = 1
+          sets: int = 1, final_gather: int = 0, final_gather_inner: int = 0
           ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
     """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
     bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
     ρ/π · G @ bounce b (:mod:`shprobe.prt.refine` reads where each vertex gathers from).
-    ``sets``: :func:`bake`'s ``direction_sets``."""
+    ``sets``, ``final_gather``, ``final_gather_inner``: :func:`bake`'s ``direction_sets``,
+    ``final_gather`` and ``final_gather_inner`` (the kept G stays the interpolating one)."""
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
@@ -198,8 +203,22 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
             traced[0] = as_stored(total)
             prev = total
             rho = sc.albedo[:, None, : total.shape[2]] / np.pi
+            fg = None
+            if final_gather and bounces:
+                from .final_gather import final_gather_layers
+
+                # the layers read at the final gather's second-level hits: T_0 … T_{B−2}
+                layers = [total]
+                for _ in range(bounces - 2):
+                    layers.append(_gather(blocks, layers[-1], pmap) * rho)
+                fg_rows, fg_dirs = groups[-1]
+                fg = final_gather_layers(sc, caster, fg_rows, fg_dirs, seed, sets, lmax,
+                                         bounces, layers, final_gather, pmap, wrap,
+                                         rays2=final_gather_inner)
             for b in wrap(range(1, bounces + 1), "bounces", bounces):
                 prev = _gather(blocks, prev, pmap) * rho
+                if fg is not None:  # the final gather's bounces at its vertices
+                    prev[fg_rows] = fg[b - 1] * rho[fg_rows]
                 total = total + prev
                 traced[b] = as_stored(total)
     meta = {
@@ -211,6 +230,9 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
         **({"dense_samples": groups[1][1], "dense_vertices": len(groups[1][0])}
            if len(groups) > 1 else {}),
         **({"direction_sets": int(sets)} if sets > 1 else {}),
+        **({"final_gather": {"rays": int(final_gather), "inner": int(final_gather_inner),
+                             "vertices": len(groups[-1][0])}}
+           if final_gather and bounces else {}),
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }
     t = Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
@@ -274,6 +296,40 @@ def rotated_direction_sets(rows: NDArray[np.int64], sets: int, seed: int
     return rots, ((h >> np.uint64(33)) % np.uint64(sets)).astype(np.int64)
 
 
+def _ray_source(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], samples: int,
+                seed: int, sets: int = 1):
+    """The vertex rays of a bake for the vertices ``rows``: returns the direction set (N, 3),
+    the rotations and set of each row (:func:`rotated_direction_sets`), the ray-origin offset
+    ε and ``rays(i0, i1)`` → (origins, directions (float32, the caster's frame), cosines,
+    row − i0, direction index) of rows[i0:i1] over their upper hemispheres, origins offset by
+    the one rule (:meth:`~shprobe.scene.raycast.RayCaster.offset_points`)."""
+    dirs = sample_directions(samples, seed)
+    rots, sid = rotated_direction_sets(rows, sets, seed)
+    dirs32 = np.ascontiguousarray((dirs @ rots.transpose(0, 2, 1)).astype(np.float32))
+    diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
+    eps = OFFSET_FRACTION * max(diag, 1e-12)
+    on = np.full(sc.n_vertices, -1, dtype=np.int64)  # a face of each vertex
+    on[sc.faces.ravel()] = np.repeat(np.arange(len(sc.faces)), 3)
+    # of ``rows`` only: p32[i] and n32[i] belong to vertex rows[i]
+    p32 = caster.local(caster.offset_points(sc.vertices[rows], sc.normals[rows], eps,
+                                            on[rows])[0])
+    n32 = sc.normals[rows].astype(np.float32)
+
+    from ._kernels import hemisphere_rays
+
+    def rays(i0: int, i1: int):
+        cap = (i1 - i0) * samples
+        o = np.empty((cap, 3), np.float32)
+        d = np.empty((cap, 3), np.float32)
+        cw = np.empty(cap, np.float32)
+        vid = np.empty(cap, np.int64)
+        did = np.empty(cap, np.int64)
+        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, sid[i0:i1], o, d, cw, vid, did)
+        return o[:m], d[:m], cw[:m], vid[:m], did[:m]
+
+    return dirs, rots, sid, eps, rays
+
+
 def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gather: bool,
            rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn,
            sets: int = 1):
@@ -283,38 +339,20 @@ def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gat
     ``sets`` > 1: each vertex traces one of that many rotated copies of the direction set
     (:func:`rotated_direction_sets`)."""
     spans = _chunks(len(rows), samples)
-    dirs = sample_directions(samples, seed)
+    dirs, rots, sid, _, rays = _ray_source(sc, caster, rows, samples, seed, sets)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K), in the base set's frame
-    rots, sid = rotated_direction_sets(rows, sets, seed)
-    dirs32 = np.ascontiguousarray((dirs @ rots.transpose(0, 2, 1)).astype(np.float32))
-    diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
-    eps = OFFSET_FRACTION * max(diag, 1e-12)
-    # ray origins in the caster's frame: the one offset rule (RayCaster.offset_points)
-    on = np.full(sc.n_vertices, -1, dtype=np.int64)  # a face of each vertex
-    on[sc.faces.ravel()] = np.repeat(np.arange(len(sc.faces)), 3)
-    # of ``rows`` only: p32[i] and n32[i] belong to vertex rows[i]
-    p32 = caster.local(caster.offset_points(sc.vertices[rows], sc.normals[rows], eps,
-                                            on[rows])[0])
-    n32 = sc.normals[rows].astype(np.float32)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
     from scipy.sparse import coo_matrix
 
-    from ._kernels import add_visible, hemisphere_rays
+    from ._kernels import add_visible
 
     k = yw.shape[1]
 
     def work(span: tuple[int, int]):
         i0, i1 = span
-        cap = (i1 - i0) * samples
-        o = np.empty((cap, 3), np.float32)
-        d = np.empty((cap, 3), np.float32)
-        cw = np.empty(cap, np.float32)
-        vid = np.empty(cap, np.int64)
-        did = np.empty(cap, np.int64)
-        m = hemisphere_rays(p32[i0:i1], n32[i0:i1], dirs32, sid[i0:i1], o, d, cw, vid, did)
-        o, d, cw, vid, did = o[:m], d[:m], cw[:m], vid[:m], did[:m]
+        o, d, cw, vid, did = rays(i0, i1)
         proj = np.zeros((i1 - i0, k))
         if not gather:
             free = ~caster.occluded_local(o, d)

@@ -252,7 +252,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  dense_depth: int = DENSE_DEPTH, floor: float = FLOOR,
                  gather_tol: float | None = GATHER_TOL,
                  gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
-                 dense_new: bool = False, direction_sets: int = 1) -> Transfer:
+                 dense_new: bool = False, direction_sets: int = 1,
+                 final_gather: int = 0, final_gather_inner: int = 0) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -267,7 +268,10 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     :func:`transfer_jumps`; ``gather_tol``, ``gather_floor``, ``gather_gate``: the gather
     criterion (module doc, step 2b; ``gather_gate`` is :func:`gather_errors`' ``tol``;
     ``gather_tol=None``: off, as before issue 17's third run); ``direction_sets``: of the final
-    bake (:func:`~shprobe.prt.bake.bake`; the driving bakes keep one set). The returned transfer's
+    bake (:func:`~shprobe.prt.bake.bake`; the driving bakes keep one set); ``final_gather``: M
+    >= 1 rays per hit of a final gather at the dense vertices in the final bake
+    (:mod:`shprobe.prt.final_gather`; 0: none), ``final_gather_inner`` its third level
+    (:func:`~shprobe.prt.bake.bake`). The returned transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
@@ -304,12 +308,15 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     def dense_mask() -> NDArray[np.bool_]:
         return deep if dense_new else deep & (np.arange(len(deep)) < base.n_vertices)
 
+    fg = check_int(final_gather, 0, "final_gather")
+    fg_inner = check_int(final_gather_inner, 0, "final_gather_inner")
+
     def final(sc: Scene) -> Transfer:
         mask = dense_mask()
-        if factor > 1 and mask.any():
+        if (factor > 1 or fg) and mask.any():
             return bake(sc, samples=samples, refine=False, dense=mask,
                         dense_samples=factor * int(samples), direction_sets=direction_sets,
-                        **kw)
+                        final_gather=fg, final_gather_inner=fg_inner, **kw)
         return bake(sc, samples=samples, refine=False, direction_sets=direction_sets, **kw)
 
     for r in range(int(max_rounds) + 1):
@@ -334,7 +341,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         marked = over & (length > min_len) & refinable
         rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
-            if drive < samples or (factor > 1 and dense_mask().any()):
+            if drive < samples or ((factor > 1 or fg) and dense_mask().any()):
                 # the geometry is final: bake it with the full samples, the crevice dense
                 t0 = time.perf_counter()
                 t = final(sc)
@@ -358,7 +365,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
-        "dense_new": bool(dense_new),
+        "dense_new": bool(dense_new), "final_gather": fg, "final_gather_inner": fg_inner,
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
