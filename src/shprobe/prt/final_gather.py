@@ -12,8 +12,9 @@ several times the vertices) refinement remove it (docs/benchmarks.md, issue 17, 
 
 The final gather evaluates the previous layer *at the hit point x_h itself*, by a second level
 of M rays per hit, cosine-weighted about the hit's interpolated normal n_h (stratified √M × √M
-when M is a square), each hit its own random directions (a generator seeded by the bake's seed
-and the block, so a bake is reproducible and independent of the thread count), from the hit
+when M is a square), each hit its own random directions (a generator per gathering vertex,
+seeded by the bake's seed and the vertex's index, so a bake is reproducible and independent of
+the thread count and of how the vertices are split into blocks), from the hit
 point offset by the bake's one rule (:meth:`~shprobe.scene.raycast.RayCaster.offset_points`):
 
     Ê_0(x) = ρ(x)/M Σ_j V_j y(ω_j)                   (the shadowed transfer at x, LH §4),
@@ -52,19 +53,18 @@ from .scene import Scene
 __all__ = ["cosine_directions", "final_gather_layers"]
 
 
-def cosine_directions(normals: NDArray[np.float64], m: int, rng: np.random.Generator
+def cosine_directions(normals: NDArray[np.float64], u: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
     """(H, m, 3) unit directions about each of ``normals`` (H, 3), cosine-weighted (pdf
-    cos θ/π, Malley's method: uniform points on the disc lifted to the hemisphere), each row its
-    own random draw; stratified on a √m × √m grid of the unit square when m is a square."""
-    h = len(normals)
+    cos θ/π, Malley's method: uniform points on the disc lifted to the hemisphere) from uniform
+    samples ``u`` (H, m, 2) in [0, 1)²; stratified on a √m × √m grid of the unit square when m
+    is a square (each sample in its own cell)."""
+    m = u.shape[1]
     k = int(np.sqrt(m))
+    u1, u2 = u[..., 0], u[..., 1]
     if k * k == m:
         i, j = np.divmod(np.arange(m), k)
-        u1 = (i[None] + rng.random((h, m))) / k
-        u2 = (j[None] + rng.random((h, m))) / k
-    else:
-        u1, u2 = rng.random((h, m)), rng.random((h, m))
+        u1, u2 = (i[None] + u1) / k, (j[None] + u2) / k
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
     x, y, z = r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u1))
     a = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
@@ -86,7 +86,8 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
     where the fresh levels stop (T_0 also fixes K and C); ``rays``: M per hit; ``rays2`` > 0:
     a third level, that many rays from every second-level hit, so that the second bounce
     reads no stored value either (bounce b ≥ 3 then reads T_{b−3} at the third-level hits);
-    ``rng_seed``: of the fresh directions (default ``seed``)."""
+    ``rng_seed``: of the fresh directions (default ``seed``; each vertex its own generator,
+    seeded by it and its index)."""
     from scipy.sparse import coo_matrix
 
     from .bake import RAYS_PER_CHUNK, _ray_source
@@ -113,7 +114,7 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
         beta = np.stack([1.0 - u[h] - v[h], u[h], v[h]], 1).astype(np.float64)
         return owner[h], prim[h].astype(np.int64), beta, w[h], prim < 0
 
-    def gather(n, hits, m, rng, need_hits):
+    def gather(n, hits, m, gens, need_hits):
         """One fresh level from the points ``hits``: m cosine-weighted rays from each, offset
         by the bake's rule; returns Σ w ρ(x)/m y(ω) over the rays that escape, per owner
         (n, K, C), and the front hits of the rays (weights w ρ(x)/m)."""
@@ -124,7 +125,11 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
         nx /= np.linalg.norm(nx, axis=1, keepdims=True)
         wr = np.repeat(w * np.einsum("hi,hic->hc", beta, alb[corners]) / m, m, axis=0)
         origin = caster.local(caster.offset_points(x, nx, eps, face)[0])
-        d = cosine_directions(nx, m, rng).reshape(-1, 3)
+        # each gathering vertex draws from its own generator, in the order of its hits, so
+        # that the bake does not depend on how the vertices are split into blocks
+        per = np.bincount(owner, minlength=n)
+        u = np.concatenate([gens[i].random((c, m, 2)) for i, c in enumerate(per) if c])
+        d = cosine_directions(nx, u).reshape(-1, 3)
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         own = np.repeat(owner, m)
         nxt = front(np.repeat(origin, m, axis=0), d32, own, wr)
@@ -141,7 +146,8 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
     def work(span: tuple[int, int]) -> list[NDArray[np.float64]]:
         i0, i1 = span
         n = i1 - i0
-        rng = np.random.default_rng([seed if rng_seed is None else rng_seed, 0x17F, i0])
+        s0 = seed if rng_seed is None else rng_seed
+        gens = [np.random.default_rng([s0, 0x17F, int(r)]) for r in rows[i0:i1]]
         o, d, cw, vid, _ = vertex_rays(i0, i1)
         wcos = (cw.astype(np.float64) * (4.0 * np.pi / samples))[:, None]  # cos × solid angle
         hits = front(o, d, vid, wcos)[:4]
@@ -149,7 +155,7 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
         for lvl, m in enumerate(counts[:bounces]):  # bounce lvl+1: the direct light there
             if not len(hits[0]):
                 return out
-            out[lvl], hits = gather(n, hits, m, rng, need_hits=bounces > lvl + 1)
+            out[lvl], hits = gather(n, hits, m, gens, need_hits=bounces > lvl + 1)
         if bounces > len(counts) and len(hits[0]):  # later bounces: stored layers, interpolated
             owner, face, beta, w = hits
             r = np.repeat(owner, 3)
