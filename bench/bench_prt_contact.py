@@ -172,10 +172,13 @@ def main() -> None:
             ("default refinement, 256 direction sets",
              lambda: bake_refined(m, direction_sets=256, **kw)),
             ("default refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
-            ("default refinement + final gather (16)",
-             lambda: bake_refined(m, final_gather=16, **kw)),
-            ("default refinement + final gather (16, inner 2)",
-             lambda: bake_refined(m, final_gather=16, final_gather_inner=2, **kw))):
+            ("default refinement + final gather (16, near 3)",
+             lambda: bake_refined(m, final_gather=16, final_gather_near=3.0, **kw)),
+            ("default refinement + final gather (16, near 3), seed 1",
+             lambda: bake_refined(m, final_gather=16, final_gather_near=3.0,
+                                  **{**kw, "seed": 1})),
+            ("default refinement + final gather (64, near 3)",
+             lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw))):
         t0 = time.perf_counter()
         bakes[name] = fn()
         secs[name] = time.perf_counter() - t0

@@ -105,7 +105,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          mesh_albedo: Any = None, ground_albedo: Any = None,
          refine: bool | None = None, dense: Any = None,
          dense_samples: int | None = None, direction_sets: int = 1,
-         final_gather: int = 0, final_gather_inner: int = 0) -> Transfer:
+         final_gather: int = 0, final_gather_inner: int = 0,
+         final_gather_near: float | None = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
     scene: a mesh path, a trimesh object, a list of them, or a :class:`Scene`. albedo: one value
@@ -133,6 +134,12 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
     rather than shared (docs/benchmarks.md, issue 17 run 5: on the bunny it lowers the open
     vertices' error but not the contact's, so it is not the default).
+    final_gather: M >= 1 (interreflected, with ``dense``): the dense vertices' bounces read the
+    previous layer at each hit point by M fresh cosine-weighted rays instead of interpolating
+    it over the hit triangle (:mod:`shprobe.prt.final_gather`); final_gather_inner: M' rays of
+    a third level (the second bounce interpolates nothing either); final_gather_near: r, only
+    the hits closer than r × their triangle's longest edge are gathered so (None: all). Opt-in:
+    on the bunny it does not lower the worst contact error (docs/benchmarks.md, issue 17 run 7).
 
     Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
     is coloured) is the baked model, with transfer · L = exit radiance
@@ -140,6 +147,13 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     """
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
+    if final_gather_near is not None:
+        try:
+            final_gather_near = float(final_gather_near)
+        except (TypeError, ValueError):
+            final_gather_near = float("nan")
+        if not (np.isfinite(final_gather_near) and final_gather_near >= 0):
+            raise ShprobeError("final_gather_near must be a finite number >= 0 (or None)")
     if refine is None:
         refine = bool(ground) and mode != "unshadowed"
     if refine:
@@ -150,18 +164,21 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo,
                             direction_sets=direction_sets, final_gather=final_gather,
-                            final_gather_inner=final_gather_inner)
+                            final_gather_inner=final_gather_inner,
+                            final_gather_near=final_gather_near)
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
                  sets=check_int(direction_sets, 1, "direction_sets"),
                  final_gather=check_int(final_gather, 0, "final_gather"),
-                 final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"))[0]
+                 final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"),
+                 final_gather_near=final_gather_near)[0]
 
 
 def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: Any, seed: int,
           ground: bool, threads: int | None, progress: ProgressFn | None, mesh_albedo: Any,
           ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False,
-          sets: int = 1, final_gather: int = 0, final_gather_inner: int = 0
+          sets: int = 1, final_gather: int = 0, final_gather_inner: int = 0,
+          final_gather_near: float | None = None
           ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
     """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
     bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
@@ -209,12 +226,12 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
 
                 # the layers read at the final gather's second-level hits: T_0 … T_{B−2}
                 layers = [total]
-                for _ in range(bounces - 2):
+                for _ in range(bounces - (2 if final_gather_near is None else 1)):
                     layers.append(_gather(blocks, layers[-1], pmap) * rho)
                 fg_rows, fg_dirs = groups[-1]
                 fg = final_gather_layers(sc, caster, fg_rows, fg_dirs, seed, sets, lmax,
                                          bounces, layers, final_gather, pmap, wrap,
-                                         rays2=final_gather_inner)
+                                         rays2=final_gather_inner, near=final_gather_near)
             for b in wrap(range(1, bounces + 1), "bounces", bounces):
                 prev = _gather(blocks, prev, pmap) * rho
                 if fg is not None:  # the final gather's bounces at its vertices
@@ -231,7 +248,7 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
            if len(groups) > 1 else {}),
         **({"direction_sets": int(sets)} if sets > 1 else {}),
         **({"final_gather": {"rays": int(final_gather), "inner": int(final_gather_inner),
-                             "vertices": len(groups[-1][0])}}
+                             "near": final_gather_near, "vertices": len(groups[-1][0])}}
            if final_gather and bounces else {}),
         "scale": "transfer . L = exit radiance rho/pi * int L V max(0, n.w) dw (+ bounces)",
     }

@@ -32,6 +32,11 @@ classic final gather of photon mapping and irradiance caching, here on SH transf
 the transfer stays linear in the lighting). Every estimate is unbiased given the stored layers;
 its noise (M rays at each of the thousands of hits of a vertex) averages over the hits.
 
+With ``near`` = r only the hits closer to the vertex than r × their triangle's longest edge
+are gathered afresh — where the previous layer can vary across the triangle faster than the
+vertex's footprint there (a slot under an object); farther hits read every layer interpolated,
+as the bake does (their M-ray estimates would add noise and remove little bias).
+
 The vertices' own rays are the bake's (:func:`shprobe.prt.bake._ray_source`: the same
 directions, origins and rotations), so the final gather replaces exactly the bake's bounce
 terms at those vertices. Cost: about (hits of those vertices) × M rays — 2,569 bunny contact
@@ -78,7 +83,8 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
                         seed: int, sets: int, lmax: int, bounces: int,
                         layers: list[NDArray[np.float64]], rays: int,
                         pmap: Callable[..., Iterable[Any]], wrap: Any, rays2: int = 0,
-                        rng_seed: int | None = None) -> list[NDArray[np.float64]]:
+                        rng_seed: int | None = None, near: float | None = None
+                        ) -> list[NDArray[np.float64]]:
     """The bounce increments 1..``bounces`` at the vertices ``rows`` by final gather (module
     doc), *without* the gathering vertex's own ρ_v/π: Σ_h w_h Ê_{b−1}(x_h), as (len(rows), K, C)
     arrays. ``samples``, ``seed``, ``sets``: the rows' own bake directions; ``layers``: the
@@ -87,7 +93,9 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
     a third level, that many rays from every second-level hit, so that the second bounce
     reads no stored value either (bounce b ≥ 3 then reads T_{b−3} at the third-level hits);
     ``rng_seed``: of the fresh directions (default ``seed``; each vertex its own generator,
-    seeded by it and its index)."""
+    seeded by it and its index); ``near``: final-gather only the hits closer than ``near`` ×
+    their triangle's longest edge (module doc; None: every hit), the others interpolated
+    (then ``layers`` holds T_0 … T_{B−1})."""
     from scipy.sparse import coo_matrix
 
     from .bake import RAYS_PER_CHUNK, _ray_source
@@ -99,6 +107,8 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
     fn32 = fn.astype(np.float32)
     faces = sc.faces
     alb = sc.albedo[:, :ch]
+    fv = sc.vertices[faces]
+    edge = np.linalg.norm(fv - np.roll(fv, 1, axis=1), axis=2).max(1)
     counts = [rays] + ([rays2] if rays2 > 0 else [])  # rays per point of each fresh level
     # vertices per block: ~RAYS_PER_CHUNK fresh rays (about a quarter of the upward rays hit)
     per_vertex = samples // 8 * rays * (1 + (rays2 // 2 if rays2 > 0 else 0))
@@ -152,10 +162,29 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
         wcos = (cw.astype(np.float64) * (4.0 * np.pi / samples))[:, None]  # cos × solid angle
         hits = front(o, d, vid, wcos)[:4]
         out = [np.zeros((n, k, ch)) for _ in range(bounces)]
+        if near is not None and len(hits[0]):
+            # only hits closer than ``near`` × their triangle's longest edge are gathered
+            # afresh; the others read every layer interpolated, as the bake does
+            owner, face, beta, w = hits
+            x = np.einsum("hi,hij->hj", beta, sc.vertices[faces[face]])
+            org = o[np.searchsorted(vid, owner)]  # the vertex's origin (rays grouped by vertex)
+            dist = np.linalg.norm(caster.local(x) - org, axis=1) / caster.scale
+            close = dist < near * edge[face]
+            fo = ~close
+            if fo.any():
+                r = np.repeat(owner[fo], 3)
+                cols = faces[face[fo]].ravel()
+                for c in range(ch):
+                    g = coo_matrix(((beta[fo] * w[fo, c:c + 1]).ravel(), (r, cols)),
+                                   shape=(n, sc.n_vertices)).tocsr()
+                    for b in range(bounces):
+                        out[b][:, :, c] += g @ layers[b][:, :, c]
+            hits = (owner[close], face[close], beta[close], w[close])
         for lvl, m in enumerate(counts[:bounces]):  # bounce lvl+1: the direct light there
             if not len(hits[0]):
                 return out
-            out[lvl], hits = gather(n, hits, m, gens, need_hits=bounces > lvl + 1)
+            part, hits = gather(n, hits, m, gens, need_hits=bounces > lvl + 1)
+            out[lvl] += part
         if bounces > len(counts) and len(hits[0]):  # later bounces: stored layers, interpolated
             owner, face, beta, w = hits
             r = np.repeat(owner, 3)
@@ -164,7 +193,7 @@ def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], s
                 g = coo_matrix(((beta * w[:, c:c + 1]).ravel(), (r, cols)),
                                shape=(n, sc.n_vertices)).tocsr()
                 for b in range(len(counts), bounces):
-                    out[b][:, :, c] = g @ layers[b - len(counts)][:, :, c]
+                    out[b][:, :, c] += g @ layers[b - len(counts)][:, :, c]
         return out
 
     res = [np.zeros((len(rows), k, ch)) for _ in range(bounces)]

@@ -253,7 +253,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  gather_tol: float | None = GATHER_TOL,
                  gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
                  dense_new: bool = False, direction_sets: int = 1,
-                 final_gather: int = 0, final_gather_inner: int = 0) -> Transfer:
+                 final_gather: int = 0, final_gather_inner: int = 0,
+                 final_gather_near: float | None = None) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -270,8 +271,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     ``gather_tol=None``: off, as before issue 17's third run); ``direction_sets``: of the final
     bake (:func:`~shprobe.prt.bake.bake`; the driving bakes keep one set); ``final_gather``: M
     >= 1 rays per hit of a final gather at the dense vertices in the final bake
-    (:mod:`shprobe.prt.final_gather`; 0: none), ``final_gather_inner`` its third level
-    (:func:`~shprobe.prt.bake.bake`). The returned transfer's
+    (:mod:`shprobe.prt.final_gather`; 0: none), ``final_gather_inner`` its third level and
+    ``final_gather_near`` the hits it takes (:func:`~shprobe.prt.bake.bake`). The returned
+    transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
@@ -316,7 +318,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         if (factor > 1 or fg) and mask.any():
             return bake(sc, samples=samples, refine=False, dense=mask,
                         dense_samples=factor * int(samples), direction_sets=direction_sets,
-                        final_gather=fg, final_gather_inner=fg_inner, **kw)
+                        final_gather=fg, final_gather_inner=fg_inner,
+                        final_gather_near=final_gather_near, **kw)
         return bake(sc, samples=samples, refine=False, direction_sets=direction_sets, **kw)
 
     for r in range(int(max_rounds) + 1):
@@ -366,6 +369,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
         "dense_new": bool(dense_new), "final_gather": fg, "final_gather_inner": fg_inner,
+        "final_gather_near": final_gather_near,
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
