@@ -23,10 +23,11 @@ difference gives the reference's own noise; contact vertices get 4× the far ver
 with seeds 0 and 1; both are scored (the verdict of one seed is one draw of the contact's
 quadrature error). "256 direction sets": the default refinement whose final bake gives each
 vertex one of 256 rotated copies of the direction set (``bake(direction_sets=…)``, issue 17
-run 5: neighbours' quadrature errors independent rather than shared). "final gather": the default
-refinement whose final bake evaluates the previous layer at each hit of the input's contact
-vertices by 16 fresh rays (``final_gather=16``; "+ inner 2": and the second bounce by 2 more
-rays from each of those rays' hits, ``final_gather_inner=2``; issue 17 run 6).
+run 5: neighbours' quadrature errors independent rather than shared). "final gather (M, near
+3)": the default refinement whose final bake evaluates the previous layer at the hits of the
+input's contact vertices closer than 3 × their triangle's longest edge by M fresh rays
+(``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
+with and without ``final_gather_inner=2``).
 Then the worst contact vertices of the default, the seed-1 bake and the final-gather bakes are
 re-checked with precise references (:func:`precise`, shared between the bakes) until the worst
 error is one measured against them: at a vertex lit through a slot the bench's own reference is
