@@ -29,8 +29,9 @@ input's contact vertices closer than 3 × their triangle's longest edge by M fre
 (``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
 with and without ``final_gather_inner=2``).
 Then the worst contact vertices of the default, the seed-1 bake and the final-gather bakes are
-re-checked with precise references (:func:`precise`, shared between the bakes) until the worst
-error is one measured against them: at a vertex lit through a slot the bench's own reference is
+re-checked with precise references (:func:`precise`, shared between the bakes; two seeds, up
+to eight while their standard error exceeds a third of the error) until the worst error is one
+measured against them: at a vertex lit through a slot the bench's own reference is
 heavy-tailed and two seeds do not show it (issue 17 run 4).
 """
 
@@ -96,8 +97,17 @@ def precise(v, f, n, alb, idx, seed):
     return np.array(out).T
 
 
+SEEDS = 8  # most precise references per re-checked vertex
+
+
+def _noise(r):
+    """Standard error of the mean of the references ``r`` (one per seed)."""
+    return float(np.std(r, ddof=1) / np.sqrt(len(r)))
+
+
 def recheck(v, f, n, alb, idx, b, ref, ok, far_median, most=8, cache=None):
-    """Re-check the worst contact vertices with :func:`precise` references (two seeds) until
+    """Re-check the worst contact vertices with :func:`precise` references (two seeds, more —
+    up to ``SEEDS`` — while their standard error exceeds a third of the error) until
     the worst error is one measured against them (at most ``most`` vertices): the largest of
     40 noisy errors is where the bench's own reference noise is most likely to sit. Returns
     {k: [(vertex, error vs the bench's reference, error vs precise, precise noise)]} and the
@@ -121,8 +131,12 @@ def recheck(v, f, n, alb, idx, b, ref, ok, far_median, most=8, cache=None):
                 cache[j] = np.stack([precise(v, f, n, alb, idx[j:j + 1], s)[:, 0]
                                      for s in (11, 12)])
             r = cache[j][:, k - 1]
-            checked[j] = (abs(b[k - 1][j] - r.mean()) / r.mean(),
-                          abs(r[0] - r[1]) / r.mean() / 2)
+            # more seeds while the reference's noise could hide the error (up to SEEDS)
+            while len(r) < SEEDS and _noise(r) > abs(b[k - 1][j] - r.mean()) / 3:
+                more = precise(v, f, n, alb, idx[j:j + 1], 11 + len(r))[:, 0]
+                cache[j] = np.vstack([cache[j], more])
+                r = cache[j][:, k - 1]
+            checked[j] = (abs(b[k - 1][j] - r.mean()) / r.mean(), _noise(r) / r.mean())
         for j, (ep, _) in checked.items():
             e[j] = ep
         out[k] = [(int(idx[j]), float(abs(b[k - 1][j] - ref[k - 1][j]) / ref[k - 1][j]), ep,
@@ -262,6 +276,7 @@ def main() -> None:
             print("  - " + s)
     idx, bk, ref, _ = contact[2]
     cache: dict[int, np.ndarray] = {}
+    pos = {int(x): j for j, x in enumerate(idx)}
     for name in [x for x in names if x == "default refinement" or "seed 1" in x
                  or "final gather" in x]:
         t0 = time.perf_counter()
@@ -270,13 +285,13 @@ def main() -> None:
                                  {k: np.median(res["far", k][name]) for k in (1, 2)},
                                  cache=cache)
         print(f"\nre-check of the worst contact vertices, {name} (precise references: B1 "
-              f"(16384, 256), B2 2 × (4096, 64, 16), two seeds; {time.perf_counter() - t0:.0f} "
-              "s):")
+              f"(16384, 256), B2 2 × (4096, 64, 16), 2–{SEEDS} seeds; "
+              f"{time.perf_counter() - t0:.0f} s):")
         for k in (1, 2):
             for vid, e0, ep, noise in checked[k]:
                 print(f"  - {k} bounce(s) v{vid}: error {100 * e0:.2f} % vs the bench's "
                       f"reference, {100 * ep:.2f} % vs the precise one (its noise "
-                      f"{100 * noise:.2f} %)")
+                      f"{100 * noise:.2f} %, {len(cache[pos[vid]])} seeds)")
             print(f"  {k} bounce(s): worst contact / median far error after the re-check: "
                   f"{worst[k]:.1f}× (target ≤ 3×)")
     print("\nleft out (B_ref ≤ 2 % of the far median):")
