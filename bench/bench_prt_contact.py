@@ -27,7 +27,8 @@ run 5: neighbours' quadrature errors independent rather than shared). "final gat
 3)": the default refinement whose final bake evaluates the previous layer at the hits of the
 input's contact vertices closer than 3 × their triangle's longest edge by M fresh rays
 (``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
-with and without ``final_gather_inner=2``).
+with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="fine")``
+(:data:`shprobe.prt.refine.FINE_CONTACT`, issue 17 run 8), seeds 0 and 1.
 Then the worst contact vertices of the default, the seed-1 bake and the final-gather bakes are
 re-checked with precise references (:func:`precise`, shared between the bakes; two seeds, up
 to eight while their standard error exceeds a third of the error) until the worst error is one
@@ -105,7 +106,7 @@ def _noise(r):
     return float(np.std(r, ddof=1) / np.sqrt(len(r)))
 
 
-def recheck(v, f, n, alb, idx, b, ref, ok, far_median, most=8, cache=None):
+def recheck(v, f, n, alb, idx, b, ref, ok, far_median, most=16, cache=None):
     """Re-check the worst contact vertices with :func:`precise` references (two seeds, more —
     up to ``SEEDS`` — while their standard error exceeds a third of the error) until
     the worst error is one measured against them (at most ``most`` vertices): the largest of
@@ -193,7 +194,10 @@ def main() -> None:
              lambda: bake_refined(m, final_gather=16, final_gather_near=3.0,
                                   **{**kw, "seed": 1})),
             ("default refinement + final gather (64, near 3)",
-             lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw))):
+             lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw)),
+            ("fine contact", lambda: bake(m, ground=True, refine="fine", **kw)),
+            ("fine contact, seed 1",
+             lambda: bake(m, ground=True, refine="fine", **{**kw, "seed": 1}))):
         t0 = time.perf_counter()
         bakes[name] = fn()
         secs[name] = time.perf_counter() - t0
@@ -278,7 +282,7 @@ def main() -> None:
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
     for name in [x for x in names if x == "default refinement" or "seed 1" in x
-                 or "final gather" in x]:
+                 or "final gather" in x or "fine" in x]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,
                                  {k: contact[k][3] for k in (1, 2)},

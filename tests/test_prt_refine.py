@@ -470,3 +470,43 @@ def test_final_gather_inner_level_reads_no_stored_value_in_the_second_bounce():
         f"{k} {100 * x:+.1f} %" for k, x in e.items()))
     assert e["plain"] > 0.3 and e["one"] > 0.3
     assert abs(e["two"]) < 0.05
+
+
+def test_fine_contact_preset_refines_further_and_records_its_settings(tmp_path, capsys):
+    """bake(refine="fine") = bake_refined(**FINE_CONTACT) (issue 17 run 8): edges down to 1e-4
+    of the diagonal, the noise gate at 0.05, the dense directions at the new vertices too —
+    more vertices and more dense ones than the default, the settings in the metadata, the
+    CLI's --fine-contact the same bake; a bad ``refine`` or --no-refine with it is refused."""
+    from shprobe.cli.main import main
+    from shprobe.prt.refine import FINE_CONTACT
+
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    p = tmp_path / "s.obj"
+    m.export(p)
+    kw = dict(mode="interreflected", lmax=1, samples=512, bounces=1, ground=True)
+    default = bake(str(p), **kw)
+    fine = bake(str(p), refine="fine", **kw)
+    rd, rf = default.metadata["refine"], fine.metadata["refine"]
+    diag = float(np.linalg.norm(np.ptp(load_scene(str(p), ground=True).vertices, axis=0)))
+    assert rf["min_edge"] == pytest.approx(FINE_CONTACT["min_edge_fraction"] * diag)
+    assert rd["min_edge"] == pytest.approx(2e-4 * diag)
+    assert (rf["gather_gate"], rf["gather_tol"], rf["max_rounds"], rf["dense_new"]) == (
+        0.05, 0.01, 10, True)
+    assert (rd["gather_gate"], rd["gather_tol"], rd["max_rounds"], rd["dense_new"]) == (
+        0.25, 0.03, 8, False)
+    assert fine.n_vertices > default.n_vertices
+    assert rf["dense_vertices"] > rd["dense_vertices"]
+    assert rf["dense_vertices"] > 42  # new vertices among them, not only the input's
+    out = tmp_path / "f.npz"
+    assert main(["prt", "bake", str(p), "--ground", "--mode", "interreflected", "--lmax", "1",
+                 "--samples", "512", "--bounces", "1", "--fine-contact", "-o", str(out)]) == 0
+    t = load_transfer(out)
+    np.testing.assert_array_equal(t.vertices, fine.vertices)
+    np.testing.assert_allclose(t.transfer, fine.transfer, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ShprobeError, match="refine must be"):
+        bake(str(p), refine="coarse", **kw)
+    capsys.readouterr()
+    assert main(["prt", "bake", str(p), "--ground", "--fine-contact", "--no-refine", "-o",
+                 str(tmp_path / "x.npz")]) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("shprobe: error:") and "--no-refine" in err and "\n" not in err

@@ -106,11 +106,15 @@ def register(group: click.Group) -> None:
                   help="Subdivide the scene where the transfer varies fast (contacts, "
                        "occluders) and re-bake there; default: on for shadowed and "
                        "interreflected bakes with --ground.")
+    @click.option("--fine-contact", is_flag=True,
+                  help="Refine harder where objects touch (implies --refine): on the bunny "
+                       "the 2-bounce contact error falls to ~3x the noise elsewhere (5x by "
+                       "default), at 4x the vertices and ~17x the bake time.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option
     def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, ground_albedo, seed,
-                 threads, refine, output, force):
+                 threads, refine, fine_contact, output, force):
         """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes).
 
         One bake serves every model up to --mode: a shadowed bake can also be rendered
@@ -121,6 +125,10 @@ def register(group: click.Group) -> None:
         from .common import progress
 
         check_output_path(output, force)
+        if fine_contact:
+            if refine is False:
+                raise ShprobeError("--fine-contact refines; it cannot go with --no-refine")
+            refine = "fine"
         kw = albedo_arguments(albedo, len(scene))
         t0 = time.perf_counter()
         t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,

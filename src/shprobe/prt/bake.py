@@ -103,7 +103,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
          threads: int | None = None, progress: ProgressFn | None = None, *,
          mesh_albedo: Any = None, ground_albedo: Any = None,
-         refine: bool | None = None, dense: Any = None,
+         refine: bool | str | None = None, dense: Any = None,
          dense_samples: int | None = None, direction_sets: int = 1,
          final_gather: int = 0, final_gather_inner: int = 0,
          final_gather_near: float | None = None) -> Transfer:
@@ -123,7 +123,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     :func:`shprobe.cli.common.progress`).
 
     refine: adaptive refinement of the scene where the transfer varies fast
-    (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground.
+    (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
+    ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (the contact right at 2 bounces
+    too, at ~17× the time: docs/benchmarks.md, issue 17 run 8).
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
     directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
     intricate and the light is dim, as in a crevice, so that the quadrature noise relative to
@@ -156,8 +158,10 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
             raise ShprobeError("final_gather_near must be a finite number >= 0 (or None)")
     if refine is None:
         refine = bool(ground) and mode != "unshadowed"
+    if not (isinstance(refine, bool) or refine == "fine"):
+        raise ShprobeError(f"refine must be True, False, None or 'fine', got {refine!r}")
     if refine:
-        from .refine import bake_refined
+        from .refine import FINE_CONTACT, bake_refined
 
         if dense is not None:
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
@@ -165,7 +169,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo,
                             direction_sets=direction_sets, final_gather=final_gather,
                             final_gather_inner=final_gather_inner,
-                            final_gather_near=final_gather_near)
+                            final_gather_near=final_gather_near,
+                            **(FINE_CONTACT if refine == "fine" else {}))
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
                  sets=check_int(direction_sets, 1, "direction_sets"),

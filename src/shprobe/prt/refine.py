@@ -80,7 +80,8 @@ from .bake import _bake, bake
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
-__all__ = ["GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined", "gather_errors",
+__all__ = ["FINE_CONTACT", "GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined",
+           "gather_errors",
            "gather_importance", "split_edges", "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
@@ -106,6 +107,17 @@ GATHER_TOL = 0.03
 #: bright (the relative error of a black vertex is meaningless; the bench scores vertices above
 #: 2 % of the far vertices' median).
 GATHER_FLOOR = 0.02
+#: Settings of ``bake(..., refine="fine")`` (``shprobe prt bake --fine-contact``): a noise gate
+#: of 0.05, gather tolerance 0.01, edges down to 1e-4 of the diagonal, up to 10 rounds, and the
+#: dense directions at the new contact vertices too (the slot-lit underside's shared
+#: quadrature error, read twice by the crevice, goes with them). On the bunny, seeds 0 / 1:
+#: the crevice within ±0.1 % with 2 bounces (default −0.1 … −0.37 %); worst contact error
+#: 0.75× / 2.8× the open vertices' median with 1 bounce (default 2.5× / 4.3×), 3.3× / 13×
+#: with 2 (default 5.2× / 5.6×: the dim ground vertex under the belly, its own direct through
+#: the slot noisy either way), at 3–4× the vertices and ~17× the bake time
+#: (docs/benchmarks.md, issue 17 run 8).
+FINE_CONTACT: dict[str, Any] = {"gather_gate": 0.05, "gather_tol": 0.01,
+                                "min_edge_fraction": 1e-4, "max_rounds": 10, "dense_new": True}
 
 
 @dataclass(frozen=True)
@@ -254,11 +266,13 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
                  dense_new: bool = False, direction_sets: int = 1,
                  final_gather: int = 0, final_gather_inner: int = 0,
-                 final_gather_near: float | None = None) -> Transfer:
+                 final_gather_near: float | None = None,
+                 min_edge_fraction: float = MIN_EDGE_FRACTION) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
-    2e-4 × the scene's diagonal; the gap under the bunny's belly is ~8e-4 of it) stops
+    ``min_edge_fraction`` (2e-4) × the scene's diagonal; the gap under the bunny's belly is
+    ~8e-4 of it) stops
     splitting; ``max_rounds`` bounds the re-bakes;
     ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
     least 64): directions of the bakes that only decide where to split — the final geometry is
@@ -290,7 +304,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     sc = base
     raw = base.normals  # the input surface's interpolated normals, unnormalised (_split)
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
-    min_len = MIN_EDGE_FRACTION * diag if min_edge is None else float(min_edge)
+    if not (np.isfinite(min_edge_fraction) and min_edge_fraction > 0):
+        raise ShprobeError(f"min_edge_fraction must be > 0, got {min_edge_fraction}")
+    min_len = float(min_edge_fraction) * diag if min_edge is None else float(min_edge)
     is_ground = np.arange(sc.n_vertices) >= n_mesh
     rounds: list[RefineRound] = []
     kw = dict(mode=mode, lmax=lmax, bounces=bounces, seed=seed, threads=threads,
@@ -365,7 +381,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         sc = new
     meta = dict(t.metadata)
     meta["refine"] = {
-        "tol": float(tol), "min_edge": min_len, "refine_mesh": bool(refine_mesh),
+        "tol": float(tol), "min_edge": min_len, "max_rounds": int(max_rounds),
+        "gather_gate": float(gather_gate), "refine_mesh": bool(refine_mesh),
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
         "dense_new": bool(dense_new), "final_gather": fg, "final_gather_inner": fg_inner,
