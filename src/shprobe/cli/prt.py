@@ -108,8 +108,8 @@ def register(group: click.Group) -> None:
                        "interreflected bakes with --ground.")
     @click.option("--fine-contact", is_flag=True,
                   help="Refine harder where objects touch (implies --refine): on the bunny "
-                       "the 2-bounce contact error falls to ~3x the noise elsewhere (5x by "
-                       "default), at 4x the vertices and ~17x the bake time.")
+                       "the crevice's 2-bounce error falls from ~0.36 % to ~0.1 %, at 3-4x "
+                       "the vertices and ~17x the bake time.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option

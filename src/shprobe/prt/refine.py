@@ -69,7 +69,9 @@ deterministic.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -81,8 +83,7 @@ from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
 __all__ = ["FINE_CONTACT", "GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined",
-           "gather_errors",
-           "gather_importance", "split_edges", "transfer_jumps"]
+           "gather_errors", "gather_importance", "split_edges", "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
@@ -116,8 +117,9 @@ GATHER_FLOOR = 0.02
 #: with 2 (default 5.2× / 5.6×: the dim ground vertex under the belly, its own direct through
 #: the slot noisy either way), at 3–4× the vertices and ~17× the bake time
 #: (docs/benchmarks.md, issue 17 run 8).
-FINE_CONTACT: dict[str, Any] = {"gather_gate": 0.05, "gather_tol": 0.01,
-                                "min_edge_fraction": 1e-4, "max_rounds": 10, "dense_new": True}
+FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
+    "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
+    "dense_new": True})
 
 
 @dataclass(frozen=True)
