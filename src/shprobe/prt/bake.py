@@ -158,6 +158,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
             raise ShprobeError("final_gather_near must be a finite number >= 0 (or None)")
     if refine is None:
         refine = bool(ground) and mode != "unshadowed"
+    if isinstance(refine, np.bool_):
+        refine = bool(refine)
     if not (isinstance(refine, bool) or refine == "fine"):
         raise ShprobeError(f"refine must be True, False, None or 'fine', got {refine!r}")
     if refine:
