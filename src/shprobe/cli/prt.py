@@ -109,7 +109,7 @@ def register(group: click.Group) -> None:
     @click.option("--fine-contact", is_flag=True,
                   help="Refine harder where objects touch (implies --refine): on the bunny "
                        "the crevice's 2-bounce error falls from ~0.36 % to ~0.1 %, at 3-4x "
-                       "the vertices and ~17x the bake time.")
+                       "the vertices and 13-17x the bake time.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option

@@ -125,7 +125,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     refine: adaptive refinement of the scene where the transfer varies fast
     (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
     ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (on the bunny the crevice within
-    ±0.1 % at 2 bounces, at ~17× the time: docs/benchmarks.md, issue 17 run 8).
+    ±0.1 % at 2 bounces, at 13–17× the time: docs/benchmarks.md, issue 17 run 8).
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
     directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
     intricate and the light is dim, as in a crevice, so that the quadrature noise relative to

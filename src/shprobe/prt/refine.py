@@ -115,7 +115,7 @@ GATHER_FLOOR = 0.02
 #: the crevice within ±0.1 % with 2 bounces (default −0.1 … −0.37 %); worst contact error
 #: 0.75× / 2.8× the open vertices' median with 1 bounce (default 2.5× / 4.3×), 3.3× / 13×
 #: with 2 (default 5.2× / 5.6×: the dim ground vertex under the belly, its own direct through
-#: the slot noisy either way), at 3–4× the vertices and ~17× the bake time
+#: the slot noisy either way), at 3–4× the vertices and 13–17× the bake time
 #: (docs/benchmarks.md, issue 17 run 8).
 FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
