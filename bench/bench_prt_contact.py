@@ -9,7 +9,7 @@ origins come from the library's one offset rule) under band-limited lighting (lm
 lmax 2 is exact up to noise).
 
     PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
-        [--n-contact 40] [--n-far 30] [--rays 4096] [--timing N]
+        [--n-contact 40] [--n-far 30] [--rays 4096] [--timing N] [--only NAME ...]
 
 Vertices: the original scene's (the refinement keeps them, with their indices): "contact" =
 within 8 % of the object's size of its lowest 3 %, "far" = beyond 30 % (random subsets).
@@ -101,6 +101,12 @@ def precise(v, f, n, alb, idx, seed):
 SEEDS = 8  # most precise references per re-checked vertex
 
 
+def _pct(x: float) -> str:
+    """x as a percentage; "—" where it could not be measured (NaN: the bake noise without both
+    seeds' default bakes, under --only)."""
+    return "—" if np.isnan(x) else f"{100 * x:.2f} %"
+
+
 def _noise(r):
     """Standard error of the mean of the references ``r`` (one per seed)."""
     return float(np.std(r, ddof=1) / np.sqrt(len(r)))
@@ -153,6 +159,9 @@ def main() -> None:
     ap.add_argument("--n-contact", type=int, default=40)
     ap.add_argument("--n-far", type=int, default=30)
     ap.add_argument("--rays", type=int, default=4096, help="far vertices' outer rays")
+    ap.add_argument("--only", action="append", default=[], metavar="NAME",
+                    help="bake only the rows of this exact name (repeatable; the uniform "
+                         "ground, whose vertices are scored, always runs)")
     ap.add_argument("--timing", type=int, default=0,
                     help="only time the run-2 and the default refinement, alternately, N times")
     a = ap.parse_args()
@@ -177,7 +186,7 @@ def main() -> None:
         print("\n" + machine().split(", load")[1].join(["end: load", ""]))
         return
     bakes, secs = {}, {}
-    for name, fn in (
+    rows = (
             ("uniform 64×64 ground", lambda: bake(m, ground=True, refine=False, **kw)),
             ("run-2 default (no gather criterion, 4× at depth 3)",
              lambda: bake_refined(m, gather_tol=None, dense_factor=4, dense_depth=3,
@@ -197,7 +206,13 @@ def main() -> None:
              lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw)),
             ("fine contact", lambda: bake(m, ground=True, refine="fine", **kw)),
             ("fine contact, seed 1",
-             lambda: bake(m, ground=True, refine="fine", **{**kw, "seed": 1}))):
+             lambda: bake(m, ground=True, refine="fine", **{**kw, "seed": 1})))
+    unknown = set(a.only) - {name for name, _ in rows}
+    if unknown:
+        ap.error(f"--only: no row named {sorted(unknown)[0]!r}")
+    for name, fn in rows:
+        if a.only and name not in a.only and name != rows[0][0]:
+            continue
         t0 = time.perf_counter()
         bakes[name] = fn()
         secs[name] = time.perf_counter() - t0
@@ -225,6 +240,8 @@ def main() -> None:
     print(f"\nreference rays per vertex (outer, inner...): far B1 ({a.rays}, 64), B2 "
           f"({a.rays // 4}, 16, 16); contact 4× the outer rays; bake {a.samples} directions\n")
     names = list(bakes)
+    # the bake whose worst and left-out vertices are listed: the default when it was baked
+    main = "default refinement" if "default refinement" in bakes else names[-1]
     print("| vertices | model | scored | ref noise (median / max) | bake noise (median / max) | "
           + " | ".join(f"{k}: max / median" for k in names) + " |")
     print("|---" * (5 + len(names)) + "|")
@@ -242,18 +259,21 @@ def main() -> None:
             rk = ref[k - 1]
             ok = rk > floor[k]
             rn = np.abs(refs[0, k - 1] - refs[1, k - 1])[ok] / rk[ok] / 2
-            b0, b1 = b["default refinement"][k - 1], b["default refinement, seed 1"][k - 1]
-            bn = np.abs(b0 - b1)[ok] / rk[ok] / np.sqrt(2)
+            if {"default refinement", "default refinement, seed 1"} <= set(b):
+                b0, b1 = b["default refinement"][k - 1], b["default refinement, seed 1"][k - 1]
+                bn = np.abs(b0 - b1)[ok] / rk[ok] / np.sqrt(2)
+            else:  # the two seeds not both baked (--only)
+                bn = np.full(int(ok.sum()), np.nan)
             errs = {nm_: np.abs(b[nm_][k - 1] - rk)[ok] / rk[ok] for nm_ in names}
             res[name, k] = errs
             print(f"| {name} | {k} bounce{'s' if k > 1 else ''} | {ok.sum()} of {len(idx)} | "
                   f"{100 * np.median(rn):.2f} / {100 * rn.max():.2f} % | "
-                  f"{100 * np.median(bn):.2f} / {100 * bn.max():.2f} % | " + " | ".join(
+                  f"{_pct(np.median(bn))} / {_pct(bn.max())} | " + " | ".join(
                       f"{100 * e.max():.2f} / {100 * np.median(e):.2f} %" for e in errs.values())
                   + " |")
             if name == "contact":
                 contact[k] = (idx, b, ref, ok)
-                e = errs["default refinement"]
+                e = errs[main]
                 w = np.argsort(-e)[:3]
                 for j in w:
                     vid = idx[ok][j]
@@ -262,10 +282,10 @@ def main() -> None:
                         f"{(v[vid, 1] - ymin) / size:.4f} of the size above the ground, "
                         f"B_ref {rk[ok][j] / (floor[k] / FLOOR):.3f} × far median): error "
                         f"{100 * e[j]:.2f} %, ref noise {100 * rn[j]:.2f} %, bake noise "
-                        f"{100 * bn[j]:.2f} %")
+                        f"{_pct(bn[j])}")
                 med = floor[k] / FLOOR
                 for j in np.flatnonzero(~ok):
-                    err = abs(b["default refinement"][k - 1][j] - rk[j]) / med
+                    err = abs(b[main][k - 1][j] - rk[j]) / med
                     left_out.append(f"{k} bounce(s) v{idx[j]}: B_ref = {rk[j] / med:.4f} × far "
                                     f"median, |error| = {err:.5f} × far median")
         print(f"<!-- {name}: reference {tref:.0f} s -->", flush=True)
@@ -275,13 +295,13 @@ def main() -> None:
             f"{nm_} {res['contact', k][nm_].max() / np.median(res['far', k][nm_]):.1f}×"
             for nm_ in names) + " (target ≤ 3×)")
     for k in (1, 2):
-        print(f"\nworst contact vertices, default refinement, {k} bounce(s):")
+        print(f"\nworst contact vertices, {main}, {k} bounce(s):")
         for s in res["worst", k]:
             print("  - " + s)
     idx, bk, ref, _ = contact[2]
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
-    for name in [x for x in names if x == "default refinement" or "seed 1" in x
+    for name in [x for x in names if x == main or "seed 1" in x
                  or "final gather" in x or "fine" in x]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,
