@@ -241,7 +241,7 @@ def main() -> None:
           f"({a.rays // 4}, 16, 16); contact 4× the outer rays; bake {a.samples} directions\n")
     names = list(bakes)
     # the bake whose worst and left-out vertices are listed: the default when it was baked
-    main = "default refinement" if "default refinement" in bakes else names[-1]
+    lead = "default refinement" if "default refinement" in bakes else names[-1]
     print("| vertices | model | scored | ref noise (median / max) | bake noise (median / max) | "
           + " | ".join(f"{k}: max / median" for k in names) + " |")
     print("|---" * (5 + len(names)) + "|")
@@ -273,7 +273,7 @@ def main() -> None:
                   + " |")
             if name == "contact":
                 contact[k] = (idx, b, ref, ok)
-                e = errs[main]
+                e = errs[lead]
                 w = np.argsort(-e)[:3]
                 for j in w:
                     vid = idx[ok][j]
@@ -285,7 +285,7 @@ def main() -> None:
                         f"{_pct(bn[j])}")
                 med = floor[k] / FLOOR
                 for j in np.flatnonzero(~ok):
-                    err = abs(b[main][k - 1][j] - rk[j]) / med
+                    err = abs(b[lead][k - 1][j] - rk[j]) / med
                     left_out.append(f"{k} bounce(s) v{idx[j]}: B_ref = {rk[j] / med:.4f} × far "
                                     f"median, |error| = {err:.5f} × far median")
         print(f"<!-- {name}: reference {tref:.0f} s -->", flush=True)
@@ -295,13 +295,13 @@ def main() -> None:
             f"{nm_} {res['contact', k][nm_].max() / np.median(res['far', k][nm_]):.1f}×"
             for nm_ in names) + " (target ≤ 3×)")
     for k in (1, 2):
-        print(f"\nworst contact vertices, {main}, {k} bounce(s):")
+        print(f"\nworst contact vertices, {lead}, {k} bounce(s):")
         for s in res["worst", k]:
             print("  - " + s)
     idx, bk, ref, _ = contact[2]
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
-    for name in [x for x in names if x == main or "seed 1" in x
+    for name in [x for x in names if x == lead or "seed 1" in x
                  or "final gather" in x or "fine" in x]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,

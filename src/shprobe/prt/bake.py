@@ -160,7 +160,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         refine = bool(ground) and mode != "unshadowed"
     if isinstance(refine, np.bool_):
         refine = bool(refine)
-    if not (isinstance(refine, bool) or refine == "fine"):
+    if not (isinstance(refine, bool) or (isinstance(refine, str) and refine == "fine")):
         raise ShprobeError(f"refine must be True, False, None or 'fine', got {refine!r}")
     if refine:
         from .refine import FINE_CONTACT, bake_refined

@@ -114,9 +114,9 @@ GATHER_FLOOR = 0.02
 #: quadrature error, read twice by the crevice, goes with them). On the bunny, seeds 0 / 1:
 #: the crevice within ±0.1 % with 2 bounces (default −0.1 … −0.37 %); worst contact error
 #: 0.75× / 2.8× the open vertices' median with 1 bounce (default 2.5× / 4.3×), 3.3× / 13×
-#: with 2 (default 5.2× / 5.6×: the dim ground vertex under the belly, its own direct through
-#: the slot noisy either way), at 3–4× the vertices and 13–17× the bake time
-#: (docs/benchmarks.md, issue 17 run 8).
+#: with 2 (default 5.2× / 5.6×: the dim ground vertex under the belly — its own direct through
+#: the slot, and the slot-lit underside's shared quadrature error that it gathers, run 9), at
+#: 3–4× the vertices and 13–17× the bake time (docs/benchmarks.md, issue 17 runs 8–9).
 FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
     "dense_new": True})
@@ -274,9 +274,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
     ``min_edge_fraction`` (2e-4) × the scene's diagonal; the gap under the bunny's belly is
-    ~8e-4 of it) stops
-    splitting; ``max_rounds`` bounds the re-bakes;
-    ``max_vertices`` refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
+    ~8e-4 of it) stops splitting; ``max_rounds`` bounds the re-bakes; ``max_vertices``
+    refuses to grow past it; ``driver_samples`` (default ``samples``/4, at
     least 64): directions of the bakes that only decide where to split — the final geometry is
     baked once more with ``samples``, except the input scene's vertices that the refinement
     touched (the ends of an edge split in round ``dense_depth`` or later: the contact; with
