@@ -57,7 +57,7 @@ from ..scene import (
     trace,
 )
 from ..sh import lmax_of, num_coeffs, sh_basis
-from ..sh.rotation import unit_vectors
+from ..sh.rotation import frame_from_normal, unit_vectors
 from .basis import evaluate_h, sh_to_h_matrix
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -90,19 +90,6 @@ __all__ = [
 #: Degree of the SH expansion of an environment map's radiance kept by the bake (and used for
 #: the per-vertex coefficients): high enough that the bands the bake drops hardly matter.
 LIGHTING_LMAX = 16
-
-
-def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
-    """Right-handed frames (..., 3, 3), columns (t, b, n), from unit normals alone (Duff et
-    al. 2017). Continuous except at n = (0, 0, −1)."""
-    n = unit_vectors(normals, "normals", zero="keep")
-    x, y, z = n[..., 0], n[..., 1], n[..., 2]
-    sign = np.where(z >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    t = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
-    bt = np.stack([b, sign + y * y * a, -y], axis=-1)
-    return np.stack([t, bt, n], axis=-1)
 
 
 @dataclass

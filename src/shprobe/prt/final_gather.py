@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from ..scene.raycast import RayCaster
 from ..sh import sh_basis
+from ..sh.rotation import frame_from_normal
 from .scene import Scene
 
 __all__ = ["cosine_directions", "final_gather_layers"]
@@ -72,11 +73,9 @@ def cosine_directions(normals: NDArray[np.float64], u: NDArray[np.float64]
         u1, u2 = (i[None] + u1) / k, (j[None] + u2) / k
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
     x, y, z = r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u1))
-    a = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t = np.cross(normals, a)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    b = np.cross(normals, t)
-    return x[..., None] * t[:, None] + y[..., None] * b[:, None] + z[..., None] * normals[:, None]
+    f = frame_from_normal(normals)  # columns (t, b, n)
+    return x[..., None] * f[:, None, :, 0] + y[..., None] * f[:, None, :, 1] + (
+        z[..., None] * f[:, None, :, 2])
 
 
 def final_gather_layers(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], samples: int,

@@ -312,3 +312,16 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     if one_d:
         out = out[..., 0]
     return out.astype(c.dtype, copy=False)
+
+
+def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
+    """Right-handed frames (..., 3, 3), columns (t, b, n), from unit normals alone (Duff et
+    al. 2017). Continuous except at n = (0, 0, −1)."""
+    n = unit_vectors(normals, "normals", zero="keep")
+    x, y, z = n[..., 0], n[..., 1], n[..., 2]
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    t = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
+    bt = np.stack([b, sign + y * y * a, -y], axis=-1)
+    return np.stack([t, bt, n], axis=-1)
