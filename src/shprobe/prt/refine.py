@@ -78,7 +78,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .bake import _bake, bake
+from .bake import _bake, _check_quadrature, bake
+from .hemisphere import ADAPTIVE_LEVELS
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
@@ -269,7 +270,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  dense_new: bool = False, direction_sets: int = 1,
                  final_gather: int = 0, final_gather_inner: int = 0,
                  final_gather_near: float | None = None,
-                 min_edge_fraction: float = MIN_EDGE_FRACTION) -> Transfer:
+                 min_edge_fraction: float = MIN_EDGE_FRACTION,
+                 dense_quadrature: str = "fibonacci",
+                 adaptive_levels: int = ADAPTIVE_LEVELS) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -287,7 +290,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     bake (:func:`~shprobe.prt.bake.bake`; the driving bakes keep one set); ``final_gather``: M
     >= 1 rays per hit of a final gather at the dense vertices in the final bake
     (:mod:`shprobe.prt.final_gather`; 0: none), ``final_gather_inner`` its third level and
-    ``final_gather_near`` the hits it takes (:func:`~shprobe.prt.bake.bake`). The returned
+    ``final_gather_near`` the hits it takes (:func:`~shprobe.prt.bake.bake`);
+    ``dense_quadrature``, ``adaptive_levels``: of the dense vertices in the final bake
+    (:func:`~shprobe.prt.bake.bake`). The returned
     transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
@@ -328,6 +333,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         return deep if dense_new else deep & (np.arange(len(deep)) < base.n_vertices)
 
     fg = check_int(final_gather, 0, "final_gather")
+    _check_quadrature(dense_quadrature, fg)
     fg_inner = check_int(final_gather_inner, 0, "final_gather_inner")
 
     def final(sc: Scene) -> Transfer:
@@ -336,7 +342,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             return bake(sc, samples=samples, refine=False, dense=mask,
                         dense_samples=factor * int(samples), direction_sets=direction_sets,
                         final_gather=fg, final_gather_inner=fg_inner,
-                        final_gather_near=final_gather_near, **kw)
+                        final_gather_near=final_gather_near,
+                        dense_quadrature=dense_quadrature, adaptive_levels=adaptive_levels,
+                        **kw)
         return bake(sc, samples=samples, refine=False, direction_sets=direction_sets, **kw)
 
     for r in range(int(max_rounds) + 1):
@@ -387,7 +395,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
         "dense_new": bool(dense_new), "final_gather": fg, "final_gather_inner": fg_inner,
-        "final_gather_near": final_gather_near,
+        "final_gather_near": final_gather_near, "dense_quadrature": dense_quadrature,
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
