@@ -115,12 +115,14 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
         n, res = i1 - i0, grid
         fr = frames[i0:i1]
         traced: list[tuple] = []  # per batch: (vertex, direction, blocked, prim, u, v)
+        areas: list[NDArray[np.float64]] = []  # the solid angle each traced cell keeps
         owner = np.empty((n, res, res), dtype=np.int32)  # the traced cell covering each cell
         val = np.empty((n, res, res), dtype=np.int8)
         count = 0
 
-        def trace(vi, ci, cj, res):
+        def trace(vi, ci, cj, res, record=True):
             nonlocal count
+            areas.append(np.full(len(vi), 2.0 * np.pi / res**2))
             loc = equal_area_hemisphere((ci + 0.5) / res, (cj + 0.5) / res)
             d = np.einsum("nij,nj->ni", fr[vi], loc)
             d32 = np.ascontiguousarray(d, dtype=np.float32)
@@ -130,29 +132,36 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
             else:
                 blocked, prim, u, v = caster.occluded_local(origins[i0 + vi], d32), None, None, None
             traced.append((vi, d, blocked, prim, u, v))
-            owner[vi, ci, cj] = np.arange(count, count + len(vi))
-            val[vi, ci, cj] = blocked
+            if record:
+                owner[vi, ci, cj] = np.arange(count, count + len(vi))
+                val[vi, ci, cj] = blocked
             count += len(vi)
 
         vi, ci, cj = (x.ravel() for x in np.meshgrid(np.arange(n), np.arange(res),
                                                    np.arange(res), indexing="ij"))
         trace(vi, ci, cj, res)
-        for _ in range(int(levels)):
-            edge = _edge_cells(val)
-            owner = owner.repeat(2, 1).repeat(2, 2)
-            val = val.repeat(2, 1).repeat(2, 2)
+        for level in range(int(levels)):
+            vi, ci, cj = np.nonzero(_edge_cells(val))
+            if not len(vi):
+                break
+            # the split cells' solid angle passes from the traced cells covering them to
+            # their four children
+            area = np.concatenate(areas)
+            area -= np.bincount(owner[vi, ci, cj], minlength=count) * (2.0 * np.pi / res**2)
+            areas[:] = [area]
+            if level + 1 < int(levels):  # the grids the next level's edges are found on
+                owner = owner.repeat(2, 1).repeat(2, 2)
+                val = val.repeat(2, 1).repeat(2, 2)
             res *= 2
-            vi, ci, cj = np.nonzero(edge)
-            if len(vi):
-                vi = np.repeat(vi, 4)
-                ci = 2 * np.repeat(ci, 4) + np.tile([0, 0, 1, 1], len(ci))
-                cj = 2 * np.repeat(cj, 4) + np.tile([0, 1, 0, 1], len(cj))
-                trace(vi, ci, cj, res)
+            vi = np.repeat(vi, 4)
+            ci = 2 * np.repeat(ci, 4) + np.tile([0, 0, 1, 1], len(ci))
+            cj = 2 * np.repeat(cj, 4) + np.tile([0, 1, 0, 1], len(cj))
+            trace(vi, ci, cj, res, record=level + 1 < int(levels))
         vi = np.concatenate([x[0] for x in traced])
         d = np.concatenate([x[1] for x in traced])
         blocked = np.concatenate([x[2] for x in traced])
         cos = np.maximum(0.0, np.einsum("ij,ij->i", d, fr[vi, :, 2]))
-        w = np.bincount(owner.ravel(), minlength=count) * (2.0 * np.pi / res**2) * cos
+        w = np.concatenate(areas) * cos
         esc = np.flatnonzero(~blocked & (w > 0))
         proj = coo_matrix((w[esc], (vi[esc], np.arange(esc.size))),
                           shape=(n, esc.size)).tocsr() @ sh_basis(d[esc], lmax)
