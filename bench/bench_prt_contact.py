@@ -28,8 +28,13 @@ run 5: neighbours' quadrature errors independent rather than shared). "final gat
 input's contact vertices closer than 3 × their triangle's longest edge by M fresh rays
 (``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
 with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="fine")``
-(:data:`shprobe.prt.refine.FINE_CONTACT`, issue 17 run 8), seeds 0 and 1.
-Then the worst contact vertices of the default, the seed-1 bake and the final-gather bakes are
+(:data:`shprobe.prt.refine.FINE_CONTACT`, issue 17 run 8), seeds 0 and 1. "adaptive contact
+quadrature (G 128)": the input's contact vertices trace the adaptive equal-area grid of
+:mod:`shprobe.prt.hemisphere` (128² cells and three levels, ~34k rays each;
+``dense_factor=32, dense_quadrature="adaptive"``, issue 17 run 10), against the same vertices
+with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1.
+Then the worst contact vertices of the default, the seed-1 bakes, the final-gather bakes and
+the adaptive and 64× bakes are
 re-checked with precise references (:func:`precise`, shared between the bakes; two seeds, up
 to eight while their standard error exceeds a third of the error) until the worst error is one
 measured against them: at a vertex lit through a slot the bench's own reference is
@@ -197,6 +202,15 @@ def main() -> None:
             ("default refinement, 256 direction sets",
              lambda: bake_refined(m, direction_sets=256, **kw)),
             ("default refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
+            ("default refinement, adaptive contact quadrature (G 128)",
+             lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive", **kw)),
+            ("default refinement, adaptive contact quadrature (G 128), seed 1",
+             lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive",
+                                  **{**kw, "seed": 1})),
+            ("default refinement, 64× Fibonacci at the contact (the adaptive's rays)",
+             lambda: bake_refined(m, dense_factor=64, **kw)),
+            ("default refinement, 64× Fibonacci at the contact, seed 1",
+             lambda: bake_refined(m, dense_factor=64, **{**kw, "seed": 1})),
             ("default refinement + final gather (16, near 3)",
              lambda: bake_refined(m, final_gather=16, final_gather_near=3.0, **kw)),
             ("default refinement + final gather (16, near 3), seed 1",
@@ -302,7 +316,7 @@ def main() -> None:
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
     for name in [x for x in names if x == lead or "seed 1" in x
-                 or "final gather" in x or "fine" in x]:
+                 or "final gather" in x or "fine" in x or "contact" in x]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,
                                  {k: contact[k][3] for k in (1, 2)},

@@ -131,3 +131,17 @@ def test_bake_dense_adaptive_matches_trace():
     with pytest.raises(ShprobeError, match="final gather"):
         bake(sc, mode="interreflected", dense=[8], dense_samples=64, refine=False,
              dense_quadrature="adaptive", final_gather=4)
+
+
+def test_adaptive_bad_levels_and_memory(monkeypatch):
+    """Levels out of range are refused in one line; a grid that would not fit is refused
+    before it is allocated."""
+    sc, _ = slab_scene(0.2, -0.3)
+    for bad in (-1, 9, 2.5):
+        with pytest.raises(ShprobeError, match="adaptive_levels"):
+            bake(sc, mode="shadowed", dense=[8], dense_samples=64, refine=False,
+                 dense_quadrature="adaptive", adaptive_levels=bad)
+    monkeypatch.setenv("SHPROBE_MAX_MEMORY", "64M")
+    with pytest.raises(ShprobeError, match="would need about"):
+        bake(sc, mode="shadowed", dense=[8], dense_samples=32768, refine=False,
+             dense_quadrature="adaptive", adaptive_levels=8, threads=1)

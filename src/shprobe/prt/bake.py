@@ -61,6 +61,8 @@ RAYS_PER_CHUNK = 1 << 17
 OFFSET_FRACTION = 1e-4
 #: Quadratures of the dense vertices (:func:`bake`'s ``dense_quadrature``).
 QUADRATURES = ("fibonacci", "adaptive")
+#: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
+MAX_ADAPTIVE_LEVELS = 8
 
 ProgressFn = Callable[..., Iterable[Any]]
 
@@ -137,9 +139,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     it touched).
     dense_quadrature: ``"fibonacci"`` (default) or ``"adaptive"``: the dense vertices trace an
     equal-area grid of √(dense_samples/2) cells per side over their hemisphere and refine it
-    ``adaptive_levels`` times where visibility changes (:mod:`shprobe.prt.hemisphere`): on the
-    bunny's slot-lit ground vertex 0.04 % at ~33k rays where 524,288 Fibonacci directions
-    leave 0.11 % (docs/benchmarks.md, issue 17 run 10).
+    ``adaptive_levels`` (0–8) times where visibility changes (:mod:`shprobe.prt.hemisphere`):
+    on the bunny's slot-lit ground vertex within 0.04 % at ~38k rays, where 524,288 Fibonacci
+    directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10).
     direction_sets: 1 (default): every vertex traces the same directions; N > 1: N rotated
     copies of the set, each vertex one of them by a hash of its index
     (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
@@ -191,11 +193,14 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                  final_gather=check_int(final_gather, 0, "final_gather"),
                  final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"),
                  final_gather_near=final_gather_near,
-                 quadrature=_check_quadrature(dense_quadrature, final_gather),
-                 levels=check_int(adaptive_levels, 0, "adaptive_levels"))[0]
+                 quadrature=_check_quadrature(dense_quadrature, final_gather, adaptive_levels),
+                 levels=int(adaptive_levels))[0]
 
 
-def _check_quadrature(quadrature: Any, final_gather: Any) -> str:
+def _check_quadrature(quadrature: Any, final_gather: Any, levels: Any) -> str:
+    """:func:`bake`'s ``dense_quadrature`` and ``adaptive_levels``, checked."""
+    if check_int(levels, 0, "adaptive_levels") > MAX_ADAPTIVE_LEVELS:
+        raise ShprobeError(f"adaptive_levels must be at most {MAX_ADAPTIVE_LEVELS}, got {levels}")
     if not (isinstance(quadrature, str) and quadrature in QUADRATURES):
         raise ShprobeError(f"dense_quadrature must be one of {', '.join(QUADRATURES)}, got "
                            f"{quadrature!r}")
@@ -232,8 +237,12 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
     shape = (sc.n_vertices, k) + ((3,) if coloured(sc.albedo) else ())
     counts = tuple(range(bounces + 1)) if traced_mode else ()
     # the layers (float32), the float64 running sums, one worker block of SH rows per thread
+    # the adaptive quadrature's grids: int32 owner + int8 value per cell at its one-but-finest
+    # level, for at least one vertex per thread
+    grids = (5.0 * (adaptive_grid(groups[1][1]) * 2 ** max(0, int(levels) - 1)) ** 2 * nthreads
+             if quadrature == "adaptive" and len(groups) > 1 else 0.0)
     check_memory(4.0 * np.prod(shape) * len(counts) + 16.0 * np.prod(shape) * bool(counts)
-                 + 8.0 * max([samples] + [g[1] for g in groups]) * k * nthreads,
+                 + 8.0 * max([samples] + [g[1] for g in groups]) * k * nthreads + grids,
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
                  "samples")
     traced = np.empty((len(counts), *shape), dtype=np.float32)

@@ -107,7 +107,8 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
     n_all = len(rows)
     frames = _turned_frames(sc.normals[rows].astype(np.float64), rows, seed)
     fnormals = sc.face_normals().astype(np.float32) if gather else None
-    step = max(1, rays_per_chunk // (grid * grid))
+    finest = (grid * 2 ** max(0, int(levels) - 1)) ** 2  # cells of the deepest grids kept
+    step = max(1, min(rays_per_chunk // (grid * grid), (1 << 24) // finest))
     spans = [(i, min(i + step, n_all)) for i in range(0, n_all, step)]
 
     def work(span: tuple[int, int]):

@@ -333,7 +333,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         return deep if dense_new else deep & (np.arange(len(deep)) < base.n_vertices)
 
     fg = check_int(final_gather, 0, "final_gather")
-    _check_quadrature(dense_quadrature, fg)
+    _check_quadrature(dense_quadrature, fg, adaptive_levels)
     fg_inner = check_int(final_gather_inner, 0, "final_gather_inner")
 
     def final(sc: Scene) -> Transfer:
