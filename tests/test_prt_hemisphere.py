@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import bake
+from shprobe.prt import bake, load_transfer
 from shprobe.prt.bake import OFFSET_FRACTION, sample_directions
 from shprobe.prt.hemisphere import adaptive_grid, equal_area_hemisphere, trace_adaptive
-from shprobe.prt.scene import Scene
+from shprobe.prt.scene import Scene, mesh_hash
 from shprobe.scene.raycast import RayCaster
 from shprobe.sh import sh_basis
 
@@ -65,7 +65,7 @@ def slab_scene(h: float, x0: float) -> tuple[Scene, np.ndarray]:
     f = np.array([[0, 1, 8], [1, 2, 8], [2, 3, 8], [3, 0, 8], [4, 6, 5], [4, 7, 6]])
     n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
     n[4:8] = [0.0, 0.0, -1.0]
-    return Scene(v, n, f, np.full((len(v), 3), 0.8), "slab"), quad
+    return Scene(v, n, f, np.full((len(v), 3), 0.8), mesh_hash(v, f)), quad
 
 
 def adaptive_row(sc: Scene, grid: int, levels: int, seed: int = 0, lmax: int = 2,
@@ -106,7 +106,7 @@ def test_adaptive_higher_bands_against_fibonacci():
     np.testing.assert_allclose(got, ref, atol=1e-3 * abs(ref[0]))
 
 
-def test_bake_dense_adaptive_matches_trace():
+def test_bake_dense_adaptive_matches_trace(tmp_path):
     """bake(..., dense_quadrature='adaptive'): the dense vertex's shadowed row is ρ/π times
     Lambert's closed form; its first bounce is ρ/π (∫_quad cos dω) T_0(quad), as the quad's
     corners all see the same open sky below (the floor patch is ~1e-5 of it); metadata says
@@ -116,6 +116,8 @@ def test_bake_dense_adaptive_matches_trace():
              dense_samples=32768, dense_quadrature="adaptive", refine=False)
     meta = t.metadata["dense_quadrature"]["adaptive"]
     assert meta["grid"] == 128 and meta["levels"] == 3 and meta["rays_per_vertex"] > 128**2
+    t.save(tmp_path / "t.npz")
+    assert load_transfer(tmp_path / "t.npz").metadata["dense_quadrature"] == {"adaptive": meta}
     t0 = t.select("shadowed").astype(np.float64)
     eps = OFFSET_FRACTION * np.linalg.norm(np.ptp(sc.vertices, axis=0))  # the ray origin's lift
     seen = quad - [0.0, 0.0, eps]
