@@ -147,3 +147,17 @@ def test_adaptive_bad_levels_and_memory(monkeypatch):
     with pytest.raises(ShprobeError, match="would need about"):
         bake(sc, mode="shadowed", dense=[8], dense_samples=32768, refine=False,
              dense_quadrature="adaptive", adaptive_levels=8, threads=1)
+
+
+def test_refined_bake_adaptive_grid():
+    """bake(..., refine=True, dense_quadrature='adaptive') gives the refinement's dense
+    vertices the 128² grid at 1024 samples (ADAPTIVE_DENSE_FACTOR), and records it."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=[0.4, 0.2, 0.4])
+    box.apply_translation([0.0, 0.1, 0.0])  # resting on the ground
+    t = bake(box, mode="shadowed", lmax=1, samples=1024, ground=True,
+             dense_quadrature="adaptive", adaptive_levels=1)
+    assert t.metadata["dense_quadrature"]["adaptive"]["grid"] == 128
+    assert t.metadata["refine"]["dense_quadrature"] == "adaptive"
+    assert t.metadata["refine"]["dense_factor"] == 32

@@ -61,6 +61,9 @@ RAYS_PER_CHUNK = 1 << 17
 OFFSET_FRACTION = 1e-4
 #: Quadratures of the dense vertices (:func:`bake`'s ``dense_quadrature``).
 QUADRATURES = ("fibonacci", "adaptive")
+#: ``dense_factor`` of a refined bake with ``dense_quadrature="adaptive"``: a 128² grid at 1024
+#: samples.
+ADAPTIVE_DENSE_FACTOR = 32
 #: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
 MAX_ADAPTIVE_LEVELS = 8
 
@@ -141,7 +144,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     equal-area grid of √(dense_samples/2) cells per side over their hemisphere and refine it
     ``adaptive_levels`` (0–8) times where visibility changes (:mod:`shprobe.prt.hemisphere`):
     on the bunny's slot-lit ground vertex within 0.04 % at ~38k rays, where 524,288 Fibonacci
-    directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10).
+    directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10). With ``refine``, the
+    refinement's dense vertices get ``ADAPTIVE_DENSE_FACTOR`` (32) × ``samples``: G = 128 at
+    1024 samples (G = 64 misses slivers of that vertex's sky).
     direction_sets: 1 (default): every vertex traces the same directions; N > 1: N rotated
     copies of the set, each vertex one of them by a hash of its index
     (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
@@ -185,7 +190,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                             final_gather_near=final_gather_near,
                             **{**(FINE_CONTACT if refine == "fine" else {}),
                                **({"dense_quadrature": dense_quadrature,
-                                   "adaptive_levels": adaptive_levels}
+                                   "adaptive_levels": adaptive_levels,
+                                   "dense_factor": ADAPTIVE_DENSE_FACTOR}
                                   if dense_quadrature != "fibonacci" else {})})
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
