@@ -149,15 +149,31 @@ def test_adaptive_bad_levels_and_memory(monkeypatch):
              dense_quadrature="adaptive", adaptive_levels=8, threads=1)
 
 
-def test_refined_bake_adaptive_grid():
-    """bake(..., refine=True, dense_quadrature='adaptive') gives the refinement's dense
-    vertices the 128² grid at 1024 samples (ADAPTIVE_DENSE_FACTOR), and records it."""
+def test_cli_adaptive_contact(tmp_path, capsys):
+    """`shprobe prt bake --ground --adaptive-contact` = bake(..., dense_quadrature="adaptive"):
+    the refinement's dense vertices get ADAPTIVE_DENSE_FACTOR (32) × the samples, the 128²
+    grid, recorded in the file; without a ground, with --no-refine or with --fine-contact it is
+    refused in one line."""
     import trimesh
 
+    from shprobe.cli.main import main
+
+    p = tmp_path / "box.obj"
     box = trimesh.creation.box(extents=[0.4, 0.2, 0.4])
-    box.apply_translation([0.0, 0.1, 0.0])  # resting on the ground
-    t = bake(box, mode="shadowed", lmax=1, samples=1024, ground=True,
-             dense_quadrature="adaptive", adaptive_levels=1)
-    assert t.metadata["dense_quadrature"]["adaptive"]["grid"] == 128
-    assert t.metadata["refine"]["dense_quadrature"] == "adaptive"
-    assert t.metadata["refine"]["dense_factor"] == 32
+    box.apply_translation([0.0, 0.1, 0.0])
+    box.export(p)
+    out = tmp_path / "t.npz"
+    assert main(["prt", "bake", str(p), "--ground", "--mode", "shadowed", "--lmax", "1",
+                 "--adaptive-contact", "-o", str(out)]) == 0
+    meta = load_transfer(out).metadata  # the refined bake's dense vertices: 32 × 1024, G 128
+    assert meta["dense_quadrature"]["adaptive"]["grid"] == 128
+    assert meta["refine"]["dense_quadrature"] == "adaptive"
+    assert meta["refine"]["dense_factor"] == 32 and meta["refine"]["dense_vertices"] > 0
+    for extra in (["--mode", "shadowed"], ["--ground", "--no-refine"],
+                  ["--ground", "--fine-contact"]):
+        capsys.readouterr()
+        assert main(["prt", "bake", str(p), "--adaptive-contact", *extra, "-o",
+                     str(tmp_path / "x.npz")]) != 0
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("shprobe: error:") and "--adaptive-contact" in err
+        assert "\n" not in err and not (tmp_path / "x.npz").exists()
