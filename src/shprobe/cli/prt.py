@@ -143,11 +143,10 @@ def register(group: click.Group) -> None:
                                "at each of the fine refinement's ~10^5 dense vertices (hours "
                                "on the bunny); use one of them")
         kw = albedo_arguments(albedo, len(scene))
-        if adaptive_contact:
-            kw["dense_quadrature"] = "adaptive"
         t0 = time.perf_counter()
         t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,
                  seed=seed, ground=ground, threads=threads, progress=progress, refine=refine,
+                 dense_quadrature="adaptive" if adaptive_contact else "fibonacci",
                  ground_albedo=None if ground_albedo is None else _albedo_value(ground_albedo),
                  **kw)
         t.save(output, overwrite=force)

@@ -50,6 +50,7 @@ from .transfer import (
     coloured,
     times_albedo,
     unshadowed_transfer,
+    vertex_hash,
 )
 
 __all__ = ["bake", "random_rotation", "rotated_direction_sets", "sample_directions",
@@ -263,7 +264,8 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
                 if gi == 1 and quadrature == "adaptive":  # the dense vertices
                     t0_g, b_g, n_rays = trace_adaptive(
                         sc, caster, rows, _origins(sc, caster, rows)[1], lmax, seed,
-                        mode == "interreflected", pmap, wrap, adaptive_grid(n_dirs), levels)
+                        mode == "interreflected", pmap, wrap, adaptive_grid(n_dirs), levels,
+                        RAYS_PER_CHUNK)
                     adaptive = {"grid": adaptive_grid(n_dirs), "levels": int(levels),
                                 "rays_per_vertex": round(n_rays / max(1, len(rows)), 1)}
                 else:
@@ -366,8 +368,7 @@ def rotated_direction_sets(rows: NDArray[np.int64], sets: int, seed: int
         return np.eye(3)[None], np.zeros(len(rows), dtype=np.int64)
     rng = np.random.default_rng([seed, 17])
     rots = from_quaternion(rng.normal(size=(sets, 4)))
-    h = (np.asarray(rows, dtype=np.uint64) + np.uint64(seed)) * np.uint64(0x9E3779B97F4A7C15)
-    return rots, ((h >> np.uint64(33)) % np.uint64(sets)).astype(np.int64)
+    return rots, ((vertex_hash(rows, seed) >> np.uint64(33)) % np.uint64(sets)).astype(np.int64)
 
 
 def _origins(sc: Scene, caster: RayCaster, rows: NDArray[np.int64]

@@ -34,6 +34,7 @@ from ..scene.raycast import RayCaster
 from ..sh import num_coeffs, sh_basis
 from ..sh.rotation import frame_from_normal
 from .scene import Scene
+from .transfer import vertex_hash
 
 __all__ = ["ADAPTIVE_LEVELS", "adaptive_grid", "equal_area_hemisphere", "trace_adaptive"]
 
@@ -83,8 +84,7 @@ def _turned_frames(normals: NDArray[np.float64], rows: NDArray[np.int64], seed: 
                    ) -> NDArray[np.float64]:
     """Frames (n, 3, 3), columns (t, b, n), each turned about its normal by an angle hashed
     from the vertex index and the seed (reproducible; independent of how rows are split)."""
-    h = (np.asarray(rows, dtype=np.uint64) + np.uint64(seed)) * np.uint64(0x9E3779B97F4A7C15)
-    ang = (h >> np.uint64(11)).astype(np.float64) * (2.0 * np.pi / 2.0**53)
+    ang = (vertex_hash(rows, seed) >> np.uint64(11)).astype(np.float64) * (2.0 * np.pi / 2.0**53)
     f = frame_from_normal(normals)
     c, s = np.cos(ang)[:, None], np.sin(ang)[:, None]
     t, b = f[:, :, 0], f[:, :, 1]

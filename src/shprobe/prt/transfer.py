@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..files import load_npz, save_npz
@@ -69,6 +69,13 @@ def check_int(value: Any, minimum: int, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise ShprobeError(f"{what} must be an integer >= {minimum}, got {value!r}")
     return int(value)
+
+
+def vertex_hash(rows: ArrayLike, seed: int) -> NDArray[np.uint64]:
+    """A 64-bit hash of each vertex index and the seed (Fibonacci hashing): what picks a
+    vertex's rotated direction set or its turn of the adaptive grid, so that neighbours differ
+    and a bake does not depend on how its vertices are split into blocks."""
+    return (np.asarray(rows, dtype=np.uint64) + np.uint64(seed)) * np.uint64(0x9E3779B97F4A7C15)
 
 
 @dataclass(frozen=True)
