@@ -68,12 +68,11 @@ def slab_scene(h: float, x0: float) -> tuple[Scene, np.ndarray]:
     return Scene(v, n, f, np.full((len(v), 3), 0.8), mesh_hash(v, f)), quad
 
 
-def adaptive_row(sc: Scene, grid: int, levels: int, seed: int = 0, lmax: int = 2,
-                 gather: bool = False):
+def adaptive_row(sc: Scene, grid: int, levels: int, seed: int = 0, lmax: int = 2):
     c = RayCaster(sc.vertices, sc.faces)
     rows = np.array([8])
     org = c.local(sc.vertices[rows] + [0.0, 0.0, 1e-7])
-    return trace_adaptive(sc, c, rows, org, lmax, seed, gather, map, lambda it, *a: it, grid,
+    return trace_adaptive(sc, c, rows, org, lmax, seed, False, map, lambda it, *a: it, grid,
                           levels)
 
 
