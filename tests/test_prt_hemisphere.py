@@ -72,7 +72,7 @@ def adaptive_row(sc: Scene, grid: int, levels: int, seed: int = 0, lmax: int = 2
     c = RayCaster(sc.vertices, sc.faces)
     rows = np.array([8])
     org = c.local(sc.vertices[rows] + [0.0, 0.0, 1e-7])
-    return trace_adaptive(sc, c, rows, org, lmax, seed, False, map, lambda it, *a: it, grid,
+    return trace_adaptive(sc, c, rows, org, lmax, seed, None, map, lambda it, *a: it, grid,
                           levels)
 
 

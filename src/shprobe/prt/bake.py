@@ -260,17 +260,19 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
             t0 = np.empty((sc.n_vertices, k), dtype=np.float64)
             blocks: list[tuple[NDArray[np.int64], Any]] = []
             caster = RayCaster(sc.vertices, sc.faces)  # one BVH for every sample group
+            # front-face test of the gather's hits, once for every group
+            fnormals = (sc.face_normals().astype(np.float32) if mode == "interreflected"
+                        else None)
             for gi, (rows, n_dirs) in enumerate(groups):
                 if gi == 1 and quadrature == "adaptive":  # the dense vertices
                     t0_g, b_g, n_rays = trace_adaptive(
                         sc, caster, rows, _origins(sc, caster, rows)[1], lmax, seed,
-                        mode == "interreflected", pmap, wrap, adaptive_grid(n_dirs), levels,
-                        RAYS_PER_CHUNK)
+                        fnormals, pmap, wrap, adaptive_grid(n_dirs), levels, RAYS_PER_CHUNK)
                     adaptive = {"grid": adaptive_grid(n_dirs), "levels": int(levels),
                                 "rays_per_vertex": round(n_rays / max(1, len(rows)), 1)}
                 else:
-                    t0_g, b_g = _trace(sc, caster, lmax, n_dirs, seed,
-                                       mode == "interreflected", rows, pmap, wrap, sets)
+                    t0_g, b_g = _trace(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap,
+                                       wrap, sets)
                 t0[rows] = t0_g
                 blocks += b_g
             # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
@@ -412,18 +414,19 @@ def _ray_source(sc: Scene, caster: RayCaster, rows: NDArray[np.int64], samples: 
     return dirs, rots, sid, eps, rays
 
 
-def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int, gather: bool,
-           rows: NDArray[np.int64], pmap: Callable[..., Iterable[Any]], wrap: ProgressFn,
-           sets: int = 1):
+def _trace(sc: Scene, caster: RayCaster, lmax: int, samples: int, seed: int,
+           fnormals: NDArray[np.float32] | None, rows: NDArray[np.int64],
+           pmap: Callable[..., Iterable[Any]], wrap: ProgressFn, sets: int = 1):
     """For the vertices ``rows`` (rays cast by ``caster``, over ``sc``'s mesh): the
     visibility-weighted projection Σ V cos y 4π/N (len(rows), K), and the bounce gather
     matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather).
-    ``sets`` > 1: each vertex traces one of that many rotated copies of the direction set
-    (:func:`rotated_direction_sets`)."""
+    ``fnormals``: the scene's face normals (float32) when the gather is wanted (its hits on
+    front faces), else None. ``sets`` > 1: each vertex traces one of that many rotated copies of
+    the direction set (:func:`rotated_direction_sets`)."""
+    gather = fnormals is not None
     spans = _chunks(len(rows), samples)
     dirs, rots, sid, _, rays = _ray_source(sc, caster, rows, samples, seed, sets)
     yw = sh_basis(dirs, lmax) * (4.0 * np.pi / samples)  # (N, K), in the base set's frame
-    fnormals = sc.face_normals().astype(np.float32) if gather else None
     faces = sc.faces
 
     from scipy.sparse import coo_matrix

@@ -92,7 +92,8 @@ def _turned_frames(normals: NDArray[np.float64], rows: NDArray[np.int64], seed: 
 
 
 def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
-                   origins: NDArray[np.float32], lmax: int, seed: int, gather: bool,
+                   origins: NDArray[np.float32], lmax: int, seed: int,
+                   fnormals: NDArray[np.float32] | None,
                    pmap: Callable[..., Iterable[Any]], wrap: Any, grid: int,
                    levels: int = ADAPTIVE_LEVELS, rays_per_chunk: int = 1 << 17
                    ) -> tuple[NDArray[np.float64], list[tuple[NDArray[np.int64], Any]], int]:
@@ -101,12 +102,13 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
     refinement), their gather matrix's CSR blocks (vertex indices, (n, V) rows of Σ w β over
     front-face hits; [] without ``gather``) as :func:`shprobe.prt.bake._trace` returns them, and
     the number of rays traced. ``origins``: the rows' ray origins (float32, the caster's
-    frame)."""
+    frame); ``fnormals``: the scene's face normals (float32) when the gather is wanted, else
+    None."""
+    gather = fnormals is not None
     from scipy.sparse import coo_matrix
 
     n_all = len(rows)
     frames = _turned_frames(sc.normals[rows].astype(np.float64), rows, seed)
-    fnormals = sc.face_normals().astype(np.float32) if gather else None
     finest = (grid * 2 ** max(0, int(levels) - 1)) ** 2  # cells of the deepest grids kept
     step = max(1, min(rays_per_chunk // (grid * grid), (1 << 24) // finest))
     spans = [(i, min(i + step, n_all)) for i in range(0, n_all, step)]

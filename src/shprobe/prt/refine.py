@@ -395,7 +395,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         "ground_resolution": int(ground_resolution), "base_mesh_hash": base.mesh_hash,
         "dense_factor": factor, "dense_depth": int(dense_depth), "floor": float(floor),
         "dense_new": bool(dense_new), "final_gather": fg, "final_gather_inner": fg_inner,
-        "final_gather_near": final_gather_near, "dense_quadrature": dense_quadrature,
+        "final_gather_near": final_gather_near,
+        # what the final bake ran (no dense vertices: Fibonacci everywhere)
+        "dense_quadrature": "adaptive" if "dense_quadrature" in t.metadata else "fibonacci",
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
