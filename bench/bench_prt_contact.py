@@ -32,7 +32,10 @@ with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="
 quadrature (G 128)": the input's contact vertices trace the adaptive equal-area grid of
 :mod:`shprobe.prt.hemisphere` (128² cells and three levels, ~34k rays each;
 ``dense_factor=32, dense_quadrature="adaptive"``, issue 17 run 10), against the same vertices
-with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1.
+with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1. "adaptive contact":
+``bake(..., refine="adaptive")`` (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, issue 17 run
+11: the gather criterion gated at 0.1, the contact and the vertices its bounces lean on on the
+adaptive grid), seeds 0, 1 and 2, against the default's seed 2.
 Then the worst contact vertices of the default, the seed-1 bakes, the final-gather bakes and
 the adaptive and 64× bakes are
 re-checked with precise references (:func:`precise`, shared between the bakes; two seeds, up
@@ -202,6 +205,13 @@ def main() -> None:
             ("default refinement, 256 direction sets",
              lambda: bake_refined(m, direction_sets=256, **kw)),
             ("default refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
+            ("default refinement, seed 2", lambda: bake_refined(m, **{**kw, "seed": 2})),
+            ("adaptive contact (refine='adaptive')",
+             lambda: bake(m, ground=True, refine="adaptive", **kw)),
+            ("adaptive contact (refine='adaptive'), seed 1",
+             lambda: bake(m, ground=True, refine="adaptive", **{**kw, "seed": 1})),
+            ("adaptive contact (refine='adaptive'), seed 2",
+             lambda: bake(m, ground=True, refine="adaptive", **{**kw, "seed": 2})),
             ("default refinement, adaptive contact quadrature (G 128)",
              lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive", **kw)),
             ("default refinement, adaptive contact quadrature (G 128), seed 1",
@@ -315,7 +325,7 @@ def main() -> None:
     idx, bk, ref, _ = contact[2]
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
-    for name in [x for x in names if x == lead or "seed 1" in x
+    for name in [x for x in names if x == lead or "seed " in x
                  or "final gather" in x or "fine" in x or "contact" in x]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,

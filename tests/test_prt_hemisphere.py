@@ -149,10 +149,10 @@ def test_adaptive_bad_levels_and_memory(monkeypatch):
 
 
 def test_cli_adaptive_contact(tmp_path, capsys):
-    """`shprobe prt bake --ground --adaptive-contact` = bake(..., dense_quadrature="adaptive"):
-    the refinement's dense vertices get ADAPTIVE_DENSE_FACTOR (32) × the samples, the 128²
-    grid, recorded in the file; without a ground, with --no-refine or with --fine-contact it is
-    refused in one line."""
+    """`shprobe prt bake --ground --adaptive-contact` = bake(..., refine="adaptive"): the
+    refinement's dense vertices get 32 × the samples on the 128² grid, the gather criterion's
+    gate 0.1, recorded in the file (the default: 8 × as Fibonacci directions, gate 0.25); with
+    --no-refine, --fine-contact or an unshadowed bake it is refused in one line."""
     import trimesh
 
     from shprobe.cli.main import main
@@ -168,11 +168,18 @@ def test_cli_adaptive_contact(tmp_path, capsys):
     assert meta["dense_quadrature"]["adaptive"]["grid"] == 128
     assert meta["refine"]["dense_quadrature"] == "adaptive"
     assert meta["refine"]["dense_factor"] == 32 and meta["refine"]["dense_vertices"] > 0
-    for extra in (["--mode", "shadowed"], ["--ground", "--no-refine"],
-                  ["--ground", "--fine-contact"]):
+    assert meta["refine"]["gather_gate"] == 0.1
+    plain = tmp_path / "f.npz"
+    assert main(["prt", "bake", str(p), "--ground", "--mode", "shadowed", "--lmax", "1",
+                 "-o", str(plain)]) == 0
+    meta = load_transfer(plain).metadata
+    assert "dense_quadrature" not in meta and meta["dense_samples"] == 8192
+    assert meta["refine"]["dense_quadrature"] == "fibonacci"
+    assert meta["refine"]["gather_gate"] == 0.25
+    for extra in (["--ground", "--no-refine"], ["--ground", "--fine-contact"],
+                  ["--ground", "--mode", "unshadowed"]):
         capsys.readouterr()
         assert main(["prt", "bake", str(p), "--adaptive-contact", *extra, "-o",
                      str(tmp_path / "x.npz")]) != 0
-        err = capsys.readouterr().err.strip()
-        assert err.startswith("shprobe: error:") and "--adaptive-contact" in err
-        assert "\n" not in err and not (tmp_path / "x.npz").exists()
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err

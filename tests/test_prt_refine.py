@@ -510,3 +510,92 @@ def test_fine_contact_preset_refines_further_and_records_its_settings(tmp_path, 
                  str(tmp_path / "x.npz")]) != 0
     err = capsys.readouterr().err.strip()
     assert err.startswith("shprobe: error:") and "--no-refine" in err and "\n" not in err
+
+
+def test_gather_picks_against_explicit_loops():
+    """gather_picks (module doc, step 6) = the criterion written out: round 0 takes every c with
+    max over the seeds v of ρ_v/π G[v, c] ‖T_0(c)‖ / max(‖T(v)‖, floor · median ‖T‖) above its
+    threshold; round 1 the same over the seeds and round 0's picks with c's cumulative
+    ‖T(c)‖."""
+    from scipy.sparse import csr_matrix
+
+    from shprobe.prt.refine import gather_picks
+
+    rng = np.random.default_rng(5)
+    nv, k = 40, 4
+    g = rng.random((nv, nv)) * (rng.random((nv, nv)) < 0.15)
+    direct = rng.random((nv, k, 1)) * rng.random((nv, 1, 1))
+    cum = direct + rng.random((nv, k, 1)) * 0.3
+    alb = np.repeat(rng.uniform(0.2, 0.9, (nv, 1)), 3, 1)
+    seeds = np.zeros(nv, dtype=bool)
+    seeds[[3, 17, 30]] = True
+    blocks = [(np.arange(0, 25), csr_matrix(g[:25])), (np.arange(25, nv), csr_matrix(g[25:]))]
+    thr = (0.05, 0.08)
+    got = gather_picks(direct, cum, blocks, alb, seeds, thr, floor=0.5)
+
+    lvl = np.linalg.norm(cum.reshape(nv, -1), axis=1)
+    scale = np.maximum(lvl, 0.5 * np.median(lvl))
+    chosen, front = set(np.flatnonzero(seeds)), set(np.flatnonzero(seeds))
+    for r, t in enumerate(thr):
+        lay = np.linalg.norm((direct if r == 0 else cum).reshape(nv, -1), axis=1)
+        new = set()
+        for c in range(nv):
+            share = max((alb[v, 0] / np.pi * g[v, c] * lay[c] / scale[v] for v in front),
+                        default=0.0)
+            if share > t and c not in chosen:
+                new.add(c)
+        chosen |= new
+        front = set(chosen)
+        assert new, "the example should pick something in every round"
+    np.testing.assert_array_equal(got, sorted(chosen - set(np.flatnonzero(seeds))))
+
+
+@pytest.mark.parametrize("quadrature", ["fibonacci", "adaptive"])
+def test_picked_vertices_baked_as_if_dense_from_the_start(quadrature):
+    """The final bake's picks are traced again as the dense vertices are and only their rows of
+    T_0 and of the gather matrix replaced: the result equals a bake that had them dense from
+    the start (every other vertex's rays are the same, deterministic ones)."""
+    from shprobe.prt.bake import _bake
+
+    sc = load_scene(trimesh.creation.icosphere(subdivisions=1, radius=0.5), ground=True,
+                    ground_resolution=8, albedo=0.7)
+    seeds = np.zeros(sc.n_vertices, dtype=bool)
+    seeds[[0, 5, 44, 60]] = True
+    extra = np.array([2, 7, 50, 51, 70])
+    args = (sc, "interreflected", 1, 128, 2, None, 4, False, 1, None, None, None)
+    calls = []
+
+    def pick(direct, cum, blocks, alb):
+        calls.append((direct.shape, cum.shape, sum(len(r) for r, _ in blocks)))
+        return np.concatenate([extra, [0]])  # a seed among them is left alone
+
+    t, _ = _bake(*args, seeds, 512, quadrature=quadrature, levels=1, pick=pick)
+    both = seeds.copy()
+    both[extra] = True
+    ref, _ = _bake(*args, both, 512, quadrature=quadrature, levels=1)
+    assert calls == [((sc.n_vertices, 4, 1), (sc.n_vertices, 4, 1), sc.n_vertices)]
+    assert t.metadata["dense_picked"] == len(extra)
+    np.testing.assert_allclose(t.traced, ref.traced, rtol=1e-5, atol=1e-7)
+    plain, _ = _bake(*args, seeds, 512, quadrature=quadrature, levels=1)
+    assert np.abs(plain.traced[0][extra] - t.traced[0][extra]).max() > 1e-4  # retraced
+
+
+def test_adaptive_contact_picks_what_the_contact_leans_on():
+    """bake_refined(**ADAPTIVE_CONTACT) (bake(refine="adaptive")) records its picks (module doc,
+    step 6): some vertices beyond the contact's dense ones, the thresholds in the metadata; the
+    default refinement picks none, and a bad threshold is refused in one line."""
+    from shprobe.prt.refine import ADAPTIVE_CONTACT
+
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    kw = dict(mode="interreflected", lmax=1, samples=64, bounces=1, ground_resolution=8,
+              max_rounds=1)
+    t = bake_refined(m, **ADAPTIVE_CONTACT, **kw)
+    rf = t.metadata["refine"]
+    assert rf["dense_picks"] == list(ADAPTIVE_CONTACT["dense_picks"]) and rf["dense_picked"] > 0
+    assert rf["dense_quadrature"] == "adaptive" and rf["dense_factor"] == 32
+    assert rf["gather_gate"] == 0.1
+    none = bake_refined(m, **kw)
+    assert none.metadata["refine"]["dense_picked"] == 0
+    for bad in ((0.01, -1.0), "x", (np.nan,)):
+        with pytest.raises(ShprobeError, match="dense_picks"):
+            bake_refined(m, dense_picks=bad, **kw)

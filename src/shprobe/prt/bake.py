@@ -63,12 +63,17 @@ OFFSET_FRACTION = 1e-4
 #: Quadratures of the dense vertices (:func:`bake`'s ``dense_quadrature``).
 QUADRATURES = ("fibonacci", "adaptive")
 #: ``dense_factor`` of a refined bake with ``dense_quadrature="adaptive"``: a 128² grid at 1024
-#: samples.
+#: samples; with ``"fibonacci"``: 8192 directions at 1024 samples.
 ADAPTIVE_DENSE_FACTOR = 32
+FIBONACCI_DENSE_FACTOR = 8
+#: ``bake``'s named refinements (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, ``FINE_CONTACT``).
+PRESETS = ("adaptive", "fine")
 #: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
 MAX_ADAPTIVE_LEVELS = 8
 
 ProgressFn = Callable[..., Iterable[Any]]
+#: ``pick(direct, cumulative, blocks, albedo)`` → vertex indices (:func:`_bake`'s ``pick``).
+PickFn = Callable[..., NDArray[np.int64]]
 
 
 def random_rotation(rng: np.random.Generator) -> NDArray[np.float64]:
@@ -115,7 +120,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          refine: bool | str | None = None, dense: Any = None,
          dense_samples: int | None = None, direction_sets: int = 1,
          final_gather: int = 0, final_gather_inner: int = 0,
-         final_gather_near: float | None = None, dense_quadrature: str = "fibonacci",
+         final_gather_near: float | None = None, dense_quadrature: str | None = None,
          adaptive_levels: int = ADAPTIVE_LEVELS) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
@@ -134,8 +139,10 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
 
     refine: adaptive refinement of the scene where the transfer varies fast
     (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
-    ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (on the bunny the crevice within
-    ±0.1 % at 2 bounces, at 13–17× the time: docs/benchmarks.md, issue 17 run 8).
+    ``"adaptive"``: with :data:`shprobe.prt.refine.ADAPTIVE_CONTACT` (the contact and what its
+    bounces lean on traced on the adaptive grid, at 5–7× the time: docs/benchmarks.md, issue 17
+    run 11);
+    ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (run 8).
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
     directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
     intricate and the light is dim, as in a crevice, so that the quadrature noise relative to
@@ -145,9 +152,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     equal-area grid of √(dense_samples/2) cells per side over their hemisphere and refine it
     ``adaptive_levels`` (0–8) times where visibility changes (:mod:`shprobe.prt.hemisphere`):
     on the bunny's slot-lit ground vertex within 0.04 % at ~38k rays, where 524,288 Fibonacci
-    directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10). With ``refine``, the
-    refinement's dense vertices get ``ADAPTIVE_DENSE_FACTOR`` (32) × ``samples``: G = 128 at
-    1024 samples (G = 64 misses slivers of that vertex's sky).
+    directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10). The refinement's dense
+    vertices get 32 × ``samples`` (G = 128 at 1024 samples; G = 64 misses slivers of that
+    vertex's sky), 8 × as Fibonacci directions.
     direction_sets: 1 (default): every vertex traces the same directions; N > 1: N rotated
     copies of the set, each vertex one of them by a hash of its index
     (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
@@ -177,10 +184,13 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         refine = bool(ground) and mode != "unshadowed"
     if isinstance(refine, np.bool_):
         refine = bool(refine)
-    if not (isinstance(refine, bool) or (isinstance(refine, str) and refine == "fine")):
-        raise ShprobeError(f"refine must be True, False, None or 'fine', got {refine!r}")
+    if not (isinstance(refine, bool) or (isinstance(refine, str) and refine in PRESETS)):
+        raise ShprobeError(f"refine must be True, False, None, 'adaptive' or 'fine', got "
+                           f"{refine!r}")
     if refine:
-        from .refine import FINE_CONTACT, bake_refined
+        from .refine import ADAPTIVE_CONTACT, FINE_CONTACT, bake_refined
+
+        presets = {"adaptive": ADAPTIVE_CONTACT, "fine": FINE_CONTACT}
 
         if dense is not None:
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
@@ -189,18 +199,21 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                             direction_sets=direction_sets, final_gather=final_gather,
                             final_gather_inner=final_gather_inner,
                             final_gather_near=final_gather_near,
-                            **{**(FINE_CONTACT if refine == "fine" else {}),
-                               **({"dense_quadrature": dense_quadrature,
+                            **{**presets.get(refine, {}),
+                               **({} if dense_quadrature is None else {
+                                   "dense_quadrature": dense_quadrature,
                                    "adaptive_levels": adaptive_levels,
-                                   "dense_factor": ADAPTIVE_DENSE_FACTOR}
-                                  if dense_quadrature != "fibonacci" else {})})
+                                   "dense_factor": (ADAPTIVE_DENSE_FACTOR
+                                                    if dense_quadrature == "adaptive"
+                                                    else FIBONACCI_DENSE_FACTOR)})})
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
                  sets=check_int(direction_sets, 1, "direction_sets"),
                  final_gather=check_int(final_gather, 0, "final_gather"),
                  final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"),
                  final_gather_near=final_gather_near,
-                 quadrature=_check_quadrature(dense_quadrature, final_gather, adaptive_levels),
+                 quadrature=_check_quadrature(dense_quadrature or "fibonacci", final_gather,
+                                              adaptive_levels),
                  levels=int(adaptive_levels))[0]
 
 
@@ -222,14 +235,19 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
           ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False,
           sets: int = 1, final_gather: int = 0, final_gather_inner: int = 0,
           final_gather_near: float | None = None, quadrature: str = "fibonacci",
-          levels: int = ADAPTIVE_LEVELS
+          levels: int = ADAPTIVE_LEVELS, pick: PickFn | None = None
           ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
     """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
     bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
     ρ/π · G @ bounce b (:mod:`shprobe.prt.refine` reads where each vertex gathers from).
     ``sets``, ``final_gather``, ``final_gather_inner``: :func:`bake`'s ``direction_sets``,
     ``final_gather`` and ``final_gather_inner`` (the kept G stays the interpolating one);
-    ``quadrature``, ``levels``: :func:`bake`'s ``dense_quadrature`` and ``adaptive_levels``."""
+    ``quadrature``, ``levels``: :func:`bake`'s ``dense_quadrature`` and ``adaptive_levels``.
+    ``pick`` (an interreflected bake with dense vertices): once every vertex is traced, called
+    as ``pick(direct, cumulative, blocks, albedo)`` with the layers (V, K, C) and the gather
+    blocks; the vertices it returns are traced again as the dense ones are, their rows of
+    T_0 and of the gather matrix replaced, before the bounces (the other vertices' rays are
+    kept; :func:`shprobe.prt.refine.gather_picks`)."""
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
@@ -248,7 +266,9 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
     # level, for at least one vertex per thread
     grids = (5.0 * (adaptive_grid(groups[1][1]) * 2 ** max(0, int(levels) - 1)) ** 2 * nthreads
              if quadrature == "adaptive" and len(groups) > 1 else 0.0)
-    check_memory(4.0 * np.prod(shape) * len(counts) + 16.0 * np.prod(shape) * bool(counts)
+    # (the picks' cumulative and bounce sums: two more float64 layers)
+    check_memory(4.0 * np.prod(shape) * len(counts)
+                 + 16.0 * np.prod(shape) * (bool(counts) + (pick is not None))
                  + 8.0 * max([samples] + [g[1] for g in groups]) * k * nthreads + grids,
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
                  "samples")
@@ -263,23 +283,43 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
             # front-face test of the gather's hits, once for every group
             fnormals = (sc.face_normals().astype(np.float32) if mode == "interreflected"
                         else None)
-            for gi, (rows, n_dirs) in enumerate(groups):
-                if gi == 1 and quadrature == "adaptive":  # the dense vertices
+            rays = [0, 0]  # the adaptive quadrature's rays and vertices
+
+            def trace(rows: NDArray[np.int64], n_dirs: int, dense: bool):
+                if dense and quadrature == "adaptive":
                     t0_g, b_g, n_rays = trace_adaptive(
                         sc, caster, rows, _origins(sc, caster, rows)[1], lmax, seed,
                         fnormals, pmap, wrap, adaptive_grid(n_dirs), levels, RAYS_PER_CHUNK)
-                    adaptive = {"grid": adaptive_grid(n_dirs), "levels": int(levels),
-                                "rays_per_vertex": round(n_rays / max(1, len(rows)), 1)}
-                else:
-                    t0_g, b_g = _trace(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap,
-                                       wrap, sets)
-                t0[rows] = t0_g
+                    rays[0] += n_rays
+                    rays[1] += len(rows)
+                    return t0_g, b_g
+                return _trace(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap, wrap, sets)
+
+            for gi, (rows, n_dirs) in enumerate(groups):
+                t0[rows], b_g = trace(rows, n_dirs, gi == 1)  # group 1: the dense vertices
                 blocks += b_g
+            rho = sc.albedo[:, None, : 3 if coloured(sc.albedo) else 1] / np.pi
+            picked = np.zeros(0, dtype=np.int64)
+            if pick is not None and bounces and len(groups) > 1:
+                total = times_albedo(t0, sc.albedo)
+                cum, prev = total.copy(), total
+                for _ in range(bounces):
+                    prev = _gather(blocks, prev, pmap) * rho
+                    cum += prev
+                picked = np.setdiff1d(np.asarray(pick(total, cum, blocks, sc.albedo),
+                                                 dtype=np.int64), groups[1][0])
+                if picked.size:  # traced again as the dense ones, the other rays kept
+                    t0[picked], b_p = trace(picked, groups[1][1], True)
+                    drop = np.zeros(sc.n_vertices, dtype=bool)
+                    drop[picked] = True
+                    blocks = _without_rows(blocks, drop) + b_p
+            if rays[1]:
+                adaptive = {"grid": adaptive_grid(groups[1][1]), "levels": int(levels),
+                            "rays_per_vertex": round(rays[0] / rays[1], 1)}
             # cumulative layers: traced[b] = shadowed + bounces 1..b, accumulated in float64
             total = times_albedo(t0, sc.albedo)  # (V, K, C), C = 1 or 3
             traced[0] = as_stored(total)
             prev = total
-            rho = sc.albedo[:, None, : total.shape[2]] / np.pi
             fg = None
             if final_gather and bounces:
                 from .final_gather import final_gather_layers
@@ -306,6 +346,7 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
         "directions": "spherical Fibonacci, seeded random rotation" if samples else "none",
         **({"dense_samples": groups[1][1], "dense_vertices": len(groups[1][0])}
            if len(groups) > 1 else {}),
+        **({"dense_picked": int(picked.size)} if traced_mode and pick is not None else {}),
         **({"direction_sets": int(sets)} if sets > 1 else {}),
         **({"dense_quadrature": {"adaptive": adaptive}} if adaptive else {}),
         **({"final_gather": {"rays": int(final_gather), "inner": int(final_gather_inner),
@@ -316,6 +357,19 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
     t = Transfer(vertices=sc.vertices, normals=sc.normals, faces=sc.faces, albedo=sc.albedo,
                  lmax=lmax, traced=traced, bounce_counts=counts, metadata=meta)
     return t, (blocks if keep_gather and mode == "interreflected" else None)
+
+
+def _without_rows(blocks: list[tuple[NDArray[np.int64], Any]], drop: NDArray[np.bool_]
+                  ) -> list[tuple[NDArray[np.int64], Any]]:
+    """The gather blocks without the rows of the vertices marked in ``drop`` (V,)."""
+    out = []
+    for rows, g in blocks:
+        keep = np.flatnonzero(~drop[rows])
+        if len(keep) == len(rows):
+            out.append((rows, g))
+        elif len(keep):
+            out.append((rows[keep], g[keep]))
+    return out
 
 
 def _gather(blocks: list[tuple[NDArray[np.int64], Any]], prev: NDArray[np.float64],

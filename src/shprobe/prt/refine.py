@@ -30,7 +30,11 @@ puts them where the transfer says they are needed:
    error is its jump ‖T_b(a) − T_b(c)‖ times the larger share of its ends, over the layers that
    are gathered (:func:`gather_errors`). Jumps below ``gather_gate`` (0.25) of the edge's own
    level are left out: that is the driving bake's quadrature noise, which the gather averages,
-   not a shape the interpolant misses. This is the irradiance-caching argument in matrix form:
+   not a shape the interpolant misses. (At 0.25 the bunny's crevice vertices gather over
+   unsplit triangles of the crevice's wall where the direct varies 15–20 % across a
+   triangle, and read −0.26 % from its linear interpolation alone: issue 17 run 11;
+   :data:`ADAPTIVE_CONTACT` gates at 0.1.) This is the irradiance-caching argument in matrix
+   form:
    a triangle matters in proportion to the solid angle it fills as seen from its closest
    gatherer;
 3. split the marked edges at their midpoints (a triangle with two marked edges gets its third
@@ -51,7 +55,21 @@ puts them where the transfer says they are needed:
    must be at the level of the noise elsewhere). The new vertices keep ``samples``: they
    support the interpolation, and the gathers that read them average their noise over many
    rays; ``dense_new=True`` gives them the dense directions as well (as before issue 17's
-   third run: factor 4, depth 3), at several times the bake time.
+   third run: factor 4, depth 3), at several times the bake time. The dense vertices trace
+   ``dense_quadrature``: Fibonacci directions, or ``"adaptive"`` (:mod:`shprobe.prt.hemisphere`,
+   a 128² grid at factor 32, refined where visibility changes, which finds the slivers of sky
+   that light the ground under the bunny's belly through a 0.4 mm slot);
+6. ... and with ``dense_picks`` so do the vertices that the contact's bounces lean on (
+   :func:`gather_picks`): once the final geometry is traced, the vertices c whose value carries
+   more than a threshold of some contact vertex v's exit radiance in a bounce,
+   ρ_v/π G[v, c] ‖T_0(c)‖ / ‖T(v)‖ > 0.01, are picked; then, in a second round, those whose
+   cumulative transfer carries as much of a contact vertex or of one picked in the first (the
+   contact's second bounce reads its sources' first; the bunny's flat base, black in its own
+   direct, carries most of the slot-lit ground vertex's second bounce). Only they are traced
+   again (their rows of T_0 and G replaced, every other ray kept) before the bounces are
+   gathered. A contact vertex's bounce reads the slot-lit underside and the crevice's walls
+   at a few vertices each, so their own quadrature error, shared and never averaged, would
+   be the contact's: on the bunny about 7.5k of 80k vertices are picked.
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -83,8 +101,9 @@ from .hemisphere import ADAPTIVE_LEVELS
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
-__all__ = ["FINE_CONTACT", "GATHER_TOL", "REFINE_TOL", "RefineRound", "bake_refined",
-           "gather_errors", "gather_importance", "split_edges", "transfer_jumps"]
+__all__ = ["ADAPTIVE_CONTACT", "FINE_CONTACT", "GATHER_TOL", "REFINE_TOL", "RefineRound",
+           "bake_refined", "gather_errors", "gather_importance", "gather_picks", "split_edges",
+           "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
@@ -92,6 +111,9 @@ REFINE_TOL = 0.25
 #: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
 DENSE_DEPTH = 0
 DENSE_FACTOR = 8
+#: Default noise gate of the gather criterion (module doc, step 2b; :func:`gather_errors`'
+#: ``tol``).
+GATHER_GATE = 0.25
 #: Default ``floor`` of :func:`transfer_jumps`: 1, jumps judged on the scene's scale only. A
 #: floor of 0.2 brings the bunny's dimmest contact vertex from 14 % to 1.9 % (2 bounces) but
 #: at 4× the vertices (84k) — docs/benchmarks.md, issue 17 run 2.
@@ -120,7 +142,19 @@ GATHER_FLOOR = 0.02
 #: 3–4× the vertices and 13–17× the bake time (docs/benchmarks.md, issue 17 runs 8–9).
 FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
-    "dense_new": True})
+    "dense_new": True, "dense_factor": 8, "dense_quadrature": "fibonacci", "dense_picks": None})
+#: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``): the
+#: gather criterion's noise gate at 0.1, the contact's dense vertices on the adaptive grid
+#: (factor 32: 128² at 1024 samples) and the vertices its bounces lean on picked (module doc,
+#: step 6, thresholds 0.01, 0.01) and traced so too. On the bunny (issue 17 run 11; worst
+#: contact error over the open vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 1.1× / 7.8×,
+#: 2.3× / 7.8×, 4.8× / 8.2× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.6× / 21×), at about 5–7×
+#: the default's bake time and 1.05–1.1× its vertices. The worst with 2 bounces is then the
+#: slot-lit ground vertex, +0.5 % in every seed: its second bounce reads the bunny's flat base
+#: 0.4 mm above it, whose first bounce reads the dark ground between them.
+ADAPTIVE_CONTACT: Mapping[str, Any] = MappingProxyType({
+    "gather_gate": 0.1, "dense_factor": 32, "dense_quadrature": "adaptive",
+    "dense_picks": (0.01, 0.01)})
 
 
 @dataclass(frozen=True)
@@ -266,13 +300,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  ground_albedo: Any = None, dense_factor: int = DENSE_FACTOR,
                  dense_depth: int = DENSE_DEPTH, floor: float = FLOOR,
                  gather_tol: float | None = GATHER_TOL,
-                 gather_floor: float = GATHER_FLOOR, gather_gate: float = REFINE_TOL,
+                 gather_floor: float = GATHER_FLOOR, gather_gate: float = GATHER_GATE,
                  dense_new: bool = False, direction_sets: int = 1,
                  final_gather: int = 0, final_gather_inner: int = 0,
                  final_gather_near: float | None = None,
                  min_edge_fraction: float = MIN_EDGE_FRACTION,
                  dense_quadrature: str = "fibonacci",
-                 adaptive_levels: int = ADAPTIVE_LEVELS) -> Transfer:
+                 adaptive_levels: int = ADAPTIVE_LEVELS,
+                 dense_picks: tuple[float, ...] | None = None) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -292,7 +327,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     (:mod:`shprobe.prt.final_gather`; 0: none), ``final_gather_inner`` its third level and
     ``final_gather_near`` the hits it takes (:func:`~shprobe.prt.bake.bake`);
     ``dense_quadrature``, ``adaptive_levels``: of the dense vertices in the final bake
-    (:func:`~shprobe.prt.bake.bake`). The returned
+    (:func:`~shprobe.prt.bake.bake`); ``dense_picks``: the thresholds of :func:`gather_picks`,
+    one per round (module doc, step 6; None or empty: no picks; an interreflected bake with
+    dense vertices and no final gather only). The returned
     transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
@@ -335,9 +372,25 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     fg = check_int(final_gather, 0, "final_gather")
     _check_quadrature(dense_quadrature, fg, adaptive_levels)
     fg_inner = check_int(final_gather_inner, 0, "final_gather_inner")
+    picks = _check_picks(dense_picks)
+    if picks and fg:
+        raise ShprobeError("dense_picks and final_gather do not go together (the final gather "
+                           "reads only the contact's vertices); pass dense_picks=None")
+    picks = picks if mode == "interreflected" and int(bounces) > 0 and factor > 1 else ()
+    n_picked = [0]
 
     def final(sc: Scene) -> Transfer:
         mask = dense_mask()
+        if picks and mask.any():
+            def pick(direct: Any, cum: Any, blocks: Any, alb: Any) -> NDArray[np.int64]:
+                return gather_picks(direct, cum, blocks, alb, mask, picks, gather_floor)
+
+            t, _ = _bake(sc, mode, lmax, samples, bounces, None, seed, False, threads, progress,
+                         None, None, mask, factor * int(samples),
+                         sets=check_int(direction_sets, 1, "direction_sets"),
+                         quadrature=dense_quadrature, levels=int(adaptive_levels), pick=pick)
+            n_picked[0] = int(t.metadata.get("dense_picked", 0))
+            return t
         if (factor > 1 or fg) and mask.any():
             return bake(sc, samples=samples, refine=False, dense=mask,
                         dense_samples=factor * int(samples), direction_sets=direction_sets,
@@ -399,6 +452,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         # what the final bake ran (no dense vertices: Fibonacci everywhere)
         "dense_quadrature": "adaptive" if "dense_quadrature" in t.metadata else "fibonacci",
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
+        "dense_picks": list(picks), "dense_picked": n_picked[0],
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in rounds],
@@ -407,6 +461,54 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     from dataclasses import replace
 
     return replace(t, metadata=meta)
+
+
+def _check_picks(picks: Any) -> tuple[float, ...]:
+    """``dense_picks`` as a tuple of thresholds > 0 (None: none)."""
+    if picks is None:
+        return ()
+    try:
+        out = tuple(float(x) for x in picks)
+    except (TypeError, ValueError):
+        out = (float("nan"),)
+    if not all(np.isfinite(x) and x > 0 for x in out) or len(out) > 8:
+        raise ShprobeError(f"dense_picks must be up to 8 thresholds > 0 (or None), got {picks!r}")
+    return out
+
+
+def gather_picks(direct: NDArray[np.float64], cumulative: NDArray[np.float64],
+                 blocks: list[tuple[NDArray[np.int64], Any]], albedo: NDArray[np.float64],
+                 seeds: NDArray[np.bool_], thresholds: tuple[float, ...],
+                 floor: float = GATHER_FLOOR) -> NDArray[np.int64]:
+    """The vertices a bounce of the ``seeds`` (V,) leans on (module doc, step 6): round r picks
+    every vertex c, not yet picked, with max_v ρ_v/π G[v, c] ‖T(c)‖ / ‖T(v)‖ above
+    ``thresholds[r]``, v over the seeds and the picks of the rounds before, T(c) c's
+    ``direct`` layer in round 0 and its ``cumulative`` one after, ‖T(v)‖ v's cumulative
+    transfer, at least ``floor`` × its median over the scene. Layers (V, K, C) with the albedo
+    applied (ρ/π T); ``blocks``: the gather matrix G as :func:`shprobe.prt.bake._bake`'s
+    (vertex indices, CSR rows). Returns the picked vertices (not the seeds), sorted."""
+    from scipy.sparse import diags
+
+    def norm(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.linalg.norm(np.asarray(x, dtype=np.float64).reshape(x.shape[0], -1), axis=1)
+
+    level = norm(cumulative)
+    scale = np.maximum(level, floor * float(np.median(level)))
+    scale = np.where(scale > 0, scale, np.inf)
+    rho = np.asarray(albedo, dtype=np.float64).max(axis=1) / np.pi
+    chosen = np.asarray(seeds, dtype=bool).copy()
+    front = chosen.copy()
+    for r, thr in enumerate(thresholds):
+        lay = norm(direct if r == 0 else cumulative)
+        imp = np.zeros(len(chosen))
+        for rows, g in blocks:
+            sel = np.flatnonzero(front[rows])
+            if sel.size:
+                w = diags(rho[rows[sel]] / scale[rows[sel]]) @ g[sel] @ diags(lay)
+                imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
+        chosen |= imp > thr
+        front = chosen.copy()
+    return np.flatnonzero(chosen & ~np.asarray(seeds, dtype=bool))
 
 
 def _closure_edges(marked: NDArray[np.bool_], face_edges: NDArray[np.int64]) -> NDArray:
