@@ -112,6 +112,8 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
     finest = (grid * 2 ** max(0, int(levels) - 1)) ** 2  # cells of the deepest grids kept
     step = max(1, min(rays_per_chunk // (grid * grid), (1 << 24) // finest))
     spans = [(i, min(i + step, n_all)) for i in range(0, n_all, step)]
+    c0, c1 = np.meshgrid(np.arange(grid), np.arange(grid), indexing="ij")
+    loc0 = equal_area_hemisphere((c0.ravel() + 0.5) / grid, (c1.ravel() + 0.5) / grid)
 
     def work(span: tuple[int, int]):
         i0, i1 = span
@@ -123,11 +125,12 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
         val = np.empty((n, res, res), dtype=np.int8)
         count = 0
 
-        def trace(vi, ci, cj, res, record=True):
+        def trace(vi, ci, cj, res, record=True, d=None):
             nonlocal count
             areas.append(np.full(len(vi), 2.0 * np.pi / res**2))
-            loc = equal_area_hemisphere((ci + 0.5) / res, (cj + 0.5) / res)
-            d = np.einsum("nij,nj->ni", fr[vi], loc)
+            if d is None:
+                loc = equal_area_hemisphere((ci + 0.5) / res, (cj + 0.5) / res)
+                d = np.einsum("nij,nj->ni", fr[vi], loc)
             d32 = np.ascontiguousarray(d, dtype=np.float32)
             if gather:
                 prim, u, v = caster.first_hit_local(origins[i0 + vi], d32)
@@ -142,7 +145,8 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
 
         vi, ci, cj = (x.ravel() for x in np.meshgrid(np.arange(n), np.arange(res),
                                                    np.arange(res), indexing="ij"))
-        trace(vi, ci, cj, res)
+        # level 0: one grid of local directions turned into every vertex's frame
+        trace(vi, ci, cj, res, d=np.matmul(loc0, fr.transpose(0, 2, 1)).reshape(-1, 3))
         for level in range(int(levels)):
             vi, ci, cj = np.nonzero(_edge_cells(val))
             if not len(vi):
