@@ -69,7 +69,7 @@ puts them where the transfer says they are needed:
    again (their rows of T_0 and G replaced, every other ray kept) before the bounces are
    gathered. A contact vertex's bounce reads the slot-lit underside and the crevice's walls
    at a few vertices each, so their own quadrature error, shared and never averaged, would
-   be the contact's: on the bunny about 7.5k of 80k vertices are picked.
+   be the contact's: on the bunny about 9.2–9.7k of 86–90k vertices are picked.
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -96,7 +96,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .bake import _bake, _check_quadrature, bake
+from .bake import ADAPTIVE_DENSE_FACTOR, FIBONACCI_DENSE_FACTOR, _bake, _check_quadrature, bake
 from .hemisphere import ADAPTIVE_LEVELS
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
@@ -110,7 +110,7 @@ REFINE_TOL = 0.25
 #: The input scene's vertices that the refinement touches in this round or later get
 #: DENSE_FACTOR × the samples in the final bake (module doc, step 5).
 DENSE_DEPTH = 0
-DENSE_FACTOR = 8
+DENSE_FACTOR = FIBONACCI_DENSE_FACTOR
 #: Default noise gate of the gather criterion (module doc, step 2b; :func:`gather_errors`'
 #: ``tol``).
 GATHER_GATE = 0.25
@@ -142,7 +142,8 @@ GATHER_FLOOR = 0.02
 #: 3–4× the vertices and 13–17× the bake time (docs/benchmarks.md, issue 17 runs 8–9).
 FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
-    "dense_new": True, "dense_factor": 8, "dense_quadrature": "fibonacci", "dense_picks": None})
+    "dense_new": True, "dense_factor": DENSE_FACTOR, "dense_quadrature": "fibonacci",
+    "dense_picks": None})
 #: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``): the
 #: gather criterion's noise gate at 0.1, the contact's dense vertices on the adaptive grid
 #: (factor 32: 128² at 1024 samples) and the vertices its bounces lean on picked (module doc,
@@ -153,7 +154,7 @@ FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
 #: slot-lit ground vertex, +0.5 % in every seed: its second bounce reads the bunny's flat base
 #: 0.4 mm above it, whose first bounce reads the dark ground between them.
 ADAPTIVE_CONTACT: Mapping[str, Any] = MappingProxyType({
-    "gather_gate": 0.1, "dense_factor": 32, "dense_quadrature": "adaptive",
+    "gather_gate": 0.1, "dense_factor": ADAPTIVE_DENSE_FACTOR, "dense_quadrature": "adaptive",
     "dense_picks": (0.01, 0.01)})
 
 
