@@ -67,7 +67,7 @@ QUADRATURES = ("fibonacci", "adaptive")
 ADAPTIVE_DENSE_FACTOR = 32
 FIBONACCI_DENSE_FACTOR = 8
 #: ``bake``'s named refinements (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, ``FINE_CONTACT``).
-PRESETS = ("adaptive", "fine")
+PRESETS = {"adaptive": "ADAPTIVE_CONTACT", "fine": "FINE_CONTACT"}
 #: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
 MAX_ADAPTIVE_LEVELS = 8
 
@@ -188,9 +188,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         raise ShprobeError(f"refine must be True, False, None, 'adaptive' or 'fine', got "
                            f"{refine!r}")
     if refine:
-        from .refine import ADAPTIVE_CONTACT, FINE_CONTACT, bake_refined
-
-        presets = {"adaptive": ADAPTIVE_CONTACT, "fine": FINE_CONTACT}
+        from . import refine as _refine
+        from .refine import bake_refined
 
         if dense is not None:
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
@@ -199,7 +198,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                             direction_sets=direction_sets, final_gather=final_gather,
                             final_gather_inner=final_gather_inner,
                             final_gather_near=final_gather_near,
-                            **{**presets.get(refine, {}),
+                            **{**(getattr(_refine, PRESETS[refine]) if refine in PRESETS
+                                  else {}),
                                **({} if dense_quadrature is None else {
                                    "dense_quadrature": dense_quadrature,
                                    "adaptive_levels": adaptive_levels,
