@@ -207,18 +207,28 @@ def gather_importance(t: Transfer, blocks: list[tuple[NDArray[np.int64], Any]],
     2b), with G the bake's gather matrix (``blocks``: :func:`shprobe.prt.bake._bake` with
     ``keep_gather``) and ‖T(v)‖ v's cumulative transfer, at least ``floor`` × its median over
     the scene (dimmer vertices are judged as if that bright)."""
-    tr = np.asarray(t.traced[-1], dtype=np.float64)
-    norms = np.linalg.norm(tr.reshape(tr.shape[0], -1), axis=1)
-    scale = np.maximum(norms, floor * float(np.median(norms)))
-    scale = np.where(scale > 0, scale, np.inf)
-    rho = np.asarray(t.albedo, dtype=np.float64).max(axis=1) / np.pi
-    imp = np.zeros(t.n_vertices)
     from scipy.sparse import diags
 
+    share = _exit_share(t.traced[-1], t.albedo, floor)
+    imp = np.zeros(t.n_vertices)
     for rows, g in blocks:
-        w = diags(rho[rows] / scale[rows]) @ g
-        imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
+        imp = np.maximum(imp, (diags(share[rows]) @ g).max(axis=0).toarray().ravel())
     return imp
+
+
+def _norms(x: Any) -> NDArray[np.float64]:
+    """‖x[v]‖ over each vertex's coefficients (and channels)."""
+    return np.linalg.norm(np.asarray(x, dtype=np.float64).reshape(len(x), -1), axis=1)
+
+
+def _exit_share(cumulative: Any, albedo: Any, floor: float) -> NDArray[np.float64]:
+    """Per gathering vertex v: ρ_v/π / ‖T(v)‖, the share of v's exit transfer per unit of
+    G[v, c] T(c) (module doc, step 2b), ‖T(v)‖ its cumulative transfer, at least ``floor`` ×
+    the median over the scene (0 where that is 0)."""
+    level = _norms(cumulative)
+    scale = np.maximum(level, floor * float(np.median(level)))
+    rho = np.asarray(albedo, dtype=np.float64).max(axis=1) / np.pi
+    return np.where(scale > 0, rho / np.where(scale > 0, scale, 1.0), 0.0)
 
 
 def gather_errors(t: Transfer, edges: NDArray[np.int64], importance: NDArray[np.float64],
@@ -490,25 +500,17 @@ def gather_picks(direct: NDArray[np.float64], cumulative: NDArray[np.float64],
     (vertex indices, CSR rows). Returns the picked vertices (not the seeds), sorted."""
     from scipy.sparse import diags
 
-    def norm(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.linalg.norm(np.asarray(x, dtype=np.float64).reshape(x.shape[0], -1), axis=1)
-
-    level = norm(cumulative)
-    scale = np.maximum(level, floor * float(np.median(level)))
-    scale = np.where(scale > 0, scale, np.inf)
-    rho = np.asarray(albedo, dtype=np.float64).max(axis=1) / np.pi
+    share = _exit_share(cumulative, albedo, floor)
     chosen = np.asarray(seeds, dtype=bool).copy()
-    front = chosen.copy()
     for r, thr in enumerate(thresholds):
-        lay = norm(direct if r == 0 else cumulative)
+        lay = _norms(direct if r == 0 else cumulative)
         imp = np.zeros(len(chosen))
-        for rows, g in blocks:
-            sel = np.flatnonzero(front[rows])
+        for rows, g in blocks:  # the gatherers: the seeds and every earlier pick
+            sel = np.flatnonzero(chosen[rows])
             if sel.size:
-                w = diags(rho[rows[sel]] / scale[rows[sel]]) @ g[sel] @ diags(lay)
+                w = diags(share[rows[sel]]) @ g[sel] @ diags(lay)
                 imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
         chosen |= imp > thr
-        front = chosen.copy()
     return np.flatnonzero(chosen & ~np.asarray(seeds, dtype=bool))
 
 
