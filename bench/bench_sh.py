@@ -1,12 +1,13 @@
 """Benchmark: SH basis and rotation against their peers (issue: foundation).
 
 Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
-``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at every
-lmax 9–30; ``--alloc-pairs [--pairs N]``: the allocating calls paired (31 pairs), with an
-interval). Prints markdown tables; one thread everywhere. Peers: sphericart (preallocated
-output, through its ``_compute_numpy`` so no allocation is timed), scipy.special.sph_harm_y,
-pyshtools SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D (when torch/e3nn are
-installed).
+``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at
+lmax 9–30 (the kernel's switch points); ``--alloc-pairs [--pairs N]``: the allocating calls
+paired (31 pairs), with an interval; ``--lmax 9-32`` or ``--lmax 10,16``: the degrees of
+``--sweep`` and ``--alloc-pairs``). Prints markdown tables; one thread everywhere. Peers:
+sphericart (preallocated output, through its ``_compute_numpy`` so no allocation is timed),
+scipy.special.sph_harm_y, pyshtools SHRotateRealCoef, ducc0.sht.rotate_alm, e3nn.o3.wigner_D
+(when torch/e3nn are installed).
 Timings are the best of several repeats of process CPU time (the machine is shared).
 """
 
@@ -345,19 +346,30 @@ def bench_import(rows):
     rows.append(("`import shprobe` + first `rotate` (numba cache warm)", (rot - base) * 1e3))
 
 
+def _lmax_arg(default):
+    """The degrees of ``--lmax A-B`` (inclusive) or ``--lmax A,B,…``; ``default`` without it."""
+    if "--lmax" not in sys.argv:
+        return default
+    arg = sys.argv[sys.argv.index("--lmax") + 1]
+    if "-" in arg:
+        lo, hi = (int(x) for x in arg.split("-"))
+        return tuple(range(lo, hi + 1))
+    return tuple(int(x) for x in arg.split(","))
+
+
 def main():
     print(f"Machine: {machine()}\n")
     if "--alloc-pairs" in sys.argv:
         print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
               + "\n")
         pairs = int(sys.argv[sys.argv.index("--pairs") + 1]) if "--pairs" in sys.argv else 31
-        bench_alloc_pairs(pairs=pairs)
+        bench_alloc_pairs(_lmax_arg((2, 6, 10, 16, 20, 32)), pairs=pairs)
         print("\nload average at the end: " + " / ".join(f"{x:.2f}" for x in os.getloadavg()))
         return
     if "--sweep" in sys.argv:
         print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
               + "\n")
-        bench_basis_sweep()
+        bench_basis_sweep(_lmax_arg((9, 12, 14, 18, 22, 23, 24, 26, 28, 30)))
         return
     grid = []
     print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())

@@ -234,20 +234,21 @@ def test_large_out_at_unrolled_degrees_goes_through_the_stream_kernels(monkeypat
 
 def test_rows_through_the_buffer_equal_rows_in_place():
     # an output larger than L2 is computed block by block into a buffer and copied out (a
-    # caller's out=); a fresh float32 output with short rows, and a small output, in place: the same
-    # values, and the recurrence's values (scipy's, independently, for float64)
+    # caller's out=, a fresh output with long rows); a fresh output with short rows, and a small
+    # output, in place: the same values, and the recurrence's values (scipy's, independently,
+    # for float64)
     from shprobe.sh import _kernels
 
-    for lmax, dtype, n, in_place in ((12, np.float64, 1603, False), (24, np.float64, 1001, False),
-                                     (20, np.float32, 1201, True), (40, np.float32, 1003, False)):
+    for lmax, dtype, n, in_place in ((12, np.float64, 1603, True), (40, np.float64, 1001, False),
+                                     (20, np.float32, 1201, True), (56, np.float32, 1003, False)):
         K = (lmax + 1) ** 2
         row = K * np.dtype(dtype).itemsize
         assert n * row > _kernels.IN_PLACE_MAX_BYTES
         d = random_dirs(n, seed=17).astype(dtype)
         out = np.full((n, K), np.nan, dtype)
         big = sh_basis(d, lmax, out=out)  # through the buffer
-        fresh = sh_basis(d, lmax)  # float32 in place where 4 rows fit FRESH_FOUR_MAX_BYTES
-        assert (dtype == np.float32 and 4 * row <= _kernels.FRESH_FOUR_MAX_BYTES) == in_place
+        fresh = sh_basis(d, lmax)  # in place where 4 rows fit FRESH_FOUR_MAX_BYTES
+        assert (4 * row <= _kernels.FRESH_FOUR_MAX_BYTES) == in_place
         small = np.concatenate([sh_basis(d[i:i + 8], lmax) for i in range(0, n, 8)])
         np.testing.assert_array_equal(big, small)
         np.testing.assert_array_equal(fresh, small)

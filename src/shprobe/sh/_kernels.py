@@ -14,9 +14,9 @@ for speed:
 - an output larger than L2 is computed in blocks into a small buffer, each copied out in one
   sequential pass (four rows written in place at once, column by column, scatter stores
   that the store prefetching does not follow into memory not in the cache) — except a
-  *fresh* float32 output (just allocated by ``sh_basis``) whose four rows fit in half of L1:
-  its pages are zeroed by the kernel as the stores reach them, and the copy costs more than
-  the scatter there;
+  *fresh* output (just allocated by ``sh_basis``) whose four rows take ≤ 40 KiB: its pages
+  are zeroed by the kernel as the stores reach them, and the copy costs more than the
+  scatter there;
 - the arithmetic is done in the type of the tables (float32 tables for float32 output up to
   the degree where P̄ could overflow float32, see ``shprobe.sh.basis``);
 - an output much larger than the caches is written with streaming (non-temporal) stores:
@@ -47,13 +47,14 @@ IN_PLACE_MAX_BYTES = 2 << 20
 #: over memory not in the cache, which the store prefetchers do not follow (a fresh array's
 #: pages, just zeroed by the kernel, included).
 BUF_BYTES = 16384
-#: A fresh float32 output (``sh_rows(..., fresh=True)``) is written in place when four of its
-#: rows take at most this many bytes (half of a 48 KiB L1). Its huge pages are zeroed by the
-#: kernel at the first store into each; measured on allocating calls (process CPU, paired),
-#: in place / through the buffer: float32 0.75–0.92 at lmax 10–32, float64 0.93–1.08 at lmax
-#: 10–14 and 1.05–1.08 at 16–24 (user time 1.13–1.31), so float64 keeps the buffer
-#: (docs/benchmarks.md, issue 16, 23:05 UTC).
-FRESH_FOUR_MAX_BYTES = 24 << 10
+#: A fresh output (``sh_rows(..., fresh=True)``) is written in place when four of its rows
+#: take at most this many bytes (float64 to lmax 34, float32 to lmax 49). Its huge pages are
+#: zeroed by the kernel at the first store into each. Allocating calls against sphericart's
+#: (process CPU, per-round medians, AMD EPYC, 1 MiB L2): float64 in place 0.86–0.92 at lmax
+#: 10–34, through the buffer 0.96–1.12; float32 in place 0.67–0.83 at lmax 40–48
+#: (docs/benchmarks.md, issue 16, 2026-11-27). On the earlier Intel box float64 in place was
+#: 1.05–1.08× the buffer at lmax 16–24 and only float32 went in place.
+FRESH_FOUR_MAX_BYTES = 40 << 10
 
 
 @intrinsic
@@ -369,7 +370,7 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0, fresh):  # pragma: no cover -
 
     Rows of ≤ ``FOUR_MAX_ROW_BYTES`` are computed four directions at a time. With plain
     stores, outputs of ≤ ``IN_PLACE_MAX_BYTES``, rows over ``FOUR_MAX_ROW_BYTES`` and fresh
-    float32 outputs whose four rows take ≤ ``FRESH_FOUR_MAX_BYTES`` are written in place; otherwise
+    outputs whose four rows take ≤ ``FRESH_FOUR_MAX_BYTES`` are written in place; otherwise
     rows are computed in blocks into a small buffer and each block, one contiguous span of
     the output, is copied out in one sequential pass: with streaming stores, or plain.
     """
@@ -378,8 +379,7 @@ def sh_rows(dirs, lmax, R, d0, d1, out, stream_a0, fresh):  # pragma: no cover -
     row_bytes = K * out.itemsize
     four = row_bytes <= FOUR_MAX_ROW_BYTES
     if stream_a0 < 0 and (not four or n * row_bytes <= IN_PLACE_MAX_BYTES
-                          or (fresh and out.itemsize == 4
-                              and 4 * row_bytes <= FRESH_FOUR_MAX_BYTES)):
+                          or (fresh and 4 * row_bytes <= FRESH_FOUR_MAX_BYTES)):
         _rows(dirs, 0, n, out, 0, lmax, R, d0, d1, four)
         return
     B = max(4, BUF_BYTES // row_bytes // 4 * 4)  # rows per block
