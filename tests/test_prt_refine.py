@@ -599,3 +599,94 @@ def test_adaptive_contact_picks_what_the_contact_leans_on():
     for bad in ((0.01, -1.0), "x", (np.nan,)):
         with pytest.raises(ShprobeError, match="dense_picks"):
             bake_refined(m, dense_picks=bad, **kw)
+
+
+def test_post_split_marks_against_explicit_loops():
+    """post_split_marks (module doc, step 7) = the criterion written out: an edge is marked
+    when both ends carry more than the share of some gatherer's exit transfer (ρ_v/π G[v, c]
+    max(‖T_0(c)‖, ‖T(c)‖) / max(‖T(v)‖, floor · median ‖T‖)) and the shadowed transfer jumps
+    across it by more than the tolerance of its brighter end (ends under 2 % of the median:
+    no jump)."""
+    from scipy.sparse import csr_matrix
+
+    from shprobe.prt.refine import post_split_marks
+
+    rng = np.random.default_rng(8)
+    nv, k = 30, 4
+    g = rng.random((nv, nv)) * (rng.random((nv, nv)) < 0.4)
+    direct = rng.random((nv, k, 1)) * rng.random((nv, 1, 1))
+    cum = direct + rng.random((nv, k, 1)) * 0.3
+    t0 = direct * rng.uniform(0.5, 1.5, (nv, 1, 1))
+    t0[4] *= 1e-3  # a dark end: no jump counts
+    alb = np.repeat(rng.uniform(0.2, 0.9, (nv, 1)), 3, 1)
+    gath = np.zeros(nv, dtype=bool)
+    gath[[1, 9, 20]] = True
+    blocks = [(np.arange(0, 12), csr_matrix(g[:12])), (np.arange(12, nv), csr_matrix(g[12:]))]
+    edges = np.array([(a, b) for a in range(nv) for b in range(a + 1, nv)
+                      if rng.random() < 0.3])
+    tol, share_tol = 0.3, 0.02
+    marked, hit = post_split_marks(t0, edges, direct, cum, blocks, alb, gath, tol, share_tol,
+                                   floor=0.5)
+
+    lvl = np.linalg.norm(cum.reshape(nv, -1), axis=1)
+    scale = np.maximum(lvl, 0.5 * np.median(lvl))
+    n0 = np.linalg.norm(t0.reshape(nv, -1), axis=1)
+    want_hit = np.zeros(nv, dtype=bool)
+    for c in range(nv):
+        level = max(np.linalg.norm(direct[c]), np.linalg.norm(cum[c]))
+        want_hit[c] = max(alb[v, 0] / np.pi * g[v, c] * level / scale[v]
+                          for v in np.flatnonzero(gath)) > share_tol
+    want = []
+    for a, b in edges:
+        big = max(n0[a], n0[b])
+        jump = np.linalg.norm(t0[a] - t0[b]) / big if big > 0.02 * np.median(n0) else 0.0
+        want.append(want_hit[a] and want_hit[b] and jump > tol)
+    np.testing.assert_array_equal(hit, want_hit)
+    np.testing.assert_array_equal(marked, want)
+    assert 0 < marked.sum() < len(edges) and 0 < hit.sum() < nv
+    assert any(4 in e and want_hit[e].all() for e in edges)  # the dark end's edges are tested
+
+
+def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_picks():
+    """With post_jump the final bake's geometry is split once more (module doc, step 7): the
+    scene before it is kept as its first vertices, the new ones lie on edges between vertices
+    the contact leans on, and those between two of them are traced as the picks (their
+    transfer differs from the same geometry baked with the shared directions); bad settings
+    are refused in one line."""
+    from shprobe.prt.bake import _bake
+    from shprobe.prt.refine import ADAPTIVE_CONTACT
+
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    kw = dict(mode="interreflected", lmax=1, samples=64, bounces=1, ground_resolution=8,
+              max_rounds=1, **ADAPTIVE_CONTACT)
+    pre = bake_refined(m, **kw)
+    post = bake_refined(m, post_jump=0.1, **kw)
+    rf = post.metadata["refine"]
+    n = pre.n_vertices
+    assert post.n_vertices > n and rf["post_split"] > 0 and 0 < rf["post_dense"]
+    assert rf["post_jump"] == 0.1 and rf["post_leaned_on"] > 0
+    assert rf["rounds"][-2]["vertices"] == n and rf["rounds"][-2]["split"] == rf["post_split"]
+    assert rf["rounds"][-1]["vertices"] == post.n_vertices
+    np.testing.assert_array_equal(post.vertices[:n], pre.vertices)
+    # each new vertex is the midpoint of an edge of the scene before the post-pass
+    edges, _ = _edges(pre.faces)
+    mids = 0.5 * (pre.vertices[edges[:, 0]] + pre.vertices[edges[:, 1]])
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(mids).query(post.vertices[n:])
+    assert d.max() < 1e-9
+    # traced as the picks: not what the shared directions give on the same geometry
+    from shprobe.prt.scene import Scene, mesh_hash
+
+    sc = Scene(post.vertices, post.normals, post.faces, post.albedo,
+               mesh_hash(post.vertices, post.faces))
+    plain, _ = _bake(sc, "interreflected", 1, 64, 1, None, 0, False, None, None, None, None,
+                     None, None)
+    diff = np.linalg.norm((plain.traced[0] - post.traced[0])[n:].reshape(
+        post.n_vertices - n, -1), axis=1)
+    assert (diff > 1e-4).sum() >= rf["post_dense"]
+    assert post.metadata["dense_vertices"] == rf["dense_vertices"] + rf["post_dense"]
+    with pytest.raises(ShprobeError, match="dense_picks"):
+        bake_refined(m, post_jump=0.1, **{**kw, "dense_picks": None})
+    with pytest.raises(ShprobeError, match="post_jump"):
+        bake_refined(m, post_jump=-1.0, **kw)

@@ -69,7 +69,18 @@ puts them where the transfer says they are needed:
    again (their rows of T_0 and G replaced, every other ray kept) before the bounces are
    gathered. A contact vertex's bounce reads the slot-lit underside and the crevice's walls
    at a few vertices each, so their own quadrature error, shared and never averaged, would
-   be the contact's: on the bunny about 9.2–9.7k of 86–90k vertices are picked.
+   be the contact's: on the bunny about 9.2–9.7k of 86–90k vertices are picked;
+7. ... and with ``post_jump`` a post-pass on the final bake (:func:`post_split_marks`): the
+   vertices the contact leans on — those whose value carries more than ``post_share`` of the
+   exit transfer of a dense vertex or a pick, by :func:`gather_picks`' measure — have the
+   edges between them split where the final shadowed transfer jumps by more than
+   ``post_jump``, the new vertices between two of them traced as the picks are, and the scene
+   baked once more. The error it removes is the linear interpolation over a few hundred
+   triangles per gatherer, each below step 2b's per-edge tolerance (the slot-lit ground's
+   direct decays as about 1/distance from the slot's mouth: convex, so a linear interpolant
+   overestimates it on every triangle); the new vertices must be traced as the picks, for
+   with the 1,024 directions every vertex shares their error is one that no gather averages
+   (docs/benchmarks.md, issue 17 run 12).
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -101,9 +112,9 @@ from .hemisphere import ADAPTIVE_LEVELS
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
-__all__ = ["ADAPTIVE_CONTACT", "FINE_CONTACT", "GATHER_TOL", "REFINE_TOL", "RefineRound",
-           "bake_refined", "gather_errors", "gather_importance", "gather_picks", "split_edges",
-           "transfer_jumps"]
+__all__ = ["ADAPTIVE_CONTACT", "FINE_CONTACT", "GATHER_TOL", "POST_SHARE", "REFINE_TOL",
+           "RefineRound", "bake_refined", "gather_errors", "gather_importance", "gather_picks",
+           "post_split_marks", "split_edges", "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
@@ -144,6 +155,9 @@ FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
     "dense_new": True, "dense_factor": DENSE_FACTOR, "dense_quadrature": "fibonacci",
     "dense_picks": None})
+#: Default ``post_share`` of the post-pass (module doc, step 7): a vertex is one the contact
+#: leans on when its value carries more than this share of a gatherer's exit transfer.
+POST_SHARE = 2e-4
 #: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``): the
 #: gather criterion's noise gate at 0.1, the contact's dense vertices on the adaptive grid
 #: (factor 32: 128² at 1024 samples) and the vertices its bounces lean on picked (module doc,
@@ -318,7 +332,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  min_edge_fraction: float = MIN_EDGE_FRACTION,
                  dense_quadrature: str = "fibonacci",
                  adaptive_levels: int = ADAPTIVE_LEVELS,
-                 dense_picks: tuple[float, ...] | None = None) -> Transfer:
+                 dense_picks: tuple[float, ...] | None = None,
+                 post_jump: float | None = None, post_share: float = POST_SHARE) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -340,7 +355,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     ``dense_quadrature``, ``adaptive_levels``: of the dense vertices in the final bake
     (:func:`~shprobe.prt.bake.bake`); ``dense_picks``: the thresholds of :func:`gather_picks`,
     one per round (module doc, step 6; None or empty: no picks; an interreflected bake with
-    dense vertices and no final gather only). The returned
+    dense vertices and no final gather only); ``post_jump``, ``post_share``: the post-pass
+    (module doc, step 7; :func:`post_split_marks`; None: none; needs ``dense_picks``). The
+    returned
     transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
     if mode not in MODES:
@@ -387,19 +404,37 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     if picks and fg:
         raise ShprobeError("dense_picks and final_gather do not go together (the final gather "
                            "reads only the contact's vertices); pass dense_picks=None")
+    if post_jump is not None:
+        if not (np.isfinite(post_jump) and post_jump > 0 and np.isfinite(post_share)
+                and post_share > 0):
+            raise ShprobeError(f"post_jump and post_share must be > 0, got {post_jump} and "
+                               f"{post_share}")
+        if not picks:
+            raise ShprobeError("post_jump splits among the vertices the contact leans on: it "
+                               "needs dense_picks")
     picks = picks if mode == "interreflected" and int(bounces) > 0 and factor > 1 else ()
     n_picked = [0]
+    held: dict[str, Any] = {}  # the last final bake's layers and gather, for the post-pass
 
-    def final(sc: Scene) -> Transfer:
-        mask = dense_mask()
+    def final(sc: Scene, extra: NDArray[np.bool_] | None = None) -> Transfer:
+        mask = dense_mask() if extra is None else dense_mask() | extra
+        held.clear()
         if picks and mask.any():
-            def pick(direct: Any, cum: Any, blocks: Any, alb: Any) -> NDArray[np.int64]:
-                return gather_picks(direct, cum, blocks, alb, mask, picks, gather_floor)
+            keep = post_jump is not None and extra is None
 
-            t, _ = _bake(sc, mode, lmax, samples, bounces, None, seed, False, threads, progress,
-                         None, None, mask, factor * int(samples),
-                         sets=check_int(direction_sets, 1, "direction_sets"),
-                         quadrature=dense_quadrature, levels=int(adaptive_levels), pick=pick)
+            def pick(direct: Any, cum: Any, blocks: Any, alb: Any) -> NDArray[np.int64]:
+                got = gather_picks(direct, cum, blocks, alb, mask, picks, gather_floor)
+                if keep:
+                    held.update(direct=direct, cumulative=cum, albedo=alb, picked=got)
+                return got
+
+            t, blocks = _bake(sc, mode, lmax, samples, bounces, None, seed, False, threads,
+                              progress, None, None, mask, factor * int(samples),
+                              sets=check_int(direction_sets, 1, "direction_sets"),
+                              quadrature=dense_quadrature, levels=int(adaptive_levels),
+                              pick=pick, keep_gather=keep)
+            if keep:
+                held.update(blocks=blocks, mask=mask)
             n_picked[0] = int(t.metadata.get("dense_picked", 0))
             return t
         if (factor > 1 or fg) and mask.any():
@@ -452,6 +487,40 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         is_ground = np.concatenate([is_ground, np.zeros(added, dtype=bool)])
         is_ground[sc.n_vertices:] = is_ground[edges[mids, 0]] & is_ground[edges[mids, 1]]
         sc = new
+    post: dict[str, Any] = {}
+    if "blocks" in held:  # the post-pass (module doc, step 7)
+        edges, face_edges = _edges(sc.faces)
+        gatherers = held["mask"].copy()
+        gatherers[held["picked"]] = True
+        marked, hit = post_split_marks(
+            np.asarray(t.traced[0], dtype=np.float64), edges, held["direct"],
+            held["cumulative"], held["blocks"], held["albedo"], gatherers, float(post_jump),
+            float(post_share), gather_floor)
+        held.clear()
+        length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
+        refinable = (is_ground[edges].all(1) if not refine_mesh
+                     else np.ones(len(edges), dtype=bool))
+        marked &= (length > min_len) & refinable
+        rounds[-1] = RefineRound(rounds[-1].vertices, int(marked.sum()), rounds[-1].seconds)
+        post = {"post_jump": float(post_jump), "post_share": float(post_share),
+                "post_leaned_on": int(hit.sum()), "post_split": int(marked.sum()),
+                "post_dense": 0}
+        if marked.any():
+            t0 = time.perf_counter()
+            mids = _closure_edges(marked, face_edges)
+            new, raw = _split(sc, mids, edges, face_edges, raw)
+            if new.n_vertices > max_vertices:
+                raise ShprobeError(f"refinement would grow the scene past {max_vertices} "
+                                   "vertices; raise post_jump or min_edge")
+            added = new.n_vertices - sc.n_vertices
+            deep = np.concatenate([deep, np.zeros(added, dtype=bool)])
+            # the new vertices between two the contact leans on are traced as the picks
+            extra = np.zeros(new.n_vertices, dtype=bool)
+            extra[sc.n_vertices:] = gatherers[edges[mids]].all(1)
+            post["post_dense"] = int(extra.sum())
+            sc = new
+            t = final(sc, extra)
+            rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
     meta = dict(t.metadata)
     meta["refine"] = {
         "tol": float(tol), "min_edge": min_len, "max_rounds": int(max_rounds),
@@ -463,7 +532,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         # what the final bake ran (no dense vertices: Fibonacci everywhere)
         "dense_quadrature": "adaptive" if "dense_quadrature" in t.metadata else "fibonacci",
         "dense_vertices": int(dense_mask().sum()) if factor > 1 else 0,
-        "dense_picks": list(picks), "dense_picked": n_picked[0],
+        "dense_picks": list(picks), "dense_picked": n_picked[0], **post,
         "gather_tol": gtol if gathered else None, "gather_floor": float(gather_floor),
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in rounds],
@@ -498,20 +567,50 @@ def gather_picks(direct: NDArray[np.float64], cumulative: NDArray[np.float64],
     transfer, at least ``floor`` × its median over the scene. Layers (V, K, C) with the albedo
     applied (ρ/π T); ``blocks``: the gather matrix G as :func:`shprobe.prt.bake._bake`'s
     (vertex indices, CSR rows). Returns the picked vertices (not the seeds), sorted."""
-    from scipy.sparse import diags
-
     share = _exit_share(cumulative, albedo, floor)
     chosen = np.asarray(seeds, dtype=bool).copy()
     for r, thr in enumerate(thresholds):
-        lay = _norms(direct if r == 0 else cumulative)
-        imp = np.zeros(len(chosen))
-        for rows, g in blocks:  # the gatherers: the seeds and every earlier pick
-            sel = np.flatnonzero(chosen[rows])
-            if sel.size:
-                w = diags(share[rows[sel]]) @ g[sel] @ diags(lay)
-                imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
-        chosen |= imp > thr
+        # the gatherers: the seeds and every earlier pick
+        chosen |= _leaned_on(share, blocks, chosen, _norms(direct if r == 0 else cumulative)) > thr
     return np.flatnonzero(chosen & ~np.asarray(seeds, dtype=bool))
+
+
+def _leaned_on(share: NDArray[np.float64], blocks: list[tuple[NDArray[np.int64], Any]],
+               gatherers: NDArray[np.bool_], level: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per vertex c: max over the ``gatherers`` v of share[v] G[v, c] level[c] (the share of v's
+    exit transfer that c's value carries in a bounce; :func:`gather_picks`)."""
+    from scipy.sparse import diags
+
+    imp = np.zeros(len(gatherers))
+    for rows, g in blocks:
+        sel = np.flatnonzero(gatherers[rows])
+        if sel.size:
+            w = diags(share[rows[sel]]) @ g[sel] @ diags(level)
+            imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
+    return imp
+
+
+def post_split_marks(traced0: NDArray[np.float64], edges: NDArray[np.int64],
+                     direct: NDArray[np.float64], cumulative: NDArray[np.float64],
+                     blocks: list[tuple[NDArray[np.int64], Any]], albedo: NDArray[np.float64],
+                     gatherers: NDArray[np.bool_], jump: float, share_tol: float = POST_SHARE,
+                     floor: float = GATHER_FLOOR) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """The post-pass's edges (module doc, step 7): an edge is marked where both ends carry more
+    than ``share_tol`` of a gatherer's exit transfer (:func:`gather_picks`' measure, with
+    max(‖T_0(c)‖, ‖T(c)‖) as c's level; ``gatherers``: the contact's dense vertices and the
+    picks) and the final bake's shadowed transfer ``traced0`` (V, K, C) jumps across it by more
+    than ``jump`` of its brighter end (ends dimmer than 2 % of the median ‖T_0‖ count no jump).
+    ``direct``, ``cumulative``, ``blocks``, ``albedo``: as :func:`gather_picks`' from the final
+    bake. Returns (marked edges (E,), the vertices that qualify (V,))."""
+    share = _exit_share(cumulative, albedo, floor)
+    hit = _leaned_on(share, blocks, gatherers,
+                     np.maximum(_norms(direct), _norms(cumulative))) > share_tol
+    nrm = _norms(traced0)
+    d = np.linalg.norm((traced0[edges[:, 0]] - traced0[edges[:, 1]]).reshape(len(edges), -1),
+                       axis=1)
+    big = np.maximum(nrm[edges[:, 0]], nrm[edges[:, 1]])
+    rel = np.where(big > 0.02 * np.median(nrm), d / np.maximum(big, 1e-30), 0.0)
+    return hit[edges].all(1) & (rel > jump), hit
 
 
 def _closure_edges(marked: NDArray[np.bool_], face_edges: NDArray[np.int64]) -> NDArray:
