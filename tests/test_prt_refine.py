@@ -594,6 +594,8 @@ def test_adaptive_contact_picks_what_the_contact_leans_on():
     assert rf["dense_picks"] == list(ADAPTIVE_CONTACT["dense_picks"]) and rf["dense_picked"] > 0
     assert rf["dense_quadrature"] == "adaptive" and rf["dense_factor"] == 32
     assert rf["gather_gate"] == 0.1
+    assert rf["post_jump"] == 0.1 and rf["post_split"] > 0 and rf["post_dense"] > 0
+    assert t.metadata["direction_sets"] == 256
     none = bake_refined(m, **kw)
     assert none.metadata["refine"]["dense_picked"] == 0
     for bad in ((0.01, -1.0), "x", (np.nan,)):
@@ -657,10 +659,12 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_pic
     from shprobe.prt.refine import ADAPTIVE_CONTACT
 
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    # one direction set: the vertices not traced as the picks trace what _bake's do below
     kw = dict(mode="interreflected", lmax=1, samples=64, bounces=1, ground_resolution=8,
-              max_rounds=1, **ADAPTIVE_CONTACT)
-    pre = bake_refined(m, **kw)
-    post = bake_refined(m, post_jump=0.1, **kw)
+              max_rounds=1, **{**ADAPTIVE_CONTACT, "direction_sets": 1})
+    assert ADAPTIVE_CONTACT["post_jump"] == 0.1
+    pre = bake_refined(m, **{**kw, "post_jump": None})
+    post = bake_refined(m, **kw)
     rf = post.metadata["refine"]
     n = pre.n_vertices
     assert post.n_vertices > n and rf["post_split"] > 0 and 0 < rf["post_dense"]
@@ -687,6 +691,24 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_pic
     assert (diff > 1e-4).sum() >= rf["post_dense"]
     assert post.metadata["dense_vertices"] == rf["dense_vertices"] + rf["post_dense"]
     with pytest.raises(ShprobeError, match="dense_picks"):
-        bake_refined(m, post_jump=0.1, **{**kw, "dense_picks": None})
+        bake_refined(m, **{**kw, "dense_picks": None})
     with pytest.raises(ShprobeError, match="post_jump"):
-        bake_refined(m, post_jump=-1.0, **kw)
+        bake_refined(m, **{**kw, "post_jump": -1.0})
+
+
+def test_bake_takes_the_presets_direction_sets_unless_given(monkeypatch):
+    """bake(refine="adaptive") hands bake_refined the preset's 256 direction sets (issue 17 run
+    13); a ``direction_sets`` given wins, and without a preset it is 1."""
+    import shprobe.prt.refine as refine_mod
+
+    got = []
+    monkeypatch.setattr(refine_mod, "bake_refined", lambda *a, **k: got.append(k))
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    kw = dict(mode="interreflected", ground=True)
+    bake(m, refine="adaptive", **kw)
+    bake(m, refine="adaptive", direction_sets=4, **kw)
+    bake(m, refine="adaptive", direction_sets=1, **kw)
+    bake(m, refine=True, **kw)
+    bake(m, refine="fine", **kw)
+    assert [g["direction_sets"] for g in got] == [256, 4, 1, 1, 1]
+    assert got[0]["post_jump"] == 0.1 and "post_jump" not in got[3]

@@ -118,7 +118,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          threads: int | None = None, progress: ProgressFn | None = None, *,
          mesh_albedo: Any = None, ground_albedo: Any = None,
          refine: bool | str | None = None, dense: Any = None,
-         dense_samples: int | None = None, direction_sets: int = 1,
+         dense_samples: int | None = None, direction_sets: int | None = None,
          final_gather: int = 0, final_gather_inner: int = 0,
          final_gather_near: float | None = None, dense_quadrature: str | None = None,
          adaptive_levels: int = ADAPTIVE_LEVELS) -> Transfer:
@@ -155,11 +155,13 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10). The refinement's dense
     vertices get 32 × ``samples`` (G = 128 at 1024 samples; G = 64 misses slivers of that
     vertex's sky), 8 × as Fibonacci directions.
-    direction_sets: 1 (default): every vertex traces the same directions; N > 1: N rotated
-    copies of the set, each vertex one of them by a hash of its index
-    (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are independent
-    rather than shared (docs/benchmarks.md, issue 17 run 5: on the bunny it lowers the open
-    vertices' error but not the contact's, so it is not the default).
+    direction_sets: 1 (default; ``refine="adaptive"``: 256): every vertex traces the same
+    directions; N > 1: N rotated copies of the set, each vertex one of them by a hash of its
+    index (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are
+    independent rather than shared (docs/benchmarks.md, issue 17 run 5: on the bunny it lowers
+    the open vertices' error but not the contact's, so it is not the default; run 13: with
+    the post-pass it lowers the error of the contact's second bounce, which gathers many
+    vertices traced with the shared directions).
     final_gather: M >= 1 (interreflected, with ``dense``): the dense vertices' bounces read the
     previous layer at each hit point by M fresh cosine-weighted rays instead of interpolating
     it over the hit triangle (:mod:`shprobe.prt.final_gather`); final_gather_inner: M' rays of
@@ -193,13 +195,15 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
 
         if dense is not None:
             raise ShprobeError("dense vertices are chosen by the refinement; pass refine=False")
+        preset = dict(getattr(_refine, PRESETS[refine])) if refine in PRESETS else {}
+        own_sets = preset.pop("direction_sets", 1)
         return bake_refined(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads,
                             progress, mesh_albedo=mesh_albedo, ground_albedo=ground_albedo,
-                            direction_sets=direction_sets, final_gather=final_gather,
+                            direction_sets=own_sets if direction_sets is None else direction_sets,
+                            final_gather=final_gather,
                             final_gather_inner=final_gather_inner,
                             final_gather_near=final_gather_near,
-                            **{**(getattr(_refine, PRESETS[refine]) if refine in PRESETS
-                                  else {}),
+                            **{**preset,
                                **({} if dense_quadrature is None else {
                                    "dense_quadrature": dense_quadrature,
                                    "adaptive_levels": adaptive_levels,
@@ -208,7 +212,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                                                     else FIBONACCI_DENSE_FACTOR)})})
     return _bake(scene, mode, lmax, samples, bounces, albedo, seed, ground, threads, progress,
                  mesh_albedo, ground_albedo, dense, dense_samples,
-                 sets=check_int(direction_sets, 1, "direction_sets"),
+                 sets=check_int(1 if direction_sets is None else direction_sets, 1,
+                                "direction_sets"),
                  final_gather=check_int(final_gather, 0, "final_gather"),
                  final_gather_inner=check_int(final_gather_inner, 0, "final_gather_inner"),
                  final_gather_near=final_gather_near,

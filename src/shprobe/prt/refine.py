@@ -158,18 +158,22 @@ FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
 #: Default ``post_share`` of the post-pass (module doc, step 7): a vertex is one the contact
 #: leans on when its value carries more than this share of a gatherer's exit transfer.
 POST_SHARE = 2e-4
+#: ``post_jump`` of :data:`ADAPTIVE_CONTACT`.
+POST_JUMP = 0.1
 #: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``): the
 #: gather criterion's noise gate at 0.1, the contact's dense vertices on the adaptive grid
-#: (factor 32: 128² at 1024 samples) and the vertices its bounces lean on picked (module doc,
-#: step 6, thresholds 0.01, 0.01) and traced so too. On the bunny (issue 17 run 11; worst
-#: contact error over the open vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 1.1× / 7.8×,
-#: 2.3× / 7.8×, 4.8× / 8.2× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.6× / 21×), at about 5–7×
-#: the default's bake time and 1.05–1.1× its vertices. The worst with 2 bounces is then the
-#: slot-lit ground vertex, +0.5 % in every seed: its second bounce reads the bunny's flat base
-#: 0.4 mm above it, whose first bounce reads the dark ground between them.
+#: (factor 32: 128² at 1024 samples), the vertices its bounces lean on picked (module doc,
+#: step 6, thresholds 0.01, 0.01) and traced so too, the post-pass (step 7) and 256 direction
+#: sets in the final bakes. On the bunny (issue 17 run 13; worst contact error over the open
+#: vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 0.92× / 2.84×, 1.07× / 2.62×, 1.70× /
+#: 2.72× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.5× / 21× in run 11), at 2.6–2.7× the
+#: default's vertices and about 33× its bake time (1,009–1,093 s on two cores). Without the
+#: post-pass and the direction sets (run 11) the slot-lit ground vertex under the belly was
+#: +0.5 % with 2 bounces in every seed (7.8–8.2×).
 ADAPTIVE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.1, "dense_factor": ADAPTIVE_DENSE_FACTOR, "dense_quadrature": "adaptive",
-    "dense_picks": (0.01, 0.01)})
+    "dense_picks": (0.01, 0.01), "post_jump": POST_JUMP, "post_share": POST_SHARE,
+    "direction_sets": 256})
 
 
 @dataclass(frozen=True)
