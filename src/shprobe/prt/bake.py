@@ -140,8 +140,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     refine: adaptive refinement of the scene where the transfer varies fast
     (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
     ``"adaptive"``: with :data:`shprobe.prt.refine.ADAPTIVE_CONTACT` (the contact and what its
-    bounces lean on traced on the adaptive grid, at 5–7× the time: docs/benchmarks.md, issue 17
-    run 11);
+    bounces lean on traced on the adaptive grid, a post-pass, 256 direction sets: the contact
+    within 3× the open vertices' error with 1 and 2 bounces, at about 33× the time:
+    docs/benchmarks.md, issue 17 runs 11 and 13);
     ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (run 8).
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
     directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
