@@ -225,13 +225,8 @@ def gather_importance(t: Transfer, blocks: list[tuple[NDArray[np.int64], Any]],
     2b), with G the bake's gather matrix (``blocks``: :func:`shprobe.prt.bake._bake` with
     ``keep_gather``) and ‖T(v)‖ v's cumulative transfer, at least ``floor`` × its median over
     the scene (dimmer vertices are judged as if that bright)."""
-    from scipy.sparse import diags
-
     share = _exit_share(t.traced[-1], t.albedo, floor)
-    imp = np.zeros(t.n_vertices)
-    for rows, g in blocks:
-        imp = np.maximum(imp, (diags(share[rows]) @ g).max(axis=0).toarray().ravel())
-    return imp
+    return _leaned_on(share, blocks, np.ones(t.n_vertices, dtype=bool), None)
 
 
 def _norms(x: Any) -> NDArray[np.float64]:
@@ -580,16 +575,20 @@ def gather_picks(direct: NDArray[np.float64], cumulative: NDArray[np.float64],
 
 
 def _leaned_on(share: NDArray[np.float64], blocks: list[tuple[NDArray[np.int64], Any]],
-               gatherers: NDArray[np.bool_], level: NDArray[np.float64]) -> NDArray[np.float64]:
+               gatherers: NDArray[np.bool_], level: NDArray[np.float64] | None
+               ) -> NDArray[np.float64]:
     """Per vertex c: max over the ``gatherers`` v of share[v] G[v, c] level[c] (the share of v's
-    exit transfer that c's value carries in a bounce; :func:`gather_picks`)."""
+    exit transfer that c's value carries in a bounce; :func:`gather_picks`; ``level`` None:
+    1, :func:`gather_importance`)."""
     from scipy.sparse import diags
 
     imp = np.zeros(len(gatherers))
     for rows, g in blocks:
         sel = np.flatnonzero(gatherers[rows])
         if sel.size:
-            w = diags(share[rows[sel]]) @ g[sel] @ diags(level)
+            w = diags(share[rows[sel]]) @ (g if sel.size == len(rows) else g[sel])
+            if level is not None:
+                w = w @ diags(level)
             imp = np.maximum(imp, w.max(axis=0).toarray().ravel())
     return imp
 
