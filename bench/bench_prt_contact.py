@@ -35,7 +35,7 @@ quadrature (G 128)": the input's contact vertices trace the adaptive equal-area 
 with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1. "adaptive contact":
 ``bake(..., refine="adaptive")`` (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, issue 17 runs
 11 and 13: the gather criterion gated at 0.1, the contact and the vertices its bounces lean on
-on the adaptive grid, the post-pass and 256 direction sets; ~18 minutes a seed on two cores),
+on the adaptive grid, the post-pass and 256 direction sets; ~10 minutes a seed on two cores),
 seeds 0, 1 and 2, against the default's seed 2.
 Then the worst contact vertices of the default, the seed-1 bakes, the final-gather bakes and
 the adaptive and 64× bakes are

@@ -116,9 +116,9 @@ def register(group: click.Group) -> None:
                        "changes), split more finely where the contact gathers, then once "
                        "more where the final transfer jumps, and give every other vertex "
                        "its own rotation of the directions (implies --refine): on the bunny "
-                       "the contact error within 0.9-1.7x (1 bounce) and 2.6-2.8x (2 "
-                       "bounces) the open vertices' median (default 2.5-4.3x, 5.2-21x), at "
-                       "about 33x the bake time.")
+                       "the contact error within 0.7-1.7x (1 bounce) and 0.8-2.4x (2 "
+                       "bounces) the open vertices' median (default 2.4-4.2x, 4.4-17x), at "
+                       "about 18x the bake time.")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option

@@ -141,7 +141,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
     ``"adaptive"``: with :data:`shprobe.prt.refine.ADAPTIVE_CONTACT` (the contact and what its
     bounces lean on traced on the adaptive grid, a post-pass, 256 direction sets: the contact
-    within 3× the open vertices' error with 1 and 2 bounces, at about 33× the time:
+    within 3× the open vertices' error with 1 and 2 bounces, at about 18× the time:
     docs/benchmarks.md, issue 17 runs 11 and 13);
     ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (run 8).
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``

@@ -75,10 +75,12 @@ puts them where the transfer says they are needed:
    exit transfer of a dense vertex or a pick, by :func:`gather_picks`' measure — have the
    edges between them split where the final shadowed transfer jumps by more than
    ``post_jump``, the new vertices between two of them traced as the picks are, and the scene
-   baked once more. The error it removes is the linear interpolation over a few hundred
-   triangles per gatherer, each below step 2b's per-edge tolerance (the slot-lit ground's
-   direct decays as about 1/distance from the slot's mouth: convex, so a linear interpolant
-   overestimates it on every triangle); the new vertices must be traced as the picks, for
+   baked once more (its picks again those of the contact's dense vertices: seeded by the new
+   vertices too, they were 28–30k, not 3.4k, and the bake twice as long for no gain, run 13).
+   The error it removes is the linear interpolation over a few hundred triangles per
+   gatherer, each below step 2b's per-edge tolerance (the slot-lit ground's direct decays as
+   about 1/distance from the slot's mouth: convex, so a linear interpolant overestimates it on
+   every triangle); the new vertices must be traced as the picks, for
    with the 1,024 directions every vertex shares their error is one that no gather averages
    (docs/benchmarks.md, issue 17 run 12).
 
@@ -165,9 +167,9 @@ POST_JUMP = 0.1
 #: (factor 32: 128² at 1024 samples), the vertices its bounces lean on picked (module doc,
 #: step 6, thresholds 0.01, 0.01) and traced so too, the post-pass (step 7) and 256 direction
 #: sets in the final bakes. On the bunny (issue 17 run 13; worst contact error over the open
-#: vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 0.92× / 2.84×, 1.07× / 2.62×, 1.70× /
-#: 2.72× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.5× / 21× in run 11), at 2.6–2.7× the
-#: default's vertices and about 33× its bake time (1,009–1,093 s on two cores). Without the
+#: vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 0.73× / 2.40×, 1.20× / 0.81×, 1.64× /
+#: 1.13× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.5× / 21× in run 11), at 2.6–2.7× the
+#: default's vertices and about 18× its bake time (573–627 s on two cores). Without the
 #: post-pass and the direction sets (run 11) the slot-lit ground vertex under the belly was
 #: +0.5 % with 2 bounces in every seed (7.8–8.2×).
 ADAPTIVE_CONTACT: Mapping[str, Any] = MappingProxyType({
@@ -422,7 +424,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             keep = post_jump is not None and extra is None
 
             def pick(direct: Any, cum: Any, blocks: Any, alb: Any) -> NDArray[np.int64]:
-                got = gather_picks(direct, cum, blocks, alb, mask, picks, gather_floor)
+                # what the contact leans on: seeded by its dense vertices, not the post-pass's
+                got = gather_picks(direct, cum, blocks, alb, dense_mask(), picks, gather_floor)
                 if keep:
                     held.update(direct=direct, cumulative=cum, albedo=alb, picked=got)
                 return got
