@@ -80,8 +80,8 @@ puts them where the transfer says they are needed:
    The error it removes is the linear interpolation over a few hundred triangles per
    gatherer, each below step 2b's per-edge tolerance (the slot-lit ground's direct decays as
    about 1/distance from the slot's mouth: convex, so a linear interpolant overestimates it on
-   every triangle); the new vertices must be traced as the picks, for
-   with the 1,024 directions every vertex shares their error is one that no gather averages
+   every triangle); the new vertices must be traced as the picks, for with the 1,024
+   directions every vertex shares their error is one that no gather averages
    (docs/benchmarks.md, issue 17 run 12).
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
@@ -448,6 +448,11 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                         **kw)
         return bake(sc, samples=samples, refine=False, direction_sets=direction_sets, **kw)
 
+    def splittable(sc: Scene, edges: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Edges longer than min_edge, on the ground unless refine_mesh."""
+        length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
+        return (length > min_len) & (is_ground[edges].all(1) if not refine_mesh else True)
+
     for r in range(int(max_rounds) + 1):
         t0 = time.perf_counter()
         last = r == int(max_rounds)
@@ -464,10 +469,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         if gathered and blocks is not None:
             imp = gather_importance(t, blocks, gather_floor)
             over |= gather_errors(t, edges, imp, gather_gate) > gtol
-        length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
-        refinable = (is_ground[edges].all(1) if not refine_mesh
-                     else np.ones(len(edges), dtype=bool))
-        marked = over & (length > min_len) & refinable
+        marked = over & splittable(sc, edges)
         rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
             if drive < samples or ((factor > 1 or fg) and dense_mask().any()):
@@ -499,10 +501,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             held["cumulative"], held["blocks"], held["albedo"], gatherers, float(post_jump),
             float(post_share), gather_floor)
         held.clear()
-        length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
-        refinable = (is_ground[edges].all(1) if not refine_mesh
-                     else np.ones(len(edges), dtype=bool))
-        marked &= (length > min_len) & refinable
+        marked &= splittable(sc, edges)
         rounds[-1] = RefineRound(rounds[-1].vertices, int(marked.sum()), rounds[-1].seconds)
         post = {"post_jump": float(post_jump), "post_share": float(post_share),
                 "post_leaned_on": int(hit.sum()), "post_split": int(marked.sum()),
