@@ -1,11 +1,13 @@
 """Issue 17: interreflected PRT at the object–ground contact — a uniform ground, the refinement
 of issue 17's second run (shprobe.prt.refine with ``gather_tol=None``: edge jumps on the scene's
 scale only, min_edge 2e-4, up to 8 rounds, 4× the directions at the vertices refined 3 levels
-deep) and the default refinement (+ the gather criterion: edges split where the vertices that
-gather from them lean on them, 8× the directions at the input's vertices the refinement
-touched) — against an independent per-point gather (tests/prt_gather.py: its own Embree ray
-loop, cosine-weighted stratified sampling, exact hit points, no transfer vectors; only its ray
-origins come from the library's one offset rule) under band-limited lighting (lmax 2, so PRT at
+deep), the quick refinement (``bake(refine="quick")``, bake_refined's own defaults, the default
+until issue 17 run 14: + the gather criterion, edges split where the vertices that gather from
+them lean on them, 8× the directions at the input's vertices the refinement touched) and the
+default refinement of an interreflected bake (``refine="adaptive"``, below) — against an
+independent per-point gather (tests/prt_gather.py: its own Embree ray loop, cosine-weighted
+stratified sampling, exact hit points, no transfer vectors; only its ray origins come from the
+library's one offset rule) under band-limited lighting (lmax 2, so PRT at
 lmax 2 is exact up to noise).
 
     PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
@@ -21,10 +23,10 @@ hidden. Reference: gathered twice with different seeds, the errors use the mean 
 difference gives the reference's own noise; contact vertices get 4× the far vertices' rays
 (their radiance is dim and their visibility intricate). The bake's noise: the default bake
 with seeds 0 and 1; both are scored (the verdict of one seed is one draw of the contact's
-quadrature error). "256 direction sets": the default refinement whose final bake gives each
+quadrature error). "256 direction sets": the quick refinement whose final bake gives each
 vertex one of 256 rotated copies of the direction set (``bake(direction_sets=…)``, issue 17
 run 5: neighbours' quadrature errors independent rather than shared). "final gather (M, near
-3)": the default refinement whose final bake evaluates the previous layer at the hits of the
+3)": the quick refinement whose final bake evaluates the previous layer at the hits of the
 input's contact vertices closer than 3 × their triangle's longest edge by M fresh rays
 (``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
 with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="fine")``
@@ -32,13 +34,14 @@ with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="
 quadrature (G 128)": the input's contact vertices trace the adaptive equal-area grid of
 :mod:`shprobe.prt.hemisphere` (128² cells and three levels, ~34k rays each;
 ``dense_factor=32, dense_quadrature="adaptive"``, issue 17 run 10), against the same vertices
-with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1. "adaptive contact":
-``bake(..., refine="adaptive")`` (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, issue 17 runs
-11 and 13: the gather criterion gated at 0.1, the contact and the vertices its bounces lean on
-on the adaptive grid, the post-pass and 256 direction sets; ~10 minutes a seed on two cores),
-seeds 0, 1 and 2, against the default's seed 2.
-Then the worst contact vertices of the default, the seed-1 bakes, the final-gather bakes and
-the adaptive and 64× bakes are
+with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1. "default refinement
+(adaptive contact)": ``bake(..., ground=True)``, i.e. ``refine="adaptive"``
+(:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, issue 17 runs 11, 13 and 14: the gather
+criterion gated at 0.1, the contact and the vertices its bounces lean on on the adaptive grid,
+the post-pass and 256 direction sets; ~4 minutes a seed on two cores), seeds 0, 1 and 2,
+against the quick one's seeds 0, 1 and 2; the bake's noise above is these two seeds'.
+Then the worst contact vertices of the default, the seed-1 and seed-2 bakes, the final-gather
+bakes and the adaptive and 64× bakes are
 re-checked with precise references (:func:`precise`, shared between the bakes; four seeds, up
 to eight while their standard error exceeds a third of the error) until the worst error is one
 measured against them: at a vertex lit through a slot the bench's own reference is
@@ -179,7 +182,8 @@ def main() -> None:
                     help="bake only the rows of this exact name (repeatable; the uniform "
                          "ground, whose vertices are scored, always runs)")
     ap.add_argument("--timing", type=int, default=0,
-                    help="only time the run-2 and the default refinement, alternately, N times")
+                    help="only time the run-2, the quick and the default refinement, in turn, "
+                         "N times")
     a = ap.parse_args()
     import trimesh
     from scipy.spatial import cKDTree
@@ -188,13 +192,15 @@ def main() -> None:
     m = trimesh.load(a.mesh, process=False)
     kw = dict(mode="interreflected", lmax=2, samples=a.samples, bounces=2, albedo=0.8)
     if a.timing:
-        runs: dict[str, list[float]] = {"run-2 default": [], "default": []}
+        runs: dict[str, list[float]] = {"run-2 default": [], "quick": [], "default": []}
         for _ in range(a.timing):
-            for name, extra in (("run-2 default", dict(gather_tol=None, dense_factor=4,
-                                                         dense_depth=3, dense_new=True)),
-                                ("default", {})):
+            for name, fn in (("run-2 default", lambda: bake_refined(
+                                 m, **kw, gather_tol=None, dense_factor=4, dense_depth=3,
+                                 dense_new=True)),
+                             ("quick", lambda: bake_refined(m, **kw)),
+                             ("default", lambda: bake(m, ground=True, **kw))):
                 t0 = time.perf_counter()
-                t = bake_refined(m, **kw, **extra)
+                t = fn()
                 runs[name].append(time.perf_counter() - t0)
                 print(f"{name}: {t.n_vertices} vertices, {runs[name][-1]:.1f} s", flush=True)
         for name, x in runs.items():
@@ -207,34 +213,33 @@ def main() -> None:
             ("run-2 default (no gather criterion, 4× at depth 3)",
              lambda: bake_refined(m, gather_tol=None, dense_factor=4, dense_depth=3,
                                   dense_new=True, **kw)),
-            ("default refinement without dense directions",
+            ("quick refinement without dense directions",
              lambda: bake_refined(m, dense_factor=1, **kw)),
-            ("default refinement", lambda: bake_refined(m, **kw)),
-            ("default refinement, 256 direction sets",
+            ("quick refinement", lambda: bake_refined(m, **kw)),
+            ("quick refinement, 256 direction sets",
              lambda: bake_refined(m, direction_sets=256, **kw)),
-            ("default refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
-            ("default refinement, seed 2", lambda: bake_refined(m, **{**kw, "seed": 2})),
-            ("adaptive contact (refine='adaptive')",
-             lambda: bake(m, ground=True, refine="adaptive", **kw)),
-            ("adaptive contact (refine='adaptive'), seed 1",
-             lambda: bake(m, ground=True, refine="adaptive", **{**kw, "seed": 1})),
-            ("adaptive contact (refine='adaptive'), seed 2",
-             lambda: bake(m, ground=True, refine="adaptive", **{**kw, "seed": 2})),
-            ("default refinement, adaptive contact quadrature (G 128)",
+            ("quick refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
+            ("quick refinement, seed 2", lambda: bake_refined(m, **{**kw, "seed": 2})),
+            ("default refinement (adaptive contact)", lambda: bake(m, ground=True, **kw)),
+            ("default refinement (adaptive contact), seed 1",
+             lambda: bake(m, ground=True, **{**kw, "seed": 1})),
+            ("default refinement (adaptive contact), seed 2",
+             lambda: bake(m, ground=True, **{**kw, "seed": 2})),
+            ("quick refinement, adaptive contact quadrature (G 128)",
              lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive", **kw)),
-            ("default refinement, adaptive contact quadrature (G 128), seed 1",
+            ("quick refinement, adaptive contact quadrature (G 128), seed 1",
              lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive",
                                   **{**kw, "seed": 1})),
-            ("default refinement, 64× Fibonacci at the contact (the adaptive's rays)",
+            ("quick refinement, 64× Fibonacci at the contact (the adaptive's rays)",
              lambda: bake_refined(m, dense_factor=64, **kw)),
-            ("default refinement, 64× Fibonacci at the contact, seed 1",
+            ("quick refinement, 64× Fibonacci at the contact, seed 1",
              lambda: bake_refined(m, dense_factor=64, **{**kw, "seed": 1})),
-            ("default refinement + final gather (16, near 3)",
+            ("quick refinement + final gather (16, near 3)",
              lambda: bake_refined(m, final_gather=16, final_gather_near=3.0, **kw)),
-            ("default refinement + final gather (16, near 3), seed 1",
+            ("quick refinement + final gather (16, near 3), seed 1",
              lambda: bake_refined(m, final_gather=16, final_gather_near=3.0,
                                   **{**kw, "seed": 1})),
-            ("default refinement + final gather (64, near 3)",
+            ("quick refinement + final gather (64, near 3)",
              lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw)),
             ("fine contact", lambda: bake(m, ground=True, refine="fine", **kw)),
             ("fine contact, seed 1",
@@ -273,7 +278,8 @@ def main() -> None:
           f"({a.rays // 4}, 16, 16); contact 4× the outer rays; bake {a.samples} directions\n")
     names = list(bakes)
     # the bake whose worst and left-out vertices are listed: the default when it was baked
-    lead = "default refinement" if "default refinement" in bakes else names[-1]
+    lead = ("default refinement (adaptive contact)"
+            if "default refinement (adaptive contact)" in bakes else names[-1])
     print("| vertices | model | scored | ref noise (median / max) | bake noise (median / max) | "
           + " | ".join(f"{k}: max / median" for k in names) + " |")
     print("|---" * (5 + len(names)) + "|")
@@ -291,8 +297,9 @@ def main() -> None:
             rk = ref[k - 1]
             ok = rk > floor[k]
             rn = np.abs(refs[0, k - 1] - refs[1, k - 1])[ok] / rk[ok] / 2
-            if {"default refinement", "default refinement, seed 1"} <= set(b):
-                b0, b1 = b["default refinement"][k - 1], b["default refinement, seed 1"][k - 1]
+            d0 = "default refinement (adaptive contact)"
+            if {d0, f"{d0}, seed 1"} <= set(b):
+                b0, b1 = b[d0][k - 1], b[f"{d0}, seed 1"][k - 1]
                 bn = np.abs(b0 - b1)[ok] / rk[ok] / np.sqrt(2)
             else:  # the two seeds not both baked (--only)
                 bn = np.full(int(ok.sum()), np.nan)

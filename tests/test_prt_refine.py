@@ -484,7 +484,7 @@ def test_fine_contact_preset_refines_further_and_records_its_settings(tmp_path, 
     p = tmp_path / "s.obj"
     m.export(p)
     kw = dict(mode="interreflected", lmax=1, samples=512, bounces=1, ground=True)
-    default = bake(str(p), **kw)
+    default = bake(str(p), refine="quick", **kw)
     fine = bake(str(p), refine="fine", **kw)
     rd, rf = default.metadata["refine"], fine.metadata["refine"]
     diag = float(np.linalg.norm(np.ptp(load_scene(str(p), ground=True).vertices, axis=0)))
@@ -595,6 +595,7 @@ def test_adaptive_contact_picks_what_the_contact_leans_on():
     assert rf["dense_quadrature"] == "adaptive" and rf["dense_factor"] == 32
     assert rf["gather_gate"] == 0.1
     assert rf["post_jump"] == 0.1 and rf["post_split"] > 0 and rf["post_dense"] > 0
+    assert rf["post_dense_factor"] == 8 and rf["post_first_picks"] is False
     assert t.metadata["direction_sets"] == 256
     none = bake_refined(m, **kw)
     assert none.metadata["refine"]["dense_picked"] == 0
@@ -649,14 +650,16 @@ def test_post_split_marks_against_explicit_loops():
     assert any(4 in e and want_hit[e].all() for e in edges)  # the dark end's edges are tested
 
 
-def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_picks():
+def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_densely():
     """With post_jump the final bake's geometry is split once more (module doc, step 7): the
     scene before it is kept as its first vertices, the new ones lie on edges between vertices
-    the contact leans on, and those between two of them are traced as the picks (their
-    transfer differs from the same geometry baked with the shared directions); bad settings
-    are refused in one line."""
+    the contact leans on, and those between two of them are traced as the picks with
+    post_dense=32 (their transfer differs from the same geometry baked with the shared
+    directions), on their own grid by default, or with the samples with post_dense=0; with
+    nothing to split the bake is the one without the post-pass; bad settings are refused in
+    one line."""
     from shprobe.prt.bake import _bake
-    from shprobe.prt.refine import ADAPTIVE_CONTACT
+    from shprobe.prt.refine import ADAPTIVE_CONTACT, POST_DENSE
 
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
     # one direction set: the vertices not traced as the picks trace what _bake's do below
@@ -664,7 +667,11 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_pic
               max_rounds=1, **{**ADAPTIVE_CONTACT, "direction_sets": 1})
     assert ADAPTIVE_CONTACT["post_jump"] == 0.1
     pre = bake_refined(m, **{**kw, "post_jump": None})
-    post = bake_refined(m, **kw)
+    # nothing to split: the bake it screened with (no picks traced) is not what is returned
+    same = bake_refined(m, **{**kw, "post_jump": 1e9})
+    assert same.metadata["refine"]["post_split"] == 0
+    np.testing.assert_array_equal(same.traced, pre.traced)
+    post = bake_refined(m, **{**kw, "post_dense": 32, "post_first_picks": True})  # run 13's
     rf = post.metadata["refine"]
     n = pre.n_vertices
     assert post.n_vertices > n and rf["post_split"] > 0 and 0 < rf["post_dense"]
@@ -690,6 +697,24 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_as_pic
         post.n_vertices - n, -1), axis=1)
     assert (diff > 1e-4).sum() >= rf["post_dense"]
     assert post.metadata["dense_vertices"] == rf["dense_vertices"] + rf["post_dense"]
+    # the default: those new vertices on their own grid (8 × samples), the rest keep the
+    # samples; post_dense=0: all keep them, and only those picked trace the grid
+    for factor in (POST_DENSE, 0):
+        cheap = bake_refined(m, **{**kw, "post_dense": factor})
+        rc = cheap.metadata["refine"]
+        assert rc["post_first_picks"] is False and rc["post_split"] > 0
+        assert rc["post_dense_factor"] == factor and (rc["post_dense"] > 0) is (factor > 0)
+        assert cheap.metadata["dense_vertices"] == rc["dense_vertices"]
+        assert cheap.metadata.get("second_dense") == (
+            {"vertices": rc["post_dense"], "samples": factor * 64} if factor else None)
+        sc = Scene(cheap.vertices, cheap.normals, cheap.faces, cheap.albedo,
+                   mesh_hash(cheap.vertices, cheap.faces))
+        plain, _ = _bake(sc, "interreflected", 1, 64, 1, None, 0, False, None, None, None,
+                         None, None, None)
+        nc = cheap.n_vertices - n
+        same = np.abs(plain.traced[0] - cheap.traced[0])[n:].reshape(nc, -1).max(1) < 1e-6
+        assert nc - rc["post_dense"] - rc["dense_picked"] <= same.sum() <= nc - rc["post_dense"]
+        assert same.sum() > 0
     with pytest.raises(ShprobeError, match="dense_picks"):
         bake_refined(m, **{**kw, "dense_picks": None})
     with pytest.raises(ShprobeError, match="post_jump"):
@@ -708,7 +733,56 @@ def test_bake_takes_the_presets_direction_sets_unless_given(monkeypatch):
     bake(m, refine="adaptive", **kw)
     bake(m, refine="adaptive", direction_sets=4, **kw)
     bake(m, refine="adaptive", direction_sets=1, **kw)
-    bake(m, refine=True, **kw)
+    bake(m, refine="quick", **kw)
     bake(m, refine="fine", **kw)
     assert [g["direction_sets"] for g in got] == [256, 4, 1, 1, 1]
     assert got[0]["post_jump"] == 0.1 and "post_jump" not in got[3]
+
+
+def test_the_default_refinement_is_adaptive_with_bounces(monkeypatch, tmp_path, capsys):
+    """An interreflected bake with bounces and a ground refines with ADAPTIVE_CONTACT by default
+    (and with refine=True), the preset that brings the contact to the noise level (issue 17
+    run 14); a shadowed one, or one with no bounces, with the quick one; the CLI likewise, and
+    --quick-contact / --adaptive-contact / --fine-contact choose, one at a time."""
+    import shprobe.prt.refine as refine_mod
+    from shprobe.cli.main import main
+    from shprobe.prt.bake import default_refinement
+    from shprobe.prt.refine import ADAPTIVE_CONTACT, FINE_CONTACT
+
+    got = []
+
+    def fake(*a, **k):
+        got.append(k)
+        raise ShprobeError("stop here")  # no bake: the arguments are what is checked
+
+    monkeypatch.setattr(refine_mod, "bake_refined", fake)
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    calls = [dict(mode="interreflected", ground=True), dict(mode="interreflected", refine=True),
+             dict(mode="interreflected", ground=True, bounces=0),
+             dict(mode="shadowed", ground=True), dict(mode="shadowed", refine=True)]
+    for c in calls:
+        with pytest.raises(ShprobeError, match="stop here"):
+            bake(m, **c)
+    adaptive = {k: v for k, v in ADAPTIVE_CONTACT.items() if k != "direction_sets"}
+    for g, want in zip(got, [True, True, False, False, False], strict=True):
+        assert ({k: g.get(k) for k in adaptive} == adaptive) is want
+        assert g["direction_sets"] == (256 if want else 1)
+    assert [default_refinement(*a) for a in [("interreflected", 2), ("interreflected", 0),
+                                             ("shadowed", 2)]] == ["adaptive", "quick", "quick"]
+    p = tmp_path / "s.obj"
+    m.export(p)
+    base = ["prt", "bake", str(p), "--ground", "--mode", "interreflected", "-o",
+            str(tmp_path / "t.npz")]
+    for flags, check in [([], ADAPTIVE_CONTACT), (["--adaptive-contact"], ADAPTIVE_CONTACT),
+                         (["--fine-contact"], FINE_CONTACT), (["--quick-contact"], {})]:
+        got.clear()
+        assert main([*base, *flags]) != 0  # the fake's error, in one line
+        assert "stop here" in capsys.readouterr().err
+        assert all(got[0][k] == v for k, v in check.items() if k != "direction_sets")
+        assert ("post_jump" in got[0]) is (check is ADAPTIVE_CONTACT)
+    for flags, words in [(["--quick-contact", "--fine-contact"], "--quick-contact and "
+                          "--fine-contact"), (["--quick-contact", "--no-refine"], "--no-refine")]:
+        got.clear()
+        assert main([*base, *flags]) != 0
+        err = capsys.readouterr().err.strip()
+        assert words in err and "\n" not in err and not got

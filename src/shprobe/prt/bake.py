@@ -53,8 +53,8 @@ from .transfer import (
     vertex_hash,
 )
 
-__all__ = ["bake", "random_rotation", "rotated_direction_sets", "sample_directions",
-           "unshadowed_transfer"]
+__all__ = ["bake", "default_refinement", "random_rotation", "rotated_direction_sets",
+           "sample_directions", "unshadowed_transfer"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17
@@ -67,7 +67,7 @@ QUADRATURES = ("fibonacci", "adaptive")
 ADAPTIVE_DENSE_FACTOR = 32
 FIBONACCI_DENSE_FACTOR = 8
 #: ``bake``'s named refinements (:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, ``FINE_CONTACT``).
-PRESETS = {"adaptive": "ADAPTIVE_CONTACT", "fine": "FINE_CONTACT"}
+PRESETS = {"adaptive": "ADAPTIVE_CONTACT", "fine": "FINE_CONTACT", "quick": "QUICK_CONTACT"}
 #: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
 MAX_ADAPTIVE_LEVELS = 8
 
@@ -138,12 +138,16 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     :func:`shprobe.cli.common.progress`).
 
     refine: adaptive refinement of the scene where the transfer varies fast
-    (:func:`shprobe.prt.refine.bake_refined`); default: on for traced bakes with a ground;
-    ``"adaptive"``: with :data:`shprobe.prt.refine.ADAPTIVE_CONTACT` (the contact and what its
-    bounces lean on traced on the adaptive grid, a post-pass, 256 direction sets: the contact
-    within 3× the open vertices' error with 1 and 2 bounces, at about 18× the time:
-    docs/benchmarks.md, issue 17 runs 11 and 13);
-    ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (run 8).
+    (:func:`shprobe.prt.refine.bake_refined`); default (None): on for traced bakes with a
+    ground; True (and that default): :func:`default_refinement` — ``"adaptive"`` for an
+    interreflected bake with bounces, else ``"quick"``. ``"adaptive"``: with
+    :data:`shprobe.prt.refine.ADAPTIVE_CONTACT` (the contact and what its bounces lean on
+    traced on the adaptive grid, a post-pass, 256 direction sets: on the bunny the contact
+    within 3× the open vertices' error with 1 and 2 bounces, at about 10× the quick one's
+    time: docs/benchmarks.md, issue 17 runs 11, 13 and 14); ``"quick"``: with
+    :data:`shprobe.prt.refine.QUICK_CONTACT` (bake_refined's own defaults: the contact 2.4–17×
+    the open vertices' error); ``"fine"``: with :data:`shprobe.prt.refine.FINE_CONTACT` (run
+    8); False: none.
     dense, dense_samples: vertex indices (or a (V,) mask) traced with ``dense_samples``
     directions instead of ``samples`` (their own seeded Fibonacci set) — where visibility is
     intricate and the light is dim, as in a crevice, so that the quadrature noise relative to
@@ -156,7 +160,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     directions leave 0.11 % (docs/benchmarks.md, issue 17 run 10). The refinement's dense
     vertices get 32 × ``samples`` (G = 128 at 1024 samples; G = 64 misses slivers of that
     vertex's sky), 8 × as Fibonacci directions.
-    direction_sets: 1 (default; ``refine="adaptive"``: 256): every vertex traces the same
+    direction_sets: 1 (default; ``refine="adaptive"``, and so an interreflected bake's
+    default refinement: 256): every vertex traces the same
     directions; N > 1: N rotated copies of the set, each vertex one of them by a hash of its
     index (:func:`rotated_direction_sets`), so that neighbours' quadrature errors are
     independent rather than shared (docs/benchmarks.md, issue 17 run 5: on the bunny it lowers
@@ -188,8 +193,10 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     if isinstance(refine, np.bool_):
         refine = bool(refine)
     if not (isinstance(refine, bool) or (isinstance(refine, str) and refine in PRESETS)):
-        raise ShprobeError(f"refine must be True, False, None, 'adaptive' or 'fine', got "
-                           f"{refine!r}")
+        raise ShprobeError(f"refine must be True, False, None, {', '.join(map(repr, PRESETS))}"
+                           f", got {refine!r}")
+    if refine is True:  # the default refinement: the contact at the noise level (issue 17)
+        refine = default_refinement(mode, bounces)
     if refine:
         from . import refine as _refine
         from .refine import bake_refined
@@ -223,6 +230,15 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
                  levels=int(adaptive_levels))[0]
 
 
+def default_refinement(mode: str, bounces: Any) -> str:
+    """The preset ``bake(refine=True)`` (and a traced bake with a ground) refines with:
+    ``"adaptive"`` for an interreflected bake with bounces — the one that brings the contact's
+    error to the open vertices' noise level (docs/benchmarks.md, issue 17 run 14) — else
+    ``"quick"`` (a shadowed bake's contact is at that level with it)."""
+    return ("adaptive" if mode == "interreflected" and check_int(bounces, 0, "bounces") > 0
+            else "quick")
+
+
 def _check_quadrature(quadrature: Any, final_gather: Any, levels: Any) -> str:
     """:func:`bake`'s ``dense_quadrature`` and ``adaptive_levels``, checked."""
     if check_int(levels, 0, "adaptive_levels") > MAX_ADAPTIVE_LEVELS:
@@ -241,7 +257,8 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
           ground_albedo: Any, dense: Any, dense_samples: int | None, keep_gather: bool = False,
           sets: int = 1, final_gather: int = 0, final_gather_inner: int = 0,
           final_gather_near: float | None = None, quadrature: str = "fibonacci",
-          levels: int = ADAPTIVE_LEVELS, pick: PickFn | None = None
+          levels: int = ADAPTIVE_LEVELS, pick: PickFn | None = None,
+          second: tuple[NDArray[np.bool_], int] | None = None
           ) -> tuple[Transfer, list[tuple[NDArray[np.int64], Any]] | None]:
     """:func:`bake` without refinement; with ``keep_gather`` (an interreflected bake) also the
     bounce gather matrix G as its blocks (vertex indices, CSR rows (n, V)): bounce b+1 =
@@ -253,7 +270,9 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
     as ``pick(direct, cumulative, blocks, albedo)`` with the layers (V, K, C) and the gather
     blocks; the vertices it returns are traced again as the dense ones are, their rows of
     T_0 and of the gather matrix replaced, before the bounces (the other vertices' rays are
-    kept; :func:`shprobe.prt.refine.gather_picks`)."""
+    kept; :func:`shprobe.prt.refine.gather_picks`). ``second``: (mask (V,), directions) of more
+    vertices traced on the dense vertices' quadrature with their own number of directions
+    (those of ``dense`` keep theirs; not with ``final_gather``)."""
     lmax = check_lmax(lmax)
     seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
     nthreads = check_threads(threads)
@@ -264,6 +283,13 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
                     mesh_albedo=mesh_albedo)
     wrap = progress or _quiet
     groups = _sample_groups(sc.n_vertices, samples, dense, dense_samples) if traced_mode else []
+    if second is not None and len(groups) > 1 and np.any(second[0]):
+        if final_gather:
+            raise ShprobeError("a second dense group does not go with the final gather")
+        more = np.asarray(second[0], dtype=bool).copy()
+        more[groups[1][0]] = False
+        groups[0] = (groups[0][0][~more[groups[0][0]]], groups[0][1])
+        groups.append((np.flatnonzero(more), check_int(second[1], 16, "second dense samples")))
     k = num_coeffs(lmax)
     shape = (sc.n_vertices, k) + ((3,) if coloured(sc.albedo) else ())
     counts = tuple(range(bounces + 1)) if traced_mode else ()
@@ -302,7 +328,7 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
                 return _trace(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap, wrap, sets)
 
             for gi, (rows, n_dirs) in enumerate(groups):
-                t0[rows], b_g = trace(rows, n_dirs, gi == 1)  # group 1: the dense vertices
+                t0[rows], b_g = trace(rows, n_dirs, gi >= 1)  # groups 1, 2: dense, second
                 blocks += b_g
             rho = sc.albedo[:, None, : 3 if coloured(sc.albedo) else 1] / np.pi
             picked = np.zeros(0, dtype=np.int64)
@@ -353,6 +379,8 @@ def _bake(scene: Any, mode: str, lmax: int, samples: int, bounces: int, albedo: 
         **({"dense_samples": groups[1][1], "dense_vertices": len(groups[1][0])}
            if len(groups) > 1 else {}),
         **({"dense_picked": int(picked.size)} if traced_mode and pick is not None else {}),
+        **({"second_dense": {"vertices": len(groups[2][0]), "samples": groups[2][1]}}
+           if len(groups) > 2 else {}),
         **({"direction_sets": int(sets)} if sets > 1 else {}),
         **({"dense_quadrature": {"adaptive": adaptive}} if adaptive else {}),
         **({"final_gather": {"rays": int(final_gather), "inner": int(final_gather_inner),

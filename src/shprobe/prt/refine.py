@@ -74,15 +74,19 @@ puts them where the transfer says they are needed:
    vertices the contact leans on — those whose value carries more than ``post_share`` of the
    exit transfer of a dense vertex or a pick, by :func:`gather_picks`' measure — have the
    edges between them split where the final shadowed transfer jumps by more than
-   ``post_jump``, the new vertices between two of them traced as the picks are, and the scene
-   baked once more (its picks again those of the contact's dense vertices: seeded by the new
-   vertices too, they were 28–30k, not 3.4k, and the bake twice as long for no gain, run 13).
-   The error it removes is the linear interpolation over a few hundred triangles per
-   gatherer, each below step 2b's per-edge tolerance (the slot-lit ground's direct decays as
-   about 1/distance from the slot's mouth: convex, so a linear interpolant overestimates it on
-   every triangle); the new vertices must be traced as the picks, for with the 1,024
-   directions every vertex shares their error is one that no gather averages
-   (docs/benchmarks.md, issue 17 run 12).
+   ``post_jump``, and the scene baked once more (its picks again those of the contact's dense
+   vertices: seeded by the new vertices too, they were 28–30k, not 3.4k, and the bake twice
+   as long for no gain, run 13). The error it removes is the linear interpolation over a few
+   hundred triangles per gatherer, each below step 2b's per-edge tolerance (the slot-lit
+   ground's direct decays as about 1/distance from the slot's mouth: convex, so a linear
+   interpolant overestimates it on every triangle). The bake the post-pass reads only
+   screens: its picks are found but not traced (``post_first_picks=True`` traces them, as
+   run 13 did); and the new vertices between two leaned-on ones are traced on an adaptive
+   grid of their own at ``post_dense`` (8) × ``samples`` (G 64), not the picks' 32 (run
+   13's; with the ``samples`` alone, ``post_dense=0``, a crevice vertex that gathers them was
+   +0.15 % off in its first bounce: their quadrature errors, though independent with
+   ``direction_sets``, do not average away; run 12 had found the same with one shared set).
+   On the bunny this is ~330 s a bake, not ~600 s (docs/benchmarks.md, issue 17 run 14).
 
 Meshes are refined too by default (``refine_mesh``): a mesh vertex that touches the ground has
 its ray origin pushed along its (downward) normal below the ground, so it sees the open sky from
@@ -114,9 +118,10 @@ from .hemisphere import ADAPTIVE_LEVELS
 from .scene import Scene, load_scene, mesh_hash
 from .transfer import MODES, Transfer, check_int
 
-__all__ = ["ADAPTIVE_CONTACT", "FINE_CONTACT", "GATHER_TOL", "POST_SHARE", "REFINE_TOL",
-           "RefineRound", "bake_refined", "gather_errors", "gather_importance", "gather_picks",
-           "post_split_marks", "split_edges", "transfer_jumps"]
+__all__ = ["ADAPTIVE_CONTACT", "FINE_CONTACT", "GATHER_TOL", "POST_DENSE", "POST_SHARE",
+           "QUICK_CONTACT", "REFINE_TOL", "RefineRound", "bake_refined", "gather_errors",
+           "gather_importance", "gather_picks", "post_split_marks", "split_edges",
+           "transfer_jumps"]
 
 #: Default tolerance on the relative jump of a transfer layer across an edge.
 REFINE_TOL = 0.25
@@ -157,25 +162,35 @@ FINE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.05, "gather_tol": 0.01, "min_edge_fraction": 1e-4, "max_rounds": 10,
     "dense_new": True, "dense_factor": DENSE_FACTOR, "dense_quadrature": "fibonacci",
     "dense_picks": None})
+#: Settings of ``bake(..., refine="quick")`` (``shprobe prt bake --quick-contact``, and a
+#: shadowed bake's default): :func:`bake_refined`'s own defaults. On the bunny with 2 bounces
+#: the contact stays 2.4–4.2× (1 bounce) and 4.4–17× (2 bounces) the open vertices' error
+#: (docs/benchmarks.md, issue 17 runs 13–14), at about a tenth of the default's time.
+QUICK_CONTACT: Mapping[str, Any] = MappingProxyType({})
 #: Default ``post_share`` of the post-pass (module doc, step 7): a vertex is one the contact
 #: leans on when its value carries more than this share of a gatherer's exit transfer.
 POST_SHARE = 2e-4
+#: Default ``post_dense``: the post-pass's new vertices between two the contact leans on are
+#: traced on the adaptive grid at this factor × ``samples`` (8: G 64), below the picks' 32.
+POST_DENSE = 8
 #: ``post_jump`` of :data:`ADAPTIVE_CONTACT`.
 POST_JUMP = 0.1
-#: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``): the
-#: gather criterion's noise gate at 0.1, the contact's dense vertices on the adaptive grid
-#: (factor 32: 128² at 1024 samples), the vertices its bounces lean on picked (module doc,
-#: step 6, thresholds 0.01, 0.01) and traced so too, the post-pass (step 7) and 256 direction
-#: sets in the final bakes. On the bunny (issue 17 run 13; worst contact error over the open
-#: vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 0.73× / 2.40×, 1.20× / 0.81×, 1.64× /
-#: 1.13× (the default: 2.5× / 5.2×, 4.3× / 5.6×, 3.5× / 21× in run 11), at 2.6–2.7× the
-#: default's vertices and about 18× its bake time (573–627 s on two cores). Without the
-#: post-pass and the direction sets (run 11) the slot-lit ground vertex under the belly was
-#: +0.5 % with 2 bounces in every seed (7.8–8.2×).
+#: Settings of ``bake(..., refine="adaptive")`` (``shprobe prt bake --adaptive-contact``; the
+#: default refinement of an interreflected bake with bounces): the gather criterion's noise
+#: gate at 0.1, the contact's dense vertices on the adaptive grid (factor 32: 128² at 1024
+#: samples), the vertices its bounces lean on picked (module doc, step 6, thresholds 0.01,
+#: 0.01) and traced so too, the post-pass (step 7; its new vertices at factor 8) and 256
+#: direction sets in the final bakes. On the bunny (issue 17 run 14; worst contact error over
+#: the open vertices' median, 1 / 2 bounces): seeds 0 / 1 / 2 / 3 1.95× / 2.79×, 1.42× /
+#: 1.18×, 1.99× / 2.20×, 1.82× / 2.58× (the quick refinement: 2.4–4.2× / 4.4–17×), at
+#: 2.8–2.9× its vertices and about 10× its bake time (319–335 s on two cores; run 13's
+#: version, the post-pass's vertices as the picks, 573–627 s). Without the post-pass and the
+#: direction sets (run 11) the slot-lit ground vertex under the belly was +0.5 % with 2
+#: bounces in every seed (7.8–8.2×).
 ADAPTIVE_CONTACT: Mapping[str, Any] = MappingProxyType({
     "gather_gate": 0.1, "dense_factor": ADAPTIVE_DENSE_FACTOR, "dense_quadrature": "adaptive",
     "dense_picks": (0.01, 0.01), "post_jump": POST_JUMP, "post_share": POST_SHARE,
-    "direction_sets": 256})
+    "post_dense": POST_DENSE, "post_first_picks": False, "direction_sets": 256})
 
 
 @dataclass(frozen=True)
@@ -334,7 +349,8 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                  dense_quadrature: str = "fibonacci",
                  adaptive_levels: int = ADAPTIVE_LEVELS,
                  dense_picks: tuple[float, ...] | None = None,
-                 post_jump: float | None = None, post_share: float = POST_SHARE) -> Transfer:
+                 post_jump: float | None = None, post_share: float = POST_SHARE,
+                 post_dense: int = POST_DENSE, post_first_picks: bool = False) -> Transfer:
     """:func:`~shprobe.prt.bake.bake` with adaptive refinement of the ground (and of the meshes
     with ``refine_mesh``) where the baked transfer jumps by more than ``tol`` across an edge
     (module doc). Other arguments as :func:`~shprobe.prt.bake.bake`; ``min_edge`` (default
@@ -357,7 +373,11 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     (:func:`~shprobe.prt.bake.bake`); ``dense_picks``: the thresholds of :func:`gather_picks`,
     one per round (module doc, step 6; None or empty: no picks; an interreflected bake with
     dense vertices and no final gather only); ``post_jump``, ``post_share``: the post-pass
-    (module doc, step 7; :func:`post_split_marks`; None: none; needs ``dense_picks``). The
+    (module doc, step 7; :func:`post_split_marks`; None: none; needs ``dense_picks``);
+    ``post_dense``: its new vertices between two leaned-on ones traced on the dense
+    quadrature at ``post_dense`` × ``samples`` (0: not; ``dense_factor`` or more: as the
+    picks, run 13's); ``post_first_picks``: the picks traced in the bake it reads too (run
+    13's; by default that bake only screens). The
     returned
     transfer's
     ``metadata['refine']`` holds the rounds (:class:`RefineRound` as dicts)."""
@@ -413,12 +433,15 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         if not picks:
             raise ShprobeError("post_jump splits among the vertices the contact leans on: it "
                                "needs dense_picks")
+    pdense = check_int(post_dense, 0, "post_dense")
     picks = picks if mode == "interreflected" and int(bounces) > 0 and factor > 1 else ()
     n_picked = [0]
     held: dict[str, Any] = {}  # the last final bake's layers and gather, for the post-pass
 
     def final(sc: Scene, extra: NDArray[np.bool_] | None = None) -> Transfer:
-        mask = dense_mask() if extra is None else dense_mask() | extra
+        # the post-pass's new vertices: as the picks, or on their own grid (post_dense)
+        own = extra is not None and 0 < pdense < factor
+        mask = dense_mask() if extra is None or own else dense_mask() | extra
         held.clear()
         if picks and mask.any():
             keep = post_jump is not None and extra is None
@@ -428,13 +451,16 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                 got = gather_picks(direct, cum, blocks, alb, dense_mask(), picks, gather_floor)
                 if keep:
                     held.update(direct=direct, cumulative=cum, albedo=alb, picked=got)
+                    if not post_first_picks:  # this bake only screens: no picks traced
+                        return got[:0]
                 return got
 
             t, blocks = _bake(sc, mode, lmax, samples, bounces, None, seed, False, threads,
                               progress, None, None, mask, factor * int(samples),
                               sets=check_int(direction_sets, 1, "direction_sets"),
                               quadrature=dense_quadrature, levels=int(adaptive_levels),
-                              pick=pick, keep_gather=keep)
+                              pick=pick, keep_gather=keep,
+                              second=(extra, pdense * int(samples)) if own else None)
             if keep:
                 held.update(blocks=blocks, mask=mask)
             n_picked[0] = int(t.metadata.get("dense_picked", 0))
@@ -504,6 +530,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
         marked &= splittable(sc, edges)
         rounds[-1] = RefineRound(rounds[-1].vertices, int(marked.sum()), rounds[-1].seconds)
         post = {"post_jump": float(post_jump), "post_share": float(post_share),
+                "post_first_picks": bool(post_first_picks), "post_dense_factor": pdense,
                 "post_leaned_on": int(hit.sum()), "post_split": int(marked.sum()),
                 "post_dense": 0}
         if marked.any():
@@ -517,10 +544,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             deep = np.concatenate([deep, np.zeros(added, dtype=bool)])
             # the new vertices between two the contact leans on are traced as the picks
             extra = np.zeros(new.n_vertices, dtype=bool)
-            extra[sc.n_vertices:] = gatherers[edges[mids]].all(1)
+            extra[sc.n_vertices:] = gatherers[edges[mids]].all(1) & (pdense > 0)
             post["post_dense"] = int(extra.sum())
             sc = new
             t = final(sc, extra)
+            rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
+        elif not post_first_picks:  # nothing to split: bake again, the picks traced
+            t0 = time.perf_counter()
+            t = final(sc, np.zeros(sc.n_vertices, dtype=bool))
             rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
     meta = dict(t.metadata)
     meta["refine"] = {
