@@ -234,7 +234,8 @@ def default_refinement(mode: str, bounces: Any) -> str:
     """The preset ``bake(refine=True)`` (and a traced bake with a ground) refines with:
     ``"adaptive"`` for an interreflected bake with bounces — the one that brings the contact's
     error to the open vertices' noise level (docs/benchmarks.md, issue 17 run 14) — else
-    ``"quick"`` (a shadowed bake's contact is at that level with it)."""
+    ``"quick"`` (the adaptive preset's picks and post-pass serve the bounces' gathers, which a
+    shadowed bake has none of)."""
     return ("adaptive" if mode == "interreflected" and check_int(bounces, 0, "bounces") > 0
             else "quick")
 
