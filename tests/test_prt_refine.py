@@ -786,3 +786,29 @@ def test_the_default_refinement_is_adaptive_with_bounces(monkeypatch, tmp_path, 
         assert main([*base, *flags]) != 0
         err = capsys.readouterr().err.strip()
         assert words in err and "\n" not in err and not got
+
+
+def test_refined_bake_progress_names_each_bake():
+    """Every progress bar of a refined bake says which bake it belongs to (the rounds, the
+    post-pass's screening bake, the final one), so a minutes-long default bake reads as
+    stages; the bars' own words and totals are passed on unchanged."""
+    from shprobe.prt.refine import ADAPTIVE_CONTACT
+
+    seen = []
+
+    def progress(items, description, total=None):
+        seen.append((description, total))
+        return items
+
+    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    t = bake_refined(m, mode="interreflected", lmax=1, samples=64, bounces=1,
+                     ground_resolution=8, max_rounds=1, progress=progress, **ADAPTIVE_CONTACT)
+    rounds = t.metadata["refine"]["rounds"]
+    stages = [d.split(": ")[0] for d, _ in seen]
+    assert all(": " in d for d, _ in seen)
+    want = [f"refinement round 1, {rounds[0]['vertices']:,} vertices",
+            f"screening bake, {rounds[1]['vertices']:,} vertices",
+            f"final bake, {t.n_vertices:,} vertices"]
+    assert list(dict.fromkeys(stages)) == want
+    assert {d.split(": ")[1] for d, _ in seen} >= {"tracing rays", "bounces"}
+    assert all(total is not None and total > 0 for _, total in seen)

@@ -401,8 +401,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     min_len = float(min_edge_fraction) * diag if min_edge is None else float(min_edge)
     is_ground = np.arange(sc.n_vertices) >= n_mesh
     rounds: list[RefineRound] = []
+    stage = [""]  # what the bake under way is, before each of its progress bars
+
+    def staged(items: Any, description: str, total: int | None = None) -> Any:
+        return progress(items, f"{stage[0]}: {description}", total)
+
+    prog = staged if progress is not None else None
     kw = dict(mode=mode, lmax=lmax, bounces=bounces, seed=seed, threads=threads,
-              progress=progress)
+              progress=prog)
     drive = max(64, int(samples) // 4) if driver_samples is None else int(driver_samples)
     deep = np.zeros(sc.n_vertices, dtype=bool)  # touched at depth >= dense_depth
     factor = check_int(dense_factor, 1, "dense_factor")
@@ -439,6 +445,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     held: dict[str, Any] = {}  # the last final bake's layers and gather, for the post-pass
 
     def final(sc: Scene, extra: NDArray[np.bool_] | None = None) -> Transfer:
+        screen = (post_jump is not None and extra is None and bool(picks)
+                  and not post_first_picks and bool(dense_mask().any()))
+        stage[0] = f"{'screening' if screen else 'final'} bake, {sc.n_vertices:,} vertices"
         # the post-pass's new vertices: as the picks, or on their own grid (post_dense)
         own = extra is not None and 0 < pdense < factor
         mask = dense_mask() if extra is None or own else dense_mask() | extra
@@ -456,7 +465,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                 return got
 
             t, blocks = _bake(sc, mode, lmax, samples, bounces, None, seed, False, threads,
-                              progress, None, None, mask, factor * int(samples),
+                              prog, None, None, mask, factor * int(samples),
                               sets=check_int(direction_sets, 1, "direction_sets"),
                               quadrature=dense_quadrature, levels=int(adaptive_levels),
                               pick=pick, keep_gather=keep,
@@ -486,8 +495,9 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
             t = final(sc)
             rounds.append(RefineRound(sc.n_vertices, 0, time.perf_counter() - t0))
             break
+        stage[0] = f"refinement round {r + 1}, {sc.n_vertices:,} vertices"
         t, blocks = _bake(sc, mode, lmax, min(drive, samples), bounces, None, seed, False,
-                          threads, progress, None, None, None, None, keep_gather=gathered)
+                          threads, prog, None, None, None, None, keep_gather=gathered)
         secs = time.perf_counter() - t0
         edges, face_edges = _edges(sc.faces)
         _, jump = transfer_jumps(t, floor)
