@@ -445,15 +445,14 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
     held: dict[str, Any] = {}  # the last final bake's layers and gather, for the post-pass
 
     def final(sc: Scene, extra: NDArray[np.bool_] | None = None) -> Transfer:
-        screen = (post_jump is not None and extra is None and bool(picks)
-                  and not post_first_picks and bool(dense_mask().any()))
-        stage[0] = f"{'screening' if screen else 'final'} bake, {sc.n_vertices:,} vertices"
+        keep = post_jump is not None and extra is None  # the bake the post-pass reads
         # the post-pass's new vertices: as the picks, or on their own grid (post_dense)
         own = extra is not None and 0 < pdense < factor
         mask = dense_mask() if extra is None or own else dense_mask() | extra
+        screen = keep and bool(picks) and bool(mask.any()) and not post_first_picks
+        stage[0] = f"{'screening' if screen else 'final'} bake, {sc.n_vertices:,} vertices"
         held.clear()
         if picks and mask.any():
-            keep = post_jump is not None and extra is None
 
             def pick(direct: Any, cum: Any, blocks: Any, alb: Any) -> NDArray[np.int64]:
                 # what the contact leans on: seeded by its dense vertices, not the post-pass's
@@ -552,7 +551,7 @@ def bake_refined(scene: Any, mode: str = "interreflected", lmax: int = 4, sample
                                    "vertices; raise post_jump or min_edge")
             added = new.n_vertices - sc.n_vertices
             deep = np.concatenate([deep, np.zeros(added, dtype=bool)])
-            # the new vertices between two the contact leans on are traced as the picks
+            # the new vertices between two the contact leans on: traced at post_dense
             extra = np.zeros(new.n_vertices, dtype=bool)
             extra[sc.n_vertices:] = gatherers[edges[mids]].all(1) & (pdense > 0)
             post["post_dense"] = int(extra.sum())
