@@ -1,0 +1,112 @@
+"""The one progress protocol: library code reports, the CLI (or the viewer) shows.
+
+A long job is a sequence of *stages*; each stage has a description and, where the work is
+countable, a total. Library functions take ``progress: Progress | None`` and report through it:
+
+    with stage(progress, "tracing rays", total=n, index=2, count=3) as bar:
+        for chunk in chunks:
+            ...
+            bar.advance(len(chunk))
+
+or wrap an iterable with :func:`track`. ``index``/``count`` make the description read
+"2/3: tracing rays". Nothing here draws: :mod:`shprobe.cli.progress` builds the one terminal
+bar (rich on a terminal, one plain line per stage otherwise) and the viewer forwards the same
+calls to the page. ``None`` means quiet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from typing import Protocol, TypeVar, runtime_checkable
+
+T = TypeVar("T")
+
+
+@runtime_checkable
+class Progress(Protocol):
+    """What a reporter implements: one stage at a time."""
+
+    def begin(self, description: str, total: float | None = None) -> None:
+        """A stage starts; ``total`` is its amount of work when countable (else None)."""
+
+    def update(self, done: float) -> None:
+        """Work done so far in the stage under way (absolute, not an increment)."""
+
+    def end(self) -> None:
+        """The stage under way is finished (shown at 100 %, or removed)."""
+
+
+def label(description: str, index: int | None = None, count: int | None = None) -> str:
+    """'k/N: description' when the stage's place is known, else the description."""
+    if index is not None and count is not None:
+        return f"{index}/{count}: {description}"
+    return description
+
+
+class Stage:
+    """Handle on the stage under way: counts work done and forwards it to the reporter."""
+
+    __slots__ = ("_done", "_progress")
+
+    def __init__(self, progress: Progress | None) -> None:
+        self._progress = progress
+        self._done = 0.0
+
+    def advance(self, amount: float = 1) -> None:
+        """Add ``amount`` to the work done."""
+        self._done += amount
+        if self._progress is not None:
+            self._progress.update(self._done)
+
+    def set(self, done: float) -> None:
+        """Set the work done (for callers that know the absolute count)."""
+        self._done = float(done)
+        if self._progress is not None:
+            self._progress.update(self._done)
+
+
+@contextmanager
+def stage(progress: Progress | None, description: str, total: float | None = None, *,
+          index: int | None = None, count: int | None = None) -> Iterator[Stage]:
+    """Report one stage; the stage ends when the block does, also on an error."""
+    if progress is not None:
+        progress.begin(label(description, index, count), total)
+    try:
+        yield Stage(progress)
+    finally:
+        if progress is not None:
+            progress.end()
+
+
+def track(items: Iterable[T], progress: Progress | None, description: str,
+          total: int | None = None, *, index: int | None = None,
+          count: int | None = None) -> Iterator[T]:
+    """Yield ``items`` as one stage, one unit of work per item."""
+    if total is None and hasattr(items, "__len__"):
+        total = len(items)  # type: ignore[arg-type]
+    with stage(progress, description, total, index=index, count=count) as bar:
+        for item in items:
+            yield item
+            bar.advance(1)
+
+
+class Recorder:
+    """A reporter that keeps every call, for tests and for forwarding (the viewer)."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple[str, object, object]] = []
+
+    def begin(self, description: str, total: float | None = None) -> None:
+        self.events.append(("begin", description, total))
+
+    def update(self, done: float) -> None:
+        self.events.append(("update", done, None))
+
+    def end(self) -> None:
+        self.events.append(("end", None, None))
+
+    @property
+    def stages(self) -> list[str]:
+        """The descriptions of the stages begun, in order."""
+        return [str(d) for kind, d, _ in self.events if kind == "begin"]
