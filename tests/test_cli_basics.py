@@ -66,4 +66,36 @@ def test_a_command_imports_only_its_own_modules():
     code = ("import sys; from shprobe.cli.main import main; main(['view', '--help']); "
             "print(sorted(m for m in sys.modules if m.startswith('shprobe.cli.')))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert r.stdout.strip().splitlines()[-1] == "['shprobe.cli.main', 'shprobe.cli.view']"
+    # cli.output holds the group's -q/-v state, which every command reads
+    assert r.stdout.strip().splitlines()[-1] == (
+        "['shprobe.cli.main', 'shprobe.cli.output', 'shprobe.cli.view']")
+
+
+def test_terminal_progress_plain_lines_off_a_terminal():
+    """Off a terminal each stage is one plain line, no control codes, no blank lines."""
+    import io
+
+    from shprobe.cli.progress import TerminalProgress
+    from shprobe.progress import stage, track
+
+    buf = io.StringIO()
+    rep = TerminalProgress(stream=buf)
+    assert list(track(range(3), rep, "tracing rays", index=1, count=2)) == [0, 1, 2]
+    with stage(rep, "gathering", total=5, index=2, count=2) as bar:
+        bar.advance(5)
+    assert buf.getvalue() == "1/2: tracing rays …\n2/2: gathering …\n"
+    quiet = io.StringIO()
+    list(track(range(3), TerminalProgress(quiet=True, stream=quiet), "x"))
+    assert quiet.getvalue() == ""
+
+
+def test_quiet_flag_silences_the_wrote_line(tmp_path):
+    from click.testing import CliRunner
+
+    from shprobe.cli.main import cli
+
+    out = tmp_path / "c.json"
+    r = CliRunner().invoke(cli, ["-q", "prefilter", "--preset", "grace", "--format", "json",
+                                 "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert out.exists() and "wrote" not in r.output

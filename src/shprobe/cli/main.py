@@ -44,13 +44,19 @@ class LazyGroup(click.Group):
 @click.option("--max-memory", metavar="SIZE", default=None,
               help="Refuse work estimated to need more memory than SIZE (e.g. 2G); default: "
                    "80 % of the available memory (or SHPROBE_MAX_MEMORY).")
-def cli(max_memory: str | None) -> None:
+@click.option("-q", "--quiet", is_flag=True, help="Print no progress and no 'wrote …' line.")
+@click.option("-v", "--verbose", is_flag=True, help="Print more detail about the work done.")
+@click.pass_context
+def cli(ctx: click.Context, max_memory: str | None, quiet: bool, verbose: bool) -> None:
     """shprobe: spherical-harmonic lighting — irradiance environment maps, SH rotation,
     H-basis, precomputed radiance transfer, lighting from photographs, batch tables and an
     interactive viewer.
 
     Start with `shprobe demo`, which needs no files.
     """
+    from .output import Verbosity
+
+    ctx.obj = Verbosity(quiet=quiet, verbose=verbose and not quiet)
     if max_memory is not None:
         import os
 
