@@ -90,7 +90,7 @@ def write_trainer_ply(path, s: dict, fmt: str = "binary_little_endian") -> None:
         rec[c] = s["pos"][:, i]
     for c in range(3):
         rec[f"f_dc_{c}"] = s["sh"][:, 0, c]
-    rest = s["sh"][:, 1:, :].transpose(0, 2, 1).reshape(n, -1)  # channel-major
+    rest = s["sh"][:, 1:, :].transpose(0, 2, 1).reshape(n, 3 * (k - 1))  # channel-major
     for i in range(rest.shape[1]):
         rec[f"f_rest_{i}"] = rest[:, i]
     rec["opacity"] = s["opacity"]

@@ -11,6 +11,8 @@ from ..errors import ShprobeError
 from .conventions import MAX_DEGREE
 
 _F32 = np.float32
+_WHAT = {"positions": "position", "log_scales": "scales", "rotations": "rotation",
+         "opacity": "opacity", "sh": "SH coefficients", "normals": "normal"}
 
 
 @dataclass(repr=False)
@@ -91,7 +93,7 @@ class Splats:
             if not ok.all():
                 i = offset + int(np.argmin(ok))
                 raise ShprobeError(f"splat {i} has a non-finite value (NaN or Inf) in its "
-                                   f"{name.replace('_', ' ')}", where)
+                                   f"{_WHAT[name]}", where)
 
 
 def concatenate(parts: list[Splats]) -> Splats:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import gzip
 import os
 import struct
+import zlib
 
 import numpy as np
 
@@ -50,10 +51,10 @@ def _read_bytes(p: str) -> bytes:
         raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
 
 
-def _inflate(raw: bytes, p: str) -> bytes:
+def _inflate(z, raw: bytes, size: int, p: str) -> bytes:
     try:
-        return gzip.decompress(raw)
-    except (OSError, EOFError, gzip.BadGzipFile) as e:
+        return z.decompress(raw, size)
+    except zlib.error as e:
         raise ShprobeError(f"SPZ gzip stream is damaged or truncated ({e})", p) from None
 
 
@@ -97,14 +98,18 @@ def read(path: str | os.PathLike[str]) -> Splats:
             raise ShprobeError(f"SPZ has {n_streams} streams, expected 6", p)
         body = b"".join(streams)
     elif raw[:2] == b"\x1f\x8b":
-        data = _inflate(raw, p)
+        # the header is inflated first and checked, so that a small file cannot inflate to
+        # gigabytes unasked; the rest is inflated up to the size the header implies
+        z = zlib.decompressobj(16 + zlib.MAX_WBITS)
+        data = _inflate(z, raw, 16, p)
         if len(data) < 16:
             raise ShprobeError("SPZ header is truncated", p)
         magic, version, n, degree, fbits, _flags, _ = struct.unpack_from("<IIIBBBB", data)
         if magic != MAGIC:
             raise ShprobeError("not an SPZ file (no NGSP magic inside the gzip stream)", p)
         _check_header(p, version, n, degree)
-        body = data[16:]
+        per = (6 if version == 1 else 9) + 1 + 3 + 3 + (4 if version >= 3 else 3)
+        body = data[16:] + _inflate(z, z.unconsumed_tail, n * (per + 3 * _sh_dim(degree)), p)
     else:
         raise ShprobeError("not an SPZ file (neither gzip nor NGSP)", p)
     return frame_in(_unpack(p, body, version, n, degree, fbits))
