@@ -121,6 +121,31 @@ def _degree(settings: TransformSettings, degree: int, where) -> int:
     return d
 
 
+def _stream_floats(layout: ply.PlyLayout, cols: dict[str, int], dtype: np.dtype,
+                   sim: Similarity, f, progress: Progress | None) -> None:
+    """PLY → PLY for all-float32 records: each chunk moved in place as an (N, F) matrix."""
+    names = list(layout.dtype.names)
+    k_in, k_out = (layout.degree + 1) ** 2 - 1, (ply.degree_of(dtype) + 1) ** 2 - 1
+
+    def source(name: str) -> int:  # f_rest is channel-major: renumbered when truncated
+        if not name.startswith("f_rest_"):
+            return cols[name]
+        c, j = divmod(int(name[7:]), k_out)
+        return cols[f"f_rest_{c * k_in + j}"]
+
+    keep = [source(n) for n in dtype.names]
+    with stage(progress, "transforming splats", total=layout.count) as bar:
+        done = 0
+        for rec in ply.records(layout):
+            a = rec.view(np.float32).reshape(rec.shape[0], len(names))
+            ply.first_non_finite(a, names, layout.path, done)
+            ply.transform_matrix(a, cols, layout.degree, sim)
+            ply.first_non_finite(a, names, f"{layout.path} (after the transform)", done)
+            (a if len(keep) == len(names) else a[:, keep]).tofile(f)
+            done += rec.shape[0]
+            bar.advance(rec.shape[0])
+
+
 def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                    settings: TransformSettings, progress: Progress | None = None
                    ) -> TransformResult:
@@ -135,12 +160,16 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
         layout = ply.read_layout(src)
         degree = _degree(settings, layout.degree, src)
         dtype = ply.output_dtype(layout.dtype, degree)
+        cols = ply.float_columns(layout.dtype.newbyteorder("="))
         with atomic_output(dst, settings.overwrite) as tmp, open(tmp, "wb") as f:
             f.write(ply.header(dtype, layout.count))
-            for rec, s in _chunks(layout, progress, "transforming splats"):
-                moved = apply(s.truncated(degree), settings.similarity)
-                moved.check_finite(os.fspath(dst))
-                ply.from_splats(moved, dtype, extra=rec).tofile(f)
+            if cols is not None:
+                _stream_floats(layout, cols, dtype, settings.similarity, f, progress)
+            else:
+                for rec, s in _chunks(layout, progress, "transforming splats"):
+                    moved = apply(s.truncated(degree), settings.similarity)
+                    moved.check_finite(os.fspath(dst))
+                    ply.from_splats(moved, dtype, extra=rec).tofile(f)
         return TransformResult(layout.count, layout.degree, degree, Path(dst))
     s = read(src, progress)
     degree = _degree(settings, s.degree, src)

@@ -193,6 +193,11 @@ def output_dtype(layout_dtype: np.dtype, degree: int) -> np.dtype:
     return np.dtype(fields)
 
 
+def degree_of(dtype: np.dtype) -> int:
+    """The SH degree of a record type, from its f_rest count."""
+    return _DEGREE_OF_REST[sum(1 for n in dtype.names if n.startswith("f_rest_"))]
+
+
 def trainer_dtype(degree: int, scales: int = 3) -> np.dtype:
     """The reference trainer's record type for ``degree`` (normals included, as it writes)."""
     names = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
@@ -236,3 +241,49 @@ def header(dtype: np.dtype, count: int) -> bytes:
     lines += [f"property {_NAMES[dtype[n].str[1:]]} {n}" for n in dtype.names]
     lines.append("end_header")
     return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def float_columns(dtype: np.dtype) -> dict[str, int] | None:
+    """Column index of every property when all are float32 (the trainer's layout: the records
+    are then an (N, F) float32 matrix), else None."""
+    if any(dtype[n] != np.dtype("f4") for n in dtype.names) or dtype.itemsize != 4 * len(
+            dtype.names):
+        return None
+    cols = {n: i for i, n in enumerate(dtype.names)}
+    rest = sorted(int(n[7:]) for n in cols if n.startswith("f_rest_"))
+    if rest and any(cols[f"f_rest_{i}"] != cols["f_rest_0"] + i for i in rest):
+        return None  # f_rest not stored in order: the general path
+    return cols
+
+
+def first_non_finite(a: np.ndarray, names, where, offset: int = 0) -> None:
+    """Refuse an (N, F) record matrix with a NaN or Inf, naming the splat and property."""
+    if not np.isfinite(a).all():
+        i, j = np.argwhere(~np.isfinite(a))[0]
+        raise ShprobeError(f"splat {offset + int(i)} has a non-finite value (NaN or Inf) in "
+                           f"property {names[int(j)]!r}", where)
+
+
+def transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
+    """Move the splats of an (N, F) float32 record matrix in place (the fast path of
+    :func:`shprobe.splats.transform.apply` for all-float layouts: one GEMM for the SH)."""
+    from .transform import X180, quat_from_matrix, quat_multiply, sh_matrix
+
+    q = np.asarray(sim.linear, dtype=np.float64)
+    mirror_ = np.linalg.det(q) < 0
+    xyz = [cols[c] for c in "xyz"]
+    a[:, xyz] = (a[:, xyz].astype(np.float64) @ (sim.scale * q).T + sim.translation)
+    if "nx" in cols:
+        nrm = [cols["nx"], cols["ny"], cols["nz"]]
+        a[:, nrm] = a[:, nrm] @ q.T.astype(np.float32)
+    scales = [cols[n] for n in ("scale_0", "scale_1", "scale_2") if n in cols]
+    a[:, scales] += np.float32(np.log(sim.scale))
+    rot = [cols[f"rot_{i}"] for i in range(4)]
+    r = quat_multiply(quat_from_matrix(-q if mirror_ else q), a[:, rot])
+    a[:, rot] = quat_multiply(r, X180) if mirror_ else r
+    k = (degree + 1) ** 2
+    if k > 1:
+        first = cols["f_rest_0"]
+        m = sh_matrix(q, degree)[1:, 1:].T.astype(np.float32)
+        rest = a[:, first : first + 3 * (k - 1)].reshape(-1, k - 1)
+        a[:, first : first + 3 * (k - 1)] = (rest @ m).reshape(a.shape[0], -1)

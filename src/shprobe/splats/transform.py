@@ -233,7 +233,8 @@ def quat_from_matrix(r: ArrayLike) -> NDArray[np.float64]:
     return q * (1.0 if q[0] >= 0 else -1.0) / np.linalg.norm(q)
 
 
-_X180 = np.array([0.0, 1.0, 0.0, 0.0])
+#: The quaternion of the 180° turn about the splat's own x axis (folds a reflection in).
+X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
@@ -245,7 +246,7 @@ def apply(splats: Splats, sim: Similarity) -> Splats:
     scales = splats.log_scales + np.float32(np.log(sim.scale))
     rot = quat_multiply(quat_from_matrix(proper), splats.rotations)
     if mirror_:
-        rot = quat_multiply(rot, _X180)
+        rot = quat_multiply(rot, X180)
     m = sh_matrix(q, splats.degree).astype(np.float32)
     sh = np.matmul(m, splats.sh)
     normals = None if splats.normals is None else splats.normals @ q.T.astype(np.float32)
