@@ -134,7 +134,12 @@ def _stream_floats(layout: ply.PlyLayout, cols: dict[str, int], dtype: np.dtype,
         return cols[f"f_rest_{c * k_in + j}"]
 
     keep = [source(n) for n in dtype.names]
-    with stage(progress, "transforming splats", total=layout.count) as bar:
+    from threadpoolctl import threadpool_limits
+
+    # one BLAS thread: the GEMMs of a chunk are a few ms, and idle BLAS threads spinning
+    # between chunks cost more CPU than they save (5x the CPU time on a 2-core machine)
+    with threadpool_limits(1, user_api="blas"), \
+            stage(progress, "transforming splats", total=layout.count) as bar:
         done = 0
         for rec in ply.records(layout):
             a = rec.view(np.float32).reshape(rec.shape[0], len(names))
