@@ -48,8 +48,8 @@ def write_ply(path: Path, n: int, seed: int = 0) -> None:
             f.write(a.view(dtype).tobytes())
 
 
-def run(cmd: list[str]) -> tuple[float, float]:
-    """(wall seconds, peak resident MB) of one command."""
+def run(cmd: list[str]) -> tuple[float, float, float]:
+    """(wall seconds, peak resident MB, CPU seconds user + system) of one command."""
     t = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -58,7 +58,7 @@ def run(cmd: list[str]) -> tuple[float, float]:
     err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd[:3])} … failed: {err[-500:]}")
-    return wall, usage.ru_maxrss / 1024.0
+    return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
 
 
 def main() -> None:
@@ -87,9 +87,9 @@ def main() -> None:
         print("peer: splat-transform not installed (node or tests/consumers/node_modules "
               "missing): skipped")
     print()
-    print("| splats | file | shprobe best / median (s) | shprobe peak RSS | "
-          "splat-transform best / median (s) | its peak RSS | ratio |")
-    print("|---|---|---|---|---|---|---|")
+    print("| splats | file | shprobe wall best / median | CPU | peak RSS | splat-transform wall "
+          "best / median | CPU | peak RSS | wall ratio (median) | CPU ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for n in args.splats:
         with tempfile.TemporaryDirectory(dir=args.dir) as d:
             src, out = Path(d) / "in.ply", Path(d) / "out.ply"
@@ -106,15 +106,19 @@ def main() -> None:
                     theirs.append(run([node, str(CLI), "-q", "-w", str(src), "-r",
                                        "10,20,30", str(out)]))
             size = src.stat().st_size / 1e6
-        ow = sorted(t for t, _ in ours)
-        row = (f"| {n:,} | {size:.0f} MB | {ow[0]:.2f} / {np.median(ow):.2f} | "
-               f"{max(m for _, m in ours):.0f} MB |")
+
+        def cells(rows):
+            w = sorted(r[0] for r in rows)
+            return (f" {w[0]:.2f} / {np.median(w):.2f} s | {np.median([r[2] for r in rows]):.2f}"
+                    f" s | {max(r[1] for r in rows):.0f} MB |")
+
+        row = f"| {n:,} | {size:.0f} MB |" + cells(ours)
         if peer:
-            tw = sorted(t for t, _ in theirs)
-            row += (f" {tw[0]:.2f} / {np.median(tw):.2f} | {max(m for _, m in theirs):.0f} MB"
-                    f" | {np.median(ow) / np.median(tw):.2f} |")
+            ratio = np.median([r[0] for r in ours]) / np.median([r[0] for r in theirs])
+            cpu = np.median([r[2] for r in ours]) / np.median([r[2] for r in theirs])
+            row += cells(theirs) + f" {ratio:.2f} | {cpu:.2f} |"
         else:
-            row += " – | – | – |"
+            row += " – | – | – | – | – |"
         print(row, flush=True)
 
 
