@@ -212,3 +212,33 @@ def test_info_and_progress(trainer_ply):
     assert np.allclose(res.band_energy, want, rtol=1e-6)
     assert rec.events[0] == ("begin", "reading splats", 3000)
     assert rec.events[-2] == ("update", 3000.0, None)
+
+
+def test_a_ply_with_other_property_types_keeps_them(tmp_path):
+    """The general (non all-float) path: an extra uchar property is carried through and
+    truncation renumbers the channel-major f_rest."""
+    s = ref.random_splats(300, 2, seed=9)
+    path = tmp_path / "extra.ply"
+    ref.write_trainer_ply(path, s)
+    data = path.read_bytes()
+    end = data.index(b"end_header\n")
+    head = data[:end].decode().replace("property float rot_3\n", "property float rot_3\n"
+                                       "property uchar label\n")
+    rec = np.frombuffer(data[end + 11:], dtype=np.dtype([("r", "V", 4 * (9 + 24 + 8))]))
+    label = np.arange(300, dtype=np.uint8)
+    body = b"".join(r.tobytes() + bytes([lab]) for r, lab in zip(rec["r"], label, strict=True))
+    path.write_bytes(head.encode() + b"end_header\n" + body)
+    out = tmp_path / "out.ply"
+    sim = sp.rotation(from_axis_angle([1, 0, 1], 50))
+    res = sp.transform_file(path, out, sp.TransformSettings(sim, sh_degree=1))
+    assert (res.count, res.degree_in, res.degree_out) == (300, 2, 1)
+    back = sp.ply.read_layout(out)
+    assert back.dtype["label"] == np.uint8
+    got = next(sp.ply.records(back))
+    assert np.array_equal(got["label"], label)
+    moved = sp.apply(_cloud_from(s), sim).truncated(1)
+    assert np.allclose(sp.ply.to_splats(got, back).sh, moved.sh, atol=1e-6)
+
+
+def _cloud_from(s: dict) -> sp.Splats:
+    return sp.Splats(s["pos"], s["log_scales"], s["rot"], s["opacity"], s["sh"])
