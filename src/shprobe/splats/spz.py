@@ -58,7 +58,15 @@ def _inflate(z, raw: bytes, size: int, p: str) -> bytes:
         raise ShprobeError(f"SPZ gzip stream is damaged or truncated ({e})", p) from None
 
 
-def _zstd_streams(raw: bytes, p: str, n_streams: int, toc: int) -> list[bytes]:
+def _per_splat(version: int, degree: int) -> int:
+    """Packed bytes a splat: position, alpha, colour, scales, rotation, SH."""
+    return ((6 if version == 1 else 9) + 1 + 3 + 3 + (4 if version >= 3 else 3)
+            + 3 * _sh_dim(degree))
+
+
+def _zstd_streams(raw: bytes, p: str, n_streams: int, toc: int, size: int) -> list[bytes]:
+    """The streams of a version-4 file, refused before inflating when their table claims
+    more than the ``size`` bytes the header implies."""
     try:
         import zstandard
     except ImportError:
@@ -67,6 +75,9 @@ def _zstd_streams(raw: bytes, p: str, n_streams: int, toc: int) -> list[bytes]:
     out, pos = [], toc + 16 * n_streams
     if len(raw) < pos:
         raise ShprobeError("SPZ table of contents is truncated", p)
+    total = sum(struct.unpack_from("<QQ", raw, toc + 16 * i)[1] for i in range(n_streams))
+    if total != size:
+        raise ShprobeError(f"SPZ streams hold {total} bytes, the header implies {size}", p)
     for i in range(n_streams):
         csize, usize = struct.unpack_from("<QQ", raw, toc + 16 * i)
         if pos + csize > len(raw):
@@ -93,10 +104,9 @@ def read(path: str | os.PathLike[str]) -> Splats:
         _, version, n, degree, fbits, _flags, n_streams, toc = struct.unpack_from(
             "<IIIBBBBI", raw)
         _check_header(p, version, n, degree)
-        streams = _zstd_streams(raw, p, n_streams, toc)
         if n_streams < 5:
             raise ShprobeError(f"SPZ has {n_streams} streams, expected 6", p)
-        body = b"".join(streams)
+        body = b"".join(_zstd_streams(raw, p, n_streams, toc, n * _per_splat(version, degree)))
     elif raw[:2] == b"\x1f\x8b":
         # the header is inflated first and checked, so that a small file cannot inflate to
         # gigabytes unasked; the rest is inflated up to the size the header implies
@@ -108,8 +118,7 @@ def read(path: str | os.PathLike[str]) -> Splats:
         if magic != MAGIC:
             raise ShprobeError("not an SPZ file (no NGSP magic inside the gzip stream)", p)
         _check_header(p, version, n, degree)
-        per = (6 if version == 1 else 9) + 1 + 3 + 3 + (4 if version >= 3 else 3)
-        body = data[16:] + _inflate(z, z.unconsumed_tail, n * (per + 3 * _sh_dim(degree)), p)
+        body = data[16:] + _inflate(z, z.unconsumed_tail, n * _per_splat(version, degree), p)
     else:
         raise ShprobeError("not an SPZ file (neither gzip nor NGSP)", p)
     return frame_in(_unpack(p, body, version, n, degree, fbits))
