@@ -3,7 +3,8 @@
 The splats are a POINTS primitive whose attributes are ``POSITION`` (VEC3 float, with the
 min/max glTF requires), ``COLOR_0`` (VEC4 normalised bytes: C0·f_dc + 0.5 and the opacity, the
 fallback for viewers without the extension) and the extension's
-``KHR_gaussian_splatting:ROTATION`` (VEC4 float, x y z w), ``…:SCALE`` (VEC3, linear:
+``KHR_gaussian_splatting:ROTATION`` (VEC4 float, x y z w, normalised as the extension
+requires), ``…:SCALE`` (VEC3, linear:
 exp of the log-scales), ``…:OPACITY`` (SCALAR, sigmoid of the logit) and
 ``…:SH_DEGREE_l_COEF_n`` (VEC3 per coefficient, the renderer's CS-phase SH, f_dc as degree 0),
 laid out as PlayCanvas splat-transform writes them.
@@ -33,6 +34,13 @@ _GLB, _JSON, _BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 _WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
 
 
+def _unit(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions (the extension requires them; trainer files store them unnormalised)."""
+    q = q.astype(np.float64)
+    n = np.linalg.norm(q, axis=1, keepdims=True)
+    return (q / np.where(n > 0, n, 1.0)).astype(np.float32)
+
+
 def _attributes(s: Splats) -> list[tuple[str, np.ndarray]]:
     """(name, (N, width) array) in the order written."""
     opacity = 1.0 / (1.0 + np.exp(-s.opacity.astype(np.float64)))
@@ -42,7 +50,7 @@ def _attributes(s: Splats) -> list[tuple[str, np.ndarray]]:
     if scales.shape[1] == 2:  # 2DGS: a flat third axis
         scales = np.concatenate([scales, np.full((s.count, 1), -np.inf, np.float32)], axis=1)
     out = [("POSITION", s.positions), ("COLOR_0", colour),
-           (f"{EXT}:ROTATION", s.rotations[:, [1, 2, 3, 0]]),
+           (f"{EXT}:ROTATION", _unit(s.rotations)[:, [1, 2, 3, 0]]),
            (f"{EXT}:SCALE", np.exp(scales.astype(np.float64)).astype(np.float32)),
            (f"{EXT}:OPACITY", opacity.astype(np.float32)[:, None])]
     k = 0
