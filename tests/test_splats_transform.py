@@ -242,3 +242,19 @@ def test_a_ply_with_other_property_types_keeps_them(tmp_path):
 
 def _cloud_from(s: dict) -> sp.Splats:
     return sp.Splats(s["pos"], s["log_scales"], s["rot"], s["opacity"], s["sh"])
+
+
+def test_cli_reports_progress_and_what_it_wrote(trainer_ply, tmp_path, capfd, monkeypatch):
+    monkeypatch.setattr(sp.ply, "CHUNK", 1000)
+    path, _ = trainer_ply
+    out = tmp_path / "o.glb"
+    assert main(["splat", "transform", str(path), "-o", str(out), "--mirror", "x"]) == 0
+    err = capfd.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"wrote {out} (3000 splats, SH degree 3, ")
+    rec = Recorder()
+    sp.transform_file(path, tmp_path / "o.ply", sp.TransformSettings(), progress=rec)
+    assert rec.events[0] == ("begin", "transforming splats", 3000)
+    assert [d for k, d, _ in rec.events if k == "update"] == [1000.0, 2000.0, 3000.0]
+    assert main(["-q", "splat", "info", str(out), "--format", "json"]) == 0
+    doc = __import__("json").loads(capfd.readouterr().out)
+    assert doc["count"] == 3000 and doc["sh_degree"] == 3 and len(doc["band_energy"]) == 4

@@ -144,8 +144,10 @@ def read_layout(path: str | os.PathLike[str]) -> PlyLayout:
     return PlyLayout(p, count, dtype, offset, _DEGREE_OF_REST[rest], scales)
 
 
-def records(layout: PlyLayout, chunk: int = CHUNK) -> Iterator[np.ndarray]:
-    """The vertex records, ``chunk`` at a time (structured arrays, native byte order)."""
+def records(layout: PlyLayout, chunk: int | None = None) -> Iterator[np.ndarray]:
+    """The vertex records, ``chunk`` (default :data:`CHUNK`) at a time (structured arrays,
+    native byte order)."""
+    chunk = CHUNK if chunk is None else chunk
     with open(layout.path, "rb") as f:
         f.seek(layout.offset)
         left = layout.count
