@@ -64,7 +64,7 @@ SIMILARITIES = {
 
 
 @pytest.mark.parametrize("name", sorted(SIMILARITIES))
-@pytest.mark.parametrize("degree", [1, 3])
+@pytest.mark.parametrize("degree", [0, 1, 2, 3])
 def test_renderer_colour_and_covariance_unchanged(name, degree):
     colour, cov = _errors(_cloud(degree=degree), SIMILARITIES[name]())
     assert colour < TOL, colour
@@ -258,3 +258,40 @@ def test_cli_reports_progress_and_what_it_wrote(trainer_ply, tmp_path, capfd, mo
     assert main(["-q", "splat", "info", str(out), "--format", "json"]) == 0
     doc = __import__("json").loads(capfd.readouterr().out)
     assert doc["count"] == 3000 and doc["sh_degree"] == 3 and len(doc["band_energy"]) == 4
+
+
+def test_glb_reader_takes_quantised_rotation_and_opacity(tmp_path):
+    """KHR_gaussian_splatting allows normalised signed-short rotations and unsigned-byte
+    opacities: a file rewritten so reads back to the quantisation step."""
+    import json
+    import struct
+
+    s = _cloud(200, degree=1)
+    s.rotations[:] /= np.linalg.norm(s.rotations, axis=1, keepdims=True)
+    raw = sp.gltf.encode(s)
+    doc, binary = sp.gltf.parse(raw)
+    att = doc["meshes"][0]["primitives"][0]["attributes"]
+    extra = bytearray(binary)
+    for name, ctype, dt, scale in ((f"{sp.gltf.EXT}:ROTATION", 5122, "<i2", 32767),
+                                   (f"{sp.gltf.EXT}:OPACITY", 5121, "u1", 255)):
+        acc = doc["accessors"][att[name]]
+        vals = sp.gltf._accessor(doc, binary, att[name], None)
+        q = np.round(vals * scale).astype(dt).tobytes()
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(extra), "byteLength": len(q)})
+        extra += q + b"\0" * (-len(q) % 4)
+        acc.update(bufferView=len(doc["bufferViews"]) - 1, componentType=ctype, normalized=True)
+    doc["buffers"][0]["byteLength"] = len(extra)
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    total = 12 + 8 + len(js) + 8 + len(extra)
+    path = tmp_path / "q.glb"
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js),
+                     0x4E4F534A) + js + struct.pack("<II", len(extra), 0x004E4942)
+                     + bytes(extra))
+    back = sp.read(path)
+    cov0 = ref.covariance(s.rotations, s.log_scales)
+    cov1 = ref.covariance(back.rotations, back.log_scales)
+    assert np.abs(cov0 - cov1).max() / np.abs(cov0).max() < 1e-3
+    a0 = 1 / (1 + np.exp(-s.opacity))
+    a1 = 1 / (1 + np.exp(-back.opacity))
+    assert np.abs(a0 - a1).max() < 0.5 / 255 + 1e-6

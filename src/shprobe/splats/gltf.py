@@ -32,6 +32,9 @@ EXT = "KHR_gaussian_splatting"
 _FLOAT, _UBYTE = 5126, 5121
 _GLB, _JSON, _BIN = 0x46546C67, 0x4E4F534A, 0x004E4942
 _WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
+#: Component types read (the extension allows quantised rotation, scale and opacity).
+_COMPONENTS = {_FLOAT: np.dtype("<f4"), _UBYTE: np.dtype("u1"), 5120: np.dtype("i1"),
+               5122: np.dtype("<i2"), 5123: np.dtype("<u2")}
 
 
 def _unit(q: np.ndarray) -> np.ndarray:
@@ -138,7 +141,7 @@ def _accessor(doc: dict, binary: bytes, index: int, p) -> np.ndarray:
         view = doc["bufferViews"][acc["bufferView"]]
         width = _WIDTH[acc["type"]]
         count = int(acc["count"])
-        dtype = {_FLOAT: np.dtype("<f4"), _UBYTE: np.dtype("u1")}[acc["componentType"]]
+        dtype = _COMPONENTS[acc["componentType"]]
     except (KeyError, IndexError, TypeError):
         raise ShprobeError(f"glb accessor {index} is malformed or of an unsupported type",
                            p) from None
@@ -149,9 +152,13 @@ def _accessor(doc: dict, binary: bytes, index: int, p) -> np.ndarray:
         raise ShprobeError(f"glb accessor {index} runs past its buffer (truncated)", p)
     a = np.ndarray((count, width), dtype=dtype, buffer=binary, offset=start,
                    strides=(stride, dtype.itemsize))
-    if dtype == np.uint8:
-        return a.astype(np.float32) / 255.0
-    return a.astype(np.float32)
+    if dtype.kind == "f":
+        return a.astype(np.float32)
+    if not acc.get("normalized", False):  # e.g. signed-byte SCALE: the integer values
+        return a.astype(np.float32)
+    # glTF's normalised integers: unsigned c / max, signed max(c / max, −1)
+    top = float(np.iinfo(dtype).max)
+    return np.maximum(a.astype(np.float32) / np.float32(top), np.float32(-1.0))
 
 
 def read(path: str | os.PathLike[str]) -> Splats:
