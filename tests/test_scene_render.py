@@ -8,7 +8,7 @@ import pytest
 
 from shprobe.errors import ShprobeError
 from shprobe.lighting.irradiance import quadratic_form, shade_irradiance
-from shprobe.probes.images import tonemap
+from shprobe.probes.tonemap import tonemap
 from shprobe.scene import (
     Camera,
     load_mesh,

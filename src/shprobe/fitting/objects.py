@@ -239,9 +239,9 @@ def read_normal_map(path) -> NDArray[np.float32]:
     if ext == ".pfm":
         from pathlib import Path
 
-        from ..probes.images import _read_pfm
+        from ..probes.codecs import read_pfm
 
-        a = _read_pfm(Path(p))
+        a = read_pfm(Path(p))
     else:
         import OpenImageIO as oiio
 

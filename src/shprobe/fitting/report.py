@@ -105,7 +105,7 @@ def save_fit_figure(path: str | os.PathLike[str], photo: NDArray, result: Result
     import matplotlib.pyplot as plt
 
     from ..files import atomic_output
-    from ..probes.images import tonemap
+    from ..probes.tonemap import tonemap
 
     if getattr(result, "photo", None) is not None:  # a block-averaged fit: its own photo
         photo = result.photo

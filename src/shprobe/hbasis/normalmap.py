@@ -533,7 +533,7 @@ def save_panel(path: str | os.PathLike[str], res: RenderResult, gain: float = 4.
     error scale with its colour bar, each titled with the basis's relative RMS error. ``gain``
     is kept for the raw :func:`panel_image`; the figure's colour bar replaces it."""
     from ..probes.figures import Panel, write_figure
-    from ..probes.images import auto_exposure
+    from ..probes.tonemap import auto_exposure
 
     ref = res.irradiance / np.pi
     stops = auto_exposure(ref[res.mask], target=1.0)

@@ -305,7 +305,7 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
     streaming path: the image is read whole (``streamed=False``). ``on_block(y0, block)`` sees
     every decoded block of image rows (e.g. to build a thumbnail in the same pass).
     """
-    from ..probes.images import BLOCK_BYTES, ImageRows
+    from ..probes.streaming import BLOCK_BYTES, ImageRows
 
     lmax = check_lmax(lmax)
     with ImageRows(path, clamp=clamp, block_bytes=block_bytes or BLOCK_BYTES) as im:

@@ -48,7 +48,7 @@ STREAM_ABOVE_BYTES = 256 << 20
 
 def _streamed(probe: str | os.PathLike[str], layout: str | None, lmax: int | None,
               clamp: bool) -> Lighting | None:
-    from ..probes.images import image_size
+    from ..probes.streaming import image_size
 
     if layout in ("angular", "mirrorball") or not os.path.isfile(probe):
         return None

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from .images import auto_exposure
+from .tonemap import auto_exposure
 
 KINDS = ("radiance", "signed", "error")
 
@@ -242,7 +242,7 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     from matplotlib.figure import Figure as MplFigure
     from matplotlib.patches import Patch
 
-    from .images import tonemap
+    from .tonemap import tonemap
 
     if panels and not isinstance(panels[0], Panel | type(None)):
         rows = [list(r) for r in panels]  # type: ignore[arg-type]

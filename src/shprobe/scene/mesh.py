@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..probes.images import srgb_to_linear
 from ..probes.layouts import _bilinear
+from ..probes.tonemap import srgb_to_linear
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..lighting.irradiance import shade_irradiance
-from ..probes.images import tonemap
+from ..probes.tonemap import tonemap
 from .camera import Camera
 from .mesh import (
     bounding_sphere,

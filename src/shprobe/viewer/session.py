@@ -1042,8 +1042,8 @@ def hbasis_panel(session: Session, state: dict[str, Any], size: int = 160
     from PIL import Image
 
     from ..hbasis.normalmap import panel_image, render_normal_mapped
-    from ..probes.images import auto_exposure, tonemap
     from ..probes.layouts import Env, LatLong
+    from ..probes.tonemap import auto_exposure, tonemap
     from ..scene import sphere_mesh
 
     st = {**state, "lmax": 4}
