@@ -317,7 +317,7 @@ def bench_big(d: Path, w: int, h: int) -> list[str]:
     streamed = ("import sys, numpy as np; from shprobe.lighting.projection import project_file; "
                 "np.save(sys.argv[2], project_file(sys.argv[1], 2).coeffs)")
     whole = ("import sys, numpy as np; from shprobe.lighting import project; "
-             "from shprobe.probes.layouts import load_env; "
+             "from shprobe.probes.env import load_env; "
              "np.save(sys.argv[2], project(load_env(sys.argv[1]), 2))")
     rows = ["| what (one process each) | peak RSS MiB | wall s |", "| --- | ---: | ---: |"]
     res = {}

@@ -16,9 +16,10 @@ from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.lighting import source as lighting_source
 from shprobe.lighting.projection import cube_face_rows, project, project_file
+from shprobe.probes.env import env_from_function, load_env, write_env
 from shprobe.probes.environments import procedural_env
 from shprobe.probes.images import LDRWarning, read_image, write_image
-from shprobe.probes.layouts import Cube, env_from_function, load_env, write_env
+from shprobe.probes.layouts import Cube
 from shprobe.probes.streaming import ImageRows, image_size
 
 from .conftest import write_raw_pfm

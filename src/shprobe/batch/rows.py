@@ -267,7 +267,7 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
         except ShprobeError:  # no window helps (L_00 ≤ 0): leave the columns null
             pass
         if opt.reference:
-            from ..probes.layouts import load_env
+            from ..probes.env import load_env
 
             env = load_env(path, None if fp.layout is None else fp.layout, clamp=opt.clamp)
             rep = error_report(env, (opt.lmax,), normal_grid=opt.reference).row(opt.lmax)

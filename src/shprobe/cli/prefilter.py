@@ -229,9 +229,10 @@ def register(group: click.Group) -> None:
 
         from ..lighting.irradiance import irradiance_map
         from ..lighting.reference import reference_irradiance_map
+        from ..probes.env import write_env
         from ..probes.figures import exposure_for
         from ..probes.images import check_image_output
-        from ..probes.layouts import get_layout, write_env
+        from ..probes.layouts import get_layout
 
         check_image_output(output, force)
         fixed = parse_exposure(exposure)  # a bad value is refused before the work
@@ -247,7 +248,7 @@ def register(group: click.Group) -> None:
                 emap = reference_irradiance_map(src.env, lay, sz, progress=update)
         shown, note = emap, ""
         if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
-            from ..probes.layouts import Env
+            from ..probes.env import Env
 
             shown = Env(emap.radiance / np.pi, emap.layout)
             stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))

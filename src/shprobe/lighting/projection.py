@@ -24,11 +24,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
+from ..probes.env import Env
 from ..probes.layouts import (
-    _CUBE_AXES,
     CUBE_ARRANGEMENTS,
+    CUBE_AXES,
     Cube,
-    Env,
     LatLong,
     cube_arrangement,
     detect_layout,
@@ -317,7 +317,7 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
         elif name == "cube":
             coeffs = _stream_cube(im, lmax, on_block)
         else:
-            from ..probes.layouts import env_from_image
+            from ..probes.env import env_from_image
 
             img = np.empty((h, w, 3), np.float32)
             for y0, blk in im.blocks():
@@ -352,7 +352,7 @@ def cube_face_rows(face: int, n: int, j0: int, j1: int
     c = -1.0 + 2.0 * (np.arange(n) + 0.5) / n
     tc = c[j0:j1]
     u = 1.0 / np.sqrt(1.0 + c[None, :] ** 2 + tc[:, None] ** 2)
-    ax = _CUBE_AXES[face]
+    ax = CUBE_AXES[face]
     d = (u[..., None] * ax[0] + (c[None, :] * u)[..., None] * ax[1]
          + (tc[:, None] * u)[..., None] * ax[2])
     e = -1.0 + 2.0 * np.arange(n + 1) / n

@@ -15,7 +15,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from ..probes.layouts import Env, LatLong, Layout, get_layout
+from ..probes.env import Env
+from ..probes.layouts import LatLong, Layout, get_layout
 from ..sh import check_lmax, num_coeffs
 from .irradiance import irradiance, unit_normals
 from .projection import project, total_intensity

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..probes.layouts import Env, load_env
+from ..probes.env import Env, load_env
 from ..probes.presets import get_preset
 from ..sh import check_lmax, lmax_of, num_coeffs
 from ..sh.rotation import unit_vectors

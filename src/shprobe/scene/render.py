@@ -215,7 +215,7 @@ def _background(background: Any, dirs: NDArray, C: int) -> NDArray[np.float32]:
         return np.asarray(background(dirs), dtype=np.float32).reshape(-1, C)
     b = np.asarray(background, dtype=np.float32)
     if b.ndim == 3:
-        from ..probes.layouts import Env
+        from ..probes.env import Env
 
         return Env(b, "latlong").sample(dirs)[:, :C]
     return np.broadcast_to(b.reshape(1, -1), (dirs.shape[0], C)).astype(np.float32)
