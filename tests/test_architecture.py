@@ -203,3 +203,10 @@ def test_architecture_doc_lists_every_module_in_its_layer():
         if layer != want:
             wrong[name] = (layer, want)
     assert not wrong, f"modules documented in the wrong layer (documented, contract): {wrong}"
+
+
+def test_bench_imports_nothing_from_tests():
+    """Benchmarks stand on the library (and bench/ itself), never on the test suite."""
+    for p in sorted((ROOT / "bench").glob("*.py")):
+        for name, _ in _imports(p):
+            assert name.split(".")[0] != "tests", f"bench/{p.name} imports {name}"
