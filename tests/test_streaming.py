@@ -1,4 +1,4 @@
-"""Streaming: images read a block of rows at a time (shprobe.probes.images.ImageRows) and
+"""Streaming: images read a block of rows at a time (shprobe.probes.streaming.ImageRows) and
 projected block by block (shprobe.lighting.projection.project_file) equal the whole-image
 path, in memory bounded by the block, not the image."""
 

@@ -1,5 +1,5 @@
-"""CLI commands: render, basis-images, edit, window, export (see ``shprobe.render``,
-``shprobe.design``, ``shprobe.export``)."""
+"""CLI commands: render, basis-images, edit, window, export (see ``shprobe.scene.render``,
+``shprobe.lighting.design``, ``shprobe.lighting.export``)."""
 
 from __future__ import annotations
 

@@ -77,8 +77,8 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
     """Coefficients in the world frame from those in the frame ω' = Qω: c = Dᵀ c'.
 
     c' are the coefficients of f∘Q⁻¹, so c = rotate(c', Q⁻¹). Up to lmax 12 the per-band D is
-    built here by exact quadrature (independent of shprobe.rotation); above, by the Wigner
-    recurrence of :func:`shprobe.rotation.rotate`, which needs no (nodes × K) table.
+    built here by exact quadrature (independent of shprobe.sh.rotation); above, by the Wigner
+    recurrence of :func:`shprobe.sh.rotation.rotate`, which needs no (nodes × K) table.
     """
     lmax = lmax_of(cp.shape[0])
     if lmax > 12:
@@ -289,14 +289,14 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
                  on_block: Callable[[int, NDArray[np.float32]], None] | None = None
                  ) -> FileProjection:
     """:func:`project` of an image file, streamed: the file is read a block of rows at a time
-    (:class:`shprobe.probes.images.ImageRows`) and each block's share of R&H eq. 10 is added
+    (:class:`shprobe.probes.streaming.ImageRows`) and each block's share of R&H eq. 10 is added
     up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
     image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding. This is
     shprobe's streaming entry point, the equivalent of a lazy ``load_env`` for projection
     (``shprobe prefilter`` takes it for big probes, ``shprobe batch`` always).
 
     Radiance files are decoded and reduced in one pass (each scanline's Σ_ψ L cos/sin(mψ)
-    while it is in cache, :meth:`~shprobe.probes.images.ImageRows.row_sums`), in float32 as
+    while it is in cache, :meth:`~shprobe.probes.streaming.ImageRows.row_sums`), in float32 as
     :func:`project`'s matrix product but in another order: equal to it to float32 rounding.
 
     Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row

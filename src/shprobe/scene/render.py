@@ -10,7 +10,7 @@ nᵀ M n of eq. 11–12 (:func:`shprobe.lighting.irradiance.shade_irradiance`). 
 * ``"vertex"``: E is evaluated at the vertices and the radiance is interpolated across the
   triangles — the procedural shader of R&H §3.2.
 
-Tone mapping (PNG output): :func:`shprobe.probes.images.tonemap` — ``exposure`` stops
+Tone mapping (PNG output): :func:`shprobe.probes.tonemap.tonemap` — ``exposure`` stops
 (× 2^exposure), clamp to [0, 1], sRGB transfer curve, 8 bits. EXR output is linear radiance,
 untouched. Camera frame: see :mod:`.camera`.
 """
@@ -344,7 +344,7 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
-    """Write a render with :func:`shprobe.images.write_image`: ``.png`` tone-mapped by
+    """Write a render with :func:`shprobe.probes.images.write_image`: ``.png`` tone-mapped by
     :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear."""
     from ..probes.images import write_image
 
