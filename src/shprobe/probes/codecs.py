@@ -91,7 +91,10 @@ def read_oiio(p: Path) -> tuple[NDArray[np.float32], bool]:
 
 
 
-def write_oiio(path: Path, data: NDArray, fmt: str) -> None:
+def write_oiio(path: Path, data: NDArray, fmt: str,
+               attributes: dict[str, str | float] | None = None) -> None:
+    """Write ``data`` (H, W, C) as ``fmt`` (uint8, half, float) with metadata ``attributes``
+    (strings: PNG keeps them as text chunks, EXR and TIFF as header attributes)."""
     import OpenImageIO as oiio
 
     h, w, c = data.shape
@@ -102,12 +105,62 @@ def write_oiio(path: Path, data: NDArray, fmt: str) -> None:
                                     "float": oiio.FLOAT}[fmt])
     if path.suffix.lower() in (".tif", ".tiff"):
         spec.attribute("compression", "zip")
+    if path.suffix.lower() in (".jpg", ".jpeg"):
+        spec.attribute("Compression", "jpeg:95")
+    for key, value in (attributes or {}).items():
+        spec.attribute(key, value)
     ok = out.open(str(path), spec) and out.write_image(data)
     err = out.geterror()
     out.close()
     if not ok:
         raise ShprobeError(f"cannot write image: {oneline(err)}", path)
 
+
+#: The metadata of the exposure (EV) a picture was written with: its pixels are the radiance
+#: × 2^EV (then sRGB-encoded for 8-bit files). ``shprobe:exposure`` is exact text (a PNG text
+#: chunk, an EXR attribute); JPEG and TIFF keep only standard tags, so the EV is also the Exif
+#: exposure bias, believed only in a file whose ``Software`` tag says shprobe (a camera's own
+#: exposure bias is not a scale of its pixels).
+EXPOSURE_KEY = "shprobe:exposure"
+_EXIF_EXPOSURE = "Exif:ExposureBiasValue"
+
+
+def exposure_metadata(exposure: float, colour_space: str) -> dict[str, str | float]:
+    """The attributes :func:`write_oiio` records for a picture written at ``exposure`` stops in
+    ``colour_space`` (an OpenImageIO name: "sRGB" for 8-bit pictures, "lin_rec709" for linear
+    files)."""
+    from .._version import __version__
+
+    return {EXPOSURE_KEY: f"{float(exposure):.9g}", _EXIF_EXPOSURE: float(exposure),
+            "oiio:ColorSpace": colour_space, "Software": f"shprobe {__version__}"}
+
+
+def read_exposure(path: str | os.PathLike[str]) -> float | None:
+    """The exposure (EV) shprobe recorded in an image's metadata (:func:`exposure_metadata`),
+    or None when the file carries none (a photo, or a format without metadata such as PFM and
+    Radiance .hdr)."""
+    p = Path(path)
+    if p.suffix.lower() == ".pfm" or not p.is_file():
+        return None
+    import OpenImageIO as oiio
+
+    with c_stderr():
+        inp = oiio.ImageInput.open(str(p))
+        if inp is None:
+            oiio.geterror()  # clear it: reading the pixels reports the problem
+            return None
+        try:
+            spec = inp.spec()
+            value = spec.getattribute(EXPOSURE_KEY)
+            if value is None and str(spec.getattribute("Software") or "").startswith("shprobe"):
+                value = spec.getattribute(_EXIF_EXPOSURE)
+        finally:
+            inp.close()
+    try:
+        ev = float(value)
+    except (TypeError, ValueError):
+        return None
+    return ev if np.isfinite(ev) else None
 
 
 @contextmanager

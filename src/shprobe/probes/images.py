@@ -19,15 +19,23 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..files import atomic_output, check_output_path
-from .codecs import read_oiio, read_pfm, read_rgbe, rgbe_half_step, write_oiio, write_pfm
+from .codecs import (
+    exposure_metadata,
+    read_oiio,
+    read_pfm,
+    read_rgbe,
+    rgbe_half_step,
+    write_oiio,
+    write_pfm,
+)
 from .tonemap import tonemap
 
 #: Extensions read_image accepts.
 READ_EXTENSIONS = (".hdr", ".rgbe", ".pic", ".exr", ".pfm", ".tif", ".tiff", ".png", ".jpg",
                    ".jpeg")
 #: Extensions write_image accepts.
-WRITE_EXTENSIONS = (".exr", ".hdr", ".pfm", ".png", ".tif", ".tiff")
-_LDR_OUT = (".png",)
+WRITE_EXTENSIONS = (".exr", ".hdr", ".pfm", ".png", ".jpg", ".jpeg", ".tif", ".tiff")
+_LDR_OUT = (".png", ".jpg", ".jpeg")
 
 
 class LDRWarning(UserWarning):
@@ -137,9 +145,14 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
     """Write linear RGB ``(H, W, 3)`` (or ``(H, W)`` grey) atomically.
 
     ``.exr`` (float, or half with ``half=True``), ``.hdr`` (RGBE), ``.pfm`` and ``.tif`` are
-    linear and ignore ``exposure``; ``.png`` is tone-mapped with :func:`tonemap` (exposure in
-    stops). An existing file is replaced only with ``overwrite=True``. NaN or Inf values are
-    refused; ``.hdr`` (RGBE, unsigned) stores negative values as 0.
+    linear and ignore ``exposure``; ``.png`` and ``.jpg`` are tone-mapped with
+    :func:`~shprobe.probes.tonemap.tonemap` (exposure in stops). The picture carries its
+    exposure and colour space in its metadata (PNG text chunks, EXR/TIFF/JPEG attributes:
+    :func:`~shprobe.probes.codecs.exposure_metadata`: the stops applied, 0 for linear files;
+    ``oiio:ColorSpace`` sRGB or linear Rec. 709), so a reader such as ``shprobe fit`` can
+    undo it (:func:`~shprobe.probes.codecs.read_exposure`). An existing file is replaced only
+    with ``overwrite=True``. NaN or Inf values are refused; ``.hdr`` (RGBE, unsigned) stores
+    negative values as 0.
     """
     p = check_image_output(path, overwrite)
     ext = p.suffix.lower()
@@ -160,9 +173,9 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
         if ext == ".pfm":
             write_pfm(tmp, a)
         elif ext in _LDR_OUT:
-            write_oiio(tmp, tonemap(a, exposure), "uint8")
+            write_oiio(tmp, tonemap(a, exposure), "uint8", exposure_metadata(exposure, "sRGB"))
         else:
             fmt = "half" if (half and ext == ".exr") else "float"
-            write_oiio(tmp, a, fmt)
+            write_oiio(tmp, a, fmt, exposure_metadata(0.0, "lin_rec709"))
     return p
 
