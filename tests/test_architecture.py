@@ -91,7 +91,8 @@ def test_a_cycle_inside_a_package_breaks_the_contract(tmp_path, module, line, pa
     assert "shprobe pipeline layers KEPT" in res.stdout, res.stdout
     assert "no import cycle inside a package BROKEN" in res.stdout, res.stdout
     assert f"No cycles are allowed in {package}." in res.stdout, res.stdout
-    assert edge in res.stdout, res.stdout
+    a, b = edge.split(" -> ")  # the contract names one import of the cycle to remove
+    assert f"{a} -> {b}" in res.stdout or f"{b} -> {a}" in res.stdout, res.stdout
 
 
 def _imports(path: Path) -> list[tuple[str, bool]]:
@@ -210,3 +211,27 @@ def test_bench_imports_nothing_from_tests():
     for p in sorted((ROOT / "bench").glob("*.py")):
         for name, _ in _imports(p):
             assert name.split(".")[0] != "tests", f"bench/{p.name} imports {name}"
+
+
+#: Modules other branches of this round are splitting (PRT as stages, the viewer's session):
+#: an entry that is no longer over the limit fails the test, so the list only shrinks.
+OVER_LIMIT_FOR_NOW = {"prt/bake.py", "prt/refine.py", "viewer/session.py"}
+MAX_LINES = 500
+
+
+def test_no_hand_written_module_over_500_lines():
+    """One concept per module: none over 500 lines, except generated ones (first line says
+    GENERATED)."""
+    over, fine = [], []
+    for p in sorted(SRC.rglob("*.py")):
+        text = p.read_text()
+        if text.startswith('"""GENERATED'):
+            continue
+        rel = str(p.relative_to(SRC))
+        n = text.count("\n")
+        if n > MAX_LINES and rel not in OVER_LIMIT_FOR_NOW:
+            over.append(f"{rel} ({n} lines)")
+        if n <= MAX_LINES and rel in OVER_LIMIT_FOR_NOW:
+            fine.append(rel)
+    assert not over, f"modules over {MAX_LINES} lines: {over}"
+    assert not fine, f"now within {MAX_LINES} lines, drop from OVER_LIMIT_FOR_NOW: {fine}"
