@@ -102,7 +102,7 @@ def test_readme_round_trip_returns_the_preset(tmp_path, capsys, monkeypatch):
     assert ev is not None and ev > 1.0  # auto-exposed, recorded
     assert main(["fit", "grey-ball", "ball.png", "-F", "json", "-o", "fitted.json"]) == 0
     err = capsys.readouterr().err
-    assert "undoing the exposure" in err
+    assert "EV recorded in its metadata was undone" in err
     doc = json.loads(open("fitted.json").read())
     c, L = np.array(doc["coefficients"]), get_preset("grace")
     stderr = np.array(doc["fit"]["stderr"])

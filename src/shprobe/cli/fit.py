@@ -46,7 +46,7 @@ def _ball_options(f):
 
 def _read_photo(path: str):
     """The photo (:func:`shprobe.fitting.read_photo`): LDR photos give one warning line, not a
-    Python warning; an exposure shprobe recorded is undone, and said so."""
+    Python warning; an exposure shprobe recorded is undone (said by :func:`_emit`)."""
     import warnings
 
     from ..fitting import read_photo
@@ -58,9 +58,6 @@ def _read_photo(path: str):
     if photo.ldr:
         click.echo(f"shprobe: warning: {path}: 8/16-bit photo decoded from sRGB; pixels at "
                    "the top code value are treated as clipped", err=True)
-    if photo.exposure:
-        click.echo(f"shprobe: {path}: undoing the exposure {photo.exposure:+.3g} EV recorded "
-                   "in its metadata", err=True)
     return photo
 
 
@@ -114,6 +111,9 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
         write_text(output, text, force)
     else:
         click.echo(text, nl=not text.endswith("\n"))
+    if ph is not None and ph.exposure:
+        click.echo(f"shprobe: {source}: the exposure {ph.exposure:+.3g} EV recorded in its "
+                   "metadata was undone", err=True)
     click.echo(f"shprobe: {result.summary()}", err=True)
 
 
