@@ -12,7 +12,6 @@ value is one :class:`~shprobe.errors.ShprobeError` line naming the option or key
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
@@ -22,115 +21,31 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from .edit_values import (
+    MAX_ITEMS,
+    MAX_VALUE,
+    Floats,
+    colour,
+    integer,
+    items,
+    lm_key,
+    num_text,
+    number,
+    numbers,
+    nums_text,
+    obj,
+    shown,
+    vector,
+)
 from .windows import WindowSpec, parse_window, window_text
 
 __all__ = ["MAX_VALUE", "Blend", "EditSpec", "Rotation"]
 
-#: Largest magnitude of any number in an edit (weights, factors, colours, angles): large
-#: enough for any lighting, small enough that a chain of edits stays finite.
-MAX_VALUE = 1e9
-#: Most entries of one repeatable edit (lights, scales, blends, rotations).
-MAX_ITEMS = 256
 #: Highest degree an edit may have (``shprobe edit --lmax``).
 MAX_EDIT_LMAX = 64
 
-Floats = tuple[float, ...]
 #: names of blended probes in JSON: ids the caller resolves, never a path
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
-
-
-# ----------------------------------------------------------------------------- numbers
-
-
-def _number(v: Any, what: str) -> float:
-    """One finite number of at most :data:`MAX_VALUE` in size (JSON number or text)."""
-    if isinstance(v, bool) or not isinstance(v, int | float | str | np.floating | np.integer):
-        raise ShprobeError(f"{what} must be a number, got {_show(v)}")
-    try:
-        x = float(v)
-    except (ValueError, OverflowError):
-        raise ShprobeError(f"{what} must be a number, got {_show(v)}") from None
-    if not math.isfinite(x) or abs(x) > MAX_VALUE:
-        raise ShprobeError(f"{what} must be a finite number of at most {MAX_VALUE:g} in size, "
-                           f"got {_show(v)}")
-    return x
-
-
-def _numbers(v: Any, what: str, counts: tuple[int, ...]) -> Floats:
-    """A list of numbers (JSON list, a single number, or 'a,b,c' text) whose length is one of
-    ``counts``."""
-    if isinstance(v, str):
-        items: Sequence[Any] = [s for s in v.split(",")] if v.strip() else []
-    elif isinstance(v, list | tuple):
-        items = v
-    else:
-        items = [v]
-    if len(items) not in counts:
-        want = " or ".join(str(c) for c in counts)
-        raise ShprobeError(f"{what} must be {want} numbers, got {_show(v)}")
-    return tuple(_number(x.strip() if isinstance(x, str) else x, what) for x in items)
-
-
-def _vector(v: Any, what: str) -> Floats:
-    d = _numbers(v, what, (3,))
-    if not any(d):
-        raise ShprobeError(f"{what} must be a non-zero vector")
-    return d
-
-
-def _colour(v: Any, what: str) -> Floats:
-    return _numbers(v, what, (1, 3))
-
-
-def _show(v: Any) -> str:
-    s = repr(v)
-    return s if len(s) <= 60 else s[:57] + "..."
-
-
-def _int(v: Any, what: str) -> int:
-    """An integer (JSON integer, or short text of digits)."""
-    if isinstance(v, str):
-        t = v.strip()
-        if not re.fullmatch(r"[-+]?[0-9]{1,4}", t):
-            raise ShprobeError(f"{what} must be an integer, got {_show(v)}")
-        return int(t)
-    if isinstance(v, bool) or not isinstance(v, int | np.integer) or abs(int(v)) > 9999:
-        raise ShprobeError(f"{what} must be an integer, got {_show(v)}")
-    return int(v)
-
-
-def _lm(v: Any, what: str) -> tuple[int, int]:
-    parts = str(v).split(",") if isinstance(v, str) else None
-    if parts is None or len(parts) != 2:
-        raise ShprobeError(f"{what} must be 'l,m', got {_show(v)}")
-    return _int(parts[0], what), _int(parts[1], what)
-
-
-def _items(v: Any, what: str) -> list[Any]:
-    if v is None:
-        return []
-    if not isinstance(v, list | tuple):
-        raise ShprobeError(f"{what} must be a list, got {_show(v)}")
-    if len(v) > MAX_ITEMS:
-        raise ShprobeError(f"{what}: at most {MAX_ITEMS} entries, got {len(v)}")
-    return list(v)
-
-
-def _obj(v: Any, what: str, keys: Sequence[str]) -> dict[str, Any]:
-    if not isinstance(v, dict):
-        raise ShprobeError(f"{what} must be an object, got {_show(v)}")
-    unknown = [str(k)[:20] for k in v if k not in keys]
-    if unknown:
-        raise ShprobeError(f"{what} has unknown keys: {', '.join(sorted(unknown))}")
-    return v
-
-
-def _r(x: float) -> str:
-    return repr(float(x))
-
-
-def _v(xs: Sequence[float]) -> str:
-    return ",".join(_r(x) for x in xs)
 
 
 # ----------------------------------------------------------------------------- parts
@@ -148,13 +63,13 @@ class Blend:
 
     def text(self, probe_names: Mapping[str, str] | None = None) -> str:
         if self.kind == "preset":
-            return f"preset:{self.name}:{_r(self.weight)}"
+            return f"preset:{self.name}:{num_text(self.weight)}"
         if self.kind == "probe":
             name = (probe_names or {}).get(self.name)
             if name is None:
                 raise ShprobeError(f"blend probe {self.name} is not loaded (load it again)")
-            return f"{name}:{_r(self.weight)}"
-        return f"{self.name}:{_r(self.weight)}"
+            return f"{name}:{num_text(self.weight)}"
+        return f"{self.name}:{num_text(self.weight)}"
 
 
 @dataclass(frozen=True)
@@ -179,8 +94,8 @@ class Rotation:
 
     def text(self) -> str:
         if self.kind == "axis":
-            return f"{_v(self.values[:3])}:{_r(self.values[3])}"
-        return f"{self.kind}:{_v(self.values)}"
+            return f"{nums_text(self.values[:3])}:{num_text(self.values[3])}"
+        return f"{self.kind}:{nums_text(self.values)}"
 
     def json(self) -> dict[str, Any]:
         if self.kind == "axis":
@@ -193,27 +108,27 @@ class Rotation:
         kind, sep, rest = str(text).partition(":")
         k = kind.strip().lower()
         if sep and k == "euler":
-            return Rotation("euler", _numbers(rest, "ZYZ Euler angles", (3,)))
+            return Rotation("euler", numbers(rest, "ZYZ Euler angles", (3,)))
         if sep and k == "quat":
-            q = _numbers(rest, "quaternion (w,x,y,z)", (4,))
+            q = numbers(rest, "quaternion (w,x,y,z)", (4,))
             if not any(q):
                 raise ShprobeError("quaternion (w,x,y,z) must be non-zero")
             return Rotation("quat", q)
         if not sep or not rest:
-            raise ShprobeError(f"rotation {_show(text)}: expected AX,AY,AZ:DEGREES (e.g. "
+            raise ShprobeError(f"rotation {shown(text)}: expected AX,AY,AZ:DEGREES (e.g. "
                                "0,1,0:90), euler:A,B,G or quat:W,X,Y,Z")
-        return Rotation("axis", (*_vector(kind, "rotation axis"),
-                                 _number(rest, "rotation angle")))
+        return Rotation("axis", (*vector(kind, "rotation axis"),
+                                 number(rest, "rotation angle")))
 
     @staticmethod
     def from_json(v: Any) -> Rotation:
-        r = _obj(v, "rotation", ("axis", "degrees", "euler", "quat"))
+        r = obj(v, "rotation", ("axis", "degrees", "euler", "quat"))
         if "euler" in r and len(r) == 1:
-            return Rotation("euler", _numbers(r["euler"], "ZYZ Euler angles", (3,)))
+            return Rotation("euler", numbers(r["euler"], "ZYZ Euler angles", (3,)))
         if "quat" in r and len(r) == 1:
-            return Rotation.parse("quat:" + _v(_numbers(r["quat"], "quaternion", (4,))))
-        return Rotation("axis", (*_vector(r.get("axis"), "rotation axis"),
-                                 _number(r.get("degrees"), "rotation angle")))
+            return Rotation.parse("quat:" + nums_text(numbers(r["quat"], "quaternion", (4,))))
+        return Rotation("axis", (*vector(r.get("axis"), "rotation axis"),
+                                 number(r.get("degrees"), "rotation angle")))
 
 
 # ----------------------------------------------------------------------------- the spec
@@ -247,7 +162,7 @@ class EditSpec:
     def __post_init__(self) -> None:
         if not isinstance(self.lmax, int) or not 0 <= self.lmax <= MAX_EDIT_LMAX:
             raise ShprobeError(f"lmax must be an integer 0..{MAX_EDIT_LMAX}, got "
-                               f"{_show(self.lmax)}")
+                               f"{shown(self.lmax)}")
         for f in fields(self):
             v = getattr(self, f.name)
             if isinstance(v, tuple) and f.name != "sky" and len(v) > MAX_ITEMS:
@@ -283,7 +198,7 @@ class EditSpec:
             name, eq, value = str(a).partition("=")
             key = name.removeprefix("--").replace("-", "_")
             if not name.startswith("--") or key not in _OPTIONS:
-                raise ShprobeError(f"not an edit option: {_show(a)}")
+                raise ShprobeError(f"not an edit option: {shown(a)}")
             if not eq:
                 value = next(it, None)
                 if value is None:
@@ -307,56 +222,56 @@ class EditSpec:
         def kv(text: str, what: str) -> tuple[str, str]:
             k, sep, v = text.partition("=")
             if not sep:
-                raise ShprobeError(f"--{what} {_show(text)}: expected KEY=VALUE")
+                raise ShprobeError(f"--{what} {shown(text)}: expected KEY=VALUE")
             return k, v
 
-        def colour(text: str, what: str) -> Floats:
-            return _colour(text or "1", what)
+        def light(text: str, what: str) -> Floats:  # a light's colour: empty is white
+            return colour(text or "1", what)
 
         blends = []
         for b in many("blend"):
             head, _, w = b.rpartition(":")
             if not head:
-                raise ShprobeError(f"--blend {_show(b)}: expected FILE:WEIGHT or "
+                raise ShprobeError(f"--blend {shown(b)}: expected FILE:WEIGHT or "
                                    "preset:NAME:WEIGHT")
             kind, name = ("preset", head[7:]) if head.startswith("preset:") else ("file", head)
-            blends.append(Blend(kind, name, _number(w, "blend weight")))
+            blends.append(Blend(kind, name, number(w, "blend weight")))
         cones = []
         for c in many("cone"):
             parts = c.split(":")
             if len(parts) != 3:
-                raise ShprobeError(f"--cone {_show(c)}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
-            cones.append((_vector(parts[0], "cone direction"), _number(parts[1], "aperture"),
-                          colour(parts[2], "colour")))
+                raise ShprobeError(f"--cone {shown(c)}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
+            cones.append((vector(parts[0], "cone direction"), number(parts[1], "aperture"),
+                          light(parts[2], "colour")))
         sky = None
         if opts.get("sky"):
             parts = str(opts["sky"]).split(":")
             if len(parts) > 3:
-                raise ShprobeError(f"--sky {_show(opts['sky'])}: expected SKY_R,G,B"
+                raise ShprobeError(f"--sky {shown(opts['sky'])}: expected SKY_R,G,B"
                                    "[:GROUND_R,G,B[:UX,UY,UZ]]")
-            sky = (colour(parts[0], "sky colour"),
-                   colour(parts[1], "ground colour") if len(parts) > 1 else (0.0,),
-                   _vector(parts[2], "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
+            sky = (light(parts[0], "sky colour"),
+                   light(parts[1], "ground colour") if len(parts) > 1 else (0.0,),
+                   vector(parts[2], "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
         lmax = opts.get("lmax")
         return cls(
-            lmax=2 if lmax is None else _int(lmax if isinstance(lmax, str) else int(lmax),
+            lmax=2 if lmax is None else integer(lmax if isinstance(lmax, str) else int(lmax),
                                              "lmax"),
-            weight=_number(opts.get("weight", 1.0), "weight"),
+            weight=number(opts.get("weight", 1.0), "weight"),
             blends=tuple(blends),
-            directional=tuple((_vector(d.partition(":")[0], "direction"),
-                               colour(d.partition(":")[2], "colour"))
+            directional=tuple((vector(d.partition(":")[0], "direction"),
+                               light(d.partition(":")[2], "colour"))
                               for d in many("directional")),
             cones=tuple(cones), sky=sky,
-            sets=tuple((_lm(k, "coefficient 'l,m'"), _colour(v, "value"))
+            sets=tuple((lm_key(k, "coefficient 'l,m'"), colour(v, "value"))
                        for k, v in (kv(s, "set") for s in many("set"))),
-            scales=tuple((_lm(k, "coefficient 'l,m'"), _colour(v, "factor"))
+            scales=tuple((lm_key(k, "coefficient 'l,m'"), colour(v, "factor"))
                          for k, v in (kv(s, "scale") for s in many("scale"))),
-            negates=tuple(_lm(s, "coefficient 'l,m'") for s in many("negate")),
-            set_bands=tuple((_int(k, "band l"), _colour(v, "value"))
+            negates=tuple(lm_key(s, "coefficient 'l,m'") for s in many("negate")),
+            set_bands=tuple((integer(k, "band l"), colour(v, "value"))
                             for k, v in (kv(s, "set-band") for s in many("set_band"))),
-            scale_bands=tuple((_int(k, "band l"), _colour(v, "factor"))
+            scale_bands=tuple((integer(k, "band l"), colour(v, "factor"))
                               for k, v in (kv(s, "scale-band") for s in many("scale_band"))),
-            negate_bands=tuple(_int(s, "band l") for s in many("negate_band")),
+            negate_bands=tuple(integer(s, "band l") for s in many("negate_band")),
             rotations=tuple(Rotation.parse(r) for r in many("rotate")),
             window=parse_window(opts.get("window")))
 
@@ -375,14 +290,14 @@ class EditSpec:
         """
         from ..probes.presets import PRESETS
 
-        s = _obj(doc, "edit state", _JSON_KEYS)
-        lmax = _int(s.get("lmax", 2), "lmax")
+        s = obj(doc, "edit state", _JSON_KEYS)
+        lmax = integer(s.get("lmax", 2), "lmax")
         if not 0 <= lmax <= max_lmax:
             raise ShprobeError(f"lmax must be an integer 0..{max_lmax}, got {lmax}")
         blends = []
-        for b in _items(s.get("blends"), "blends"):
-            b = _obj(b, "blend", ("preset", "probe", "weight"))
-            w = _number(b.get("weight", 1.0), "blend weight")
+        for b in items(s.get("blends"), "blends"):
+            b = obj(b, "blend", ("preset", "probe", "weight"))
+            w = number(b.get("weight", 1.0), "blend weight")
             if isinstance(b.get("preset"), str) and b["preset"] in PRESETS and "probe" not in b:
                 blends.append(Blend("preset", b["preset"], w))
             elif isinstance(b.get("probe"), str) and _NAME.fullmatch(b["probe"]) \
@@ -390,26 +305,26 @@ class EditSpec:
                 blends.append(Blend("probe", b["probe"], w))
             else:
                 raise ShprobeError(f"blend must name a preset ({', '.join(PRESETS)}) or a "
-                                   f"probe this server loaded, got {_show(b)}")
+                                   f"probe this server loaded, got {shown(b)}")
         directional = []
-        for d in _items(s.get("directional"), "directional"):
-            d = _obj(d, "directional light", ("dir", "rgb"))
-            directional.append((_vector(d.get("dir"), "light direction"),
-                                _colour(d.get("rgb", [1, 1, 1]), "light colour")))
+        for d in items(s.get("directional"), "directional"):
+            d = obj(d, "directional light", ("dir", "rgb"))
+            directional.append((vector(d.get("dir"), "light direction"),
+                                colour(d.get("rgb", [1, 1, 1]), "light colour")))
         cones = []
-        for c in _items(s.get("cone"), "cone"):
-            c = _obj(c, "cone light", ("dir", "aperture_deg", "rgb"))
-            cones.append((_vector(c.get("dir"), "cone direction"),
-                          _number(c.get("aperture_deg"), "cone aperture"),
-                          _colour(c.get("rgb", [1, 1, 1]), "cone colour")))
+        for c in items(s.get("cone"), "cone"):
+            c = obj(c, "cone light", ("dir", "aperture_deg", "rgb"))
+            cones.append((vector(c.get("dir"), "cone direction"),
+                          number(c.get("aperture_deg"), "cone aperture"),
+                          colour(c.get("rgb", [1, 1, 1]), "cone colour")))
         sky = s.get("sky")
         if sky is not None:
-            k = _obj(sky, "sky", ("sky", "ground", "up"))
-            sky = None if not k else (_colour(k.get("sky", [1, 1, 1]), "sky colour"),
-                                      _colour(k.get("ground", [0, 0, 0]), "ground colour"),
-                                      _vector(k.get("up", [0, 1, 0]), "sky up"))
+            k = obj(sky, "sky", ("sky", "ground", "up"))
+            sky = None if not k else (colour(k.get("sky", [1, 1, 1]), "sky colour"),
+                                      colour(k.get("ground", [0, 0, 0]), "ground colour"),
+                                      vector(k.get("up", [0, 1, 0]), "sky up"))
         rot = s.get("rotation")
-        rots = [] if rot is None else _items(rot, "rotation") if isinstance(rot, list) \
+        rots = [] if rot is None else items(rot, "rotation") if isinstance(rot, list) \
             else [rot]
 
         def table(key: str, what: str) -> list[tuple[str, Any]]:
@@ -417,28 +332,30 @@ class EditSpec:
             if v is None:
                 return []
             if not isinstance(v, dict):
-                raise ShprobeError(f"{key} must be an object {{{what}: value}}, got {_show(v)}")
+                raise ShprobeError(f"{key} must be an object {{{what}: value}}, got {shown(v)}")
             if len(v) > MAX_ITEMS:
                 raise ShprobeError(f"{key}: at most {MAX_ITEMS} entries")
             return list(v.items())
 
         def band(k: str) -> int:
-            return _int(k if re.fullmatch(r"[0-9]{1,4}", k) else "x" + k[:20], "band l")
+            if not re.fullmatch(r"[0-9]{1,4}", k):
+                raise ShprobeError(f"band key must be a degree 'l', got {shown(k)}")
+            return int(k)
 
         return cls(
-            lmax=lmax, weight=_number(s.get("weight", 1.0), "weight"), blends=tuple(blends),
+            lmax=lmax, weight=number(s.get("weight", 1.0), "weight"), blends=tuple(blends),
             directional=tuple(directional), cones=tuple(cones), sky=sky,
-            sets=tuple((_lm(k, "coefficient key"), _colour(v, "coefficient value"))
+            sets=tuple((lm_key(k, "coefficient key"), colour(v, "coefficient value"))
                        for k, v in table("set", '"l,m"')),
-            scales=tuple((_lm(k, "coefficient key"), _colour(v, "coefficient factor"))
+            scales=tuple((lm_key(k, "coefficient key"), colour(v, "coefficient factor"))
                          for k, v in table("scale", '"l,m"')),
-            negates=tuple(_lm(k, "coefficient key") for k in _items(s.get("negate"),
+            negates=tuple(lm_key(k, "coefficient key") for k in items(s.get("negate"),
                                                                      "negate")),
-            set_bands=tuple((band(k), _colour(v, "band value"))
+            set_bands=tuple((band(k), colour(v, "band value"))
                             for k, v in table("set_band", '"l"')),
-            scale_bands=tuple((band(k), _colour(v, "band factor"))
+            scale_bands=tuple((band(k), colour(v, "band factor"))
                               for k, v in table("scale_band", '"l"')),
-            negate_bands=tuple(_int(k, "band l") for k in _items(s.get("negate_band"),
+            negate_bands=tuple(integer(k, "band l") for k in items(s.get("negate_band"),
                                                                   "negate_band")),
             rotations=tuple(Rotation.from_json(r) for r in rots),
             window=parse_window(s.get("window")))
@@ -449,20 +366,20 @@ class EditSpec:
         ``probe_names`` gives the file of each blended probe id."""
         a = ["--lmax", str(self.lmax)]
         if self.weight != 1.0:
-            a += ["--weight", _r(self.weight)]
+            a += ["--weight", num_text(self.weight)]
         for b in self.blends:
             a += ["--blend", b.text(probe_names)]
         for d, rgb in self.directional:
-            a += ["--directional", f"{_v(d)}:{_v(rgb)}"]
+            a += ["--directional", f"{nums_text(d)}:{nums_text(rgb)}"]
         for d, ap, rgb in self.cones:
-            a += ["--cone", f"{_v(d)}:{_r(ap)}:{_v(rgb)}"]
+            a += ["--cone", f"{nums_text(d)}:{num_text(ap)}:{nums_text(rgb)}"]
         if self.sky is not None:
-            a += ["--sky", ":".join(_v(x) for x in self.sky)]
-        a += [x for (l, m), v in self.sets for x in ("--set", f"{l},{m}={_v(v)}")]
-        a += [x for (l, m), v in self.scales for x in ("--scale", f"{l},{m}={_v(v)}")]
+            a += ["--sky", ":".join(nums_text(x) for x in self.sky)]
+        a += [x for (l, m), v in self.sets for x in ("--set", f"{l},{m}={nums_text(v)}")]
+        a += [x for (l, m), v in self.scales for x in ("--scale", f"{l},{m}={nums_text(v)}")]
         a += [x for l, m in self.negates for x in ("--negate", f"{l},{m}")]
-        a += [x for l, v in self.set_bands for x in ("--set-band", f"{l}={_v(v)}")]
-        a += [x for l, v in self.scale_bands for x in ("--scale-band", f"{l}={_v(v)}")]
+        a += [x for l, v in self.set_bands for x in ("--set-band", f"{l}={nums_text(v)}")]
+        a += [x for l, v in self.scale_bands for x in ("--scale-band", f"{l}={nums_text(v)}")]
         a += [x for l in self.negate_bands for x in ("--negate-band", str(l))]
         a += [x for r in self.rotations for x in ("--rotate", r.text())]
         if self.window is not None:
