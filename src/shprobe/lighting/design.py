@@ -9,7 +9,7 @@ nothing is modified in place. Windows and the non-negativity certificate are
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -170,6 +170,31 @@ class Edited:
                 f"channels={self.coeffs.shape[1]}, window={self.window!r})")
 
 
+def _steps(spec: EditSpec, blends: BlendResolver) -> list[Callable[[NDArray], NDArray]]:
+    """The edits of ``spec`` up to the window, one function of the lighting each, in order."""
+    lmax = spec.lmax
+    out: list[Callable[[NDArray], NDArray]] = []
+    for b in spec.blends:
+        out.append(lambda L, b=b: blend([(L, 1.0), (pad_coeffs(blends(b, lmax), lmax),
+                                                    b.weight)]))
+    for d, rgb in spec.directional:
+        out.append(lambda L, d=d, rgb=rgb: L + directional_light(d, rgb, lmax))
+    for axis, ap, rgb in spec.cones:
+        out.append(lambda L, a=axis, ap=ap, rgb=rgb: L + cone_light(a, np.radians(ap), rgb,
+                                                                    lmax))
+    if spec.sky is not None:
+        sky, ground, up = spec.sky
+        out.append(lambda L: L + sky_light(up, sky, ground, lmax))
+    out += [lambda L, k=k, v=v: set_coeff(L, *k, v) for k, v in spec.sets]
+    out += [lambda L, k=k, f=f: scale_coeff(L, *k, f) for k, f in spec.scales]
+    out += [lambda L, k=k: negate_coeff(L, *k) for k in spec.negates]
+    out += [lambda L, l=l, v=v: set_band(L, l, v) for l, v in spec.set_bands]
+    out += [lambda L, l=l, f=f: scale_band(L, l, f) for l, f in spec.scale_bands]
+    out += [lambda L, l=l: negate_band(L, l) for l in spec.negate_bands]
+    out += [lambda L, r=r: rotate_lighting(L, r.matrix()) for r in spec.rotations]
+    return out
+
+
 def edit_lighting(base: ArrayLike | None, spec: EditSpec,
                   blends: BlendResolver | None = None) -> Edited:
     """Apply the edits of ``spec`` (:class:`~shprobe.lighting.edits.EditSpec`) to ``base``
@@ -182,33 +207,14 @@ def edit_lighting(base: ArrayLike | None, spec: EditSpec,
     lmax = spec.lmax
     if blends is None:
         from .source import blend_lighting as blends
-    L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax) * spec.weight
-    for b in spec.blends:
-        L = blend([(L, 1.0), (pad_coeffs(blends(b, lmax), lmax), b.weight)])
-    for d, rgb in spec.directional:
-        L = L + directional_light(d, rgb, lmax)
-    for axis, ap, rgb in spec.cones:
-        L = L + cone_light(axis, np.radians(ap), rgb, lmax)
-    if spec.sky is not None:
-        sky, ground, up = spec.sky
-        L = L + sky_light(up, sky, ground, lmax)
-    for (l, m), v in spec.sets:
-        L = set_coeff(L, l, m, v)
-    for (l, m), f in spec.scales:
-        L = scale_coeff(L, l, m, f)
-    for l, m in spec.negates:
-        L = negate_coeff(L, l, m)
-    for l, v in spec.set_bands:
-        L = set_band(L, l, v)
-    for l, f in spec.scale_bands:
-        L = scale_band(L, l, f)
-    for l in spec.negate_bands:
-        L = negate_band(L, l)
-    for r in spec.rotations:
-        L = rotate_lighting(L, r.matrix())
-    if not np.all(np.isfinite(L)):
-        raise ShprobeError("the edits overflow: the lighting is not finite (smaller weights "
-                           "or factors)")
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused, in one line
+        L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax)
+        L = L * spec.weight
+        for step in [lambda x: x, *_steps(spec, blends)]:
+            L = step(L)
+            if not np.all(np.isfinite(L)):
+                raise ShprobeError("the edits overflow: the lighting is not finite (use "
+                                   "smaller weights or factors)")
     if spec.window is None:
         return Edited(L)
     if spec.window == "auto":
