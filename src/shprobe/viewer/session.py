@@ -103,14 +103,14 @@ class Session:
     def fork_loader(self) -> None:
         """Start loading the probe and the mesh named on the command line in a forked
         process (:func:`shprobe.viewer.loader.fork_loader`; ``shprobe view`` calls it before
-        any thread starts and before the server is imported): :meth:`load` then takes the lmax-2
-        coefficients and the page's mesh arrays from it (the first frame needs no more); the
-        :class:`Env` (compare, H-basis, lmax > 2), its lmax-:data:`MAX_LMAX` coefficients and
-        the background texture follow in a thread. The trimesh object is loaded in this
-        process only when a view needs it (:attr:`mesh`); the Env is sent when a view first
-        needs it (:attr:`Source.env` sets the loader's ``go``), so that until then the first
-        frame has the cores. Without a fork (not Linux, or nothing to load) :meth:`load` reads
-        the files itself."""
+        any thread starts and before the server is imported): :meth:`load` then takes the
+        lmax-2 coefficients and the page's mesh arrays from it (the first frame needs no
+        more); the :class:`Env` (compare, H-basis, lmax > 2), its coefficients at
+        :data:`~shprobe.viewer.source.MAX_LMAX` and the background texture follow in a
+        thread. The trimesh object is loaded in this process only when a view needs it
+        (:attr:`mesh`); the Env is sent when a view first needs it (:attr:`Source.env` sets
+        the loader's ``go``), so that until then the first frame has the cores. Without a
+        fork (not Linux, or nothing to load) :meth:`load` reads the files itself."""
         loader = fork_loader(self._args[0], self.layout, self._mesh_arg())
         if loader is not None:
             self.stamp("load_start")
@@ -163,7 +163,8 @@ class Session:
         self.ready.set()
 
     def _load_forked(self, probe: str | None, mesh_path: str | None) -> None:
-        """:meth:`load`'s probe and mesh from the forked processes (:func:`_load_child`)."""
+        """:meth:`load`'s probe and mesh from the forked processes
+        (:func:`~shprobe.viewer.loader._load_child`)."""
         name = os.path.basename(mesh_path) if mesh_path else None
         src: Source | None = None
         try:
