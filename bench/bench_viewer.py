@@ -61,7 +61,8 @@ def make_probe(folder: Path) -> Path:
 
 def start(args: list[str], src: Path | None = None, cache: Path | None = None
           ) -> tuple[subprocess.Popen, str, float]:
-    env = dict(os.environ, PYTHONPATH=str(src or REPO / "src"))
+    # SHPROBE_VIEW_STAMPS: the server records its loading stages' times (served by /api/init)
+    env = dict(os.environ, PYTHONPATH=str(src or REPO / "src"), SHPROBE_VIEW_STAMPS="1")
     if cache is not None:  # shprobe's on-disk cache (the viewer's mesh payloads)
         env["SHPROBE_CACHE_DIR"] = str(cache)
     t0 = time.time()

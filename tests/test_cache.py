@@ -67,19 +67,19 @@ def test_file_digest_follows_content_not_name(tmp_path):
 
 def _direct(path: Path, name: str) -> bytes:
     from shprobe.scene import load_mesh
-    from shprobe.viewer.session import mesh_payload
+    from shprobe.viewer.payloads import mesh_payload
 
     return mesh_payload(load_mesh(path), name)
 
 
 def test_cached_mesh_payload_equals_trimesh_and_needs_no_trimesh(bunny_path, cache, tmp_path):
-    from shprobe.viewer.session import cached_mesh_payload
+    from shprobe.viewer.payloads import cached_mesh_payload
 
     want = _direct(bunny_path, "bunny.obj")
     assert cached_mesh_payload(str(bunny_path), "bunny.obj") == want  # made, and stored
     assert len(list((cache / "viewer_mesh").glob("*.bin"))) == 1
     # a new process (as `shprobe view`'s mesh loader): the bytes come from the cache alone
-    code = ("import sys, hashlib; from shprobe.viewer.session import cached_mesh_payload; "
+    code = ("import sys, hashlib; from shprobe.viewer.payloads import cached_mesh_payload; "
             f"d = cached_mesh_payload({str(bunny_path)!r}, 'bunny.obj'); "
             "print('trimesh' in sys.modules, hashlib.sha256(d).hexdigest())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -90,7 +90,7 @@ def test_cached_mesh_payload_equals_trimesh_and_needs_no_trimesh(bunny_path, cac
 
 
 def test_cached_mesh_payload_follows_the_file_and_survives_damage(bunny_path, cache, tmp_path):
-    from shprobe.viewer.session import cached_mesh_payload
+    from shprobe.viewer.payloads import cached_mesh_payload
 
     p = tmp_path / "m.obj"
     text = bunny_path.read_text()

@@ -22,7 +22,8 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.viewer.session import Session, check_state, cli_args
+from shprobe.viewer.design import read_state
+from shprobe.viewer.session import Session
 
 from .conftest import data_file
 
@@ -54,10 +55,8 @@ def browser():
 
 class Served:
     def __init__(self, session: Session):
-        import uvicorn
-
         from shprobe.viewer import new_token
-        from shprobe.viewer.app import create_app
+        from shprobe.viewer.app import create_app, make_server
 
         self.session = session
         self.sock = socket.socket()
@@ -65,7 +64,7 @@ class Served:
         self.port = self.sock.getsockname()[1]
         self.token = new_token()
         self.app = create_app(session, self.token, "127.0.0.1", self.port)
-        self.server = uvicorn.Server(uvicorn.Config(self.app, log_level="warning"))
+        self.server = make_server(self.app)
         self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
                                        daemon=True)
         self.thread.start()
@@ -269,7 +268,7 @@ def test_export_download_equals_cli(page, served, probe_path, tmp_path, fmt):
         page.click(f"#export-{fmt}")
     got = Path(dl.value.path()).read_text()
     out = tmp_path / f"cli.{fmt}"
-    args = cli_args(check_state(EDITS))
+    args = read_state(EDITS).to_text()
     assert main(["edit", str(probe_path), *args, "--format", fmt, "-o", str(out)]) == 0
     assert got == out.read_text()
     if fmt == "json":  # what the page draws (the cached drag path) is what it exports
@@ -489,15 +488,16 @@ def test_token_host_origin_and_paths(served):
 
 
 def test_state_validation():
-    assert check_state({})["lmax"] == 2
+    assert read_state({}).lmax == 2
     for bad in ({"lmax": 99}, {"directional": [{"dir": [0, 0]}]}, {"window": "box:1"},
                 {"scale": {"3,0": 2}}, {"rotation": {"axis": [0, 0, 0], "degrees": 3}},
                 {"cone": [{"dir": [0, 1, 0], "aperture_deg": 200}]}, [], {"blends": [{}]},
                 {"blends": [{"probe": "/etc/passwd"}]}, {"blends": [{"probe": "p0.1/../x"}]},
                 {"blends": [{"probe": "pabcdef.1", "preset": "grace"}]}):
         with pytest.raises(ShprobeError):
-            check_state(bad)
-    args = cli_args({"rotation": {"axis": [0, 1, 0], "degrees": 30.0}, "window": "auto"})
+            read_state(bad)
+    args = read_state({"rotation": {"axis": [0, 1, 0], "degrees": 30.0},
+                       "window": "auto"}).to_text()
     assert args == ["--lmax", "2", "--rotate", "0.0,1.0,0.0:30.0", "--window", "auto"]
 
 
@@ -605,14 +605,13 @@ def test_cli_view_prints_url_and_serves(probe_path):
 def test_hbasis_panel_in_page(page, served):
     """The H-basis view shows the library's normal-mapping comparison for the page's lighting
     (rotation applied): its errors are the library's, H6 beats H4."""
-    from shprobe.viewer.session import hbasis_panel
 
     rot = {"axis": [1.0, 0.0, 0.0], "degrees": 40.0}
     _state(page, {"rotation": rot})
     page.select_option("#mode", "hbasis")
     page.wait_for_function("() => window.__shprobe.hbasis", timeout=60000)
     got = page.evaluate("() => window.__shprobe.hbasis")
-    _, want = hbasis_panel(served.session, check_state({"rotation": rot}))
+    _, want = served.session.hbasis(read_state({"rotation": rot}))
     assert got == pytest.approx(want, rel=1e-12)
     assert got["H6"] < got["H4"]
     assert page.locator("#hbimg").evaluate("(e) => e.naturalWidth") > 0

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.viewer.session import Session, unpack_files
+from shprobe.viewer.session import Session
+from shprobe.viewer.wire import unpack_files
 
 from .conftest import data_file
 
@@ -102,15 +103,21 @@ def _body(header: bytes, payload: bytes = b"") -> bytes:
     return len(header).to_bytes(4, "little") + header + payload
 
 
+def _unpack(body: bytes) -> list[tuple[str, bytes]]:
+    import io
+
+    return [(n, body[o: o + k]) for n, o, k in unpack_files(io.BytesIO(body), len(body))]
+
+
 def test_unpack_files_malformed_is_one_line():
-    assert unpack_files(_body(b'{"files": [{"name": "a.hdr", "size": 2}]}', b"xy")) == \
+    assert _unpack(_body(b'{"files": [{"name": "a.hdr", "size": 2}]}', b"xy")) == \
         [("a.hdr", b"xy")]
     for head in (b'{"files": [{"name": "a", "size": 1e999}]}',  # int(inf): OverflowError
                  b'{"files": [{"name": "a", "size": NaN}]}', b'{"files": [{"name": "a"}]}',
                  b'{"files": [{"name": "a", "size": [1]}]}', b'{"files": 3}', b"\xff\xfe",
                  b'{"files": [{"name": "a", "size": 5}]}'):
         with pytest.raises(ShprobeError, match=r"^malformed multi-file upload$"):
-            unpack_files(_body(head, b"xy"))
+            _unpack(_body(head, b"xy"))
 
 
 def test_probe_coeffs_every_degree_equals_projection():
@@ -118,11 +125,12 @@ def test_probe_coeffs_every_degree_equals_projection():
     (R&H eq. 10), as `shprobe edit --blend FILE:W` projects it."""
     from shprobe.lighting.projection import project
     from shprobe.probes.environments import procedural_env
+    from shprobe.viewer.source import env_source
 
     s = Session(preset="grace", load=False)
     try:
         env = procedural_env(32, 16)
-        pid = s.register_probe(s.env_source(env, "sky"), "dir/sky.hdr")
+        pid = s.register_probe(env_source(env, "sky"), "dir/sky.hdr")
         assert s.probe_list() == [{"id": pid, "name": "sky.hdr"}]
         assert s.probe_names() == {pid: "dir/sky.hdr"}
         for lmax in range(6):
@@ -179,7 +187,8 @@ def test_blend_only_probes_keep_coefficients_not_images():
     projections of the image they had; the current source and the latest upload keep theirs."""
     from shprobe.lighting.projection import project
     from shprobe.probes.environments import procedural_env
-    from shprobe.viewer.session import DESIGN_LMAX, Source
+    from shprobe.viewer.design import DESIGN_LMAX
+    from shprobe.viewer.source import Source
 
     s = Session(None, load=False)
     try:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import click
 
+from ..lighting.export import FORMATS as EXPORT_FORMATS
 from .common import force_option
 
-FORMATS = ("table", "json", "glsl", "hlsl", "wgsl", "three", "gltf", "cmgen", "cs-phase")
+FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
 
 
 def _outputs(f):

@@ -8,11 +8,12 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
+from ..lighting.export import FORMATS as EXPORT_FORMATS
 from .common import force_option, parse_exposure
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.lighting.export).
-FORMATS = ("table", "json", "glsl", "hlsl", "wgsl", "three", "gltf", "cmgen", "cs-phase")
+FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
 OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
 
 

@@ -11,17 +11,16 @@ from typing import Any
 import click
 
 from ..errors import ShprobeError
+from ..lighting.export import FORMATS
 from .common import (
     ROTATE_HELP,
     force_option,
     parse_exposure,
     parse_floats,
-    parse_rotation,
     parse_size,
 )
 from .sources import coeff_source_options, resolve_coeffs
 
-FORMATS = ("glsl", "hlsl", "wgsl", "json", "three", "gltf", "cmgen", "cs-phase")
 WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
                "with KIND one of hann, lanczos, gaussian, laplacian.")
 
@@ -44,29 +43,16 @@ def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
     return src.coeffs, src.source, src.env
 
 
-def parse_window(text: str | None):
-    """None | 'auto' | (kind, strength)."""
-    if not text:
-        return None
-    if text.strip().lower() == "auto":
-        return "auto"
-    kind, _, s = text.partition(":")
-    from ..lighting.windows import WINDOWS
+def edit(coeffs, options: dict[str, Any], layout: str = "auto", clamp: bool = False):
+    """The edit options of a command (:meth:`shprobe.lighting.edits.EditSpec.from_options`)
+    applied by :func:`shprobe.lighting.design.edit_lighting` (blended probes read in
+    ``layout``); returns (coeffs, description of the window step or None)."""
+    from ..lighting.design import edit_lighting
+    from ..lighting.edits import EditSpec
+    from ..lighting.source import blend_lighting
 
-    if kind not in WINDOWS or not s:
-        raise ShprobeError(f"window {text!r}: expected 'auto' or KIND:STRENGTH with KIND one "
-                           f"of {', '.join(WINDOWS)}")
-    return kind, parse_floats(s, 1, "window strength")[0]
-
-
-def edit(coeffs, lmax: int, window: str | None = None, rotations=(), weight: float = 1.0,
-         **edits):
-    """:func:`shprobe.lighting.design.edit_lighting` with the CLI's rotation and window
-    strings parsed; returns (coeffs, description of the window step or None)."""
-    from ..lighting.design import Edits, edit_lighting
-
-    res = edit_lighting(coeffs, Edits(rotations=[parse_rotation(r) for r in rotations],
-                                      window=parse_window(window), **edits), lmax, weight)
+    res = edit_lighting(coeffs, EditSpec.from_options(options),
+                        lambda b, lmax: blend_lighting(b, lmax, layout, clamp))
     return res.coeffs, res.window
 
 
@@ -103,15 +89,6 @@ def load_geometry(mesh, sphere):
     if mesh and sphere:
         raise ShprobeError("give either --mesh MESH or --sphere, not both")
     return None if (sphere or not mesh) else load_mesh(mesh)
-
-
-def _lm(text: str) -> tuple[int, int]:
-    v = parse_floats(text, 2, "coefficient 'l,m'")
-    return int(v[0]), int(v[1])
-
-
-def _band(text: str) -> int:
-    return int(parse_floats(text, 1, "band l")[0])
 
 
 # ----------------------------------------------------------------------------- commands
@@ -157,7 +134,7 @@ def register(group: click.Group) -> None:
         if exr:
             check_image_output(exr, force)
         coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
-        coeffs, wdesc = edit(coeffs, lmax, window, rotate)
+        coeffs, wdesc = edit(coeffs, {"lmax": lmax, "window": window, "rotate": rotate})
         geo = load_geometry(mesh, sphere)
         cam = make_camera(size, azimuth, elevation, fov, ortho)
         if background is None:
@@ -287,7 +264,6 @@ def register(group: click.Group) -> None:
 
         from ..files import check_output_path, write_text
         from ..lighting.export import export_coeffs
-        from ..probes.images import READ_EXTENSIONS
         from ..sh import lmax_of
 
         check_output_path(output, force)
@@ -295,56 +271,11 @@ def register(group: click.Group) -> None:
         # presets and coefficient files keep theirs (cut or zero-padded below)
         base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp,
                                     max(lmax, 2) if probe else None, required=False)
-        mixes = []
-        for b in blends:
-            head, _, w = b.rpartition(":")
-            if not head:
-                raise ShprobeError(f"--blend {b!r}: expected FILE:WEIGHT or preset:NAME:WEIGHT")
-            if head.startswith("preset:"):
-                c, _, _ = load_source(None, head[7:], None, lmax=None)
-            elif Path(head).suffix.lower() in READ_EXTENSIONS:  # a probe image
-                c, _, _ = load_source(head, None, None, layout, clamp, lmax)
-            else:
-                c, _, _ = load_source(None, None, head, lmax=None)
-            mixes.append((c, parse_floats(w, 1, "blend weight")[0]))
-
-        def colour(text: str, what: str):
-            return parse_floats(text or "1", None, what)
-
-        cones = []
-        for c in cone:
-            parts = c.split(":")
-            if len(parts) != 3:
-                raise ShprobeError(f"--cone {c!r}: expected DX,DY,DZ:APERTURE_DEG:R,G,B")
-            cones.append((parse_floats(parts[0], 3, "cone direction"),
-                           parse_floats(parts[1], 1, "aperture")[0], colour(parts[2], "colour")))
-        sky_edit = None
-        if sky:
-            parts = sky.split(":")
-            sky_edit = (colour(parts[0], "sky colour"),
-                        colour(parts[1], "ground colour") if len(parts) > 1 else 0.0,
-                        parse_floats(parts[2], 3, "up") if len(parts) > 2 else (0.0, 1.0, 0.0))
-
-        def kv(text: str, what: str, value: str) -> tuple[Any, list[float]]:
-            k, sep, v = text.partition("=")
-            if not sep:
-                raise ShprobeError(f"{what} {text!r}: expected KEY=VALUE")
-            return k, parse_floats(v, None, value)
-
-        L, wdesc = edit(base, lmax, window, rotations, weight=weight, blends=mixes,
-                        directional=[(parse_floats(d.partition(":")[0], 3, "direction"),
-                                      colour(d.partition(":")[2], "colour"))
-                                     for d in directional],
-                        cones=cones, sky=sky_edit,
-                        sets=[(_lm(k), v) for k, v in (kv(s, "--set", "value") for s in sets)],
-                        scales=[(_lm(k), v) for k, v in (kv(s, "--scale", "factor")
-                                                          for s in scales)],
-                        negates=[_lm(s) for s in negates],
-                        set_bands=[(_band(k), v) for k, v in (kv(s, "--set-band", "value")
-                                                              for s in set_band)],
-                        scale_bands=[(_band(k), v) for k, v in (kv(s, "--scale-band", "factor")
-                                                                for s in scale_band)],
-                        negate_bands=list(negate_band))
+        L, wdesc = edit(base, {
+            "lmax": lmax, "weight": weight, "blend": blends, "directional": directional,
+            "cone": cone, "sky": sky, "set": sets, "scale": scales, "negate": negates,
+            "set_band": set_band, "scale_band": scale_band, "negate_band": negate_band,
+            "rotate": rotations, "window": window}, layout, clamp)
         write_text(output, export_coeffs(L, fmt, source=name or "shprobe edit"),
                    overwrite=force)
         if wdesc:
@@ -370,6 +301,7 @@ def register(group: click.Group) -> None:
             apply_window,
             auto_window,
             min_irradiance,
+            parse_window,
             window_bias,
             window_factors,
         )
@@ -397,7 +329,7 @@ def register(group: click.Group) -> None:
                                                 if ch.kind != "none" else
                                                 " (already non-negative)"))
         else:
-            kind, s = spec
+            kind, s = spec or ("hann", 0.0)  # 'none': strength 0 is no window
             f = window_factors(kind, lmax, s)
             after = min_irradiance(apply_window(coeffs, f))
             click.echo(f"window {kind} strength {s:g}, bias {100 * window_bias(coeffs, f):.3f}%")
@@ -424,7 +356,7 @@ def register(group: click.Group) -> None:
         from ..lighting.export import export_coeffs
 
         coeffs, name, _ = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
-        coeffs, wdesc = edit(coeffs, lmax, window)
+        coeffs, wdesc = edit(coeffs, {"lmax": lmax, "window": window})
         text = export_coeffs(coeffs, fmt, source=name)
         if output:
             write_text(output, text, overwrite=force)

@@ -59,21 +59,18 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
                    cone: tuple[Any, float] | None = None) -> Lighting:
     """:func:`shprobe.lighting.source.resolve_lighting` for commands: the option names in the
     messages, and an LDR probe's warning as one line on stderr."""
-    from ..lighting.source import resolve_lighting
+    from ..lighting.source import SourceChoiceError, resolve_lighting
 
     try:
         with ldr_warnings_as_lines():
             return resolve_lighting(probe, preset, coeffs_file, cone, layout, lmax, clamp,
                                     need_env)
-    except ShprobeError as e:
-        if e.message.startswith("give exactly one lighting source"):
-            raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
-                               "--coeffs FILE" + (" or --cone X,Y,Z,APERTURE" if cone else "")
-                               + e.message[e.message.index(" (got"):]) from None
-        if e.message.startswith("this needs a probe image"):
-            raise ShprobeError("this command needs a probe image, not "
-                               + e.message.rsplit("not ", 1)[1]) from None
-        raise
+    except SourceChoiceError as e:
+        if e.need_env:
+            raise ShprobeError(f"this command needs a probe image, not {e.given[0]}") from None
+        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
+                           "--coeffs FILE" + (" or --cone X,Y,Z,APERTURE" if cone else "")
+                           + f" (got {', '.join(e.given) or 'none'})") from None
 
 
 __all__ = ["coeff_source_options", "resolve_coeffs"]

@@ -30,6 +30,7 @@ def register(group: click.Group) -> None:
         a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
         edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
         the URL with its access token; Ctrl-C stops it."""
+        import os
         import socket
         import threading
         import time
@@ -43,9 +44,10 @@ def register(group: click.Group) -> None:
         from .. import lighting  # noqa: F401
         from ..viewer.session import Session
 
-        session = Session(probe, preset, mesh, transfer, layout, load=False)
+        # the loading stages' times, for bench/bench_viewer.py (served by /api/init)
+        stamps = {"cli": t_cli} if os.environ.get("SHPROBE_VIEW_STAMPS") else None
+        session = Session(probe, preset, mesh, transfer, layout, load=False, stamps=stamps)
         session.fork_loader()  # before any thread starts
-        session.timings["cli"] = t_cli
         if host not in ("127.0.0.1", "localhost", "::1"):
             click.echo(f"warning: --host {host} makes the viewer reachable from other "
                        "machines; anyone with the URL's token can read what it serves", err=True)
@@ -65,7 +67,7 @@ def register(group: click.Group) -> None:
         shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
-        session.timings["url"] = time.time()
+        session.stamp("url")
         stop: list = []  # the server, once it exists
 
         def load() -> None:  # the files load while the server starts and the page opens
@@ -77,13 +79,11 @@ def register(group: click.Group) -> None:
 
         threading.Thread(target=load, daemon=True).start()
 
-        import uvicorn
-
-        from ..viewer.app import create_app
+        from ..viewer.app import create_app, make_server
 
         local = host in ("127.0.0.1", "localhost", "::1")
         app = create_app(session, token, host, port, check_host=local)
-        server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
+        server = make_server(app)
         stop.append(server)
         if session.ready.is_set() and session.error is not None:
             server.should_exit = True

@@ -1,12 +1,14 @@
 """Layer 3, lighting: the coefficient core (:mod:`.coeffs`, :mod:`.document`), projection
 (R&H eq. 10, :mod:`.projection`), irradiance and the quadratic form (eq. 7, 11–13,
 :mod:`.irradiance`), the brute-force reference and error report (:mod:`.reference`), lighting
-design (§3.3, :mod:`.design`), windows and the non-negativity certificate (:mod:`.windows`) and
-engine export / import (:mod:`.export`). Imports only ``probes``, ``sh`` and the base modules.
+design (§3.3, :mod:`.design`) and its one edit language (:mod:`.edits`), windows and the
+non-negativity certificate (:mod:`.windows`), engine export / import (:mod:`.export`) and the
+one lighting resolver (:mod:`.source`). Imports only ``probes``, ``sh`` and the base modules.
 """
 
 from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs, labels, pad_coeffs
 from .document import coeffs_document, read_coeffs_json
+from .edits import EditSpec
 from .export import FORMATS, export_coeffs, import_coeffs
 from .irradiance import (
     irradiance,
@@ -27,6 +29,7 @@ __all__ = [
     "RH_CONSTANTS",
     "RH_LABELS",
     "WINDOWS",
+    "EditSpec",
     "ErrorReport",
     "ErrorRow",
     "apply_window",

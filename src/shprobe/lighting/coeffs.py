@@ -21,6 +21,7 @@ __all__ = [
     "RH_CONSTANTS",
     "RH_LABELS",
     "as_coeffs",
+    "as_rgb",
     "basis_constants",
     "check_coeffs",
     "coeff_lmax",
@@ -66,6 +67,17 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
         raise ShprobeError(f"{what}: {e.message}", where) from None
     if finite and not np.all(np.isfinite(c)):
         raise ShprobeError(f"{what} contain NaN or infinity", where)
+    return c
+
+
+def as_rgb(coeffs: Any, where: Any = None, what: str = "lighting") -> NDArray[np.float64]:
+    """Lighting coefficients as (K, 3) RGB: :func:`as_coeffs`, one channel (or (K,)) repeated
+    to three; any other channel count refused in one line naming ``where``."""
+    c = as_coeffs(coeffs, where, what)
+    if c.shape[1] == 1:
+        return np.repeat(c, 3, axis=1)
+    if c.shape[1] != 3:
+        raise ShprobeError(f"{what} needs 1 or 3 channels, got {c.shape[1]}", where)
     return c
 
 

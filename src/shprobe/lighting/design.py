@@ -9,7 +9,7 @@ nothing is modified in place. Windows and the non-negativity certificate are
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,10 +21,11 @@ from ..sh import check_lmax, lmax_of, num_coeffs, sh_basis, sh_index
 from ..sh.rotation import one_rotation, rotate, unit_vectors
 from ..sh.zonal import circular_window
 from .coeffs import as_coeffs, pad_coeffs
+from .edits import BlendResolver, EditSpec
 
 __all__ = [
+    "EditSpec",
     "Edited",
-    "Edits",
     "blend",
     "cone_light",
     "directional_light",
@@ -158,33 +159,6 @@ def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float6
 
 
 @dataclass(frozen=True)
-class Edits:
-    """Lighting edits in the order :func:`edit_lighting` applies them (``shprobe edit``, the
-    viewer): blend, add lights, set/scale/negate coefficients, then bands, rotate, window.
-
-    ``blends``: (coefficients, weight); ``directional``: (direction, rgb irradiance);
-    ``cones``: (axis, aperture in degrees, rgb radiance); ``sky``: (sky rgb, ground rgb, up);
-    ``sets`` / ``scales``: ((l, m), value or factor); ``negates``: (l, m); ``set_bands`` /
-    ``scale_bands``: (l, value or factor); ``negate_bands``: l; ``rotations``: 3×3 matrices
-    (or anything :func:`shprobe.sh.rotation.one_rotation` takes); ``window``: None, 'auto' or
-    (kind, strength).
-    """
-
-    blends: Sequence[tuple[ArrayLike, float]] = ()
-    directional: Sequence[tuple[ArrayLike, Any]] = ()
-    cones: Sequence[tuple[ArrayLike, float, Any]] = ()
-    sky: tuple[Any, Any, ArrayLike] | None = None
-    sets: Sequence[tuple[tuple[int, int], Any]] = ()
-    scales: Sequence[tuple[tuple[int, int], Any]] = ()
-    negates: Sequence[tuple[int, int]] = ()
-    set_bands: Sequence[tuple[int, Any]] = ()
-    scale_bands: Sequence[tuple[int, Any]] = ()
-    negate_bands: Sequence[int] = ()
-    rotations: Sequence[Any] = ()
-    window: str | tuple[str, float] | None = None
-
-
-@dataclass(frozen=True)
 class Edited:
     """Result of :func:`edit_lighting`: the coefficients and what the window step did."""
 
@@ -196,54 +170,59 @@ class Edited:
                 f"channels={self.coeffs.shape[1]}, window={self.window!r})")
 
 
-def edit_lighting(base: ArrayLike | None, edits: Edits, lmax: int = 2,
-                  weight: float = 1.0) -> Edited:
-    """Apply ``edits`` to ``base`` (L_lm, or None: start from darkness) at degree ``lmax``
-    (the base is cut or zero-padded; an edit above ``lmax`` is refused, not grown into)."""
+def _steps(spec: EditSpec, blends: BlendResolver) -> list[Callable[[NDArray], NDArray]]:
+    """The edits of ``spec`` up to the window, one function of the lighting each, in order."""
+    lmax = spec.lmax
+    out: list[Callable[[NDArray], NDArray]] = []
+    for b in spec.blends:
+        out.append(lambda L, b=b: blend([(L, 1.0), (pad_coeffs(blends(b, lmax), lmax),
+                                                    b.weight)]))
+    for d, rgb in spec.directional:
+        out.append(lambda L, d=d, rgb=rgb: L + directional_light(d, rgb, lmax))
+    for axis, ap, rgb in spec.cones:
+        out.append(lambda L, a=axis, ap=ap, rgb=rgb: L + cone_light(a, np.radians(ap), rgb,
+                                                                    lmax))
+    if spec.sky is not None:
+        sky, ground, up = spec.sky
+        out.append(lambda L: L + sky_light(up, sky, ground, lmax))
+    out += [lambda L, k=k, v=v: set_coeff(L, *k, v) for k, v in spec.sets]
+    out += [lambda L, k=k, f=f: scale_coeff(L, *k, f) for k, f in spec.scales]
+    out += [lambda L, k=k: negate_coeff(L, *k) for k in spec.negates]
+    out += [lambda L, l=l, v=v: set_band(L, l, v) for l, v in spec.set_bands]
+    out += [lambda L, l=l, f=f: scale_band(L, l, f) for l, f in spec.scale_bands]
+    out += [lambda L, l=l: negate_band(L, l) for l in spec.negate_bands]
+    out += [lambda L, r=r: rotate_lighting(L, r.matrix()) for r in spec.rotations]
+    return out
+
+
+def edit_lighting(base: ArrayLike | None, spec: EditSpec,
+                  blends: BlendResolver | None = None) -> Edited:
+    """Apply the edits of ``spec`` (:class:`~shprobe.lighting.edits.EditSpec`) to ``base``
+    (L_lm, or None: start from darkness) at the spec's degree (the base is cut or zero-padded
+    and scaled by the spec's weight; the spec refuses an edit above its degree). ``blends``
+    gives the coefficients of a blend (default :func:`shprobe.lighting.source.blend_lighting`:
+    presets and files)."""
     from .windows import apply_window, auto_window, window_bias, window_factors
 
-    lmax = check_lmax(lmax)
-    L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax) * weight
-
-    def fits(l: int, what: str) -> int:
-        if not 0 <= int(l) <= lmax:
-            raise ShprobeError(f"{what}: l = {l} is outside 0..{lmax} (the edit's lmax)")
-        return int(l)
-
-    for c, w in edits.blends:
-        L = blend([(L, 1.0), (pad_coeffs(c, lmax), float(w))])
-    for d, rgb in edits.directional:
-        L = L + directional_light(d, rgb, lmax)
-    for axis, ap, rgb in edits.cones:
-        if not 0 < float(ap) <= 180:
-            raise ShprobeError(f"cone aperture must be in (0, 180] degrees, got {ap}")
-        L = L + cone_light(axis, np.radians(float(ap)), rgb, lmax)
-    if edits.sky is not None:
-        sky, ground, up = edits.sky
-        L = L + sky_light(up, sky, ground, lmax)
-    for (l, m), v in edits.sets:
-        L = set_coeff(L, fits(l, "set"), m, v)
-    for (l, m), f in edits.scales:
-        L = scale_coeff(L, fits(l, "scale"), m, f)
-    for l, m in edits.negates:
-        L = negate_coeff(L, fits(l, "negate"), m)
-    for l, v in edits.set_bands:
-        L = set_band(L, fits(l, "set band"), v)
-    for l, f in edits.scale_bands:
-        L = scale_band(L, fits(l, "scale band"), f)
-    for l in edits.negate_bands:
-        L = negate_band(L, fits(l, "negate band"))
-    for r in edits.rotations:
-        L = rotate_lighting(L, r)
-    spec = edits.window
-    if spec is None:
+    lmax = spec.lmax
+    if blends is None:
+        from .source import blend_lighting as blends
+    with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused, in one line
+        L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax)
+        L = L * spec.weight
+        for step in [lambda x: x, *_steps(spec, blends)]:
+            L = step(L)
+            if not np.all(np.isfinite(L)):
+                raise ShprobeError("the edits overflow: the lighting is not finite (use "
+                                   "smaller weights or factors)")
+    if spec.window is None:
         return Edited(L)
-    if spec == "auto":
+    if spec.window == "auto":
         ch = auto_window(L)
         desc = (f"window auto -> {ch.kind}" + (f" strength {ch.strength:.4g}" if ch.strength
                                                 else "") + f", bias {100 * ch.bias:.2f}% (L2 of E)")
         return Edited(apply_window(L, ch.factors), desc)
-    kind, s = spec
+    kind, s = spec.window
     f = window_factors(kind, lmax, s)
     return Edited(apply_window(L, f), f"window {kind} strength {s:g}, bias "
                                       f"{100 * window_bias(L, f):.2f}% (L2 of E)")

@@ -14,7 +14,7 @@ from .._version import __version__
 from ..errors import ShprobeError
 from ..files import read_text
 from ..sh import lmax_of
-from .coeffs import as_coeffs, labels
+from .coeffs import as_coeffs, as_rgb, labels
 from .irradiance import irradiance_coeffs, irradiance_matrix
 
 __all__ = ["coeffs_document", "coeffs_from_document", "parse_json", "read_coeffs_json"]
@@ -29,7 +29,7 @@ def coeffs_document(coeffs: ArrayLike, source: str | None = None, layout: str | 
     """
     c = as_coeffs(coeffs)
     if c.shape[1] == 1:
-        c = np.repeat(c, 3, axis=1)
+        c = as_rgb(c)
     lmax = lmax_of(c.shape[0])
     doc: dict[str, Any] = {
         "shprobe_version": __version__,

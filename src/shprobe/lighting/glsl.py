@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..sh import check_lmax, num_coeffs
 from ..sh.basis import recurrence_tables
-from .coeffs import as_coeffs, pad_coeffs
+from .coeffs import as_coeffs, as_rgb, pad_coeffs
 from .export import _f
 from .irradiance import irradiance_coeffs
 
@@ -54,7 +54,7 @@ def glsl_irradiance(lmax: int, coeffs: ArrayLike | None = None,
     else:
         e = glsl_uniform_values(coeffs, lmax)
         if e.shape[1] == 1:
-            e = np.repeat(e, 3, axis=1)
+            e = as_rgb(e)
         rows = ",\n".join(f"    vec3({', '.join(_f(v) for v in e[k])})" for k in range(K))
         out.append(f"const vec3 SHPROBE_E[{K}] = vec3[{K}](\n{rows}\n);")
     out += [f"vec3 {name}(vec3 n) {{",

@@ -18,10 +18,22 @@ from ..probes.presets import get_preset
 from ..sh import check_lmax, lmax_of, num_coeffs
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import circular_window
+from .coeffs import as_rgb
 from .export import import_coeffs
 from .projection import project, project_file
 
-__all__ = ["STREAM_ABOVE_BYTES", "Lighting", "resolve_lighting"]
+__all__ = ["STREAM_ABOVE_BYTES", "Lighting", "SourceChoiceError", "blend_lighting",
+           "read_coeff_file", "resolve_lighting"]
+
+
+class SourceChoiceError(ShprobeError):
+    """The lighting source was not given as :func:`resolve_lighting` needs it: ``given`` lists
+    what was given ('a probe', 'a preset', ...); ``need_env`` is True when a probe image was
+    needed and something else was given. Commands reword it with their option names."""
+
+    def __init__(self, message: str, given: Sequence[str], need_env: bool = False) -> None:
+        super().__init__(message)
+        self.given, self.need_env = tuple(given), need_env
 
 ProbeArg = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 
@@ -82,10 +94,11 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
                             ("a coefficient file", coeffs), ("a cone light", cone))
              if v is not None and v != "" and v != []]
     if len(given) != 1:
-        raise ShprobeError("give exactly one lighting source: a probe, a preset, a coefficient "
-                           f"file or a cone light (got {', '.join(given) or 'none'})")
+        raise SourceChoiceError("give exactly one lighting source: a probe, a preset, a "
+                                "coefficient file or a cone light "
+                                f"(got {', '.join(given) or 'none'})", given)
     if need_env and probe is None:
-        raise ShprobeError(f"this needs a probe image, not {given[0]}")
+        raise SourceChoiceError(f"this needs a probe image, not {given[0]}", given, True)
     if probe is not None and not need_env and isinstance(probe, str | os.PathLike):
         streamed = _streamed(probe, layout, lmax, clamp)
         if streamed is not None:
@@ -106,20 +119,63 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
             raise ShprobeError(f"cone aperture must be in (0, 180] degrees, got {aperture}")
         c = circular_window(unit_vectors(axis, "cone axis"), np.radians(ap),
                             check_lmax(2 if lmax is None else lmax))
-        return Lighting(np.repeat(np.asarray(c, dtype=np.float64)[:, None], 3, axis=1),
-                        f"cone {ap:g}°")
+        return Lighting(as_rgb(c), f"cone {ap:g}°")
     if preset is not None:
         c, name, where = get_preset(preset), f"preset:{preset}", None
     else:
         where = os.fspath(coeffs)
-        c, name = import_coeffs(where), where
-        if c.shape[1] == 1:
-            c = np.repeat(c, 3, axis=1)
-        elif c.shape[1] != 3:
-            raise ShprobeError(f"lighting needs 1 or 3 channels, got {c.shape[1]}", where)
+        c, name = read_coeff_file(where), where
     if lmax is not None:
         own = lmax_of(c.shape[0])
         if check_lmax(lmax) > own:
             raise ShprobeError(f"has coefficients up to lmax={own}, not {lmax}", where or name)
         c = c[: num_coeffs(lmax)]
     return Lighting(np.asarray(c, dtype=np.float64), name)
+
+
+def read_coeff_file(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """Lighting coefficients L_lm (K, 3) from a file: any export format
+    (:func:`~shprobe.lighting.export.import_coeffs`), or an .npy / .npz of L_lm (K, 3) or (K,)
+    (npz: array ``L``, else ``coeffs``, else the first; read by the checked
+    :func:`shprobe.files.load_npz`). One channel is repeated to RGB."""
+    from ..files import load_npz
+
+    p = os.fspath(path)
+    ext = os.path.splitext(p)[1].lower()
+    if ext not in (".npy", ".npz"):
+        return as_rgb(import_coeffs(p), p)
+    if not os.path.isfile(p):
+        raise ShprobeError("no such file", p)
+    try:
+        if ext == ".npy":
+            c = np.load(p, allow_pickle=False, mmap_mode="r")
+        else:
+            data = load_npz(p, what="file of SH coefficients")
+            key = next((k for k in ("L", "coeffs") if k in data), None)
+            if key is None and not data:
+                raise ShprobeError("holds no array of SH coefficients", p)
+            c = data[key or next(iter(data))]
+    except ShprobeError:
+        raise
+    except Exception as e:  # numpy raises many types on bad files
+        raise ShprobeError(f"cannot read SH coefficients: {' '.join(str(e).split())[:200]}",
+                           p) from None
+    if c.ndim > 2 or c.size > 1 << 24:
+        raise ShprobeError(f"SH coefficients must be (K, 3) or (K,), got {c.shape}", p)
+    return as_rgb(np.asarray(c), p, "SH coefficients")
+
+
+def blend_lighting(blend: Any, lmax: int, layout: str | None = None,
+                   clamp: bool = False) -> NDArray[np.float64]:
+    """The coefficients of a :class:`~shprobe.lighting.edits.Blend` at ``lmax``, as
+    ``shprobe edit --blend`` reads them: a preset, a probe image (projected to ``lmax`` in
+    ``layout``) or a coefficient file (cut or zero-padded by the edit)."""
+    from ..probes.images import READ_EXTENSIONS
+
+    if blend.kind == "preset":
+        return resolve_lighting(preset=blend.name, lmax=None).coeffs
+    if blend.kind != "file":
+        raise ShprobeError(f"blend probe {blend.name} is not loaded here")
+    if os.path.splitext(blend.name)[1].lower() in READ_EXTENSIONS:  # a probe image
+        return resolve_lighting(blend.name, layout=layout, lmax=lmax, clamp=clamp).coeffs
+    return resolve_lighting(coeffs=blend.name, lmax=None).coeffs

@@ -37,16 +37,58 @@ from .irradiance import quadratic_form
 
 WINDOWS = ("hann", "lanczos", "gaussian", "laplacian")
 
+#: A window choice: None (no window), 'auto' (:func:`auto_window`) or (kind, strength).
+WindowSpec = str | tuple[str, float] | None
+
 __all__ = [
     "WINDOWS",
     "IrradianceMinimum",
     "WindowChoice",
+    "WindowSpec",
     "apply_window",
     "auto_window",
     "min_irradiance",
+    "parse_window",
     "window_bias",
     "window_factors",
+    "window_text",
 ]
+
+
+# ----------------------------------------------------------------------------- the spec
+
+
+def parse_window(text: object) -> WindowSpec:
+    """The one window grammar: None, '' or 'none' → None; 'auto'; 'KIND:STRENGTH' (KIND one of
+    :data:`WINDOWS`, STRENGTH a finite number ≥ 0) → (kind, strength)."""
+    if text is None:
+        return None
+    if not isinstance(text, str):
+        raise ShprobeError(f"window must be text ('auto' or KIND:STRENGTH), got "
+                           f"{type(text).__name__}")
+    t = text.strip()
+    if t.lower() in ("", "none"):
+        return None
+    if t.lower() == "auto":
+        return "auto"
+    kind, _, s = t.partition(":")
+    try:
+        strength = float(s) if len(s) <= 40 else float("nan")
+    except ValueError:
+        strength = float("nan")
+    if kind not in WINDOWS or not (np.isfinite(strength) and 0 <= strength <= 1e9):
+        raise ShprobeError(f"window {t[:60]!r}: expected 'auto' or KIND:STRENGTH with KIND one "
+                           f"of {', '.join(WINDOWS)} and STRENGTH a number >= 0")
+    return kind, strength
+
+
+def window_text(spec: WindowSpec) -> str:
+    """:func:`parse_window`'s text of a window choice ('none', 'auto' or 'KIND:STRENGTH')."""
+    if spec is None:
+        return "none"
+    if isinstance(spec, str):
+        return spec
+    return f"{spec[0]}:{float(spec[1])!r}"
 
 
 # ----------------------------------------------------------------------------- windows

@@ -6,7 +6,7 @@ imported (both sides need them: imported once, shared by the fork), before the s
 imported or built, so that the loader's own imports (numba's first call with the scipy.linalg
 it imports, trimesh — most of a second of CPU) start at once on the second core. A mesh opened
 before needs no trimesh: its page arrays come from shprobe's on-disk cache
-(:func:`shprobe.viewer.session.cached_mesh_payload`). The children send the first frame's data
+(:func:`shprobe.viewer.payloads.cached_mesh_payload`). The children send the first frame's data
 (the probe's lmax-2 coefficients, the page's mesh arrays) first; the Env, its higher
 coefficients and the background texture follow when the server asks
 (:meth:`shprobe.viewer.session.Session.fork_loader` takes them).
@@ -153,7 +153,7 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
     if go is not None:  # the parent's end (the loader only reads)
         go.close()
     if mesh:
-        from .session import cached_mesh_payload
+        from .payloads import cached_mesh_payload
 
         try:
             data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh), make=False)
@@ -213,13 +213,15 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
     import time
 
     try:
-        from .session import background_payload, cached_mesh_payload, load_probe
+        from .payloads import background_payload, cached_mesh_payload
+        from .source import load_probe
 
         src = None
         if probe:
-            src = load_probe(probe, layout)
+            stamps: dict[str, float] = {}
+            src = load_probe(probe, layout, mark=lambda k: stamps.setdefault(k, time.time()))
             conn.send(("source", src.coeffs2, src.layout_name,
-                       {"decoded": src.decoded_at, "source_done": time.time()}))
+                       {**stamps, "source_done": time.time()}))
         if mesh:
             data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh))
             conn.send(("mesh", data, {"geometry_done": time.time()}))

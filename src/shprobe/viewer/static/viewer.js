@@ -26,7 +26,7 @@ async function handle(r) {
   if (type.includes('octet-stream')) return unpack(await r.arrayBuffer());
   return r;
 }
-function unpack(buf) {  // session.pack_binary
+function unpack(buf) {  // wire.pack_binary
   const n = new DataView(buf).getUint32(0, true);
   const head = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
   const base = 4 + n, out = { head };
@@ -640,7 +640,7 @@ async function upload(kind, input) {
   } catch (e) { showError(e); }  // the edit state and the current source are kept
   setStatus(''); input.value = '';
 }
-async function uploadCube() {  // six faces +X −X +Y −Y +Z −Z in one request (session.unpack_files)
+async function uploadCube() {  // six faces +X −X +Y −Y +Z −Z in one request (wire.unpack_files)
   const files = [0, 1, 2, 3, 4, 5].map((i) => $('face' + i).files[0]).filter(Boolean);
   const head = new TextEncoder().encode(JSON.stringify({ files: files.map((f) => ({ name: f.name, size: f.size })) }));
   const len = new Uint8Array(4); new DataView(len.buffer).setUint32(0, head.length, true);
@@ -733,7 +733,7 @@ async function main() {
   $('source').textContent = init.source.name;
   const saved = localStorage.getItem(KEY);   // the edit state survives a reload
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
-  else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most check_state's
+  else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most design.DESIGN_LMAX
   wire(init); refreshControls();
   const jobs = [requestDesign().then(() => mark('design'))];
   if (init.transfer) {

@@ -1,0 +1,118 @@
+"""What the page draws, made once: the mesh's arrays (:func:`mesh_payload`, kept in shprobe's
+on-disk cache by :func:`cached_mesh_payload`) and the probe's background texture
+(:func:`background_payload`), each one :func:`~shprobe.viewer.wire.pack_binary` message."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, overload
+
+import numpy as np
+
+from .wire import camera_json, pack_binary
+
+__all__ = ["BACKGROUND_H", "background_payload", "cached_mesh_payload", "mesh_payload"]
+
+#: lat-long size (H) of the background texture sent to the page
+BACKGROUND_H = 512
+
+
+def mesh_payload(mesh: Any, name: str) -> bytes:
+    """What the page draws, in one :func:`pack_binary` message: positions, normals, albedo
+    (V, 3) as the renderer reads them, faces, and the library camera framing the bounding
+    sphere. ``mesh`` None: the renderer's analytic unit sphere (drawn as a fine icosphere)."""
+    from ..scene import Camera, bounding_sphere, mesh_vertex_albedo, sphere_mesh
+
+    m = mesh if mesh is not None else sphere_mesh(5)
+    alb = mesh_vertex_albedo(m)
+    v = np.asarray(m.vertices)
+    if mesh is None:  # the analytic unit sphere of the renderer
+        c, r = np.zeros(3), 1.0
+    else:
+        c, r = bounding_sphere(mesh)
+    return pack_binary({"name": name, "center": c.tolist(), "radius": r,
+                        "camera": camera_json(Camera(512, 512), c, r)},
+                       {"position": v, "normal": np.asarray(m.vertex_normals),
+                        "albedo": np.ones_like(v) if alb is None else alb,
+                        "index": np.asarray(m.faces)})
+
+
+@overload
+def cached_mesh_payload(path: str, name: str) -> bytes: ...
+@overload
+def cached_mesh_payload(path: str, name: str, make: bool) -> bytes | None: ...
+def cached_mesh_payload(path: str, name: str, make: bool = True) -> bytes | None:
+    """:func:`mesh_payload` of the mesh file ``path``, kept in shprobe's on-disk cache
+    (:func:`shprobe.files.read_cache`, kind ``viewer_mesh``) under the file's content and the
+    code that makes the payload, so that a mesh opened before — the default bunny, a user's
+    own model — reaches the page without importing trimesh (0.4 CPU-s on this machine, most
+    of what the mesh costs the first frame). A bad file is never cached: it is read, and
+    refused, each time. ``make=False``: None where it is not cached (nothing is read)."""
+    from ..files import file_digest, read_cache, write_cache
+
+    try:
+        key = file_digest(path, name, _payload_code_stamp())
+    except OSError:
+        key = None  # unreadable: load_mesh names the problem
+    if key is not None:
+        data = read_cache("viewer_mesh", key)
+        if data is not None or not make:
+            return data
+    elif not make:
+        return None
+    from ..scene import load_mesh
+
+    data = mesh_payload(load_mesh(path), name)
+    if key is not None:
+        write_cache("viewer_mesh", key, data)
+    return data
+
+
+def _payload_code_stamp() -> str:
+    """Identifies the code behind :func:`mesh_payload` (this module, the wire format, the scene
+    layer, trimesh, shprobe's version): any change of it, an edit or an upgrade, makes a new
+    cache key. Read from the files' sizes and times, without importing trimesh."""
+    import importlib.util
+
+    from .. import __version__
+
+    here = Path(__file__).resolve()
+    files = [here, here.with_name("wire.py"),
+             *sorted((here.parents[1] / "scene").glob("*.py"))]
+    spec = importlib.util.find_spec("trimesh")
+    if spec is not None and spec.origin:
+        files.append(Path(spec.origin))
+        files.append(Path(spec.origin).with_name("version.py"))
+    stamp = [__version__, "mesh_payload 2"]
+    for f in files:
+        try:
+            st = f.stat()
+            stamp.append(f"{f.name}:{st.st_size}:{st.st_mtime_ns}")
+        except OSError:
+            stamp.append(f"{f.name}:-")
+    return "|".join(stamp)
+
+
+def background_payload(env: Any) -> bytes:
+    """The probe resampled to a :data:`BACKGROUND_H` × 2·:data:`BACKGROUND_H` lat-long grid
+    (the library's directions and bilinear lookup, :meth:`Env.sample`; lat-long probes larger
+    than it box-filtered), RGBA half floats in a :func:`pack_binary` message."""
+    from ..probes.layouts import LatLong
+
+    h = BACKGROUND_H
+    if env.layout.name == "latlong" and env.grid[0] % h == 0:
+        k = env.grid[0] // h  # box filter: k×k pixel blocks (same solid-angle rows)
+        rad = env.radiance
+        img = np.zeros((h, 2 * h, 3), np.float32)
+        for i in range(k):  # k² strided adds (float32): ~10× faster than a reshaped mean
+            for j in range(k):
+                img += rad[i::k, j::k]
+        img *= np.float32(1.0 / (k * k))
+    elif env.layout.name == "latlong" and env.grid[0] <= h:
+        img = env.radiance
+    else:
+        img = env.sample(LatLong().pixel_directions((h, 2 * h)))
+    rgba = np.ones((*img.shape[:2], 4), np.float16)  # half floats, ready for a texture
+    rgba[..., :3] = np.minimum(img, 65504.0)
+    return pack_binary({"layout": env.layout.name, "grid": list(env.grid)},
+                       {"radiance": rgba})
