@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
+from . import _xp
 
 #: Largest degree shprobe accepts.
 LMAX_LIMIT = 1024
@@ -129,9 +130,16 @@ def recurrence_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float6
 
 
 def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
-    d = np.asarray(dirs)
-    if d.dtype not in (np.float32, np.float64):
-        d = d.astype(np.float64)
+    try:
+        d = np.asarray(dirs)
+        if d.dtype.kind == "c":
+            raise ShprobeError("directions must be real vectors, got complex values")
+        if d.dtype not in (np.float32, np.float64):
+            d = d.astype(np.float64)
+    except (TypeError, ValueError, OverflowError) as e:
+        if isinstance(e, ShprobeError):
+            raise
+        raise ShprobeError("directions must be numeric (..., 3) vectors") from None
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"directions must have shape (..., 3), got {d.shape}")
     return d
@@ -206,6 +214,11 @@ def _store(out, l, m, p, c, s, sqrt2):
 F32_ARITHMETIC_LMAX = 128
 
 
+#: :func:`sh_basis` uses directions as given while their squared lengths sum to at most this
+#: per direction (unit vectors: 1); beyond, or on overflow, it normalises them first.
+NEAR_UNIT = 16.0
+
+
 #: Outputs of at least this many bytes are written with streaming (non-temporal) stores by the
 #: table kernel: far larger than the caches, written once, so reading each line in before
 #: overwriting it would only double the memory traffic.
@@ -270,7 +283,23 @@ def sh_basis(
     float32 epsilons of the band's scale √((2l+1)/4π), tested to l = 64), with streaming
     stores into a caller's ``out`` of ≥ ``STREAM_MIN_BYTES``. :func:`sh_basis_numpy` is the
     vectorised numpy reference of the same recurrence.
+
+    Bad directions, the one policy: NaN or infinite components are refused
+    (:class:`ShprobeError`); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction,
+    one BLAS pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
+    such as (1e200, 1e200, 0), are normalised first without overflow
+    (:func:`shprobe.sh.rotation.unit_vectors`).
+
+    Torch tensors, JAX arrays (and CuPy) take the array-API path (``shprobe.sh._xp``): the
+    same recurrence in whole-array operations, differentiable, same device and dtype
+    (``out`` is NumPy only).
     """
+    xp = _xp.namespace(dirs)
+    if xp is not None:
+        if out is not None:
+            raise ShprobeError("out= is for NumPy arrays only")
+        dt = _xp.float_dtype(xp, dirs)
+        return _xp.sh_basis(xp, _xp.asarray(xp, dirs, dt, dirs), check_lmax(lmax))
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     K = num_coeffs(lmax)
@@ -288,6 +317,12 @@ def sh_basis(
     if out.size == 0:
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
+    with np.errstate(over="ignore", invalid="ignore"):
+        sq = float(np.dot(flat.reshape(-1), flat.reshape(-1)))
+    if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
+        from .rotation import unit_vectors
+
+        flat = unit_vectors(flat, "directions").astype(d.dtype)
     if lmax <= 8:
         a0 = _stream_start(out) if stream else -1
         if a0 >= 0:
