@@ -111,7 +111,7 @@ def window_factors(xp: Any, kind: str, lmax: int, strength: Any) -> Any:
     dt = _xp.float_dtype(xp, strength)
     s = _xp.asarray(xp, strength, dt, strength)
     if not _xp.is_tracing(s):
-        sv = float(s)
+        sv = _xp.host_float(s)
         if not np.isfinite(sv) or sv < 0:
             raise ShprobeError(f"window strength must be >= 0, got {sv}")
     l = _xp.constant(xp, np.arange(lmax + 1), s, dt)

@@ -90,6 +90,12 @@ def asarray(xp: Any, x: Any, dtype: Any, like: Any) -> Any:
     return xp.astype(x, dtype) if x.dtype != dtype else x
 
 
+def host_float(x: Any) -> float:
+    """A 0-d array's value on the host (a check, outside any gradient)."""
+    detach = getattr(x, "detach", None)
+    return float(detach() if detach is not None else x)
+
+
 def check_finite(xp: Any, x: Any, what: str) -> None:
     """One :class:`ShprobeError` for NaN or infinity (skipped while JAX traces)."""
     if is_tracing(x):
@@ -121,9 +127,9 @@ def sh_basis(xp: Any, d: Any, lmax: int) -> Any:
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"directions must have shape (..., 3), got {tuple(d.shape)}")
     if not is_tracing(d) and d.shape[0] != 0:
-        sq = xp.sum(d * d)
+        sq = host_float(xp.sum(d * d))
         n = max(1, int(np.prod(d.shape[:-1])))
-        if not bool(xp.isfinite(sq)) or float(sq) > NEAR_UNIT * n:
+        if not sq <= NEAR_UNIT * n:  # NaN, inf, overflow or far from unit length
             d = unit_vectors(xp, d, "direction")
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     a, b = recurrence_tables(lmax)

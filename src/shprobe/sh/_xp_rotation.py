@@ -79,8 +79,8 @@ def as_matrix(xp: Any, rotation: Any) -> Any:
     _xp.check_finite(xp, r, "rotation matrices")
     if not _xp.is_tracing(r) and r.shape[0] != 0:
         eye = xp.eye(3, dtype=r.dtype, device=_xp.device_of(r))
-        err = float(xp.max(xp.abs(xp.matmul(r, xp.matrix_transpose(r)) - eye)))
-        det = float(xp.max(xp.abs(xp.linalg.det(r) - 1.0))) if hasattr(xp, "linalg") else 0.0
+        err = _xp.host_float(xp.max(xp.abs(xp.matmul(r, xp.matrix_transpose(r)) - eye)))
+        det = _xp.host_float(xp.max(xp.abs(xp.linalg.det(r) - 1.0)))
         tol = max(_ORTHO_TOL, 50 * float(np.finfo(_np_dtype(xp, r.dtype)).eps))
         if not max(err, det) <= tol:
             raise ShprobeError(f"not a proper rotation matrix (RᵀR − I or det − 1 off by "
