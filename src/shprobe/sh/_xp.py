@@ -198,4 +198,4 @@ def constant(xp: Any, table: Any, like: Any, dtype: Any = None) -> Any:
     """A NumPy table as an ``xp`` array on ``like``'s device, in ``dtype`` (default: the
     float dtype of ``like``)."""
     dt = dtype if dtype is not None else float_dtype(xp, like)
-    return xp.asarray(np.asarray(table, dtype=np.float64), dtype=dt, device=device_of(like))
+    return xp.asarray(np.array(table, dtype=np.float64), dtype=dt, device=device_of(like))
