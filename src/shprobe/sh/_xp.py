@@ -131,7 +131,10 @@ def sh_basis(xp: Any, d: Any, lmax: int) -> Any:
         n = max(1, int(np.prod(d.shape[:-1])))
         if not sq <= NEAR_UNIT * n:  # NaN, inf, overflow or far from unit length
             d = unit_vectors(xp, d, "direction")
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    # contiguous x, y, z (strided views make every operation slower), and the K columns
+    # stacked along a new first axis then moved last (a view): stacking on the last axis
+    # directly writes with stride K
+    x, y, z = _unstack3(xp, d)
     a, b = recurrence_tables(lmax)
     cols: list[Any] = [None] * ((lmax + 1) ** 2)
     pmm = xp.full_like(x, 0.5 / np.sqrt(np.pi))
@@ -153,7 +156,13 @@ def sh_basis(xp: Any, d: Any, lmax: int) -> Any:
                 p = float(a[l, m]) * (z * p1) - float(a[l, m] * b[l, m]) * p2
                 _put(cols, l, m, p, c, s)
                 p2, p1 = p1, p
-    return xp.stack(cols, axis=-1)
+    return xp.moveaxis(xp.stack(cols, axis=0), 0, -1)
+
+
+def _unstack3(xp: Any, d: Any) -> tuple[Any, Any, Any]:
+    flat = xp.reshape(xp.moveaxis(d, -1, 0), (3, -1))
+    shape = tuple(d.shape[:-1])
+    return tuple(xp.reshape(flat[i, :], shape) for i in range(3))  # type: ignore[return-value]
 
 
 def _put(cols: list[Any], l: int, m: int, p: Any, c: Any, s: Any) -> None:
