@@ -70,6 +70,9 @@ def test_wigner_and_rotate_equal_numpy(lmax):
     close(rotate(T(c[0, :, 0]), T(R[2])), rotate(c[0, :, 0], R[2]))  # (K,) and one matrix
     # one set, many rotations (broadcast), numpy rotation with tensor coefficients
     close(rotate(T(c[0]), R), rotate(c[0], R))
+    from scipy.spatial.transform import Rotation
+
+    close(rotate(T(c[0]), Rotation.from_matrix(R)), rotate(c[0], R))
     c32 = rotate(T(c, torch.float32), T(R, torch.float32))
     assert c32.dtype == torch.float32
     np.testing.assert_allclose(c32.numpy(), rotate(c, R), atol=1e-5 * lmax)
@@ -99,6 +102,16 @@ def test_lighting_functions_equal_numpy():
     f = window_factors("gaussian", 4, 0.1)
     close(convolve(T(c), T(f)), convolve(c, f))
     close(convolve(T(c), f), convolve(c, f))
+
+
+def test_float32_lighting_within_rounding():
+    c, n = coeffs(3), unit(40, 8)
+    got = irradiance(T(c, torch.float32), T(n, torch.float32))
+    assert got.dtype == torch.float32
+    np.testing.assert_allclose(got.numpy(), irradiance(c, n), rtol=1e-5, atol=1e-5)
+    got = project_samples(T(n, torch.float32), T(np.ones((40, 3)), torch.float32), lmax=3)
+    np.testing.assert_allclose(got.numpy(), project_samples(n, np.ones((40, 3)), lmax=3),
+                               rtol=1e-5, atol=1e-5)
 
 
 def test_same_kind_and_dtype_back():

@@ -198,6 +198,8 @@ def _rotate_band2(xp: Any, R: Any, a: Any) -> Any:
 def rotate(xp: Any, coeffs: Any, rotation: Any) -> Any:
     """Coefficients of f∘R⁻¹ for (..., K, C) or (K,) coefficients and a batch of rotations
     (the NumPy :func:`rotate`'s semantics; leading axes broadcast)."""
+    if hasattr(rotation, "as_matrix") and not hasattr(rotation, "dtype"):
+        rotation = np.asarray(rotation.as_matrix(), dtype=np.float64)  # scipy Rotation
     dt = _xp.float_dtype(xp, coeffs, rotation)
     like = _xp.first_array(coeffs, rotation)
     c = _xp.asarray(xp, coeffs, dt, like)
