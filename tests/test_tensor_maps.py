@@ -88,7 +88,9 @@ def test_jax_maps_jit():
     jax.config.update("jax_enable_x64", True)
     rad = np.random.default_rng(2).random((8, 16, 3))
     c = coeffs(2, seed=6)
-    for f, x in ((lambda r: project_latlong(r, 2), rad), (lambda c: latlong_irradiance(c, 8), c)):
+    cube = np.random.default_rng(3).random((6, 4, 4, 3))
+    for f, x in ((lambda r: project_latlong(r, 2), rad), (lambda c: latlong_irradiance(c, 8), c),
+                 (lambda r: project_cube(r, 2), cube), (lambda c: latlong_radiance(c, 8), c)):
         want = f(x)
         np.testing.assert_allclose(np.asarray(jax.jit(f)(jax.numpy.asarray(x))), want,
                                    atol=1e-12)
