@@ -75,6 +75,12 @@ _EXPORTS: dict[str, str] = {
     "window_factors": "lighting.windows",
     "export_coeffs": "lighting.export",
     "import_coeffs": "lighting.export",
+    # conventions, images ↔ coefficients on NumPy and tensors
+    "convert": "sh.registry",
+    "project_latlong": "lighting.maps",
+    "project_cube": "lighting.maps",
+    "latlong_radiance": "lighting.maps",
+    "latlong_irradiance": "lighting.maps",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -134,8 +134,8 @@ RH_CONSTANTS: tuple[float, float, float, float, float] = _rh_constants()
 
 
 def basis_constants() -> NDArray[np.float64]:
-    """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k, R&H eq. 3), exact."""
-    p = np.pi
-    k1, k2 = np.sqrt(3 / (4 * p)), np.sqrt(15 / (4 * p))
-    return np.array([0.5 / np.sqrt(p), k1, k1, k1, k2, k2, np.sqrt(5 / (16 * p)), k2,
-                     np.sqrt(15 / (16 * p))])
+    """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k, R&H eq. 3), exact
+    (the registry's, :func:`shprobe.sh.registry.basis_constants`)."""
+    from ..sh.registry import basis_constants as constants
+
+    return constants(2)

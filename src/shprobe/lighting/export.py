@@ -59,8 +59,8 @@ from .._version import __version__
 from ..errors import ShprobeError
 from ..files import read_text
 from ..sh import degrees, lmax_of
-from ..sh.conventions import cs_signs
-from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs, basis_constants
+from ..sh.registry import convert
+from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs
 from .document import coeffs_document, coeffs_from_document, parse_json
 from .irradiance import quadratic_form
 
@@ -202,7 +202,7 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
     if fmt == "gltf":
         return _gltf(_nine_rgb(c, fmt), source)
     if fmt == "cmgen":
-        ck = _nine_rgb(c, fmt) * (_ahat(2) / np.pi * basis_constants())[:, None]
+        ck = convert(_nine_rgb(c, fmt), to="filament")
         out = "".join(f"({', '.join(format(x, '.15f').rjust(18) for x in ck[k])}); "
                       f"// {RH_LABELS[k]}, irradiance, pre-scaled base\n" for k in range(9))
         return out + _header("//", [
@@ -217,7 +217,7 @@ def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str
                          "k = l(l+1)+m (google/spherical-harmonics GetIndex, EvalSH)",
            "quantity": "L_lm radiance coefficients (not convolved, not divided by pi)",
            "lmax": lmax, "channels": c.shape[1],
-           "coefficients": (c * cs_signs(lmax)[:, None]).tolist()}
+           "coefficients": convert(c, to="cs").tolist()}
     if source:
         doc["source"] = source
     return json.dumps(doc, indent=2) + "\n"
@@ -264,7 +264,7 @@ _ZFLIP = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
 def _gltf_factors() -> NDArray[np.float64]:
     """E_lm → ``irradianceCoefficients``: Â_l, Condon–Shortley signs, and the cube-map frame
     (Babylon.js looks its environment up at (x, y, −z) for the glTF direction (x, y, z))."""
-    return _ahat(2) * cs_signs(2) * _ZFLIP
+    return _ahat(2) * convert(np.ones(9), to="gltf") * _ZFLIP
 
 
 def _gltf(L9: NDArray[np.float64], source: str | None) -> str:
@@ -354,7 +354,7 @@ def parse_coeffs(text: str, name: str | None = None) -> tuple[NDArray[np.float64
                                where)
         ck = np.zeros((9, 3))
         ck[: len(rows)] = np.array(rows, dtype=np.float64)
-        return ck / (_ahat(2) / np.pi * basis_constants())[:, None], "cmgen"
+        return convert(ck, from_="filament"), "cmgen"
     raise ShprobeError("not a coefficient file shprobe can read (json, three, gltf, cmgen, "
                        "cs-phase, or a shprobe shader)", where)
 
@@ -396,7 +396,7 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
         return coeffs_from_document(doc, where), "json"
     if fmt == "condon-shortley":
         c = as_coeffs(doc.get("coefficients"), where, "coefficients")
-        return c * cs_signs(lmax_of(c.shape[0]))[:, None], "cs-phase"
+        return convert(c, from_="cs"), "cs-phase"
     obj = doc.get("object")  # three.js LightProbe.toJSON(): {"metadata", "object": {"sh"}}
     if isinstance(obj, dict) and "sh" in obj:
         flat = _flat27(obj["sh"], "three.js LightProbe sh", where)

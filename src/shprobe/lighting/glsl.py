@@ -4,7 +4,7 @@
 no 4×4 form; :func:`glsl_irradiance` emits a GLSL ES 3.0 function that evaluates the basis in the
 page's fragment shader by the library's own recurrence (:func:`shprobe.sh.basis.sh_basis_numpy`:
 (x + iy)ᵐ for the azimuth, the normalised associated-Legendre recurrence in z with the
-coefficients of :func:`~shprobe.sh.basis.recurrence_tables`), unrolled to ``lmax``, in shprobe's
+coefficients of :func:`~shprobe.sh.indexing.recurrence_tables`), unrolled to ``lmax``, in shprobe's
 conventions: real SH, R&H signs (no Condon–Shortley phase; y_1,−1 ∝ y, y_1,0 ∝ z, y_1,1 ∝ x),
 index k = l(l+1)+m, world +Y up. Its data are the irradiance coefficients E_lm = Â_l L_lm
 (:func:`~shprobe.lighting.irradiance.irradiance_coeffs`), baked in as constants or left as a
@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..sh import check_lmax, num_coeffs
-from ..sh.basis import recurrence_tables
+from ..sh.indexing import recurrence_tables
 from .coeffs import as_coeffs, as_rgb, pad_coeffs
 from .export import _f
 from .irradiance import irradiance_coeffs

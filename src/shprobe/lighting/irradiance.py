@@ -5,6 +5,11 @@ shading uses it, and irradiance maps on any layout.
 Normals, the one policy of every function here and of :func:`shprobe.lighting.reference.
 reference_irradiance`: a normal is a direction, so it is normalised first (a non-unit n gives
 the irradiance of n/|n|); a zero or non-finite normal has no direction and is refused.
+Coefficients holding NaN or infinity are refused likewise (one :class:`ShprobeError`).
+
+:func:`irradiance`, :func:`irradiance_matrix` and :func:`irradiance_quadratic` also take torch
+tensors and JAX arrays (``shprobe.lighting._xp``): same kind, device and dtype, differentiable
+in coefficients and normals.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..probes.env import Env
 from ..probes.layouts import Layout, get_layout
-from ..sh import lmax_of, sh_basis
+from ..sh import _xp, lmax_of, sh_basis
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import clamped_cosine_factors, convolve
 from .coeffs import RH_CONSTANTS, as_coeffs, check_coeffs, nine
@@ -48,7 +53,12 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
 
     ``coeffs`` (K, C) or (K,); ``normals`` (..., 3) unit vectors → (..., C) or (...,).
     """
-    e = irradiance_coeffs(coeffs)
+    xp = _xp.namespace(coeffs, normals)
+    if xp is not None:
+        from . import _xp as lx
+
+        return lx.irradiance(xp, coeffs, normals)
+    e = irradiance_coeffs(_finite(check_coeffs(coeffs)))
     lmax = lmax_of(e.shape[0])
     n = unit_normals(normals)
     check_memory(8.0 * n.size / 3 * (e.shape[0] + 2 * (e.shape[-1] if e.ndim > 1 else 1)),
@@ -65,8 +75,16 @@ def unit_normals(normals: ArrayLike) -> NDArray[np.float64]:
     return unit_vectors(a, "normals")
 
 
+def _finite(c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The coefficients' policy (as :func:`~shprobe.lighting.coeffs.as_coeffs`): NaN or
+    infinity is refused."""
+    if not np.isfinite(c).all():
+        raise ShprobeError("coefficients contain NaN or infinity")
+    return c
+
+
 def _nine(coeffs: ArrayLike) -> NDArray[np.float64]:
-    c = check_coeffs(coeffs)
+    c = _finite(check_coeffs(coeffs))
     if c.ndim == 1:
         c = c[:, None]
     if c.shape[-2] < 9:
@@ -80,6 +98,11 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
     Uses L_lm for l ≤ 2 (higher bands are ignored). Our signs and order are R&H's, so M is
     their matrix verbatim.
     """
+    xp = _xp.namespace(coeffs)
+    if xp is not None:
+        from . import _xp as lx
+
+        return lx.irradiance_matrix(xp, coeffs)
     c1, c2, c3, c4, c5 = RH_CONSTANTS
     L = np.moveaxis(_nine(coeffs), -2, 0)  # (9, ..., C)
     L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = L
@@ -103,6 +126,11 @@ def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float
 
 def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
     """The expanded polynomial of R&H eq. 13 → (..., C)."""
+    xp = _xp.namespace(coeffs, normals)
+    if xp is not None:
+        from . import _xp as lx
+
+        return lx.irradiance_quadratic(xp, coeffs, normals)
     c1, c2, c3, c4, c5 = RH_CONSTANTS
     L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = _nine(coeffs)
     n = unit_normals(normals)[..., None]

@@ -178,7 +178,16 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
 
     ``dirs`` (S, 3) unit vectors, ``values`` (S, C) or (S,), ``weights`` (S,) (e.g. solid
     angles; default 4π/S, i.e. uniform random samples). A numba kernel, no (S, K) temporary.
+    Torch tensors and JAX arrays take the array-API path (``shprobe.lighting._xp``, one
+    (S, K) basis table): same kind, device and dtype, differentiable in all three arrays.
     """
+    from ..sh import _xp
+
+    xp = _xp.namespace(dirs, values, weights)
+    if xp is not None:
+        from . import _xp as lx
+
+        return lx.project_samples(xp, dirs, values, weights, lmax)
     lmax = check_lmax(lmax)
     d = np.ascontiguousarray(np.asarray(dirs, dtype=np.float64).reshape(-1, 3))
     v = np.asarray(values, dtype=np.float64)

@@ -95,7 +95,18 @@ def window_text(spec: WindowSpec) -> str:
 
 
 def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]:
-    """Window factors w_l, l = 0..lmax (see the module doc for the four kinds); w_0 = 1."""
+    """Window factors w_l, l = 0..lmax (see the module doc for the four kinds); w_0 = 1.
+    A torch tensor or JAX array ``strength`` gives factors of that kind, differentiable in
+    it (``shprobe.lighting._xp``)."""
+    from ..sh import _xp
+
+    xp = _xp.namespace(strength)
+    if xp is not None:
+        from . import _xp as lx
+
+        if kind not in WINDOWS:
+            raise ShprobeError(f"unknown window {kind!r}; choose from {', '.join(WINDOWS)}")
+        return lx.window_factors(xp, kind, lmax, strength)
     lmax = check_lmax(lmax)
     s = float(strength)
     if not np.isfinite(s) or s < 0:

@@ -29,109 +29,34 @@ the LH interior recurrence with the normalising constants K_lm folded into each 
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
-from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-
-#: Largest degree shprobe accepts.
-LMAX_LIMIT = 1024
-
-
-def num_coeffs(lmax: int) -> int:
-    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``."""
-    return (lmax + 1) ** 2
-
-
-@overload
-def sh_index(l: int, m: int) -> int: ...
-@overload
-def sh_index(l: ArrayLike, m: ArrayLike) -> NDArray[np.int64]: ...
-def sh_index(l, m):
-    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast)."""
-    if np.ndim(l) == 0 and np.ndim(m) == 0:
-        l, m = int(l), int(m)
-        if l < 0 or abs(m) > l:
-            raise ShprobeError(f"no spherical harmonic with l={l}, m={m}")
-        return l * (l + 1) + m
-    la, ma = np.broadcast_arrays(np.asarray(l, dtype=np.int64), np.asarray(m, dtype=np.int64))
-    bad = (la < 0) | (np.abs(ma) > la)
-    if bad.any():
-        i = np.argmax(bad.reshape(-1))
-        raise ShprobeError(f"no spherical harmonic with l={la.reshape(-1)[i]}, "
-                           f"m={ma.reshape(-1)[i]}")
-    return la * (la + 1) + ma
-
-
-@overload
-def sh_lm(k: int) -> tuple[int, int]: ...
-@overload
-def sh_lm(k: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]: ...
-def sh_lm(k):
-    """Inverse of :func:`sh_index`: (l, m) of flat index ``k`` (an integer or integer array)."""
-    ka = np.asarray(k, dtype=np.int64)
-    if (ka < 0).any():
-        raise ShprobeError(f"flat SH index must be >= 0, got {k}")
-    l = np.sqrt(ka).astype(np.int64)
-    l += (l + 1) ** 2 <= ka  # exact integer correction of the float square root
-    l -= l * l > ka
-    m = ka - l * (l + 1)
-    if ka.ndim == 0:
-        return int(l), int(m)
-    return l, m
-
-
-def lmax_of(n_coeffs: int) -> int:
-    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square."""
-    l = math.isqrt(max(int(n_coeffs), 0)) - 1
-    if l < 0 or (l + 1) ** 2 != n_coeffs:
-        raise ShprobeError(f"{n_coeffs} coefficients is not (lmax+1)² for any lmax")
-    return l
-
-
-def degrees(lmax: int) -> NDArray[np.int64]:
-    """Degree l of every flat index up to ``lmax`` (length K)."""
-    return np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
-
-
-def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
-    """Validate a degree argument: an integer (or integral number) in 0..``limit``; anything
-    else (None, NaN, inf, 2.5, a string, an array) is one :class:`ShprobeError`."""
-    try:
-        ok = not isinstance(lmax, bool | str | bytes) and float(lmax) == int(lmax)
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise ShprobeError(f"SH degree must be an integer, got {lmax!r}")
-    lmax = int(lmax)
-    if lmax < 0 or lmax > limit:
-        raise ShprobeError(f"SH degree lmax={lmax} out of range 0..{limit}")
-    return lmax
-
-
-@lru_cache(maxsize=64)
-def recurrence_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m]."""
-    a = np.zeros((lmax + 1, lmax + 1))
-    b = np.zeros((lmax + 1, lmax + 1))
-    for m in range(lmax + 1):
-        for l in range(m + 2, lmax + 1):
-            a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
-            b[l, m] = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
-    a.flags.writeable = False
-    b.flags.writeable = False
-    return a, b
+from . import _xp
+from .indexing import (
+    NEAR_UNIT,
+    check_lmax,
+    num_coeffs,
+    recurrence_tables,
+    unit_vectors,
+)
 
 
 def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
-    d = np.asarray(dirs)
-    if d.dtype not in (np.float32, np.float64):
-        d = d.astype(np.float64)
+    try:
+        d = np.asarray(dirs)
+        if d.dtype.kind == "c":
+            raise ShprobeError("directions must be real vectors, got complex values")
+        if d.dtype not in (np.float32, np.float64):
+            d = d.astype(np.float64)
+    except (TypeError, ValueError, OverflowError) as e:
+        if isinstance(e, ShprobeError):
+            raise
+        raise ShprobeError("directions must be numeric (..., 3) vectors") from None
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"directions must have shape (..., 3), got {d.shape}")
     return d
@@ -206,6 +131,8 @@ def _store(out, l, m, p, c, s, sqrt2):
 F32_ARITHMETIC_LMAX = 128
 
 
+
+
 #: Outputs of at least this many bytes are written with streaming (non-temporal) stores by the
 #: table kernel: far larger than the caches, written once, so reading each line in before
 #: overwriting it would only double the memory traffic.
@@ -270,7 +197,23 @@ def sh_basis(
     float32 epsilons of the band's scale √((2l+1)/4π), tested to l = 64), with streaming
     stores into a caller's ``out`` of ≥ ``STREAM_MIN_BYTES``. :func:`sh_basis_numpy` is the
     vectorised numpy reference of the same recurrence.
+
+    Bad directions, the one policy: NaN or infinite components are refused
+    (:class:`ShprobeError`); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction,
+    one BLAS pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
+    such as (1e200, 1e200, 0), are normalised first without overflow
+    (:func:`shprobe.sh.rotation.unit_vectors`).
+
+    Torch tensors, JAX arrays (and CuPy) take the array-API path (``shprobe.sh._xp``): the
+    same recurrence in whole-array operations, differentiable, same device and dtype
+    (``out`` is NumPy only).
     """
+    xp = _xp.namespace(dirs)
+    if xp is not None:
+        if out is not None:
+            raise ShprobeError("out= is for NumPy arrays only")
+        dt = _xp.float_dtype(xp, dirs)
+        return _xp.sh_basis(xp, _xp.asarray(xp, dirs, dt, dirs), check_lmax(lmax))
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     K = num_coeffs(lmax)
@@ -288,6 +231,11 @@ def sh_basis(
     if out.size == 0:
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
+    with np.errstate(over="ignore", invalid="ignore"):
+        sq = float(np.dot(flat.reshape(-1), flat.reshape(-1)))
+    if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
+
+        flat = unit_vectors(flat, "directions").astype(d.dtype)
     if lmax <= 8:
         a0 = _stream_start(out) if stream else -1
         if a0 >= 0:

@@ -1,5 +1,6 @@
 """SH conventions: shprobe's own, and converters to/from Condon–Shortley phase and 4π
-normalisation.
+normalisation (entries of the one registry, :mod:`shprobe.sh.registry`, which has the others:
+3DGS, glTF, kaolin, e3nn, three.js, Filament, Unity).
 
 shprobe (everywhere): real orthonormal SH with the signs of Ramamoorthi & Hanrahan 2001
 (no Condon–Shortley phase), flat index k = l(l+1) + m, coefficient arrays (..., K, C):
@@ -27,7 +28,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from .basis import lmax_of, num_coeffs
+from .indexing import lmax_of, num_coeffs
+from .registry import convert, cs_signs
 
 _SQRT_4PI = float(np.sqrt(4.0 * np.pi))
 
@@ -47,39 +49,32 @@ def _per_k(c: NDArray[np.floating], factor: NDArray[np.float64]) -> NDArray[np.f
     return c * (f if c.ndim == 1 else f[:, None])
 
 
-def cs_signs(lmax: int) -> NDArray[np.float64]:
-    """(−1)^|m| for every flat index k ≤ (lmax+1)² − 1."""
-    l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
-    m = np.arange(num_coeffs(lmax)) - l * (l + 1)
-    return np.where(np.abs(m) % 2 == 1, -1.0, 1.0)
-
-
 def to_condon_shortley(coeffs: ArrayLike) -> NDArray[np.floating]:
     """shprobe coefficients (..., K, C) or (K,) → coefficients in the CS-phase real basis
     (google/spherical-harmonics, DirectXMath, cmft, cmgen): a^CS_lm = (−1)^|m| a_lm."""
-    c, lmax = _coeffs(coeffs)
-    return _per_k(c, cs_signs(lmax))
+    return convert(coeffs, to="cs")
 
 
 def from_condon_shortley(coeffs: ArrayLike) -> NDArray[np.floating]:
     """CS-phase real coefficients → shprobe's (the same sign flip; it is an involution)."""
-    return to_condon_shortley(coeffs)
+    return convert(coeffs, from_="cs")
 
 
 def to_4pi(coeffs: ArrayLike, csphase: int = 1) -> NDArray[np.floating]:
     """shprobe coefficients → pyshtools '4pi' real coefficients in shprobe's flat layout:
     a^4π = a / √(4π), times (−1)^|m| when ``csphase=-1``."""
-    c, lmax = _coeffs(coeffs)
-    f = np.full(num_coeffs(lmax), 1.0 / _SQRT_4PI)
-    return _per_k(c, f * _cs_factor(lmax, csphase))
+    return convert(coeffs, to=_four_pi_name(csphase))
 
 
 def from_4pi(coeffs: ArrayLike, csphase: int = 1) -> NDArray[np.floating]:
     """pyshtools '4pi' real coefficients (flat layout) → shprobe: a = √(4π) a^4π (× (−1)^|m|
     for ``csphase=-1``)."""
-    c, lmax = _coeffs(coeffs)
-    f = np.full(num_coeffs(lmax), _SQRT_4PI)
-    return _per_k(c, f * _cs_factor(lmax, csphase))
+    return convert(coeffs, from_=_four_pi_name(csphase))
+
+
+def _four_pi_name(csphase: int) -> str:
+    _cs_factor(0, csphase)
+    return "4pi" if csphase == 1 else "4pi-cs"
 
 
 def _cs_factor(lmax: int, csphase: int) -> NDArray[np.float64]:

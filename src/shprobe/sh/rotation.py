@@ -30,42 +30,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from .basis import check_lmax, lmax_of, num_coeffs
+from . import _xp
+from .indexing import ROTATION_LMAX, check_lmax, lmax_of, num_coeffs, unit_vectors
 
 #: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
 ORTHO_TOL = 1e-6
 
 _F64 = np.dtype(np.float64)
 
-#: Largest degree :func:`rotate` / :func:`wigner_d` accept (the d(π/2) table grows as lmax³/3).
-ROTATION_LMAX = 256
 #: wigner_d refuses to build more than this many bytes of dense matrices (rotate never does).
 WIGNER_D_MAX_BYTES = 2 << 30
-
-
-def unit_vectors(v: ArrayLike, what: str = "direction",
-                 zero: str = "refuse") -> NDArray[np.float64]:
-    """Unit vectors (..., 3) float64 from any non-zero finite vectors, without overflow (each is
-    scaled by its largest component first, so (1e200, 1e200, 0) works).
-
-    The one policy for zero-length input, ``zero``: ``"refuse"`` (a one-line error, the
-    default) or ``"keep"`` (zero vectors stay zero, e.g. pixels outside a layout's disc).
-    Non-finite vectors are always refused.
-    """
-    try:
-        d = np.asarray(v, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ShprobeError(f"{what} must be numeric (..., 3) vectors") from None
-    if d.ndim < 1 or d.shape[-1] != 3:
-        raise ShprobeError(f"{what} must have shape (..., 3), got {d.shape}")
-    if not np.all(np.isfinite(d)):
-        raise ShprobeError(f"{what} must be finite vectors")
-    big = np.abs(d).max(axis=-1, keepdims=True)
-    if zero == "refuse" and np.any(big == 0.0):
-        raise ShprobeError(f"{what} must be a non-zero vector")
-    s = d / np.where(big > 0, big, 1.0)
-    n = np.linalg.norm(s, axis=-1, keepdims=True)
-    return s / np.where(n > 0, n, 1.0)
 
 
 def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
@@ -88,9 +62,15 @@ def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
 def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) from quaternions (..., 4) in (w, x, y, z) order.
 
-    The quaternion is normalised first; q and −q give the same rotation.
+    The quaternion is normalised first; q and −q give the same rotation. A torch tensor or
+    JAX array gives the same kind (differentiable in q).
     """
-    q = np.asarray(q, dtype=np.float64)
+    xp = _xp.namespace(q)
+    if xp is not None:
+        from . import _xp_rotation
+
+        return _xp_rotation.from_quaternion(xp, _xp.asarray(xp, q, _xp.float_dtype(xp, q), q))
+    q = _float64(q, "quaternions")
     if q.ndim < 1 or q.shape[-1] != 4:
         raise ShprobeError(f"quaternions must have shape (..., 4) as (w, x, y, z), got {q.shape}")
     n = np.linalg.norm(q, axis=-1, keepdims=True)
@@ -128,8 +108,14 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
     """R = Rz(γ) Ry(β) Rz(α) (LH eq. 6; α is applied first), angles in radians, broadcast.
 
     Rz(t) = [[c, −s, 0], [s, c, 0], [0, 0, 1]] and Ry(t) = [[c, 0, s], [0, 1, 0], [−s, 0, c]]
-    (right-handed, counter-clockwise looking down the axis).
+    (right-handed, counter-clockwise looking down the axis). Torch tensors or JAX arrays
+    give the same kind (differentiable in the angles).
     """
+    xp = _xp.namespace(alpha, beta, gamma)
+    if xp is not None:
+        from . import _xp_rotation
+
+        return _xp_rotation.from_euler_zyz(xp, alpha, beta, gamma)
     a, b, g = np.broadcast_arrays(*(np.asarray(t, dtype=np.float64) for t in (alpha, beta, gamma)))
     return _rz(g) @ _ry(b) @ _rz(a)
 
@@ -161,7 +147,7 @@ def _matrices(rotation: Any) -> NDArray[np.float64]:
     """Unchecked (..., 3, 3) C-contiguous float64 matrices."""
     if hasattr(rotation, "as_matrix") and not isinstance(rotation, np.ndarray):
         rotation = rotation.as_matrix()
-    r = np.asarray(rotation, dtype=np.float64)
+    r = _float64(rotation, "rotation")
     if r.ndim >= 2 and r.shape[-2:] == (3, 3):
         return np.ascontiguousarray(r)
     if r.ndim >= 1 and r.shape[-1] == 4:
@@ -172,6 +158,17 @@ def _matrices(rotation: Any) -> NDArray[np.float64]:
         + ("; for ZYZ Euler angles pass from_euler_zyz(alpha, beta, gamma)"
            if r.shape[-1:] == (3,) else "")
     )
+
+
+def _float64(a: Any, what: str) -> NDArray[np.float64]:
+    """``a`` as float64; object arrays, strings and complex values are one ShprobeError."""
+    try:
+        arr = np.asarray(a)
+        if arr.dtype.kind == "c":
+            raise TypeError
+        return np.asarray(arr, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ShprobeError(f"{what} must be real numbers") from None
 
 
 def _check_err(err: float) -> None:
@@ -230,9 +227,17 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
     leading axes. ``rotation``: (..., 3, 3) matrices, (..., 4) unit quaternions (w, x, y, z),
     or a scipy ``Rotation``; ZYZ Euler angles through :func:`from_euler_zyz`. The dense result
-    is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation).
+    is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and
+    JAX arrays take the array-API path (the Ivanic–Ruedenberg recurrence,
+    ``shprobe.sh._xp_rotation``), differentiable in the rotation.
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
+    xp = _xp.namespace(rotation)
+    if xp is not None:
+        from . import _xp_rotation
+
+        r = _xp.asarray(xp, rotation, _xp.float_dtype(xp, rotation), rotation)
+        return _xp_rotation.wigner_d(xp, r, lmax)
     R = _matrices(rotation)
     batch = R.shape[:-2]
     size = R.size // 9 * num_coeffs(lmax) ** 2 * 8
@@ -262,23 +267,35 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     its ``as_matrix()``, so no order question arises); the leading axes of both broadcast.
     Beware: scipy's ``Rotation.as_quat()`` is scalar-LAST (x, y, z, w) — pass the Rotation
     itself, or ``np.roll(q, 1, axis=-1)``. float32 coefficients stay float32 (the arithmetic
-    is float64).
+    is float64). NaN or infinite coefficients are refused (:class:`ShprobeError`).
+
+    Torch tensors and JAX arrays (coefficients, rotation or both) take the array-API path
+    (``shprobe.sh._xp_rotation``): same kind, device and dtype, differentiable in both.
     """
+    xp = _xp.namespace(coeffs, rotation)
+    if xp is not None:
+        from . import _xp_rotation
+
+        return _xp_rotation.rotate(xp, coeffs, rotation)
     if (type(coeffs) is np.ndarray and coeffs.ndim == 2 and coeffs.dtype is _F64
             and type(rotation) is np.ndarray and rotation.shape == (3, 3)
             and rotation.dtype is _F64):
         # fast path: one (K, C) set, one matrix
         K, C = coeffs.shape
         lmax = _lmax_of(K)
+        if not np.isfinite(coeffs).all():
+            raise ShprobeError("coefficients contain NaN or infinity")
         out, err = _run_rotate(np.ascontiguousarray(rotation).reshape(1, 3, 3),
                                np.ascontiguousarray(coeffs).reshape(1, K, C), lmax)
         _check_err(err)
         return out.reshape(K, C)
     c = np.asarray(coeffs)
     if c.dtype not in (np.float32, np.float64):
-        c = c.astype(np.float64)
+        c = _float64(c, "coefficients")
     if c.ndim == 0:
         raise ShprobeError("coefficients must have shape (..., K, C) or (K,)")
+    if not np.isfinite(c).all():
+        raise ShprobeError("coefficients contain NaN or infinity")
     one_d = c.ndim == 1
     if one_d:
         c = c[:, None]

@@ -5,15 +5,17 @@ Funk–Hecke convolution (LH 2007 §3; R&H 2001 eq. 5–9).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from .basis import check_lmax, degrees, lmax_of
+from . import _xp
+from .indexing import check_lmax, degrees, lmax_of
 
 
-def clamped_cosine_factors(lmax: int) -> NDArray[np.float64]:
+def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
     """Â_l for l = 0..lmax, the SH factors of the clamped cosine max(cos θ, 0) (R&H eq. 8–9).
 
     Â_0 = π, Â_1 = 2π/3, Â_l = 0 for odd l > 1, and for even l
@@ -21,7 +23,12 @@ def clamped_cosine_factors(lmax: int) -> NDArray[np.float64]:
         Â_l = 2π (−1)^(l/2 − 1) / ((l + 2)(l − 1)) · l! / (2^l ((l/2)!)²),
 
     with l!/(2^l ((l/2)!)²) built by the ratio (l+1)/(l+2) so nothing overflows.
+    ``like``: a torch tensor or JAX array whose kind, device and floating dtype the factors
+    take (default: NumPy float64).
     """
+    xp = _xp.namespace(like)
+    if xp is not None:
+        return _xp.constant(xp, clamped_cosine_factors(lmax), like)
     lmax = check_lmax(lmax)
     a = np.zeros(lmax + 1)
     a[0] = np.pi
@@ -39,8 +46,12 @@ def convolve(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.floating]:
 
     ``coeffs`` is (..., K, C) or (K,); ``factors`` has at least lmax+1 entries. With
     ``factors = clamped_cosine_factors(lmax)`` this turns lighting L_lm into irradiance
-    coefficients E_lm = Â_l L_lm (R&H eq. 7).
+    coefficients E_lm = Â_l L_lm (R&H eq. 7). Torch tensors and JAX arrays (either
+    argument) give that kind, differentiable in both.
     """
+    xp = _xp.namespace(coeffs, factors)
+    if xp is not None:
+        return _xp.convolve(xp, coeffs, factors)
     c = np.asarray(coeffs)
     if c.dtype not in (np.float32, np.float64):
         c = c.astype(np.float64)
