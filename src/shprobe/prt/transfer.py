@@ -9,7 +9,7 @@ Radiance scale (one convention everywhere in ``shprobe.prt``): for lighting coef
 so for the unshadowed model it is ρ/π times the irradiance E(n_v) = Σ Â_l L_lm y_lm(n_v)
 (R&H eq. 7; LH eq. 9 with π H_l = Â_l).
 
-Run-time model switching (LH §4; the issue's "model switchable at run time"): one bake serves
+Run-time model switching (LH §4): one bake serves
 every model up to what it traced. The unshadowed transfer is analytic in the stored normals and
 albedo (LH eq. 9) and is never stored; a ray-traced bake stores the shadowed transfer (bounce 0)
 and, for an interreflected bake, the cumulative transfer after each bounce, so
@@ -33,7 +33,7 @@ from ..errors import ShprobeError
 from ..files import load_npz, save_npz
 from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis
 from ..sh.zonal import clamped_cosine_factors
-from .scene import Scene, load_scene, mesh_hash
+from .geometry import BakeScene, load_scene, mesh_hash
 
 FORMAT = "shprobe-prt"
 #: 1: one ``transfer`` array of the baked model; 2: ``traced`` layers + ``bounce_counts``.
@@ -191,9 +191,9 @@ class Transfer:
         return replace(self, lmax=lmax, traced=self.traced[:, :, : num_coeffs(lmax)],
                        metadata={**self.metadata, "lmax": lmax})
 
-    def scene(self) -> Scene:
+    def scene(self) -> BakeScene:
         """The scene this transfer was baked for."""
-        return Scene(self.vertices, self.normals, self.faces, self.albedo, self.mesh_hash)
+        return BakeScene(self.vertices, self.normals, self.faces, self.albedo, self.mesh_hash)
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> Path:
         """Write an .npz (atomic; an existing file is replaced only with ``overwrite``)."""
@@ -270,7 +270,7 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     if mesh_hash(v, arrays["faces"]) != meta.get("mesh_hash"):
         raise ShprobeError("stored mesh does not match the file's mesh hash (corrupt file)", p)
     if scene is not None:
-        if isinstance(scene, Scene):
+        if isinstance(scene, BakeScene):
             want = scene.mesh_hash
         else:  # rebuild the scene as baked: the same meshes, with its ground plane if any
             want = load_scene(scene, ground=bool(meta.get("ground", False))).mesh_hash
