@@ -11,7 +11,7 @@ Modules, in the order a bake runs them:
 - :mod:`.subdivide`: splitting marked edges, conforming;
 - :mod:`.settings`: :class:`Refinement` and its named instances, QUICK (default) and ACCURATE;
 - :mod:`.refine`: the refined bake, a driver of named stages over the three above;
-- :mod:`.bake`: the public :func:`bake` and its time/memory estimate;
+- :mod:`.baking`: the public :func:`bake` and its time/memory estimate;
 - :mod:`.transfer`: the :class:`Transfer` result, .npz I/O, radiance scale;
 - :mod:`.relighting`: rotation of the lighting and the per-vertex dot product;
 - :mod:`.view`: pictures and turntables of relit transfer.
@@ -22,7 +22,7 @@ run time.
 
 from __future__ import annotations
 
-from .bake import BakeEstimate, bake, estimate_bake
+from .baking import BakeEstimate, bake, estimate_bake
 from .directions import sample_directions
 from .geometry import BakeScene, ground_plane, load_scene, mesh_hash
 from .relighting import relight, scene_lighting

@@ -83,8 +83,8 @@ def _norms(x: Any) -> NDArray[np.float64]:
 
 def _exit_share(cumulative: Any, albedo: Any, floor: float) -> NDArray[np.float64]:
     """Per gathering vertex v: ρ_v/π / ‖T(v)‖, the share of v's exit transfer per unit of
-    G[v, c] T(c) (module doc, gather criterion), ‖T(v)‖ its cumulative transfer, at least ``floor`` ×
-    the median over the scene (0 where that is 0)."""
+    G[v, c] T(c) (module doc, gather criterion), ‖T(v)‖ its cumulative transfer, at least
+    ``floor`` × the median over the scene (0 where that is 0)."""
     level = _norms(cumulative)
     scale = np.maximum(level, floor * float(np.median(level)))
     rho = np.asarray(albedo, dtype=np.float64).max(axis=1) / np.pi

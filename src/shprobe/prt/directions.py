@@ -16,8 +16,8 @@ from ..sh.rotation import from_quaternion
 from .geometry import BakeScene
 from .transfer import check_int, vertex_hash
 
-__all__ = ["OFFSET_FRACTION", "RAYS_PER_CHUNK", "RaySource", "random_rotation", "ray_origins", "ray_source",
-           "rotated_direction_sets", "sample_directions"]
+__all__ = ["OFFSET_FRACTION", "RAYS_PER_CHUNK", "RaySource", "random_rotation", "ray_origins",
+           "ray_source", "rotated_direction_sets", "sample_directions"]
 
 #: Rays traced per work item (a block of vertices × their upper-hemisphere directions).
 RAYS_PER_CHUNK = 1 << 17

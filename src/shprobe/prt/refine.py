@@ -47,7 +47,7 @@ from .subdivide import closed_edges, edge_table, split_closed
 from .trace import DenseVertices, GatherBlocks, trace_bake
 from .transfer import Transfer, check_int
 
-__all__ = ["RefineRound", "bake_refined", "bake_count"]
+__all__ = ["RefineRound", "bake_count", "bake_refined"]
 
 
 @dataclass(frozen=True)

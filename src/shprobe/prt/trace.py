@@ -90,7 +90,7 @@ def check_threads(threads: Any) -> int:
 def bake_bytes(n_vertices: int, lmax: int, samples: int, layers: int, channels: int = 1,
                threads: int = 1, extra: float = 0.0) -> float:
     """Bytes a traced bake holds (the cost model of :func:`trace_bake`'s memory check and of
-    :func:`shprobe.prt.bake.estimate_bake`): the stored layers (float32), the float64 running
+    :func:`shprobe.prt.baking.estimate_bake`): the stored layers (float32), the float64 running
     sums, one worker block of SH rows per thread, and ``extra`` (the picks' sums, the adaptive
     grids)."""
     cells = float(n_vertices) * num_coeffs(lmax) * channels
