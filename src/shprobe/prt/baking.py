@@ -51,7 +51,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     refine: adaptive refinement of the scene where the transfer varies fast
     (:mod:`.refine`): a :class:`~.settings.Refinement` (:data:`~.settings.QUICK`,
     :data:`~.settings.ACCURATE`) or its name, True (QUICK) or False. Default (None): QUICK
-    for a traced bake with a ground plane, else none.
+    for a traced bake with ``ground=True``, else none (a :class:`BakeScene` that holds a
+    ground is refined when asked: its ground is refined like every mesh).
 
     Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
     is coloured) is the baked model, with transfer · L = exit radiance
@@ -61,7 +62,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     settings = as_refinement(refine)
     sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
-    if refine is None and mode != "unshadowed" and sc.n_ground:
+    if refine is None and mode != "unshadowed" and ground:
         settings = QUICK
     if settings is not None:
         return bake_refined(sc, settings, mode, lmax, samples, bounces, seed, threads, progress)
