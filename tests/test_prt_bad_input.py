@@ -137,7 +137,7 @@ def test_turntable_streams_its_frames(tmp_path, sphere, monkeypatch):
     import shprobe.prt.view as view
 
     path, _ = sphere
-    alive, peak, exposure = [0], [0], [0]
+    alive, peak, exposure, rendering = [0], [0], [0], [False]
     inner_frame, inner_radiance = view.render_frame, view.frame_radiance
 
     class Held:
@@ -151,10 +151,14 @@ def test_turntable_streams_its_frames(tmp_path, sphere, monkeypatch):
             alive[0] -= 1
 
     def radiance(*a, **k):
-        exposure[0] += peak[0] == 0  # the exposure's, before any frame is rendered
+        exposure[0] += not rendering[0]  # the exposure's, before any frame is rendered
         return inner_radiance(*a, **k)
 
-    monkeypatch.setattr(view, "render_frame", lambda *a, **k: Held(inner_frame(*a, **k)))
+    def frame(*a, **k):
+        rendering[0] = True
+        return Held(inner_frame(*a, **k))
+
+    monkeypatch.setattr(view, "render_frame", frame)
     monkeypatch.setattr(view, "frame_radiance", radiance)
     out = tmp_path / "f.png"
     assert main(["prt", "render", str(path), "--cone", "0,1,0:30", "--turntable", "90",
