@@ -21,7 +21,7 @@ from ..errors import ShprobeError
 from ..progress import Progress
 from ..sh import check_lmax, num_coeffs
 from .geometry import BakeScene, load_scene
-from .refine import _named, bake_refined
+from .refine import bake_refined, stage_progress
 from .settings import QUICK, Refinement, as_refinement
 from .trace import bake_bytes, check_threads, trace_bake
 from .transfer import MODES, Transfer, check_int, coloured
@@ -67,7 +67,7 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     if settings is not None:
         return bake_refined(sc, settings, mode, lmax, samples, bounces, seed, threads, progress)
     return trace_bake(sc, mode, lmax, samples, bounces, seed, threads,
-                      _named(progress, 1, 1, f"{mode} bake, {sc.n_vertices:,} vertices"))[0]
+                      stage_progress(progress, 1, 1, f"{mode} bake, {sc.n_vertices:,} vertices"))[0]
 
 
 @dataclass(frozen=True)

@@ -146,7 +146,7 @@ class _Named:
         self._progress.end()
 
 
-def _named(progress: Progress | None, index: int, count: int, what: str) -> Progress | None:
+def stage_progress(progress: Progress | None, index: int, count: int, what: str) -> Progress | None:
     return None if progress is None else _Named(progress, f"{index}/{count}: {what}")
 
 
@@ -177,7 +177,7 @@ def bake_refined(scene: BakeScene, settings: Refinement, mode: str = "interrefle
         t0 = time.perf_counter()
         screen = settings.post_jump is not None
         t, blocks, picker = _final_bake(job, geo, None, screen,
-                                        _named(progress, count - screen, count,
+                                        stage_progress(progress, count - screen, count,
                                                f"{'screening' if screen else 'final'} bake, "
                                                f"{geo.scene.n_vertices:,} vertices"))
         geo.rounds.append(RefineRound(geo.scene.n_vertices, 0, time.perf_counter() - t0))
@@ -216,7 +216,7 @@ def _subdivide(job: _Job, geo: _Geometry, progress: Progress | None, count: int
         sc = geo.scene
         t, blocks = trace_bake(sc, job.mode, job.lmax, min(drive, job.samples), job.bounces,
                                job.seed, job.threads,
-                               _named(progress, r + 1, count,
+                               stage_progress(progress, r + 1, count,
                                       f"refinement round {r + 1}, {sc.n_vertices:,} vertices"),
                                keep_gather=job.bounced)
         secs = time.perf_counter() - t0
@@ -292,7 +292,7 @@ def _post_pass(job: _Job, geo: _Geometry, t: Transfer, blocks: GatherBlocks,
         extra[sc.n_vertices:] = gatherers[edges[sel]].all(1) & (s.post_dense > 0)
         post["post_dense"] = int(extra.sum())
     t, _, _ = _final_bake(job, geo, extra, False,
-                          _named(progress, count, count,
+                          stage_progress(progress, count, count,
                                  f"final bake, {geo.scene.n_vertices:,} vertices"))
     geo.rounds.append(RefineRound(geo.scene.n_vertices, 0, time.perf_counter() - t0))
     return t, post
