@@ -83,46 +83,49 @@ class BakeEstimate:
         from ..limits import format_bytes
 
         s = self.seconds
-        when = (f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min" if s < 5400
-                else f"{s / 3600:.1f} h")
+        when = (f"{s:.1f} s" if s < 10 else f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min"
+                if s < 5400 else f"{s / 3600:.1f} h")
         return f"about {when} and {format_bytes(self.bytes)}"
 
 
-#: Seconds per traced ray and thread, with its share of the SH projection and the gather
-#: matrix (calibrated on the bench scene: bench/bench_prt.py).
-SECONDS_PER_RAY = 1.0e-6
-#: Stored gather-matrix bytes per traced ray of an interreflected bake (CSR value + index for
-#: the three corners of the hits that survive the merging of repeated entries).
-GATHER_BYTES_PER_RAY = 9.0
-#: A refined bake's final vertices and total traced rays, as multiples of an unrefined bake's
-#: of the input (measured on the bunny with a ground, docs/prt.md).
-REFINED_GROWTH = {"quick": (2.3, 4.0), "accurate": (6.0, 40.0)}
+#: Seconds per (input vertex × sample) of a bake at lmax 2 on two threads, by mode and
+#: refinement, and the final vertices as a multiple of the input's: measured on the bench scene
+#: (bunny + ground, 6,728 vertices, 1024 samples, 2 bounces; bench/bench_prt.py,
+#: bench/bench_prt_contact.py --timing) on the 2-core box.
+COST = {("shadowed", None): (3.5e-8, 1.0), ("interreflected", None): (1.2e-7, 1.0),
+        ("shadowed", "quick"): (7.0e-7, 1.6), ("interreflected", "quick"): (6.1e-6, 12.0),
+        ("shadowed", "accurate"): (1.5e-6, 2.0), ("interreflected", "accurate"): (5.8e-5, 34.0)}
+#: The time of a bake grows with the SH degree as (LMAX_COST + K) (K = (lmax + 1)²): the
+#: quick interreflected bunny takes 42 s at lmax 2 and 94 s at lmax 6.
+LMAX_COST = 23.0
+#: Resident memory of the process besides the bake's arrays (Python, numpy, Embree's BVH).
+BASE_BYTES = 3e8
 
 
 def estimate_bake(scene: BakeScene, mode: str = "shadowed", lmax: int = 4,
                   samples: int = 1024, bounces: int = 2,
                   refine: Refinement | None = None, threads: int | None = None) -> BakeEstimate:
     """The time and peak memory of ``bake(scene, mode, lmax, samples, bounces, refine=...)``
-    on this machine, from the cost model of the bake's memory check (:func:`.trace.bake_bytes`)
-    and the rays it traces (about half the samples per vertex, times the refinement's growth)."""
+    on this machine: time from the measured cost per input vertex and sample (:data:`COST`,
+    scaled by the degree and the threads), memory from the bake's own memory model
+    (:func:`.trace.bake_bytes`, the one its memory check uses) at the final vertex count."""
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     lmax = check_lmax(lmax)
     nthreads = check_threads(threads)
+    k = num_coeffs(lmax)
+    if mode == "unshadowed":
+        return BakeEstimate(2e-7 * scene.n_vertices * k,
+                            BASE_BYTES + bake_bytes(scene.n_vertices, lmax, 0, 0),
+                            scene.n_vertices)
     samples = check_int(samples, 16, "samples per vertex")
     bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
-    if mode == "unshadowed":
-        return BakeEstimate(1e-7 * scene.n_vertices * num_coeffs(lmax),
-                            bake_bytes(scene.n_vertices, lmax, 0, 0), scene.n_vertices)
-    grow, work = REFINED_GROWTH.get(refine.name, REFINED_GROWTH["accurate"]) if refine else (
-        1.0, 1.0)
+    name = None if refine is None else ("accurate" if refine.post_jump is not None
+                                        or refine.dense_factor > 8 else "quick")
+    per, grow = COST[mode, name]
     n = int(scene.n_vertices * grow)
-    rays = 0.5 * samples * scene.n_vertices * work
+    seconds = (per * scene.n_vertices * samples * (LMAX_COST + k) / (LMAX_COST + 9)
+               * (max(1, bounces) / 2 if mode == "interreflected" else 1) * 2 / nthreads)
     channels = 3 if coloured(scene.albedo) else 1
-    nbytes = bake_bytes(n, lmax, samples * (refine.dense_factor if refine else 1), bounces + 1,
-                        channels, nthreads)
-    seconds = rays * SECONDS_PER_RAY * num_coeffs(lmax) ** 0.25 / nthreads
-    if mode == "interreflected":
-        nbytes += GATHER_BYTES_PER_RAY * 0.5 * samples * n
-        seconds += 2e-9 * 0.5 * samples * n * num_coeffs(lmax) * channels * bounces
+    nbytes = BASE_BYTES + bake_bytes(n, lmax, samples, bounces + 1, channels, nthreads)
     return BakeEstimate(seconds, nbytes, n)

@@ -50,6 +50,11 @@ QUADRATURES = ("fibonacci", "adaptive")
 #: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
 MAX_ADAPTIVE_LEVELS = 8
 
+#: Bytes of the gather matrix per upward direction of an interreflected bake (CSR values and
+#: indices of the hits' three corners, after repeated entries are merged; measured: 1.4 GB
+#: resident for the bunny's 82k-vertex quick bake at lmax 6, 4.0 GB for the 234k-vertex
+#: accurate one at lmax 2).
+GATHER_BYTES_PER_RAY = 24.0
 #: The bounce gather matrix G as blocks of rows: (vertex indices, CSR rows (n, V)).
 GatherBlocks = list[tuple[NDArray[np.int64], Any]]
 #: ``pick(direct, cumulative, blocks, albedo)`` → vertex indices to trace as the dense ones.
@@ -91,11 +96,13 @@ def bake_bytes(n_vertices: int, lmax: int, samples: int, layers: int, channels: 
                threads: int = 1, extra: float = 0.0) -> float:
     """Bytes a traced bake holds (the cost model of :func:`trace_bake`'s memory check and of
     :func:`shprobe.prt.baking.estimate_bake`): the stored layers (float32), the float64 running
-    sums, one worker block of SH rows per thread, and ``extra`` (the picks' sums, the adaptive
-    grids)."""
+    sums, one worker block of SH rows per thread, for an interreflected bake (``layers`` > 1)
+    the gather matrix (:data:`GATHER_BYTES_PER_RAY` per upward direction), and ``extra`` (the
+    picks' sums, the adaptive grids)."""
     cells = float(n_vertices) * num_coeffs(lmax) * channels
+    gather = GATHER_BYTES_PER_RAY * 0.5 * samples * n_vertices if layers > 1 else 0.0
     return (4.0 * cells * layers + 16.0 * cells * (layers > 0)
-            + 8.0 * samples * num_coeffs(lmax) * threads + extra)
+            + 8.0 * samples * num_coeffs(lmax) * threads + gather + extra)
 
 
 def _groups(n_vertices: int, samples: int, dense: DenseVertices | None
@@ -152,9 +159,9 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
     # level, for at least one vertex per thread; the picks' cumulative and bounce sums
     grids = (5.0 * (adaptive_grid(groups[1][1]) * 2 ** max(0, levels - 1)) ** 2 * nthreads
              if adaptive_q and len(groups) > 1 else 0.0)
-    check_memory(bake_bytes(sc.n_vertices, lmax, max([samples] + [g[1] for g in groups]),
-                            len(counts), channels, nthreads,
-                            grids + 16.0 * np.prod(shape) * (pick is not None)),
+    check_memory(bake_bytes(sc.n_vertices, lmax, samples, len(counts), channels, nthreads,
+                            grids + 16.0 * np.prod(shape) * (pick is not None)
+                            + 8.0 * max([0] + [g[1] for g in groups[1:]]) * k * nthreads),
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
                  "samples")
     traced = np.empty((len(counts), *shape), dtype=np.float32)
