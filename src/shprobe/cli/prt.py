@@ -128,7 +128,7 @@ def register(group: click.Group) -> None:
         (`shprobe prt render --mode ... --bounces ...`)."""
         from ..files import check_output_path
         from ..prt import ACCURATE, QUICK, bake, estimate_bake, load_scene
-        from .output import progress, verbosity, wrote
+        from .output import detail, progress, verbosity, wrote
 
         check_output_path(output, force)
         if accurate_contact and refine is False:
@@ -151,6 +151,9 @@ def register(group: click.Group) -> None:
                  threads=threads, progress=progress(),
                  refine=settings if settings is not None else False)
         t.save(output, overwrite=force)
+        for r in t.metadata.get("refine", {}).get("rounds", []):
+            detail(f"bake of {r['vertices']:,} vertices: {r['seconds']:.1f} s, {r['split']:,} "
+                   "edges split after it")
         models = ", ".join(t.modes) + (f" (<= {bounces} bounces)" if mode == "interreflected"
                                        else "")
         wrote(output, f"{mode} transfer, lmax {lmax}, {t.n_vertices:,} vertices"
