@@ -69,7 +69,7 @@ def precise(v, f, n, alb, idx, seed):
     rays catch the slot rarely and the estimate is heavy-tailed (one run of (4096, 16, 16) at
     v4612: 1.3 % of B2); here B1 (16384 outer, 256 inner) and B2 twice (4096, 64, 16). The
     direct takes 2^20 rays: v4612's, lit through the same slot, is 0.8 % apart between runs
-    of 65,536 (0.6 % of its cumulative B with 2 bounces; issue 17 run 13)."""
+    of 65,536 (0.6 % of its cumulative B with 2 bounces)."""
     g = Gather(v, f, n, alb, L, seed=seed)
     out = []
     for i in idx:
@@ -83,7 +83,7 @@ def precise(v, f, n, alb, idx, seed):
 
 
 SEEDS = 8  # most precise references per re-checked vertex
-# fewest: two seeds can agree by chance (issue 17 run 13: v2421's seeds 11 and 12 gave B1
+# fewest: two seeds can agree by chance (v2421's seeds 11 and 12 gave B1
 # 0.10892 / 0.10900, noise 0.04 %, while seeds 13–18 gave 0.10871 ± 0.00004)
 MIN_SEEDS = 4
 
