@@ -1,4 +1,4 @@
-"""PRT benchmark (issue 6): shadowed bake throughput against raw Embree any-hit rays on the same
+"""PRT benchmark: shadowed bake throughput against raw Embree any-hit rays on the same
 mesh and rays, the bunny + ground bake, and run-time relighting of 100,000 vertices.
 
 Run: PYTHONPATH=src python bench/bench_prt.py [--mesh PATH] [--samples 1024] [--lmax 4]
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from shprobe.prt import Transfer, bake, load_scene, relight, sample_directions
-from shprobe.prt.bake import OFFSET_FRACTION, random_rotation
+from shprobe.prt.directions import OFFSET_FRACTION, random_rotation
 from shprobe.scene import RayCaster
 
 HERE = Path(__file__).resolve().parent

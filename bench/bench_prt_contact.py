@@ -1,52 +1,22 @@
-"""Issue 17: interreflected PRT at the object–ground contact — a uniform ground, the refinement
-of issue 17's second run (shprobe.prt.refine with ``gather_tol=None``: edge jumps on the scene's
-scale only, min_edge 2e-4, up to 8 rounds, 4× the directions at the vertices refined 3 levels
-deep), the quick refinement (``bake(refine="quick")``, bake_refined's own defaults, the default
-until issue 17 run 14: + the gather criterion, edges split where the vertices that gather from
-them lean on them, 8× the directions at the input's vertices the refinement touched) and the
-default refinement of an interreflected bake (``refine="adaptive"``, below) — against an
-independent per-point gather (tests/prt_gather.py: its own Embree ray loop, cosine-weighted
-stratified sampling, exact hit points, no transfer vectors; only its ray origins come from the
-library's one offset rule) under band-limited lighting (lmax 2, so PRT at
-lmax 2 is exact up to noise).
+"""Interreflected PRT at the object–ground contact: a uniform ground, the quick refinement
+(:data:`shprobe.prt.QUICK`, the default of every traced bake with a ground) and the accurate
+contact (:data:`shprobe.prt.ACCURATE`, ``shprobe prt bake --accurate-contact``), seeds 0 and 1,
+against an independent gather (bench/prt_gather.py: its own ray loop, no transfer vectors) under
+band-limited lighting (lmax 2: PRT at lmax 2 is exact up to noise).
 
-    PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
-        [--n-contact 40] [--n-far 30] [--rays 4096] [--timing N] [--only NAME ...]
+Run: PYTHONPATH=src python bench/bench_prt_contact.py [--mesh bunny.obj] [--samples 1024]
+     [--only NAME ...] [--timing N]
 
 Vertices: the original scene's (the refinement keeps them, with their indices): "contact" =
-within 8 % of the object's size of its lowest 3 %, "far" = beyond 30 % (random subsets).
-Errors: |B_PRT − B_ref| / B_ref of the exit radiance with 1 and 2 bounces (cumulative: direct +
-bounces). Only vertices whose B_ref exceeds 2 % of the far vertices' median are scored (the
-ground right under the belly, B ≈ 0.1 % of it, where a relative error is meaningless); every
-vertex left out is listed with its absolute error as a fraction of the far median, so none is
-hidden. Reference: gathered twice with different seeds, the errors use the mean and the
-difference gives the reference's own noise; contact vertices get 4× the far vertices' rays
-(their radiance is dim and their visibility intricate). The bake's noise: the default bake
-with seeds 0 and 1; both are scored (the verdict of one seed is one draw of the contact's
-quadrature error). "256 direction sets": the quick refinement whose final bake gives each
-vertex one of 256 rotated copies of the direction set (``bake(direction_sets=…)``, issue 17
-run 5: neighbours' quadrature errors independent rather than shared). "final gather (M, near
-3)": the quick refinement whose final bake evaluates the previous layer at the hits of the
-input's contact vertices closer than 3 × their triangle's longest edge by M fresh rays
-(``final_gather=M, final_gather_near=3``; issue 17 run 7, which also ran M = 16 at every hit,
-with and without ``final_gather_inner=2``). "fine contact": ``bake(..., refine="fine")``
-(:data:`shprobe.prt.refine.FINE_CONTACT`, issue 17 run 8), seeds 0 and 1. "adaptive contact
-quadrature (G 128)": the input's contact vertices trace the adaptive equal-area grid of
-:mod:`shprobe.prt.hemisphere` (128² cells and three levels, ~34k rays each;
-``dense_factor=32, dense_quadrature="adaptive"``, issue 17 run 10), against the same vertices
-with 64 × 1024 Fibonacci directions (~33k rays up), seeds 0 and 1. "default refinement
-(adaptive contact)": ``bake(..., ground=True)``, i.e. ``refine="adaptive"``
-(:data:`shprobe.prt.refine.ADAPTIVE_CONTACT`, issue 17 runs 11, 13 and 14: the gather
-criterion gated at 0.1, the contact and the vertices its bounces lean on on the adaptive grid,
-the post-pass and 256 direction sets; ~4 minutes a seed on two cores), seeds 0, 1 and 2,
-against the quick one's seeds 0, 1 and 2; the bake's noise above is these two seeds'.
-Then the worst contact vertices of the default, the seed-1 and seed-2 bakes, the final-gather
-bakes and the adaptive and 64× bakes are
-re-checked with precise references (:func:`precise`, shared between the bakes; four seeds, up
-to eight while their standard error exceeds a third of the error) until the worst error is one
-measured against them: at a vertex lit through a slot the bench's own reference is
-heavy-tailed and two seeds do not show it (issue 17 run 4), nor does the spread of two (run
-13).
+within 8 % of the object's size of its lowest vertices, "far" = beyond 30 %. Scored: vertices
+whose reference exceeds 2 % of the far vertices' median (the relative error of a black vertex is
+meaningless). Reference noise: half the difference of two reference seeds; bake noise: the two
+seeds of the accurate bake, over √2. The worst contact vertices are then re-checked with
+precise references (:func:`precise`; four seeds, up to eight while their standard error
+exceeds a third of the error) until the worst error is one measured against them: at a vertex
+lit through a slot the bench's own reference is heavy-tailed and two seeds do not show it.
+The summary (worst contact error over the median far error, per bounce count) is the table of
+docs/prt.md, "why these defaults".
 """
 
 from __future__ import annotations
@@ -63,8 +33,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 from _machine import machine  # noqa: E402
 from prt_gather import Gather  # noqa: E402
-from shprobe.prt import bake, relight  # noqa: E402
-from shprobe.prt.refine import bake_refined  # noqa: E402
+from shprobe.prt import ACCURATE, bake, relight  # noqa: E402
 
 DATA = os.environ.get("SHPROBE_TEST_DATA", os.path.join(HERE, "..", "..", "shared"))
 L = np.zeros(9)
@@ -99,7 +68,7 @@ def precise(v, f, n, alb, idx, seed):
     rays catch the slot rarely and the estimate is heavy-tailed (one run of (4096, 16, 16) at
     v4612: 1.3 % of B2); here B1 (16384 outer, 256 inner) and B2 twice (4096, 64, 16). The
     direct takes 2^20 rays: v4612's, lit through the same slot, is 0.8 % apart between runs
-    of 65,536 (0.6 % of its cumulative B with 2 bounces; issue 17 run 13)."""
+    of 65,536 (0.6 % of its cumulative B with 2 bounces)."""
     g = Gather(v, f, n, alb, L, seed=seed)
     out = []
     for i in idx:
@@ -113,7 +82,7 @@ def precise(v, f, n, alb, idx, seed):
 
 
 SEEDS = 8  # most precise references per re-checked vertex
-# fewest: two seeds can agree by chance (issue 17 run 13: v2421's seeds 11 and 12 gave B1
+# fewest: two seeds can agree by chance (v2421's seeds 11 and 12 gave B1
 # 0.10892 / 0.10900, noise 0.04 %, while seeds 13–18 gave 0.10871 ± 0.00004)
 MIN_SEEDS = 4
 
@@ -181,8 +150,7 @@ def main() -> None:
                     help="bake only the rows of this exact name (repeatable; the uniform "
                          "ground, whose vertices are scored, always runs)")
     ap.add_argument("--timing", type=int, default=0,
-                    help="only time the run-2, the quick and the default refinement, in turn, "
-                         "N times")
+                    help="only time the quick (default) and the accurate bake, in turn, N times")
     a = ap.parse_args()
     import trimesh
     from scipy.spatial import cKDTree
@@ -191,13 +159,11 @@ def main() -> None:
     m = trimesh.load(a.mesh, process=False)
     kw = dict(mode="interreflected", lmax=2, samples=a.samples, bounces=2, albedo=0.8)
     if a.timing:
-        runs: dict[str, list[float]] = {"run-2 default": [], "quick": [], "default": []}
+        runs: dict[str, list[float]] = {"quick (default)": [], "accurate": []}
         for _ in range(a.timing):
-            for name, fn in (("run-2 default", lambda: bake_refined(
-                                 m, **kw, gather_tol=None, dense_factor=4, dense_depth=3,
-                                 dense_new=True)),
-                             ("quick", lambda: bake_refined(m, **kw)),
-                             ("default", lambda: bake(m, ground=True, **kw))):
+            for name, fn in (("quick (default)", lambda: bake(m, ground=True, **kw)),
+                             ("accurate", lambda: bake(m, ground=True, refine=ACCURATE,
+                                                       **kw))):
                 t0 = time.perf_counter()
                 t = fn()
                 runs[name].append(time.perf_counter() - t0)
@@ -209,40 +175,12 @@ def main() -> None:
     bakes, secs = {}, {}
     rows = (
             ("uniform 64×64 ground", lambda: bake(m, ground=True, refine=False, **kw)),
-            ("run-2 default (no gather criterion, 4× at depth 3)",
-             lambda: bake_refined(m, gather_tol=None, dense_factor=4, dense_depth=3,
-                                  dense_new=True, **kw)),
-            ("quick refinement without dense directions",
-             lambda: bake_refined(m, dense_factor=1, **kw)),
-            ("quick refinement", lambda: bake_refined(m, **kw)),
-            ("quick refinement, 256 direction sets",
-             lambda: bake_refined(m, direction_sets=256, **kw)),
-            ("quick refinement, seed 1", lambda: bake_refined(m, **{**kw, "seed": 1})),
-            ("quick refinement, seed 2", lambda: bake_refined(m, **{**kw, "seed": 2})),
-            ("default refinement (adaptive contact)", lambda: bake(m, ground=True, **kw)),
-            ("default refinement (adaptive contact), seed 1",
+            ("quick refinement (default)", lambda: bake(m, ground=True, **kw)),
+            ("quick refinement (default), seed 1",
              lambda: bake(m, ground=True, **{**kw, "seed": 1})),
-            ("default refinement (adaptive contact), seed 2",
-             lambda: bake(m, ground=True, **{**kw, "seed": 2})),
-            ("quick refinement, adaptive contact quadrature (G 128)",
-             lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive", **kw)),
-            ("quick refinement, adaptive contact quadrature (G 128), seed 1",
-             lambda: bake_refined(m, dense_factor=32, dense_quadrature="adaptive",
-                                  **{**kw, "seed": 1})),
-            ("quick refinement, 64× Fibonacci at the contact (the adaptive's rays)",
-             lambda: bake_refined(m, dense_factor=64, **kw)),
-            ("quick refinement, 64× Fibonacci at the contact, seed 1",
-             lambda: bake_refined(m, dense_factor=64, **{**kw, "seed": 1})),
-            ("quick refinement + final gather (16, near 3)",
-             lambda: bake_refined(m, final_gather=16, final_gather_near=3.0, **kw)),
-            ("quick refinement + final gather (16, near 3), seed 1",
-             lambda: bake_refined(m, final_gather=16, final_gather_near=3.0,
-                                  **{**kw, "seed": 1})),
-            ("quick refinement + final gather (64, near 3)",
-             lambda: bake_refined(m, final_gather=64, final_gather_near=3.0, **kw)),
-            ("fine contact", lambda: bake(m, ground=True, refine="fine", **kw)),
-            ("fine contact, seed 1",
-             lambda: bake(m, ground=True, refine="fine", **{**kw, "seed": 1})))
+            ("accurate contact", lambda: bake(m, ground=True, refine=ACCURATE, **kw)),
+            ("accurate contact, seed 1",
+             lambda: bake(m, ground=True, refine=ACCURATE, **{**kw, "seed": 1})))
     unknown = set(a.only) - {name for name, _ in rows}
     if unknown:
         ap.error(f"--only: no row named {sorted(unknown)[0]!r}")
@@ -258,9 +196,7 @@ def main() -> None:
             r = t.metadata["refine"]
             extra = (f"; {len(r['rounds'])} bakes: " + ", ".join(
                 f"{x['vertices']} v {x['seconds']:.1f} s" for x in r["rounds"])
-                + f"; dense vertices {r.get('dense_vertices', 0)}"
-                + (f"; final gather {t.metadata['final_gather']}"
-                   if "final_gather" in t.metadata else ""))
+                + f"; dense vertices {r.get('dense_vertices', 0)}")
         print(f"{name}: {t.n_vertices} vertices, bake {secs[name]:.1f} s{extra}", flush=True)
     tu = bakes["uniform 64×64 ground"]
     v, n, f, alb = tu.vertices, tu.normals, tu.faces, tu.albedo
@@ -277,8 +213,7 @@ def main() -> None:
           f"({a.rays // 4}, 16, 16); contact 4× the outer rays; bake {a.samples} directions\n")
     names = list(bakes)
     # the bake whose worst and left-out vertices are listed: the default when it was baked
-    lead = ("default refinement (adaptive contact)"
-            if "default refinement (adaptive contact)" in bakes else names[-1])
+    lead = "accurate contact" if "accurate contact" in bakes else names[-1]
     print("| vertices | model | scored | ref noise (median / max) | bake noise (median / max) | "
           + " | ".join(f"{k}: max / median" for k in names) + " |")
     print("|---" * (5 + len(names)) + "|")
@@ -296,7 +231,7 @@ def main() -> None:
             rk = ref[k - 1]
             ok = rk > floor[k]
             rn = np.abs(refs[0, k - 1] - refs[1, k - 1])[ok] / rk[ok] / 2
-            d0 = "default refinement (adaptive contact)"
+            d0 = "accurate contact"
             if {d0, f"{d0}, seed 1"} <= set(b):
                 b0, b1 = b[d0][k - 1], b[f"{d0}, seed 1"][k - 1]
                 bn = np.abs(b0 - b1)[ok] / rk[ok] / np.sqrt(2)
@@ -339,8 +274,7 @@ def main() -> None:
     idx, bk, ref, _ = contact[2]
     cache: dict[int, np.ndarray] = {}
     pos = {int(x): j for j, x in enumerate(idx)}
-    for name in [x for x in names if x == lead or "seed " in x
-                 or "final gather" in x or "fine" in x or "contact" in x]:
+    for name in [x for x in names if x != "uniform 64×64 ground"]:
         t0 = time.perf_counter()
         checked, worst = recheck(v, f, n, alb, idx, bk[name], ref,
                                  {k: contact[k][3] for k in (1, 2)},

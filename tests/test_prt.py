@@ -10,7 +10,7 @@ import trimesh
 
 from shprobe.errors import ShprobeError
 from shprobe.prt import bake, ground_plane, load_transfer, relight, sample_directions
-from shprobe.prt.bake import OFFSET_FRACTION
+from shprobe.prt.directions import OFFSET_FRACTION
 from shprobe.sh import num_coeffs, sh_basis
 
 from .conftest import random_dirs

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import bake, load_transfer
-from shprobe.prt.bake import OFFSET_FRACTION, sample_directions
+from shprobe.prt import load_transfer
+from shprobe.prt.directions import OFFSET_FRACTION, sample_directions
+from shprobe.prt.geometry import BakeScene, mesh_hash
 from shprobe.prt.hemisphere import adaptive_grid, equal_area_hemisphere, trace_adaptive
-from shprobe.prt.scene import Scene, mesh_hash
+from shprobe.prt.trace import DenseVertices, trace_bake
 from shprobe.scene.raycast import RayCaster
 from shprobe.sh import sh_basis
 
@@ -56,7 +57,7 @@ def lambert(poly: np.ndarray) -> float:
     return 0.5 * abs(s)
 
 
-def slab_scene(h: float, x0: float) -> tuple[Scene, np.ndarray]:
+def slab_scene(h: float, x0: float) -> tuple[BakeScene, np.ndarray]:
     """A floor patch around vertex 8 (the origin, normal +z) and a 10 × 10 occluding quad at
     height h facing down, its edge at x = x0 (a slot between it and the floor)."""
     quad = np.array([[x0, -5, h], [5, -5, h], [5, 5, h], [x0, 5, h]], float)
@@ -65,15 +66,14 @@ def slab_scene(h: float, x0: float) -> tuple[Scene, np.ndarray]:
     f = np.array([[0, 1, 8], [1, 2, 8], [2, 3, 8], [3, 0, 8], [4, 6, 5], [4, 7, 6]])
     n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
     n[4:8] = [0.0, 0.0, -1.0]
-    return Scene(v, n, f, np.full((len(v), 3), 0.8), mesh_hash(v, f)), quad
+    return BakeScene(v, n, f, np.full((len(v), 3), 0.8), mesh_hash(v, f)), quad
 
 
-def adaptive_row(sc: Scene, grid: int, levels: int, seed: int = 0, lmax: int = 2):
+def adaptive_row(sc: BakeScene, grid: int, levels: int, seed: int = 0, lmax: int = 2):
     c = RayCaster(sc.vertices, sc.faces)
     rows = np.array([8])
     org = c.local(sc.vertices[rows] + [0.0, 0.0, 1e-7])
-    return trace_adaptive(sc, c, rows, org, lmax, seed, None, map, lambda it, *a: it, grid,
-                          levels)
+    return trace_adaptive(sc, c, rows, org, lmax, seed, None, map, grid, levels)
 
 
 @pytest.mark.parametrize(("h", "x0", "tol"), [(1.0, -5.0, 2e-3), (0.2, -0.3, 2e-4),
@@ -106,13 +106,13 @@ def test_adaptive_higher_bands_against_fibonacci():
 
 
 def test_bake_dense_adaptive_matches_trace(tmp_path):
-    """bake(..., dense_quadrature='adaptive'): the dense vertex's shadowed row is ρ/π times
+    """A dense vertex on the adaptive quadrature: its shadowed row is ρ/π times
     Lambert's closed form; its first bounce is ρ/π (∫_quad cos dω) T_0(quad), as the quad's
     corners all see the same open sky below (the floor patch is ~1e-5 of it); metadata says
     which quadrature ran."""
     sc, quad = slab_scene(0.2, -0.3)
-    t = bake(sc, mode="interreflected", lmax=2, samples=1024, bounces=1, dense=[8],
-             dense_samples=32768, dense_quadrature="adaptive", refine=False)
+    t = trace_bake(sc, "interreflected", lmax=2, samples=1024, bounces=1,
+                   dense=DenseVertices(vertex_mask(sc, 8), 32768, "adaptive"))[0]
     meta = t.metadata["dense_quadrature"]["adaptive"]
     assert meta["grid"] == 128 and meta["levels"] == 3 and meta["rays_per_vertex"] > 128**2
     t.save(tmp_path / "t.npz")
@@ -126,12 +126,14 @@ def test_bake_dense_adaptive_matches_trace(tmp_path):
     first = t.select().astype(np.float64)[8] - t0[8]
     np.testing.assert_allclose(first, 0.8 / np.pi * lambert(seen) * t0[4], rtol=1e-3,
                                atol=1e-3 * abs(first[0]))
-    with pytest.raises(ShprobeError, match="dense_quadrature"):
-        bake(sc, mode="shadowed", dense=[8], dense_samples=64, dense_quadrature="grid",
-             refine=False)
-    with pytest.raises(ShprobeError, match="final gather"):
-        bake(sc, mode="interreflected", dense=[8], dense_samples=64, refine=False,
-             dense_quadrature="adaptive", final_gather=4)
+    with pytest.raises(ShprobeError, match="dense quadrature"):
+        DenseVertices(vertex_mask(sc, 8), 64, "grid")
+
+
+def vertex_mask(sc, *rows):
+    mask = np.zeros(sc.n_vertices, dtype=bool)
+    mask[list(rows)] = True
+    return mask
 
 
 def test_adaptive_bad_levels_and_memory(monkeypatch):
@@ -139,20 +141,19 @@ def test_adaptive_bad_levels_and_memory(monkeypatch):
     before it is allocated."""
     sc, _ = slab_scene(0.2, -0.3)
     for bad in (-1, 9, 2.5):
-        with pytest.raises(ShprobeError, match="adaptive_levels"):
-            bake(sc, mode="shadowed", dense=[8], dense_samples=64, refine=False,
-                 dense_quadrature="adaptive", adaptive_levels=bad)
+        with pytest.raises(ShprobeError, match="adaptive levels"):
+            DenseVertices(vertex_mask(sc, 8), 64, "adaptive", bad)
     monkeypatch.setenv("SHPROBE_MAX_MEMORY", "64M")
     with pytest.raises(ShprobeError, match="would need about"):
-        bake(sc, mode="shadowed", dense=[8], dense_samples=32768, refine=False,
-             dense_quadrature="adaptive", adaptive_levels=8, threads=1)
+        trace_bake(sc, "shadowed", 1, 1024, threads=1,
+                   dense=DenseVertices(vertex_mask(sc, 8), 32768, "adaptive", 8))
 
 
-def test_cli_adaptive_contact(tmp_path, capsys):
-    """`shprobe prt bake --ground --adaptive-contact` = bake(..., refine="adaptive"): the
+def test_cli_accurate_contact(tmp_path, capsys):
+    """`shprobe prt bake --ground --accurate-contact` = bake(..., refine=ACCURATE): the
     refinement's dense vertices get 32 × the samples on the 128² grid, the gather criterion's
     gate 0.1, recorded in the file (the default: 8 × as Fibonacci directions, gate 0.25); with
-    --no-refine, --fine-contact or an unshadowed bake it is refused in one line."""
+    --no-refine or an unshadowed bake it is refused in one line."""
     import trimesh
 
     from shprobe.cli.main import main
@@ -163,7 +164,7 @@ def test_cli_adaptive_contact(tmp_path, capsys):
     box.export(p)
     out = tmp_path / "t.npz"
     assert main(["prt", "bake", str(p), "--ground", "--mode", "shadowed", "--lmax", "1",
-                 "--adaptive-contact", "-o", str(out)]) == 0
+                 "--accurate-contact", "-o", str(out)]) == 0
     meta = load_transfer(out).metadata  # the refined bake's dense vertices: 32 × 1024, G 128
     assert meta["dense_quadrature"]["adaptive"]["grid"] == 128
     assert meta["refine"]["dense_quadrature"] == "adaptive"
@@ -176,10 +177,9 @@ def test_cli_adaptive_contact(tmp_path, capsys):
     assert "dense_quadrature" not in meta and meta["dense_samples"] == 8192
     assert meta["refine"]["dense_quadrature"] == "fibonacci"
     assert meta["refine"]["gather_gate"] == 0.25
-    for extra in (["--ground", "--no-refine"], ["--ground", "--fine-contact"],
-                  ["--ground", "--mode", "unshadowed"]):
+    for extra in (["--ground", "--no-refine"], ["--ground", "--mode", "unshadowed"]):
         capsys.readouterr()
-        assert main(["prt", "bake", str(p), "--adaptive-contact", *extra, "-o",
+        assert main(["prt", "bake", str(p), "--accurate-contact", *extra, "-o",
                      str(tmp_path / "x.npz")]) != 0
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "Traceback" not in err

@@ -19,7 +19,7 @@ from shprobe.prt import bake, load_transfer, relight, sample_directions
 from .test_prt import box_scene, icosphere, uniform_light
 
 FOUR_PI = 4.0 * np.pi
-bake_module = importlib.import_module("shprobe.prt.bake")
+bake_module = importlib.import_module("shprobe.prt.trace")
 
 
 # ----------------------------------------------------------------------------- model switching

@@ -1,7 +1,8 @@
-"""Issue 17: interreflected PRT right where an object touches the ground — adaptive refinement
-(shprobe.prt.refine) checked against an independent gather (bench/prt_gather.py: own ray loop,
-no transfer vectors) under band-limited lighting (lmax 2: PRT at lmax 2 is exact up to noise).
-Full-size figures (bunny): bench/bench_prt_contact.py and docs/benchmarks.md."""
+"""Interreflected PRT right where an object touches the ground: adaptive refinement
+(shprobe.prt.refine and its stages) checked against an independent gather (bench/prt_gather.py:
+own ray loop, no transfer vectors) under band-limited lighting (lmax 2: PRT at lmax 2 is
+exact up to noise).
+Full-size figures (bunny): bench/bench_prt_contact.py and docs/prt.md."""
 
 from __future__ import annotations
 
@@ -11,11 +12,31 @@ import trimesh
 from bench.prt_gather import Gather
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import bake, load_scene, load_transfer, relight
-from shprobe.prt.refine import _edges, bake_refined, split_edges
+from shprobe.prt import ACCURATE, QUICK, BakeScene, bake, load_scene, load_transfer, relight
+from shprobe.prt.refine import bake_refined
+from shprobe.prt.subdivide import edge_table as _edges
+from shprobe.prt.subdivide import split_edges
+from shprobe.prt.trace import DenseVertices, trace_bake
 
 L = np.zeros(9)
 L[0], L[1], L[3], L[6] = 3.0, 1.0, 0.5, 0.3  # positive sky radiance, brighter above
+
+
+def refined(scene, *, preset=QUICK, mode="interreflected", lmax=4, samples=1024, bounces=2,
+            seed=0, threads=None, progress=None, ground=True, ground_resolution=64,
+            albedo=None, **settings):
+    """bake_refined with ``preset`` (changed by ``settings``) on the scene as load_scene
+    builds it (a BakeScene is taken as it is)."""
+    sc = scene if isinstance(scene, BakeScene) else load_scene(
+        scene, albedo=albedo, ground=ground, ground_resolution=ground_resolution)
+    return bake_refined(sc, preset.but(**settings) if settings else preset, mode, lmax,
+                        samples, bounces, seed, threads, progress)
+
+
+def mask_of(n, rows):
+    m = np.zeros(n, dtype=bool)
+    m[rows] = True
+    return m
 
 
 def cumulative(t, idx, bounces):
@@ -28,7 +49,7 @@ def sphere_bakes():
     kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, albedo=0.8)
     uni = bake(load_scene(m, ground=True, ground_resolution=16, albedo=0.8), **{
         k: v for k, v in kw.items() if k != "albedo"})
-    ref = bake_refined(m, ground_resolution=16, **kw)
+    ref = refined(m, ground_resolution=16, **kw)
     return m, uni, ref
 
 
@@ -122,14 +143,14 @@ def test_refined_bake_is_the_default_with_a_ground_and_loads_against_its_mesh(tm
     plain = bake(str(p), mode="shadowed", lmax=1, samples=64, ground=True, refine=False)
     assert "refine" not in plain.metadata and plain.n_vertices == 42 + 65 * 65
     with pytest.raises(ShprobeError, match="traced"):
-        bake_refined(str(p), mode="unshadowed")
-    with pytest.raises(ShprobeError, match="unknown PRT mode"):
-        bake_refined(str(p), mode="glossy")
+        refined(str(p), mode="unshadowed")
+    with pytest.raises(ShprobeError, match="traced"):
+        refined(str(p), mode="glossy")
 
 
 def test_dense_vertices_get_their_own_direction_set():
-    """bake(dense=…, dense_samples=…): the dense vertices' shadowed rows are exactly those of a
-    bake at dense_samples, the others' those of a bake at samples; with dense_samples ==
+    """trace_bake(dense=DenseVertices(…)): the dense vertices' shadowed rows are exactly those
+    of a bake at dense_samples, the others' those of a bake at samples; with dense_samples ==
     samples the interreflected bake is unchanged (the bounce matrix rows are assembled by
     vertex, whatever the groups)."""
     sc = load_scene(trimesh.creation.icosphere(subdivisions=2, radius=0.5), ground=True,
@@ -137,26 +158,26 @@ def test_dense_vertices_get_their_own_direction_set():
     mask = np.zeros(sc.n_vertices, dtype=bool)
     mask[::3] = True
     lo, hi = (bake(sc, mode="shadowed", lmax=2, samples=s) for s in (64, 256))
-    mixed = bake(sc, mode="shadowed", lmax=2, samples=64, dense=mask, dense_samples=256)
+    mixed = trace_bake(sc, "shadowed", 2, 64, dense=DenseVertices(mask, 256))[0]
     np.testing.assert_array_equal(mixed.traced[0][mask], hi.traced[0][mask])
     np.testing.assert_array_equal(mixed.traced[0][~mask], lo.traced[0][~mask])
     assert mixed.metadata["dense_vertices"] == mask.sum()
     a = bake(sc, mode="interreflected", lmax=2, samples=64, bounces=2)
-    b = bake(sc, mode="interreflected", lmax=2, samples=64, bounces=2,
-             dense=np.flatnonzero(mask), dense_samples=64)
+    b = trace_bake(sc, "interreflected", 2, 64, 2, dense=DenseVertices(mask, 64))[0]
     np.testing.assert_allclose(b.traced, a.traced, rtol=1e-6, atol=1e-7)
     with pytest.raises(ShprobeError, match="dense"):
-        bake(sc, mode="shadowed", samples=64, dense=[sc.n_vertices])
+        trace_bake(sc, "shadowed", 2, 64, dense=DenseVertices(mask[1:], 64))
 
 
 def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
-    """bake(direction_sets=N): each vertex traces one of N rotated copies of the direction set
-    (issue 17 run 5). On an open plane (every vertex the same normal, nothing in the way) one
+    """trace_bake(sets=N): each vertex traces one of N rotated copies of the direction set.
+    On an open plane (every vertex the same normal, nothing in the way) one
     shared set gives every vertex the same quadrature error; with 64 sets the vertices' rows
     differ, each equals a brute-force projection over its own rotated directions (y evaluated at
     the turned directions, not the bake's Wigner turn), and their mean is closer to the exact
     (unshadowed, analytic) transfer than the shared error."""
-    from shprobe.prt.bake import rotated_direction_sets, sample_directions, unshadowed_transfer
+    from shprobe.prt import load_scene, unshadowed_transfer
+    from shprobe.prt.directions import rotated_direction_sets, sample_directions
     from shprobe.sh import sh_basis
 
     g = np.linspace(-1.0, 1.0, 12)
@@ -166,7 +187,7 @@ def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
     f = np.concatenate([np.stack([q[:-1, :-1], q[:-1, 1:], q[1:, :-1]], -1).reshape(-1, 3),
                         np.stack([q[1:, :-1], q[:-1, 1:], q[1:, 1:]], -1).reshape(-1, 3)])
     plane = trimesh.Trimesh(v, f, process=False)
-    one, many = (bake(plane, mode="shadowed", lmax=2, samples=64, albedo=1.0, direction_sets=s)
+    one, many = (trace_bake(load_scene(plane, albedo=1.0), "shadowed", 2, 64, sets=s)[0]
                  for s in (1, 64))
     exact = unshadowed_transfer(one.normals, 2) / np.pi  # ρ/π ∫ max(0, n·ω) y dω, ρ = 1
     t1, tn = (np.asarray(t.traced[0], dtype=np.float64) for t in (one, many))
@@ -185,10 +206,9 @@ def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
     assert np.linalg.norm(tn.mean(0) - exact[0]) < 0.3 * shared
 
 
-def test_jumps_judged_on_the_edges_own_level_above_the_floor():
-    """transfer_jumps(floor=1): ‖ΔT‖ / s (s the 90th percentile of ‖T‖); with floor < 1 a dim
-    edge is judged on its brighter end's ‖T‖, never below floor·s, a bright one still on s."""
-    from shprobe.prt.refine import transfer_jumps
+def test_jumps_judged_on_the_scenes_level():
+    """transfer_jumps: ‖ΔT‖ / s per edge, s the 90th percentile of ‖T‖ over the vertices."""
+    from shprobe.prt.criteria import transfer_jumps
     from shprobe.prt.transfer import Transfer
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
@@ -198,23 +218,16 @@ def test_jumps_judged_on_the_edges_own_level_above_the_floor():
                  val[None, :, None].astype(np.float32), (0,))
     s = np.percentile(val, 90)
     edges, j1 = transfer_jumps(t)
-    _, j2 = transfer_jumps(t, floor=0.01)
-    _, j3 = transfer_jumps(t, floor=0.5)
     d = np.abs(val[edges[:, 0]] - val[edges[:, 1]])
-    dim = (edges == [0, 1]).all(1)
     np.testing.assert_allclose(j1, d / s, rtol=1e-6)
-    np.testing.assert_allclose(j2[dim], 0.02 / 0.03, rtol=1e-5)  # its own level
-    np.testing.assert_allclose(j3[dim], 0.02 / (0.5 * s), rtol=1e-5)  # the floor
-    np.testing.assert_allclose(j2[~dim], d[~dim] / np.clip(
-        np.maximum(val[edges[~dim, 0]], val[edges[~dim, 1]]), 0.01 * s, s), rtol=1e-5)
 
 
 def test_early_stop_still_bakes_the_crevice_dense():
     """Refinement that stops before max_rounds with driver bakes at the full samples (samples
     ≤ 64) still gives the deep vertices their dense_factor × samples bake."""
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    t = bake_refined(m, mode="shadowed", lmax=1, samples=64, ground_resolution=8,
-                     dense_depth=0, dense_factor=2, max_rounds=50, tol=0.5)
+    t = refined(m, mode="shadowed", lmax=1, samples=64, ground_resolution=8,
+                dense_factor=2, max_rounds=50, tol=0.5)
     r = t.metadata["refine"]
     assert len(r["rounds"]) < 51 and any(x["split"] == 0 for x in r["rounds"])  # stopped early
     assert r["dense_vertices"] > 0
@@ -237,12 +250,13 @@ def _plate_scene(h):
     the ground's centre vertex sees almost nothing but the plate's underside, whose bounce
     light is bright at its rim (it sees the lit ground around the plate's shadow) and dark at
     its centre — a variation its 2×2 cells cannot interpolate."""
-    from shprobe.prt.scene import Scene, mesh_hash
+    from shprobe.prt.geometry import mesh_hash
 
     vg, ng, fg = _grid(9, 2.0, 0.0, True)
     vp, np_, fp = _grid(3, 0.5, h, False)
     v, f = np.concatenate([vg, vp]), np.concatenate([fg, fp + len(vg)]).astype(np.int64)
-    return Scene(v, np.concatenate([ng, np_]), f, np.full((len(v), 3), 0.8), mesh_hash(v, f))
+    return BakeScene(v, np.concatenate([ng, np_]), f, np.full((len(v), 3), 0.8),
+                     mesh_hash(v, f))
 
 
 def test_gather_matrix_row_is_the_form_factor_of_what_the_vertex_sees():
@@ -251,13 +265,11 @@ def test_gather_matrix_row_is_the_form_factor_of_what_the_vertex_sees():
     differential area under a parallel rectangle, four corner rectangles); the importance of a
     vertex is the largest share of a gatherer's ‖T‖ that passes through it (brute force from the
     dense matrix), large on the plate and negligible on the far ground."""
-    from shprobe.prt.bake import _bake
-    from shprobe.prt.refine import gather_importance
+    from shprobe.prt.criteria import gather_importance
 
     h, a = 0.05, 0.5
     sc = _plate_scene(h)
-    t, blocks = _bake(sc, "interreflected", 2, 4096, 2, None, 0, False, 1, None, None, None,
-                      None, None, keep_gather=True)
+    t, blocks = trace_bake(sc, "interreflected", 2, 4096, 2, 0, 1, keep_gather=True)
     c = int(np.argmin(np.linalg.norm(sc.vertices, axis=1)))
     x = a / h
     q = x / np.sqrt(1 + x * x)
@@ -280,14 +292,13 @@ def test_gather_matrix_row_is_the_form_factor_of_what_the_vertex_sees():
 def test_gather_criterion_splits_the_surface_a_close_vertex_gathers_from():
     """With the edge-jump criterion off (tol 1e9), the plate's 2×2 cells stay as they are and
     the centre vertex's second bounce, gathered from the interpolated rim light, is ~2× too
-    bright against the independent gather; the gather criterion (module doc, step 2b) splits
+    bright against the independent gather; the gather criterion (criteria module) splits
     the plate where the centre leans on it and the error falls to a few per cent."""
     h = 0.05
     sc = _plate_scene(h)
-    kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, ground=False, tol=1e9,
-              dense_factor=1)
-    off = bake_refined(sc, gather_tol=None, **kw)
-    on = bake_refined(sc, **kw)
+    kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, tol=1e9, dense_factor=1)
+    off = refined(sc, gather_tol=1e9, **kw)
+    on = refined(sc, **kw)
     assert (off.vertices[:, 1] == h).sum() == 9
     assert (on.vertices[:, 1] == h).sum() > 100  # the plate is refined
     c = int(np.argmin(np.linalg.norm(sc.vertices, axis=1)))
@@ -339,186 +350,14 @@ def test_new_vertices_take_the_input_surfaces_interpolated_normal(sphere_bakes):
     assert ang.max() < 1e-6, np.degrees(ang.max())
 
 
-def test_final_gather_reads_the_previous_layer_at_the_hit_point_not_interpolated():
-    """bake(final_gather=M) (issue 17 run 6): a plate's centre vertex 0.2 above a ground, facing
-    it, gathers the ground's shadowed transfer, which falls steeply into the plate's shadow
-    across the ground's 0.5-wide cells: interpolated from the cells' corners its first bounce is
-    ~+58 % against the independent gather, evaluated at each hit point by 16 fresh
-    cosine-weighted rays it is within the noise. Only the chosen vertex's bounce changes (the
-    shadowed layer and every other vertex are the plain bake's, bit for bit), a seed gives the
-    same bake, and a vertex's result does not depend on which other vertices are gathered with
-    it (its own generator)."""
-    sc = _plate_scene(0.2)
-    plate = np.flatnonzero(sc.vertices[:, 1] == 0.2)
-    c = int(plate[np.argmin(np.linalg.norm(sc.vertices[plate][:, [0, 2]], axis=1))])
-    mask = np.zeros(sc.n_vertices, dtype=bool)
-    mask[c] = True
-    kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=1, refine=False)
-    plain = bake(sc, **kw)
-    fg = bake(sc, **kw, dense=mask, dense_samples=1024, final_gather=16)
-    again = bake(sc, **kw, dense=mask, dense_samples=1024, final_gather=16)
-    np.testing.assert_array_equal(fg.traced, again.traced)
-    np.testing.assert_array_equal(fg.traced[0], plain.traced[0])
-    np.testing.assert_array_equal(fg.traced[1][~mask], plain.traced[1][~mask])
-    many = mask.copy()
-    many[::5] = True
-    more = bake(sc, **kw, dense=many, dense_samples=1024, final_gather=16)
-    np.testing.assert_array_equal(more.traced[1][c], fg.traced[1][c])
-    assert fg.metadata["final_gather"] == {"rays": 16, "inner": 0, "near": None, "vertices": 1}
-    g = Gather(sc.vertices, sc.faces, sc.normals, sc.albedo, L, seed=5)
-    i = np.array([c])
-    ref = g.radiance(sc.vertices[i], sc.normals[i], sc.albedo[i, 0], 1, (1024, 256))[0]
-
-    def first(t):
-        return cumulative(t, c, 1) - cumulative(t, c, 0)
-
-    e_plain, e_fg = first(plain) / ref - 1, first(fg) / ref - 1
-    print(f"\nfirst bounce at the plate's centre: interpolated {100 * e_plain:+.1f} %, final "
-          f"gather {100 * e_fg:+.1f} %")
-    assert e_plain > 0.3
-    assert abs(e_fg) < 0.05
-
-
-def test_final_gather_near_gathers_only_close_hits_afresh():
-    """final_gather_near=r: only the hits closer than r × their triangle's longest edge are
-    final-gathered, the rest read the stored layers interpolated as the bake does. r = 0
-    reproduces the plain bake at the vertex (the interpolating path is the bake's own gather,
-    to rounding); r = 1 at the plate's centre (0.2 above 0.5-wide ground cells) gathers its
-    shadow afresh and reads the far ground interpolated: within the noise of the independent
-    gather, and not the all-hits estimate."""
-    sc = _plate_scene(0.2)
-    plate = np.flatnonzero(sc.vertices[:, 1] == 0.2)
-    c = int(plate[np.argmin(np.linalg.norm(sc.vertices[plate][:, [0, 2]], axis=1))])
-    mask = np.zeros(sc.n_vertices, dtype=bool)
-    mask[c] = True
-    kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, refine=False,
-              dense=mask, dense_samples=1024)
-    plain = bake(sc, **kw)
-    zero = bake(sc, **kw, final_gather=16, final_gather_near=0.0)
-    one = bake(sc, **kw, final_gather=16, final_gather_near=1.0)
-    every = bake(sc, **kw, final_gather=16)
-    # traced is stored in float32: equal to its rounding
-    np.testing.assert_allclose(zero.traced[:, c], plain.traced[:, c], rtol=1e-6, atol=1e-9)
-    # other vertices: the same up to their first bounce (their second reads c's first)
-    np.testing.assert_array_equal(one.traced[:2, ~mask], plain.traced[:2, ~mask])
-    g = Gather(sc.vertices, sc.faces, sc.normals, sc.albedo, L, seed=5)
-    i = np.array([c])
-    ref = g.radiance(sc.vertices[i], sc.normals[i], sc.albedo[i, 0], 1, (1024, 256))[0]
-
-    def first(t):
-        return cumulative(t, c, 1) - cumulative(t, c, 0)
-
-    e = {k: first(t) / ref - 1 for k, t in (("plain", plain), ("near 1", one),
-                                             ("every hit", every))}
-    print("\nfirst bounce at the plate's centre: " + ", ".join(
-        f"{k} {100 * x:+.1f} %" for k, x in e.items()))
-    assert e["plain"] > 0.3
-    assert abs(e["near 1"]) < 0.05
-    assert abs(first(one) - first(every)) > 1e-6 * abs(ref)
-    assert one.metadata["final_gather"]["near"] == 1.0
-    with pytest.raises(ShprobeError, match="final_gather_near"):
-        bake(sc, **kw, final_gather=16, final_gather_near=-1)
-
-
-def test_cosine_directions_are_cosine_distributed_about_each_normal():
-    """E[cos θ] = 2/3 and E[cos² θ] = 1/2 under the pdf cos θ/π; every direction in its normal's
-    hemisphere; azimuths uniform (the mean direction is (2/3) n)."""
-    from shprobe.prt.final_gather import cosine_directions
-
-    rng = np.random.default_rng(0)
-    n = rng.normal(size=(3, 3))
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    for m in (16, 15):  # stratified and not
-        d = cosine_directions(np.repeat(n, 4000, axis=0), rng.random((12000, m, 2)))
-        d = d.reshape(3, -1, 3)
-        c = np.einsum("pij,pj->pi", d, n)
-        np.testing.assert_allclose(np.linalg.norm(d, axis=2), 1.0, rtol=1e-12)
-        assert c.min() >= 0.0
-        np.testing.assert_allclose(c.mean(1), 2 / 3, atol=0.003)
-        np.testing.assert_allclose((c * c).mean(1), 1 / 2, atol=0.003)
-        np.testing.assert_allclose(d.mean(1), 2 / 3 * n, atol=0.006)
-
-
-def test_final_gather_inner_level_reads_no_stored_value_in_the_second_bounce():
-    """bake(final_gather=M, final_gather_inner=M'): the ground's centre vertex 0.2 below the
-    plate gathers, in its second bounce, the plate's underside's first bounce, which gathers
-    the ground's shadowed transfer around the plate's shadow, where the ground's 0.5-wide cells
-    cannot follow it: interpolated at the bake's hits the second bounce is ~+60 % against the
-    independent gather, with one fresh level (the underside's first bounce gathered afresh, the
-    ground read interpolated at its hits) still ~+50 %, with the inner level (the ground's
-    shadowed transfer evaluated where those rays land) within the noise."""
-    sc = _plate_scene(0.2)
-    c = int(np.argmin(np.linalg.norm(sc.vertices, axis=1)))
-    mask = np.zeros(sc.n_vertices, dtype=bool)
-    mask[c] = True
-    kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, refine=False)
-    plain = bake(sc, **kw)
-    one = bake(sc, **kw, dense=mask, dense_samples=1024, final_gather=16)
-    two = bake(sc, **kw, dense=mask, dense_samples=1024, final_gather=16, final_gather_inner=16)
-    assert two.metadata["final_gather"]["inner"] == 16
-    np.testing.assert_array_equal(two.traced[1], one.traced[1])  # the first bounce: one level
-    g = Gather(sc.vertices, sc.faces, sc.normals, sc.albedo, L, seed=5)
-    i = np.array([c])
-    ref = g.radiance(sc.vertices[i], sc.normals[i], sc.albedo[i, 0], 2, (512, 32, 32))[0]
-
-    def second(t):
-        return cumulative(t, c, 2) - cumulative(t, c, 1)
-
-    e = {name: second(t) / ref - 1 for name, t in (("plain", plain), ("one", one), ("two", two))}
-    print("\nsecond bounce at the ground's centre: " + ", ".join(
-        f"{k} {100 * x:+.1f} %" for k, x in e.items()))
-    assert e["plain"] > 0.3 and e["one"] > 0.3
-    assert abs(e["two"]) < 0.05
-
-
-def test_fine_contact_preset_refines_further_and_records_its_settings(tmp_path, capsys):
-    """bake(refine="fine") = bake_refined(**FINE_CONTACT) (issue 17 run 8): edges down to 1e-4
-    of the diagonal, the noise gate at 0.05, the dense directions at the new vertices too —
-    more vertices and more dense ones than the default, the settings in the metadata, the
-    CLI's --fine-contact the same bake; a bad ``refine`` or --no-refine with it is refused."""
-    from shprobe.cli.main import main
-    from shprobe.prt.refine import FINE_CONTACT
-
-    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    p = tmp_path / "s.obj"
-    m.export(p)
-    kw = dict(mode="interreflected", lmax=1, samples=512, bounces=1, ground=True)
-    default = bake(str(p), refine="quick", **kw)
-    fine = bake(str(p), refine="fine", **kw)
-    rd, rf = default.metadata["refine"], fine.metadata["refine"]
-    diag = float(np.linalg.norm(np.ptp(load_scene(str(p), ground=True).vertices, axis=0)))
-    assert rf["min_edge"] == pytest.approx(FINE_CONTACT["min_edge_fraction"] * diag)
-    assert rd["min_edge"] == pytest.approx(2e-4 * diag)
-    assert (rf["gather_gate"], rf["gather_tol"], rf["max_rounds"], rf["dense_new"]) == (
-        0.05, 0.01, 10, True)
-    assert (rd["gather_gate"], rd["gather_tol"], rd["max_rounds"], rd["dense_new"]) == (
-        0.25, 0.03, 8, False)
-    assert fine.n_vertices > default.n_vertices
-    assert rf["dense_vertices"] > rd["dense_vertices"]
-    assert rf["dense_vertices"] > 42  # new vertices among them, not only the input's
-    out = tmp_path / "f.npz"
-    assert main(["prt", "bake", str(p), "--ground", "--mode", "interreflected", "--lmax", "1",
-                 "--samples", "512", "--bounces", "1", "--fine-contact", "-o", str(out)]) == 0
-    t = load_transfer(out)
-    np.testing.assert_array_equal(t.vertices, fine.vertices)
-    np.testing.assert_allclose(t.transfer, fine.transfer, rtol=1e-6, atol=1e-7)
-    with pytest.raises(ShprobeError, match="refine must be"):
-        bake(str(p), refine="coarse", **kw)
-    capsys.readouterr()
-    assert main(["prt", "bake", str(p), "--ground", "--fine-contact", "--no-refine", "-o",
-                 str(tmp_path / "x.npz")]) != 0
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("shprobe: error:") and "--no-refine" in err and "\n" not in err
-
-
 def test_gather_picks_against_explicit_loops():
-    """gather_picks (module doc, step 6) = the criterion written out: round 0 takes every c with
+    """gather_picks = the criterion written out: round 0 takes every c with
     max over the seeds v of ρ_v/π G[v, c] ‖T_0(c)‖ / max(‖T(v)‖, floor · median ‖T‖) above its
     threshold; round 1 the same over the seeds and round 0's picks with c's cumulative
     ‖T(c)‖."""
     from scipy.sparse import csr_matrix
 
-    from shprobe.prt.refine import gather_picks
+    from shprobe.prt.criteria import gather_picks
 
     rng = np.random.default_rng(5)
     nv, k = 40, 4
@@ -554,64 +393,60 @@ def test_picked_vertices_baked_as_if_dense_from_the_start(quadrature):
     """The final bake's picks are traced again as the dense vertices are and only their rows of
     T_0 and of the gather matrix replaced: the result equals a bake that had them dense from
     the start (every other vertex's rays are the same, deterministic ones)."""
-    from shprobe.prt.bake import _bake
-
     sc = load_scene(trimesh.creation.icosphere(subdivisions=1, radius=0.5), ground=True,
                     ground_resolution=8, albedo=0.7)
     seeds = np.zeros(sc.n_vertices, dtype=bool)
     seeds[[0, 5, 44, 60]] = True
     extra = np.array([2, 7, 50, 51, 70])
-    args = (sc, "interreflected", 1, 128, 2, None, 4, False, 1, None, None, None)
+    args = (sc, "interreflected", 1, 128, 2, 4, 1)
     calls = []
 
     def pick(direct, cum, blocks, alb):
         calls.append((direct.shape, cum.shape, sum(len(r) for r, _ in blocks)))
         return np.concatenate([extra, [0]])  # a seed among them is left alone
 
-    t, _ = _bake(*args, seeds, 512, quadrature=quadrature, levels=1, pick=pick)
+    t, _ = trace_bake(*args, dense=DenseVertices(seeds, 512, quadrature, 1), pick=pick)
     both = seeds.copy()
     both[extra] = True
-    ref, _ = _bake(*args, both, 512, quadrature=quadrature, levels=1)
+    ref, _ = trace_bake(*args, dense=DenseVertices(both, 512, quadrature, 1))
     assert calls == [((sc.n_vertices, 4, 1), (sc.n_vertices, 4, 1), sc.n_vertices)]
     assert t.metadata["dense_picked"] == len(extra)
     np.testing.assert_allclose(t.traced, ref.traced, rtol=1e-5, atol=1e-7)
-    plain, _ = _bake(*args, seeds, 512, quadrature=quadrature, levels=1)
+    plain, _ = trace_bake(*args, dense=DenseVertices(seeds, 512, quadrature, 1))
     assert np.abs(plain.traced[0][extra] - t.traced[0][extra]).max() > 1e-4  # retraced
 
 
 def test_adaptive_contact_picks_what_the_contact_leans_on():
-    """bake_refined(**ADAPTIVE_CONTACT) (bake(refine="adaptive")) records its picks (module doc,
-    step 6): some vertices beyond the contact's dense ones, the thresholds in the metadata; the
+    """The ACCURATE refinement (bake(refine="accurate")) records its picks: some vertices
+    beyond the contact's dense ones, the thresholds in the metadata; the
     default refinement picks none, and a bad threshold is refused in one line."""
-    from shprobe.prt.refine import ADAPTIVE_CONTACT
-
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
     kw = dict(mode="interreflected", lmax=1, samples=64, bounces=1, ground_resolution=8,
               max_rounds=1)
-    t = bake_refined(m, **ADAPTIVE_CONTACT, **kw)
+    t = refined(m, preset=ACCURATE, **kw)
     rf = t.metadata["refine"]
-    assert rf["dense_picks"] == list(ADAPTIVE_CONTACT["dense_picks"]) and rf["dense_picked"] > 0
+    assert rf["dense_picks"] == list(ACCURATE.dense_picks) and rf["dense_picked"] > 0
     assert rf["dense_quadrature"] == "adaptive" and rf["dense_factor"] == 32
     assert rf["gather_gate"] == 0.1
     assert rf["post_jump"] == 0.1 and rf["post_split"] > 0 and rf["post_dense"] > 0
-    assert rf["post_dense_factor"] == 8 and rf["post_first_picks"] is False
+    assert rf["post_dense_factor"] == 8 and rf["settings"] == "custom"
     assert t.metadata["direction_sets"] == 256
-    none = bake_refined(m, **kw)
+    none = refined(m, **kw)
     assert none.metadata["refine"]["dense_picked"] == 0
     for bad in ((0.01, -1.0), "x", (np.nan,)):
         with pytest.raises(ShprobeError, match="dense_picks"):
-            bake_refined(m, dense_picks=bad, **kw)
+            refined(m, dense_picks=bad, **kw)
 
 
 def test_post_split_marks_against_explicit_loops():
-    """post_split_marks (module doc, step 7) = the criterion written out: an edge is marked
+    """post_split_marks = the criterion written out: an edge is marked
     when both ends carry more than the share of some gatherer's exit transfer (ρ_v/π G[v, c]
     max(‖T_0(c)‖, ‖T(c)‖) / max(‖T(v)‖, floor · median ‖T‖)) and the shadowed transfer jumps
     across it by more than the tolerance of its brighter end (ends under 2 % of the median:
     no jump)."""
     from scipy.sparse import csr_matrix
 
-    from shprobe.prt.refine import post_split_marks
+    from shprobe.prt.criteria import post_split_marks
 
     rng = np.random.default_rng(8)
     nv, k = 30, 4
@@ -650,27 +485,24 @@ def test_post_split_marks_against_explicit_loops():
 
 
 def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_densely():
-    """With post_jump the final bake's geometry is split once more (module doc, step 7): the
+    """With post_jump the final bake's geometry is split once more (the post-pass): the
     scene before it is kept as its first vertices, the new ones lie on edges between vertices
     the contact leans on, and those between two of them are traced as the picks with
     post_dense=32 (their transfer differs from the same geometry baked with the shared
-    directions), on their own grid by default, or with the samples with post_dense=0; with
+    directions), on their own grid at post_dense=8, or with the samples with post_dense=0; with
     nothing to split the bake is the one without the post-pass; bad settings are refused in
     one line."""
-    from shprobe.prt.bake import _bake
-    from shprobe.prt.refine import ADAPTIVE_CONTACT, POST_DENSE
-
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    # one direction set: the vertices not traced as the picks trace what _bake's do below
+    # one direction set: the vertices not traced as the picks trace what trace_bake's do below
     kw = dict(mode="interreflected", lmax=1, samples=64, bounces=1, ground_resolution=8,
-              max_rounds=1, **{**ADAPTIVE_CONTACT, "direction_sets": 1})
-    assert ADAPTIVE_CONTACT["post_jump"] == 0.1
-    pre = bake_refined(m, **{**kw, "post_jump": None})
+              max_rounds=1, preset=ACCURATE, direction_sets=1)
+    assert ACCURATE.post_jump == 0.1
+    pre = refined(m, **{**kw, "post_jump": None})
     # nothing to split: the bake it screened with (no picks traced) is not what is returned
-    same = bake_refined(m, **{**kw, "post_jump": 1e9})
+    same = refined(m, **{**kw, "post_jump": 1e9})
     assert same.metadata["refine"]["post_split"] == 0
     np.testing.assert_array_equal(same.traced, pre.traced)
-    post = bake_refined(m, **{**kw, "post_dense": 32, "post_first_picks": True})  # run 13's
+    post = refined(m, **{**kw, "post_dense": 32})  # as the picks
     rf = post.metadata["refine"]
     n = pre.n_vertices
     assert post.n_vertices > n and rf["post_split"] > 0 and 0 < rf["post_dense"]
@@ -686,128 +518,63 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_densel
     d, _ = cKDTree(mids).query(post.vertices[n:])
     assert d.max() < 1e-9
     # traced as the picks: not what the shared directions give on the same geometry
-    from shprobe.prt.scene import Scene, mesh_hash
+    from shprobe.prt.geometry import mesh_hash
 
-    sc = Scene(post.vertices, post.normals, post.faces, post.albedo,
-               mesh_hash(post.vertices, post.faces))
-    plain, _ = _bake(sc, "interreflected", 1, 64, 1, None, 0, False, None, None, None, None,
-                     None, None)
+    sc = BakeScene(post.vertices, post.normals, post.faces, post.albedo,
+                   mesh_hash(post.vertices, post.faces))
+    plain, _ = trace_bake(sc, "interreflected", 1, 64, 1)
     diff = np.linalg.norm((plain.traced[0] - post.traced[0])[n:].reshape(
         post.n_vertices - n, -1), axis=1)
     assert (diff > 1e-4).sum() >= rf["post_dense"]
     assert post.metadata["dense_vertices"] == rf["dense_vertices"] + rf["post_dense"]
     # the default: those new vertices on their own grid (8 × samples), the rest keep the
     # samples; post_dense=0: all keep them, and only those picked trace the grid
-    for factor in (POST_DENSE, 0):
-        cheap = bake_refined(m, **{**kw, "post_dense": factor})
+    for factor in (ACCURATE.post_dense, 0):
+        cheap = refined(m, **{**kw, "post_dense": factor})
         rc = cheap.metadata["refine"]
-        assert rc["post_first_picks"] is False and rc["post_split"] > 0
+        assert rc["post_split"] > 0
         assert rc["post_dense_factor"] == factor and (rc["post_dense"] > 0) is (factor > 0)
         assert cheap.metadata["dense_vertices"] == rc["dense_vertices"]
         assert cheap.metadata.get("second_dense") == (
             {"vertices": rc["post_dense"], "samples": factor * 64} if factor else None)
-        sc = Scene(cheap.vertices, cheap.normals, cheap.faces, cheap.albedo,
-                   mesh_hash(cheap.vertices, cheap.faces))
-        plain, _ = _bake(sc, "interreflected", 1, 64, 1, None, 0, False, None, None, None,
-                         None, None, None)
+        sc = BakeScene(cheap.vertices, cheap.normals, cheap.faces, cheap.albedo,
+                       mesh_hash(cheap.vertices, cheap.faces))
+        plain, _ = trace_bake(sc, "interreflected", 1, 64, 1)
         nc = cheap.n_vertices - n
         same = np.abs(plain.traced[0] - cheap.traced[0])[n:].reshape(nc, -1).max(1) < 1e-6
         assert nc - rc["post_dense"] - rc["dense_picked"] <= same.sum() <= nc - rc["post_dense"]
         assert same.sum() > 0
     with pytest.raises(ShprobeError, match="dense_picks"):
-        bake_refined(m, **{**kw, "dense_picks": None})
+        refined(m, **{**kw, "dense_picks": ()})
     with pytest.raises(ShprobeError, match="post_jump"):
-        bake_refined(m, **{**kw, "post_jump": -1.0})
-
-
-def test_bake_takes_the_presets_direction_sets_unless_given(monkeypatch):
-    """bake(refine="adaptive") hands bake_refined the preset's 256 direction sets (issue 17 run
-    13); a ``direction_sets`` given wins, and without a preset it is 1."""
-    import shprobe.prt.refine as refine_mod
-
-    got = []
-    monkeypatch.setattr(refine_mod, "bake_refined", lambda *a, **k: got.append(k))
-    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    kw = dict(mode="interreflected", ground=True)
-    bake(m, refine="adaptive", **kw)
-    bake(m, refine="adaptive", direction_sets=4, **kw)
-    bake(m, refine="adaptive", direction_sets=1, **kw)
-    bake(m, refine="quick", **kw)
-    bake(m, refine="fine", **kw)
-    assert [g["direction_sets"] for g in got] == [256, 4, 1, 1, 1]
-    assert got[0]["post_jump"] == 0.1 and "post_jump" not in got[3]
-
-
-def test_the_default_refinement_is_adaptive_with_bounces(monkeypatch, tmp_path, capsys):
-    """An interreflected bake with bounces and a ground refines with ADAPTIVE_CONTACT by default
-    (and with refine=True), the preset that brings the contact to the noise level (issue 17
-    run 14); a shadowed one, or one with no bounces, with the quick one; the CLI likewise, and
-    --quick-contact / --adaptive-contact / --fine-contact choose, one at a time."""
-    import shprobe.prt.refine as refine_mod
-    from shprobe.cli.main import main
-    from shprobe.prt.bake import default_refinement
-    from shprobe.prt.refine import ADAPTIVE_CONTACT, FINE_CONTACT
-
-    got = []
-
-    def fake(*a, **k):
-        got.append(k)
-        raise ShprobeError("stop here")  # no bake: the arguments are what is checked
-
-    monkeypatch.setattr(refine_mod, "bake_refined", fake)
-    m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    calls = [dict(mode="interreflected", ground=True), dict(mode="interreflected", refine=True),
-             dict(mode="interreflected", ground=True, bounces=0),
-             dict(mode="shadowed", ground=True), dict(mode="shadowed", refine=True)]
-    for c in calls:
-        with pytest.raises(ShprobeError, match="stop here"):
-            bake(m, **c)
-    adaptive = {k: v for k, v in ADAPTIVE_CONTACT.items() if k != "direction_sets"}
-    for g, want in zip(got, [True, True, False, False, False], strict=True):
-        assert ({k: g.get(k) for k in adaptive} == adaptive) is want
-        assert g["direction_sets"] == (256 if want else 1)
-    assert [default_refinement(*a) for a in [("interreflected", 2), ("interreflected", 0),
-                                             ("shadowed", 2)]] == ["adaptive", "quick", "quick"]
-    p = tmp_path / "s.obj"
-    m.export(p)
-    base = ["prt", "bake", str(p), "--ground", "--mode", "interreflected", "-o",
-            str(tmp_path / "t.npz")]
-    for flags, check in [([], ADAPTIVE_CONTACT), (["--adaptive-contact"], ADAPTIVE_CONTACT),
-                         (["--fine-contact"], FINE_CONTACT), (["--quick-contact"], {})]:
-        got.clear()
-        assert main([*base, *flags]) != 0  # the fake's error, in one line
-        assert "stop here" in capsys.readouterr().err
-        assert all(got[0][k] == v for k, v in check.items() if k != "direction_sets")
-        assert ("post_jump" in got[0]) is (check is ADAPTIVE_CONTACT)
-    for flags, words in [(["--quick-contact", "--fine-contact"], "--quick-contact and "
-                          "--fine-contact"), (["--quick-contact", "--no-refine"], "--no-refine")]:
-        got.clear()
-        assert main([*base, *flags]) != 0
-        err = capsys.readouterr().err.strip()
-        assert words in err and "\n" not in err and not got
+        refined(m, **{**kw, "post_jump": -1.0})
 
 
 def test_refined_bake_progress_names_each_bake():
-    """Every progress bar of a refined bake says which bake it belongs to (the rounds, the
-    post-pass's screening bake, the final one), so a minutes-long default bake reads as
-    stages; the bars' own words and totals are passed on unchanged."""
-    from shprobe.prt.refine import ADAPTIVE_CONTACT
+    """Every stage of a refined bake reads "k/N: <bake>: <stage>" (the rounds, the post-pass's
+    screening bake, the final one; N the most bakes the settings allow), every stage is
+    countable and ends at its total, and no two stages have the same label."""
+    from shprobe.progress import Recorder
 
-    seen = []
-
-    def progress(items, description, total=None):
-        seen.append((description, total))
-        return items
-
+    rec = Recorder()
     m = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
-    t = bake_refined(m, mode="interreflected", lmax=1, samples=64, bounces=1,
-                     ground_resolution=8, max_rounds=1, progress=progress, **ADAPTIVE_CONTACT)
+    t = refined(m, preset=ACCURATE, mode="interreflected", lmax=1, samples=64, bounces=1,
+                ground_resolution=8, max_rounds=1, progress=rec)
     rounds = t.metadata["refine"]["rounds"]
-    stages = [d.split(": ")[0] for d, _ in seen]
-    assert all(": " in d for d, _ in seen)
-    want = [f"refinement round 1, {rounds[0]['vertices']:,} vertices",
-            f"screening bake, {rounds[1]['vertices']:,} vertices",
-            f"final bake, {t.n_vertices:,} vertices"]
-    assert list(dict.fromkeys(stages)) == want
-    assert {d.split(": ")[1] for d, _ in seen} >= {"tracing rays", "bounces"}
-    assert all(total is not None and total > 0 for _, total in seen)
+    stages = rec.stages
+    assert len(set(stages)) == len(stages)
+    want = [f"1/3: refinement round 1, {rounds[0]['vertices']:,} vertices",
+            f"2/3: screening bake, {rounds[1]['vertices']:,} vertices",
+            f"3/3: final bake, {t.n_vertices:,} vertices"]
+    assert list(dict.fromkeys(d.rsplit(": ", 1)[0] for d in stages)) == want
+    assert {d.rsplit(": ", 1)[1] for d in stages} >= {
+        "tracing rays", "bounces", "tracing the dense vertices' rays (adaptive)",
+        "tracing the picked vertices' rays (adaptive)"}
+    totals, last = [], {}
+    for kind, a, b in rec.events:
+        if kind == "begin":
+            totals.append(b)
+        elif kind == "update":
+            last[len(totals)] = a
+    assert all(total is not None and total > 0 for total in totals)
+    assert all(last.get(i + 1) == total for i, total in enumerate(totals))

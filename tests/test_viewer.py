@@ -507,10 +507,7 @@ def test_state_validation():
 def test_prt_frame_equals_relight(browser, tmp_path):
     """--transfer: the page's per-vertex radiance equals prt.relight at the page's rotation,
     for the baked model and after switching mode and degree (no re-bake)."""
-    from shprobe.prt.bake import bake
-    from shprobe.prt.relight import relight
-    from shprobe.prt.scene import load_scene
-    from shprobe.prt.transfer import load_transfer
+    from shprobe.prt import bake, load_scene, load_transfer, relight
     from shprobe.scene.render import sphere_mesh
     from shprobe.sh.rotation import from_axis_angle
 

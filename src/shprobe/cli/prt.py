@@ -3,7 +3,6 @@ Lisle & Huang 2007 §4; library: :mod:`shprobe.prt`)."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import click
@@ -21,6 +20,11 @@ from .common import (
     parse_vector,
 )
 from .sources import PRESET_NAMES
+
+#: The most frames of ``prt render --turntable`` (0.1 degree apart).
+MAX_TURNTABLE = 3600
+#: Frames (angles spread over the turn) the automatic exposure of a turntable reads.
+EXPOSURE_FRAMES = 72
 
 
 def _albedo_value(text: str):
@@ -105,67 +109,55 @@ def register(group: click.Group) -> None:
     @click.option("--refine/--no-refine", default=None,
                   help="Subdivide the scene where the transfer varies fast (contacts, "
                        "occluders) and re-bake there; default: on for shadowed and "
-                       "interreflected bakes with --ground, as --adaptive-contact for an "
-                       "interreflected bake with bounces, else as --quick-contact.")
-    @click.option("--quick-contact", is_flag=True,
-                  help="Refine without --adaptive-contact's extra work (implies --refine): "
-                       "about 10x faster on the bunny, but its contact error stays 2.4-4.2x "
-                       "(1 bounce) and 4.4-17x (2 bounces) the open vertices' median.")
-    @click.option("--fine-contact", is_flag=True,
-                  help="Refine harder where objects touch (implies --refine): on the bunny "
-                       "the crevice's 2-bounce error falls from ~0.36 % to ~0.1 %, at 3-4x "
-                       "the vertices and 13-17x the bake time.")
-    @click.option("--adaptive-contact", is_flag=True,
-                  help="Trace the contact, and the vertices its bounces lean on, with an "
-                       "adaptive grid of directions (32x --samples, split where visibility "
-                       "changes), split more finely where the contact gathers, then once "
-                       "more where the final transfer jumps, and give every other vertex "
-                       "its own rotation of the directions (implies --refine; the default "
-                       "for an interreflected bake with bounces): on the bunny the contact "
-                       "error within 3x the open vertices' median with 1 and 2 bounces "
-                       "(--quick-contact: 2.4-4.2x, 4.4-17x), at about 10x its bake time.")
+                       "interreflected bakes with --ground.")
+    @click.option("--accurate-contact", is_flag=True,
+                  help="Refine the contact harder (implies --refine): the contact traced on "
+                       "an adaptive grid of 32x --samples, the vertices its bounces lean on "
+                       "too, a post-pass split and 256 rotated direction sets. On the bunny "
+                       "the contact's worst error falls from 2.4-17x to 1.2-2.8x the open "
+                       "vertices' noise, at about 10x the bake time (docs/prt.md).")
     @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
                   help="Transfer file (.npz).")
     @force_option
     def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, ground_albedo, seed,
-                 threads, refine, quick_contact, fine_contact, adaptive_contact, output,
-                 force):
+                 threads, refine, accurate_contact, output, force):
         """Bake per-vertex transfer vectors for SCENE (one or more OBJ/PLY/glTF meshes).
 
         One bake serves every model up to --mode: a shadowed bake can also be rendered
         unshadowed; an interreflected one also shadowed or with fewer bounces
         (`shprobe prt render --mode ... --bounces ...`)."""
         from ..files import check_output_path
-        from ..prt import bake
-        from .common import progress
+        from ..prt import ACCURATE, QUICK, bake, estimate_bake, load_scene
+        from .output import detail, progress, verbosity, wrote
 
         check_output_path(output, force)
-        if fine_contact and adaptive_contact:
-            raise ShprobeError("--adaptive-contact with --fine-contact would trace ~40k rays "
-                               "at each of the fine refinement's ~10^5 dense vertices (hours "
-                               "on the bunny); use one of them")
-        presets = {"quick": quick_contact, "fine": fine_contact, "adaptive": adaptive_contact}
-        chosen = [name for name, on in presets.items() if on]
-        if len(chosen) > 1:
-            raise ShprobeError(f"--{chosen[0]}-contact and --{chosen[1]}-contact choose "
-                               "different refinements; use one of them")
-        for name in chosen:
-            if refine is False:
-                raise ShprobeError(f"--{name}-contact refines; it cannot go with --no-refine")
-            refine = name
-        kw = albedo_arguments(albedo, len(scene))
-        t0 = time.perf_counter()
-        t = bake(list(scene), mode=mode, lmax=lmax, samples=samples, bounces=bounces,
-                 seed=seed, ground=ground, threads=threads, progress=progress, refine=refine,
-                 ground_albedo=None if ground_albedo is None else _albedo_value(ground_albedo),
-                 **kw)
+        if accurate_contact and refine is False:
+            raise ShprobeError("--accurate-contact refines; it cannot go with --no-refine")
+        sc = load_scene(list(scene), ground=ground,
+                        ground_albedo=None if ground_albedo is None
+                        else _albedo_value(ground_albedo),
+                        **albedo_arguments(albedo, len(scene)))
+        traced = mode != "unshadowed"
+        settings = (ACCURATE if accurate_contact else QUICK if refine or (
+            refine is None and traced and ground) else None)
+        if settings is not None and not traced:
+            raise ShprobeError("--refine needs a traced bake (--mode shadowed or interreflected)")
+        est = estimate_bake(sc, mode, lmax, samples if traced else 16, bounces, settings,
+                            threads)
+        if est.seconds > 30 and not verbosity().quiet:
+            click.echo(f"{mode} bake of {sc.n_vertices:,} vertices at lmax {lmax}: {est} on "
+                       "this machine", err=True)
+        t = bake(sc, mode=mode, lmax=lmax, samples=samples, bounces=bounces, seed=seed,
+                 threads=threads, progress=progress(),
+                 refine=settings if settings is not None else False)
         t.save(output, overwrite=force)
+        for r in t.metadata.get("refine", {}).get("rounds", []):
+            detail(f"bake of {r['vertices']:,} vertices: {r['seconds']:.1f} s, {r['split']:,} "
+                   "edges split after it")
         models = ", ".join(t.modes) + (f" (<= {bounces} bounces)" if mode == "interreflected"
                                        else "")
-        click.echo(err=True, message=
-            f"{mode} bake, lmax {lmax}, {t.n_vertices} vertices"
-            + (f", {samples} samples" if mode != "unshadowed" else "")
-            + f" in {time.perf_counter() - t0:.2f} s -> {output}; models: {models}")
+        wrote(output, f"{mode} transfer, lmax {lmax}, {t.n_vertices:,} vertices"
+              + (f", {samples} samples" if traced else "") + f"; models: {models}")
 
     @prt.command("render")
     @click.argument("transfer", type=click.Path(dir_okay=False))
@@ -232,10 +224,14 @@ def register(group: click.Group) -> None:
             _finite([value], name, str(value))
         rot = None if rotate is None else parse_rotation(rotate)
         coeffs = lighting(probe, preset, cone, use, coeffs_file, layout, clamp)
+        from ..progress import track
         from ..prt.view import turntable as turntable_frames
         from ..scene.camera import Camera
-        from .common import progress
+        from .output import progress, wrote
 
+        if turntable is not None and not 1 <= turntable <= MAX_TURNTABLE:
+            raise ShprobeError(f"--turntable needs 1 to {MAX_TURNTABLE} frames (0.1 degree "
+                               f"apart), got {turntable}")
         w, h = parse_size(size)
         cam = Camera(width=w, height=h, azimuth=azimuth, elevation=elevation)
         model = {"mode": mode, "bounces": bounces}
@@ -244,19 +240,24 @@ def register(group: click.Group) -> None:
                 stops = auto_exposure(frame_radiance(t, coeffs, rot, lmax=lmax, **model))
             render_frame(t, coeffs, rot, lmax=lmax, camera=cam, **model).save(output, stops,
                                                                               force)
-            click.echo(err=True, message=f"wrote {output}")
+            wrote(output, "PRT frame")
             return
-        if turntable < 1:
-            raise ShprobeError(f"--turntable needs N >= 1, got {turntable}")
         out = Path(output)
-        names = [out.with_name(f"{out.stem}_{i:03d}{out.suffix}") for i in range(turntable)]
-        for p in names:
-            check_image_output(p, force)
+
+        def name(i: int) -> Path:
+            return out.with_name(f"{out.stem}_{i:03d}{out.suffix}")
+
+        for i in range(turntable):
+            check_image_output(name(i), force)
         if stops is None:  # one exposure for all frames: the light turning must show
+            # (from at most EXPOSURE_FRAMES angles spread over the turn: memory stays bounded)
+            picked = sorted({i * turntable // EXPOSURE_FRAMES for i in range(EXPOSURE_FRAMES)}
+                            if turntable > EXPOSURE_FRAMES else range(turntable))
             stops = auto_exposure([frame_radiance(
                 t, coeffs, rot, from_axis_angle([0.0, 1.0, 0.0], 360.0 * i / turntable), lmax,
-                **model) for i in range(turntable)])
+                **model) for i in picked])
         frames = turntable_frames(t, coeffs, turntable, rot, lmax=lmax, camera=cam, **model)
-        for p, frame in progress(zip(names, frames, strict=True), "turntable", len(names)):
-            frame.save(p, stops, force)
-        click.echo(err=True, message=f"wrote {len(names)} frames {names[0]} … {names[-1]}")
+        for i, frame in enumerate(track(frames, progress(), "1/1: turntable frames",
+                                        turntable)):
+            frame.save(name(i), stops, force)  # one frame at a time: nothing accumulates
+        wrote([name(0), name(turntable - 1)], f"{turntable} turntable frames")

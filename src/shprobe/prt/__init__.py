@@ -1,24 +1,45 @@
 """Precomputed radiance transfer (Lisle & Huang 2007 §4): unshadowed, shadowed and
 interreflected diffuse transfer, baked per vertex and relit at run time with any SH lighting.
 
-Modules: :mod:`.scene` (meshes, ground plane, albedo, hash), :mod:`.bake` (transfer vectors by
-Embree ray casting), :mod:`.transfer` (the :class:`Transfer` result, .npz I/O, radiance scale),
-:mod:`.relight` (rotation of the lighting and the per-vertex dot product). One bake serves every
-model up to the one baked; the model, degree and lighting are picked at run time.
+Modules, in the order a bake runs them:
+
+- :mod:`.geometry`: the flattened scene a bake works on (meshes, ground plane, albedo, hash);
+- :mod:`.directions`: the seeded direction sets and the ray origins;
+- :mod:`.hemisphere`: the adaptive hemisphere quadrature of the contact's vertices;
+- :mod:`.trace`: one traced bake (visibility, the bounce gather, the bounces);
+- :mod:`.criteria`: where a baked transfer needs more vertices or directions;
+- :mod:`.subdivide`: splitting marked edges, conforming;
+- :mod:`.settings`: :class:`Refinement` and its named instances, QUICK (default) and ACCURATE;
+- :mod:`.refine`: the refined bake, a driver of named stages over the three above;
+- :mod:`.baking`: the public :func:`bake` and its time/memory estimate;
+- :mod:`.transfer`: the :class:`Transfer` result, .npz I/O, radiance scale;
+- :mod:`.relighting`: rotation of the lighting and the per-vertex dot product;
+- :mod:`.view`: pictures and turntables of relit transfer.
+
+One bake serves every model up to the one baked; the model, degree and lighting are picked at
+run time.
 """
 
 from __future__ import annotations
 
-from .bake import bake, sample_directions
-from .relight import relight, scene_lighting
-from .scene import Scene, ground_plane, load_scene, mesh_hash
+from .baking import BakeEstimate, bake, estimate_bake
+from .directions import sample_directions
+from .geometry import BakeScene, ground_plane, load_scene, mesh_hash
+from .relighting import relight, scene_lighting
+from .settings import ACCURATE, QUICK, REFINEMENTS, Refinement
 from .transfer import MODES, Transfer, load_transfer, unshadowed_transfer
 
 __all__ = [
+    "ACCURATE",
     "MODES",
-    "Scene",
+    "QUICK",
+    "REFINEMENTS",
+    "BakeEstimate",
+    "BakeScene",
+    "Refinement",
     "Transfer",
     "bake",
+    "estimate_bake",
     "ground_plane",
     "load_scene",
     "load_transfer",

@@ -1,9 +1,9 @@
-"""Adaptive hemisphere quadrature at chosen vertices of a PRT bake (issue 17, run 10).
+"""Adaptive hemisphere quadrature at chosen vertices of a PRT bake.
 
 A vertex lit through a slot — the ground under an object's belly — sees the sky in a thin band,
 and the error of a fixed direction set there is the error at the band's edges: v4612 under the
-bunny needs about half a million Fibonacci directions for 0.1 % (docs/benchmarks.md, issue 17
-run 9). Here the directions are the cells of a quadtree on the unit square, mapped to the
+bunny needs about half a million Fibonacci directions for 0.1 % (docs/prt.md, "why these
+defaults"). Here the directions are the cells of a quadtree on the unit square, mapped to the
 hemisphere about the vertex's normal by an equal-area map (:func:`equal_area_hemisphere`:
 every cell of level l holds 2π / (G·2^l)² sr), and rays are spent where visibility changes:
 
@@ -15,7 +15,7 @@ every cell of level l holds 2π / (G·2^l)² sr), and rays are spent where visib
    cell's weight is its finest cells' solid angle times its own cos θ (the midpoint rule).
 
 The transfer's rows are then the bake's sums (LH §4) over these weighted directions:
-T_0 = Σ_escaping w y(ω) and the gather matrix Σ_front-hits w β (:mod:`shprobe.prt.bake`).
+T_0 = Σ_escaping w y(ω) and the gather matrix Σ_front-hits w β (:mod:`shprobe.prt.trace`).
 Cell centres, not jittered points: the midpoint rule over the smooth rest (cos θ y(ω) on a cell)
 is exact to O(1/G²), where a jittered point adds noise of O(1/G). A feature thinner than a
 level-0 cell that no centre hits is missed (a sky sliver below the grid's resolution): G sets
@@ -30,10 +30,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..progress import Progress, track
 from ..scene.raycast import RayCaster
 from ..sh import num_coeffs, sh_basis
 from ..sh.rotation import frame_from_normal
-from .scene import Scene
+from .directions import RAYS_PER_CHUNK
+from .geometry import BakeScene
 from .transfer import vertex_hash
 
 __all__ = ["ADAPTIVE_LEVELS", "adaptive_grid", "equal_area_hemisphere", "trace_adaptive"]
@@ -91,17 +93,17 @@ def _turned_frames(normals: NDArray[np.float64], rows: NDArray[np.int64], seed: 
     return np.stack([c * t + s * b, c * b - s * t, f[:, :, 2]], axis=-1)
 
 
-def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
+def trace_adaptive(sc: BakeScene, caster: RayCaster, rows: NDArray[np.int64],
                    origins: NDArray[np.float32], lmax: int, seed: int,
-                   fnormals: NDArray[np.float32] | None,
-                   pmap: Callable[..., Iterable[Any]], wrap: Any, grid: int,
-                   levels: int = ADAPTIVE_LEVELS, rays_per_chunk: int = 1 << 17
+                   fnormals: NDArray[np.float32] | None, pmap: Callable[..., Iterable[Any]],
+                   grid: int, levels: int = ADAPTIVE_LEVELS, progress: Progress | None = None,
+                   description: str = "tracing rays (adaptive)"
                    ) -> tuple[NDArray[np.float64], list[tuple[NDArray[np.int64], Any]], int]:
     """The unscaled shadowed rows Σ_escaping w y(ω) (len(rows), K) of the vertices ``rows`` by
     the adaptive quadrature of the module doc (``grid`` G cells per side, ``levels`` of
     refinement), their gather matrix's CSR blocks (vertex indices, (n, V) rows of Σ w β over
-    front-face hits; [] without ``gather``) as :func:`shprobe.prt.bake._trace` returns them, and
-    the number of rays traced. ``origins``: the rows' ray origins (float32, the caster's
+    front-face hits; [] without ``gather``) as :func:`shprobe.prt.trace.trace_rows` returns them,
+    and the number of rays traced. ``origins``: the rows' ray origins (float32, the caster's
     frame); ``fnormals``: the scene's face normals (float32) when the gather is wanted, else
     None."""
     gather = fnormals is not None
@@ -110,7 +112,7 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
     n_all = len(rows)
     frames = _turned_frames(sc.normals[rows].astype(np.float64), rows, seed)
     finest = (grid * 2 ** max(0, int(levels) - 1)) ** 2  # cells of the deepest grids kept
-    step = max(1, min(rays_per_chunk // (grid * grid), (1 << 24) // finest))
+    step = max(1, min(RAYS_PER_CHUNK // (grid * grid), (1 << 24) // finest))
     spans = [(i, min(i + step, n_all)) for i in range(0, n_all, step)]
     c0, c1 = np.meshgrid(np.arange(grid), np.arange(grid), indexing="ij")
     loc0 = equal_area_hemisphere((c0.ravel() + 0.5) / grid, (c1.ravel() + 0.5) / grid)
@@ -188,7 +190,7 @@ def trace_adaptive(sc: Scene, caster: RayCaster, rows: NDArray[np.int64],
     t0 = np.empty((n_all, num_coeffs(lmax)), dtype=np.float64)
     blocks = []
     total = 0
-    for (i0, i1), (proj, g, c) in zip(spans, wrap(pmap(work, spans), "tracing rays (adaptive)",
+    for (i0, i1), (proj, g, c) in zip(spans, track(pmap(work, spans), progress, description,
                                                    len(spans)), strict=True):
         t0[i0:i1] = proj
         total += c

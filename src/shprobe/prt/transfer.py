@@ -9,7 +9,7 @@ Radiance scale (one convention everywhere in ``shprobe.prt``): for lighting coef
 so for the unshadowed model it is ρ/π times the irradiance E(n_v) = Σ Â_l L_lm y_lm(n_v)
 (R&H eq. 7; LH eq. 9 with π H_l = Â_l).
 
-Run-time model switching (LH §4; the issue's "model switchable at run time"): one bake serves
+Run-time model switching (LH §4): one bake serves
 every model up to what it traced. The unshadowed transfer is analytic in the stored normals and
 albedo (LH eq. 9) and is never stored; a ray-traced bake stores the shadowed transfer (bounce 0)
 and, for an interreflected bake, the cumulative transfer after each bounce, so
@@ -30,10 +30,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..files import load_npz, save_npz
+from ..files import load_npz, npz_headers, save_npz
 from ..sh import check_lmax, degrees, lmax_of, num_coeffs, sh_basis
 from ..sh.zonal import clamped_cosine_factors
-from .scene import Scene, load_scene, mesh_hash
+from .geometry import BakeScene, load_scene, mesh_hash
 
 FORMAT = "shprobe-prt"
 #: 1: one ``transfer`` array of the baked model; 2: ``traced`` layers + ``bounce_counts``.
@@ -191,9 +191,9 @@ class Transfer:
         return replace(self, lmax=lmax, traced=self.traced[:, :, : num_coeffs(lmax)],
                        metadata={**self.metadata, "lmax": lmax})
 
-    def scene(self) -> Scene:
+    def scene(self) -> BakeScene:
         """The scene this transfer was baked for."""
-        return Scene(self.vertices, self.normals, self.faces, self.albedo, self.mesh_hash)
+        return BakeScene(self.vertices, self.normals, self.faces, self.albedo, self.mesh_hash)
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> Path:
         """Write an .npz (atomic; an existing file is replaced only with ``overwrite``)."""
@@ -215,6 +215,7 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     file baked for another mesh (hash mismatch).
     """
     p = Path(path)
+    _check_headers(npz_headers(p, "transfer file"), p)
     d = load_npz(p, what="transfer file")
     missing = [k for k in _GEOMETRY if k not in d]
     if missing:
@@ -241,6 +242,10 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
                            "(F, 3) (corrupt file)", p)
     if f.size and (f.dtype.kind == "f" or f.min() < 0 or f.max() >= v.shape[0]):
         raise ShprobeError("face indices out of range (corrupt file)", p)
+    for k, cols in (("normals", (3,)), ("albedo", (3,))):
+        if arrays[k].shape != (v.shape[0], *cols):
+            raise ShprobeError(f"array {k!r} has shape {arrays[k].shape}, not "
+                               f"({v.shape[0]}, 3) for {v.shape[0]} vertices (corrupt file)", p)
     mode = meta.get("mode")
     if mode not in MODES:
         raise ShprobeError(f"unknown transfer mode {mode!r}", p)
@@ -270,7 +275,7 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     if mesh_hash(v, arrays["faces"]) != meta.get("mesh_hash"):
         raise ShprobeError("stored mesh does not match the file's mesh hash (corrupt file)", p)
     if scene is not None:
-        if isinstance(scene, Scene):
+        if isinstance(scene, BakeScene):
             want = scene.mesh_hash
         else:  # rebuild the scene as baked: the same meshes, with its ground plane if any
             want = load_scene(scene, ground=bool(meta.get("ground", False))).mesh_hash
@@ -284,6 +289,34 @@ def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     return Transfer(vertices=v, normals=arrays["normals"], faces=arrays["faces"],
                     albedo=arrays["albedo"], lmax=lmax, traced=traced, bounce_counts=counts,
                     metadata=meta)
+
+
+#: The most vertices (and faces) a transfer file may declare before anything is inflated.
+MAX_VERTICES = 50_000_000
+
+
+def _check_headers(heads: dict[str, tuple[tuple[int, ...], np.dtype, bool]], p: Path) -> None:
+    """Refuse, from the .npy headers alone (nothing inflated), a transfer whose arrays do not
+    fit together (a member declaring more rows than the mesh has, as a zip bomb does) or
+    declare more than :data:`MAX_VERTICES` rows; the memory check follows in ``load_npz``."""
+    shapes = {k: h[0] for k, h in heads.items()}
+    v = shapes.get("vertices")
+    if v is None or len(v) != 2:
+        return  # the one-line refusals after loading name what is missing
+    n = v[0]
+    if n > MAX_VERTICES or shapes.get("faces", (0,))[0] > 2 * MAX_VERTICES + 4:
+        raise ShprobeError(f"transfer declares {n:,} vertices, over the limit of "
+                           f"{MAX_VERTICES:,} (corrupt file or zip bomb)", p)
+    for k in ("normals", "albedo", "transfer"):
+        if k in shapes and (len(shapes[k]) < 1 or shapes[k][0] != n):
+            raise ShprobeError(f"array {k!r} has shape {shapes[k]} for {n:,} vertices "
+                               "(corrupt file)", p)
+    tr = shapes.get("traced")
+    if tr is not None and (len(tr) < 3 or tr[1] != n or tr[0] > 1024):
+        raise ShprobeError(f"transfer array has shape {tr} for {n:,} vertices (corrupt file)",
+                           p)
+    if int(np.prod(shapes.get("metadata", ()), dtype=np.float64)) > 1:
+        raise ShprobeError("transfer metadata is not one string (corrupt file)", p)
 
 
 def _metadata(raw: NDArray, p: Path) -> dict[str, Any]:

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..sh.rotation import from_axis_angle, one_rotation
-from .relight import relight
+from .relighting import relight
 from .transfer import Transfer
 
 

@@ -12,7 +12,7 @@ small distance along its normal, so that they do not hit the surface they leave.
 crosses *another* surface — a mesh vertex touching the ground, whose downward normal would put
 the origin under the ground, where it sees the open sky — the origin is put back on the point's
 side of the surface crossed, a hundredth of the step from it. The bake
-(:mod:`shprobe.prt.bake`) and the independent reference of the tests use this one rule.
+(:mod:`shprobe.prt.directions`) and the independent reference of the tests use this one rule.
 
 Threads: the BVH is committed in the constructor, so that concurrent queries only read it;
 embreex releases the GIL while Embree traces, so worker threads run queries in parallel.

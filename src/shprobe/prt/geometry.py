@@ -1,8 +1,10 @@
-"""PRT scenes: one or more meshes, an optional ground plane, diffuse albedo per vertex.
+"""The geometry a PRT bake works on: one or more meshes, an optional ground plane, diffuse
+albedo per vertex.
 
-A :class:`Scene` is the flattened geometry the bake works on: every mesh's vertices, normals and
-faces concatenated, the albedo ρ per vertex (RGB), and a hash of the geometry so that a bake is
-never reused for another mesh (Lisle & Huang 2007 §4: scene switchable at run time).
+A :class:`BakeScene` is that geometry flattened: every mesh's vertices, normals and faces
+concatenated (the ground plane's last), the albedo ρ per vertex (RGB), and a hash of the
+geometry so that a bake is never reused for another mesh (Lisle & Huang 2007 §4: scene
+switchable at run time). (The ``shprobe.scene`` layer holds meshes, cameras and the renderer.)
 """
 
 from __future__ import annotations
@@ -19,18 +21,19 @@ from ..errors import ShprobeError
 from ..scene.mesh import as_mesh, mesh_hash, mesh_vertex_albedo
 from ..sh.rotation import unit_vectors
 
-__all__ = ["DEFAULT_ALBEDO", "Scene", "ground_plane", "load_scene", "mesh_hash"]
+__all__ = ["DEFAULT_ALBEDO", "BakeScene", "ground_plane", "load_scene", "mesh_hash"]
 
 #: Albedo used where none is given.
 DEFAULT_ALBEDO = 0.8
 
 
 @dataclass(frozen=True)
-class Scene:
+class BakeScene:
     """Flattened scene geometry.
 
     vertices (V, 3), normals (V, 3) unit, faces (F, 3) int64 into vertices, albedo (V, 3) diffuse
-    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see :func:`mesh_hash`).
+    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see :func:`mesh_hash`),
+    n_ground: how many of the last vertices are the ground plane's (0: no ground).
     """
 
     vertices: NDArray[np.float64]
@@ -38,6 +41,7 @@ class Scene:
     faces: NDArray[np.int64]
     albedo: NDArray[np.float64]
     mesh_hash: str
+    n_ground: int = 0
 
     @property
     def n_vertices(self) -> int:
@@ -54,12 +58,6 @@ class Scene:
         v = self.vertices[self.faces]
         return unit_vectors(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), zero="keep")
 
-    def to_trimesh(self):
-        """The scene as one ``trimesh.Trimesh`` (for the renderer)."""
-        import trimesh
-
-        return trimesh.Trimesh(self.vertices, self.faces, vertex_normals=self.normals,
-                               process=False)
 
 
 def ground_plane(center_xz: ArrayLike, size: float, y: float, resolution: int = 64):
@@ -123,8 +121,9 @@ def _one_value(albedo: Any, what: str) -> Any:
 
 def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
                ground_albedo: Any = None, ground_size: float = 3.0,
-               ground_resolution: int = 64, mesh_albedo: Sequence[Any] | None = None) -> Scene:
-    """Build a :class:`Scene` from a mesh path, a trimesh object, a Scene, or a list of them.
+               ground_resolution: int = 64, mesh_albedo: Sequence[Any] | None = None) -> BakeScene:
+    """Build a :class:`BakeScene` from a mesh path, a trimesh object, a BakeScene, or a list of
+    them.
 
     Albedo (diffuse reflectance ρ in [0, 1]), two unambiguous ways:
 
@@ -144,12 +143,12 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
     if albedo is not None and mesh_albedo is not None:
         raise ShprobeError("give albedo (one value for every mesh) or mesh_albedo (one entry "
                            "per mesh), not both")
-    if isinstance(scene, Scene):
+    if isinstance(scene, BakeScene):
         if ground:
-            raise ShprobeError("add the ground plane when the scene is built, not to a Scene")
+            raise ShprobeError("add the ground plane when the scene is built, not to a BakeScene")
         if mesh_albedo is not None:
             if len(mesh_albedo) != 1:
-                raise ShprobeError(f"mesh_albedo has {len(mesh_albedo)} entries for a Scene "
+                raise ShprobeError(f"mesh_albedo has {len(mesh_albedo)} entries for a BakeScene "
                                    "(one flattened mesh): give one")
             albedo = mesh_albedo[0]
         if albedo is None:
@@ -199,7 +198,8 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
     if not np.all(np.isfinite(v)):
         raise ShprobeError("mesh has non-finite vertices")
     n = np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), [0.0, 1.0, 0.0])
-    return Scene(v, n, f, np.concatenate(alb), mesh_hash(v, f))
+    return BakeScene(v, n, f, np.concatenate(alb), mesh_hash(v, f),
+                     len(verts[-1]) if ground else 0)
 
 
 def _check_normals(normals: NDArray[np.float64], faces: NDArray, item: Any, k: int) -> None:
@@ -215,5 +215,6 @@ def _check_normals(normals: NDArray[np.float64], faces: NDArray, item: Any, k: i
                            "normal (degenerate triangles); repair the mesh", where)
 
 
-def _with_albedo(scene: Scene, albedo: NDArray[np.float64]) -> Scene:
-    return Scene(scene.vertices, scene.normals, scene.faces, albedo, scene.mesh_hash)
+def _with_albedo(scene: BakeScene, albedo: NDArray[np.float64]) -> BakeScene:
+    return BakeScene(scene.vertices, scene.normals, scene.faces, albedo, scene.mesh_hash,
+                     scene.n_ground)

@@ -48,13 +48,15 @@ def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLi
     else:
         if mode is not None or bounces is not None:
             raise ShprobeError("mode and bounces pick a model of a Transfer, not of an array")
-        t = np.asarray(transfer)
+        t = _numbers(transfer, "transfer")
         if t.ndim not in (2, 3) or (t.ndim == 3 and t.shape[2] != 3):
             raise ShprobeError(f"transfer must be (V, K) or (V, K, 3), got {t.shape}")
         lt = lmax_of(t.shape[1])
-    c = np.asarray(coeffs, dtype=np.float64)
+    c = _numbers(coeffs, "lighting coefficients")
     if c.ndim not in (1, 2):
         raise ShprobeError(f"lighting coefficients must be (K,) or (K, C), got {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ShprobeError("lighting coefficients hold NaN or infinity")
     lc = lmax_of(c.shape[0])
     use = min(lt, lc) if lmax is None else int(lmax)
     if use > min(lt, lc) or use < 0:
@@ -74,9 +76,30 @@ def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLi
     if light.shape[1] != 3:
         raise ShprobeError(f"lighting must have 1 or 3 channels, got {light.shape[1]}")
     light = light.astype(tk.dtype if tk.dtype in (np.float32, np.float64) else np.float64)
-    if tk.ndim == 2:
-        return np.asarray(tk @ light, dtype=np.float32)
-    # one matmul: (V, K·3) @ (K·3, 3) with the lighting on the block diagonal per channel
-    m = np.zeros((k, 3, 3), dtype=light.dtype)
-    m[:, [0, 1, 2], [0, 1, 2]] = light
-    return np.asarray(tk.reshape(tk.shape[0], k * 3) @ m.reshape(k * 3, 3), dtype=np.float32)
+    with np.errstate(invalid="ignore", over="ignore"):  # refused below, in one line
+        if tk.ndim == 2:
+            out = np.asarray(tk @ light, dtype=np.float32)
+        else:
+            # one matmul: (V, K·3) @ (K·3, 3), the lighting on the block diagonal per channel
+            m = np.zeros((k, 3, 3), dtype=light.dtype)
+            m[:, [0, 1, 2], [0, 1, 2]] = light
+            out = np.asarray(tk.reshape(tk.shape[0], k * 3) @ m.reshape(k * 3, 3),
+                             dtype=np.float32)
+    # the lighting is finite (checked above): a non-finite radiance is a non-finite transfer
+    # (or an overflow), found here on the (V, 3) result rather than on the (V, K, C) input
+    if not np.all(np.isfinite(out)):
+        raise ShprobeError("relit radiance is not finite: the transfer holds NaN or infinity "
+                           "(or the product overflows float32)")
+    return out
+
+
+def _numbers(value: ArrayLike, what: str) -> NDArray:
+    """``value`` as a float array (kept float32 when it is), or one line saying it is not
+    numbers."""
+    try:
+        a = np.asarray(value)
+        if a.dtype.kind not in "f":
+            a = a.astype(np.float64)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"{what} must be numbers") from None
+    return a
