@@ -234,7 +234,7 @@ def prt_transfer(folder: Path) -> Path:
     """An unshadowed lmax-4 bake of a ~100k-vertex sphere (analytic: no rays)."""
     import trimesh
 
-    from shprobe.prt.bake import bake
+    from shprobe.prt import bake
 
     m = trimesh.creation.icosphere(subdivisions=7)  # 163842 vertices
     keep = m.vertices[:, 1] > -0.35  # trim to ~100k

@@ -56,7 +56,8 @@ def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
 def view_colour(sh: ArrayLike, directions: ArrayLike) -> NDArray[np.float64]:
     """The renderer's colour max(0, Σ sh_k Y^CS_k(d) + 0.5) of splats with SH ``sh`` (N, K, C)
     seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis."""
-    from ..sh.basis import lmax_of, sh_basis_numpy
+    from ..sh.basis import sh_basis_numpy
+    from ..sh.indexing import lmax_of
 
     c = to_shprobe(np.asarray(sh, dtype=np.float64))
     y = sh_basis_numpy(np.asarray(directions, dtype=np.float64), lmax_of(c.shape[-2]))
