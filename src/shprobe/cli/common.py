@@ -1,4 +1,4 @@
-"""Shared CLI helpers: console, option types, progress bars."""
+"""Shared CLI helpers: console, option types, progress over an iterable."""
 
 from __future__ import annotations
 
@@ -21,11 +21,12 @@ def console(stderr: bool = False):
 
 
 def progress(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
-    """Iterate with a rich progress bar on stderr (quiet when stderr is not a terminal)."""
-    from rich.progress import track
+    """``items`` as one stage of the terminal reporter (:func:`shprobe.progress.track` on
+    :func:`shprobe.cli.output.progress`), for callers that wrap an iterable."""
+    from ..progress import track
+    from .output import progress as reporter
 
-    yield from track(items, description=description, total=total, console=console(stderr=True),
-                     transient=True)
+    yield from track(items, reporter(), description, total)
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:

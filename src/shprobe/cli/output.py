@@ -1,8 +1,11 @@
-"""What a command says when it is done: one line naming what it wrote.
+"""What a command says: its estimate before a long job, one line naming what it wrote.
 
 Every command that writes files ends with :func:`wrote` (silenced by ``-q``; ``-v`` adds
 detail lines through :func:`detail`). The product of a command (a table, a JSON document sent
-to stdout) goes to stdout; this line goes to stderr so that a command's stdout stays its product.
+to stdout) goes to stdout; these lines go to stderr so that a command's stdout stays its
+product. A job estimated over :data:`shprobe.limits.LONG_JOB_SECONDS` says so before it starts
+(:func:`estimate`, from the cost model its memory check uses); :func:`progress` is the one
+terminal reporter of the :mod:`shprobe.progress` protocol.
 """
 
 from __future__ import annotations
@@ -60,10 +63,26 @@ def wrote(paths: Sequence[str | os.PathLike] | str | os.PathLike, what: str = ""
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
     names = [os.fspath(p) for p in paths]
-    shown = (", ".join(names) if len(names) <= 3
-             else f"{names[0]} … {names[-1]} ({len(names)} files)")
+    folders = {os.path.dirname(n) for n in names}
+    if len(names) <= 3:
+        shown = ", ".join(names)
+    elif len(folders) == 1 and "" not in folders:
+        shown = (f"{len(names)} files in {folders.pop()}{os.sep}: "
+                 f"{os.path.basename(names[0])} … {os.path.basename(names[-1])}")
+    else:
+        shown = f"{len(names)} files: {names[0]} … {names[-1]}"
+    for n in names if len(names) > 3 else ():
+        detail(f"  {n}")
     parts = [p for p in (what, _size(names), f"{time.monotonic() - v.started:.1f} s") if p]
     click.echo(f"wrote {shown} ({', '.join(parts)})", err=True)
+
+
+def estimate(cost, what: str) -> None:
+    """Say ``what`` will take ``cost`` (a :class:`shprobe.limits.Cost`) before it starts, when
+    it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length)."""
+    v = verbosity()
+    if not v.quiet and (cost.long or v.verbose):
+        click.echo(f"{what}: {cost}", err=True)
 
 
 def detail(message: str) -> None:

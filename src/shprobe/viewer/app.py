@@ -28,6 +28,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ..errors import ShprobeError
+from ..progress import Fraction
 from .session import (
     DESIGN_LMAX,
     MAX_LMAX,
@@ -293,8 +294,7 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
             task = session.tasks["compare"] = Task(status="running")
             src = session.source
 
-            def progress(done: int, total: int) -> None:
-                task.done = done / max(total, 1)
+            progress = Fraction(lambda f: setattr(task, "done", f))
 
             def run() -> None:
                 try:
