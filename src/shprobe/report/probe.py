@@ -145,7 +145,7 @@ def _build(env: Env, mesh: Any, mesh_name: str | None, h: int, r: int, say: Step
                                   units="radiance L (relative)", exposure=e_probe + 4.0)],
                            display_width=min(512, max(256, view.shape[1])))
 
-    say("exact irradiance (brute force)")
+    say(f"exact irradiance map {2 * h}x{h}")
     ref = reference_irradiance_map(env, "latlong", (2 * h, h), progress=progress)
     say("error table")
     rep = error_report(env, (1, 2, 3, 4), reference=ref.radiance.reshape(-1, 3),
