@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
+from ..progress import Progress, Steps
 from ..sh import degrees, num_coeffs, sh_basis
 from ..sh.zonal import clamped_cosine_factors, convolve
 from .basis import hemisphere_quadrature
@@ -428,30 +429,37 @@ class StudyResult:
 
 def run_study(n_signals: int = 10000, seed: int = 0, lmax: int = LMAX_SIGNAL,
               bases: list[HemiBasis] | None = None,
-              quad: tuple[int, int] = QUAD) -> StudyResult:
-    """IMSE of every basis over ``n_signals`` random irradiance signals (vectorised)."""
-    sig = random_signals(n_signals, seed)
-    a = clamped_cosine_factors(lmax)[degrees(lmax)]
-    nz = np.flatnonzero(a != 0)  # Â_l = 0 for odd l ≥ 3: those E_lm vanish
-    e = sig.sh(lmax)[:, nz, :] * a[nz, None]  # (S, K', 3) irradiance coefficients
-    flat = np.ascontiguousarray(e.transpose(1, 0, 2)).reshape(len(nz), -1)  # (K', S*3)
-    del e
-    q0 = imse_matrix(None, lmax, quad)[np.ix_(nz, nz)]
-    total = np.einsum("ks,ks->s", flat, q0 @ flat)  # ∫_Ω+ E²
+              quad: tuple[int, int] = QUAD, progress: Progress | None = None) -> StudyResult:
+    """IMSE of every basis over ``n_signals`` random irradiance signals (vectorised);
+    ``progress`` gets its four stages "k/4: …", the bases counted one by one."""
     bases = list(all_bases().values()) if bases is None else bases
-    means, medians, rels = [], [], []
-    for b in bases:
-        # IMSE = ∫E² − 2 cᵀ(C e) + cᵀ G c with c = M e: O(n K S) per basis
-        m, g, cm = _terms(b, lmax, quad)
-        c = m[:, nz] @ flat
-        v = total - 2 * np.einsum("is,is->s", c, cm[:, nz] @ flat) + np.einsum("is,is->s", c,
-                                                                               g @ c)
-        means.append(v.mean())
-        medians.append(np.median(v))
-        rels.append(np.mean(v / total))
-    bound = sig.truncation_bound(lmax).reshape(-1)
-    rel = bound / np.sqrt(np.einsum("ks,ks->s", flat, flat))
+    with Steps(progress, 4) as step:
+        step(f"{n_signals:,} random signals and their irradiance SH")
+        sig = random_signals(n_signals, seed)
+        a = clamped_cosine_factors(lmax)[degrees(lmax)]
+        nz = np.flatnonzero(a != 0)  # Â_l = 0 for odd l ≥ 3: those E_lm vanish
+        e = sig.sh(lmax)[:, nz, :] * a[nz, None]  # (S, K', 3) irradiance coefficients
+        flat = np.ascontiguousarray(e.transpose(1, 0, 2)).reshape(len(nz), -1)  # (K', S*3)
+        del e
+        step("∫E² over the hemisphere (quadrature)")
+        q0 = imse_matrix(None, lmax, quad)[np.ix_(nz, nz)]
+        total = np.einsum("ks,ks->s", flat, q0 @ flat)  # ∫_Ω+ E²
+        means, medians, rels = [], [], []
+        bar = step(f"the IMSE of {len(bases)} bases", total=len(bases))
+        for b in bases:
+            # IMSE = ∫E² − 2 cᵀ(C e) + cᵀ G c with c = M e: O(n K S) per basis
+            m, g, cm = _terms(b, lmax, quad)
+            c = m[:, nz] @ flat
+            v = total - 2 * np.einsum("is,is->s", c, cm[:, nz] @ flat) + np.einsum(
+                "is,is->s", c, g @ c)
+            means.append(v.mean())
+            medians.append(np.median(v))
+            rels.append(np.mean(v / total))
+            bar.advance()
+        step("truncation bound and Gram matrices")
+        bound = sig.truncation_bound(lmax).reshape(-1)
+        rel = bound / np.sqrt(np.einsum("ks,ks->s", flat, flat))
+        grams = [gram_report(b, quad) for b in bases]
     return StudyResult([b.name for b in bases], [b.n_coeffs for b in bases], np.array(means),
                        np.array(medians), np.array(rels), int(n_signals), int(seed),
-                       [gram_report(b, quad) for b in bases], int(lmax), float(rel.max()),
-                       float(rel.mean()))
+                       grams, int(lmax), float(rel.max()), float(rel.mean()))
