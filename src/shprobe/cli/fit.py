@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .common import force_option
+from .output import progress, verbosity, wrote
 
 FORMATS = ("table", "json", "glsl", "hlsl", "wgsl", "three", "gltf", "cmgen", "cs-phase")
 
@@ -93,13 +94,16 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
     from ..lighting.export import export_coeffs
     from ..probes.images import write_image
 
+    written = []
     if any(images.values()):
         ims = fit_images(result)
         for name, p in images.items():
             if p and name in ims:
                 write_image(p, ims[name], overwrite=force)
+                written.append(p)
     if report:
         save_fit_figure(report, photo, result, title, overwrite=force)
+        written.append(report)
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
@@ -108,9 +112,20 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
         text = export_coeffs(result.coeffs, fmt, source=source)
     if output:
         write_text(output, text, force)
+        written.insert(0, output)
     else:
         click.echo(text, nl=not text.endswith("\n"))
-    click.echo(f"shprobe: {result.summary()}", err=True)
+    if written:
+        wrote(written, result.summary())
+    elif not verbosity().quiet:  # the coefficients went to stdout: the fit's summary alone
+        click.echo(f"shprobe: {result.summary()}", err=True)
+
+
+def _fitting(what: str):
+    """The fit's stage on the terminal reporter."""
+    from ..progress import stage
+
+    return stage(progress(), f"fitting the lighting to {what}")
 
 
 def _table_text(rows) -> str:
@@ -150,8 +165,9 @@ def register(group: click.Group) -> None:
                   "irradiance": irradiance}
         c, cam = _ball(circle, camera_text)
         img, sat = _start(photo, saturation, output, images, report, force)
-        res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
-                            robust=not no_robust, path=photo)
+        with _fitting("the grey ball"):
+            res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
+                                robust=not no_robust, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}")
 
     @fit_group.command("chrome-ball")
@@ -171,8 +187,9 @@ def register(group: click.Group) -> None:
         images = {"residual": residual, "fitted": fitted, "rejected": mask}
         c, cam = _ball(circle, camera_text)
         img, sat = _start(photo, saturation, output, images, report, force)
-        res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
-                              inset=inset, path=photo)
+        with _fitting("the chrome ball"):
+            res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
+                                  inset=inset, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}")
 
     @fit_group.command("normals")
@@ -198,7 +215,8 @@ def register(group: click.Group) -> None:
 
             raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
                                f"{img.shape[1]}x{img.shape[0]}", normal_map)
-        res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
+        with _fitting("the normal map's pixels"):
+            res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}")
 
     @fit_group.command("mesh")
@@ -231,6 +249,7 @@ def register(group: click.Group) -> None:
         m = load_mesh(mesh)
         cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
                      distance, None, margin)
-        res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
+        with _fitting(f"the {len(m.vertices):,}-vertex mesh"):
+            res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}")
 

@@ -4,17 +4,22 @@
 display on stderr holding a bar per stage under way (description "k/N: what", a percentage and
 an ETA when the stage's total is known, the elapsed time always); a stage that ends is shown at
 100 % and removed, and the display is erased when the last stage ends, so no bar is left on
-screen below 100 %. Otherwise (stderr redirected to a file or a pipe): one plain line per stage
-on stderr, "k/N: what …", and nothing else, so logs get no blank lines and no control codes.
-Quiet mode reports nothing. Stages may nest (a library stage inside a command's stage): each
-gets its own bar, the inner one under the outer.
+screen below 100 %. Otherwise (stderr redirected to a file or a pipe): one plain line on
+stderr, "k/N: what …", for each stage still under way after :data:`LOG_AFTER` seconds, and
+nothing else, so logs get no blank lines and no control codes, and a quick command's log is
+its closing line alone (bad input still gives one line). Quiet mode reports nothing. Stages
+may nest (a library stage inside a command's stage): each gets its own bar, the inner one
+under the outer.
 """
 
 from __future__ import annotations
 
 import sys
-import time
+import threading
 from typing import Any
+
+#: Seconds a stage must last before a log (a stderr that is not a terminal) gets its line.
+LOG_AFTER = 1.0
 
 
 def _columns() -> list[Any]:
@@ -44,11 +49,14 @@ def _columns() -> list[Any]:
 class TerminalProgress:
     """A :class:`shprobe.progress.Progress` for the CLI (see the module docstring)."""
 
-    def __init__(self, quiet: bool = False, stream: Any = None) -> None:
+    def __init__(self, quiet: bool = False, stream: Any = None,
+                 log_after: float = LOG_AFTER) -> None:
         self.quiet = quiet
         self.stream = stream if stream is not None else sys.stderr
+        self.log_after = log_after
         self._live: Any = None  # the rich display, while a stage is under way on a terminal
-        self._stack: list[tuple[Any, float | None, float]] = []  # (task, total, start)
+        # per stage under way: its rich task (terminal) or its line's timer (log), its total
+        self._stack: list[tuple[Any, float | None]] = []
 
     @property
     def interactive(self) -> bool:
@@ -59,10 +67,11 @@ class TerminalProgress:
             return False
 
     def begin(self, description: str, total: float | None = None) -> None:
-        task = None
+        task: Any = None
         if not self.quiet and not self.interactive:
-            self.stream.write(f"{description} …\n")
-            self.stream.flush()
+            task = threading.Timer(self.log_after, self._log, (f"{description} …\n",))
+            task.daemon = True
+            task.start()
         elif not self.quiet:
             if self._live is None:
                 from rich.console import Console
@@ -72,17 +81,23 @@ class TerminalProgress:
                                       console=Console(file=self.stream, highlight=False))
                 self._live.start()
             task = self._live.add_task(description, total=total)
-        self._stack.append((task, total, time.monotonic()))
+        self._stack.append((task, total))
+
+    def _log(self, line: str) -> None:
+        self.stream.write(line)
+        self.stream.flush()
 
     def update(self, done: float) -> None:
         if self._stack and self._live is not None:
-            task, _, _ = self._stack[-1]
-            self._live.update(task, completed=done)
+            self._live.update(self._stack[-1][0], completed=done)
 
     def end(self) -> None:
         if not self._stack:
             return
-        task, total, _ = self._stack.pop()
+        task, total = self._stack.pop()
+        if isinstance(task, threading.Timer):
+            task.cancel()  # a stage done within LOG_AFTER gets no line
+            return
         if self._live is None:
             return
         if total is not None:
