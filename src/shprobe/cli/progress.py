@@ -50,10 +50,10 @@ class TerminalProgress:
     """A :class:`shprobe.progress.Progress` for the CLI (see the module docstring)."""
 
     def __init__(self, quiet: bool = False, stream: Any = None,
-                 log_after: float = LOG_AFTER) -> None:
+                 log_after: float | None = None) -> None:
         self.quiet = quiet
         self.stream = stream if stream is not None else sys.stderr
-        self.log_after = log_after
+        self.log_after = LOG_AFTER if log_after is None else log_after
         self._live: Any = None  # the rich display, while a stage is under way on a terminal
         # per stage under way: its rich task (terminal) or its line's timer (log), its total
         self._stack: list[tuple[Any, float | None]] = []
@@ -97,11 +97,13 @@ class TerminalProgress:
         task, total = self._stack.pop()
         if isinstance(task, threading.Timer):
             task.cancel()  # a stage done within LOG_AFTER gets no line
+            task.join()  # (or its line is out before what follows the stage)
             return
         if self._live is None:
             return
-        if total is not None:
+        if total is not None:  # the last frame of a countable stage is its 100 %
             self._live.update(task, completed=total)
+            self._live.refresh()
         self._live.remove_task(task)
         if not self._stack:
             self._live.stop()
