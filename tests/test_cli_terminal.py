@@ -130,6 +130,40 @@ def run_in_terminal(args: list[str]) -> tuple[int, bytes]:
     return rc, b"".join(chunks)
 
 
+def run_here_in_terminal(args: list[str], monkeypatch) -> tuple[int, bytes]:
+    """Run ``shprobe ARGS`` in this process with stdout and stderr on a pseudo-terminal (the
+    same reporter and bar as a child's, without a child's start-up)."""
+    import threading
+
+    from shprobe.cli.main import main
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", ROWS, COLS, 0, 0))
+    chunks: list[bytes] = []
+
+    def read() -> None:
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the writing side is closed
+                return
+            if not chunk:
+                return
+            chunks.append(chunk)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    with open(slave, "w", encoding="utf-8", closefd=True) as tty:
+        monkeypatch.setattr(sys, "stdout", tty)
+        monkeypatch.setattr(sys, "stderr", tty)
+        rc = main(args)
+        tty.flush()
+        monkeypatch.undo()
+    reader.join(timeout=30)
+    os.close(master)
+    return rc, b"".join(chunks)
+
+
 def screen_of(raw: bytes) -> list[str]:
     """The lines left on the terminal's screen, as the emulator shows them."""
     screen = pyte.Screen(COLS, ROWS)
@@ -147,9 +181,9 @@ def frames_of(raw: bytes) -> str:
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_in_a_terminal(name, data, tmp_path):
+def test_in_a_terminal(name, data, tmp_path, monkeypatch):
     args, names = _args(name, data, tmp_path)
-    rc, raw = run_in_terminal(args)
+    rc, raw = run_here_in_terminal(args, monkeypatch)
     lines = screen_of(raw)
     assert rc == 0, "\n".join(lines)
     assert lines and lines[-1].startswith(f"wrote {names}"), "\n".join(lines)
@@ -161,8 +195,9 @@ def test_in_a_terminal(name, data, tmp_path):
 
 
 def test_a_long_stage_shows_a_bar_that_ends_at_100(data, tmp_path):
-    """The brute-force map counts its normal–sample products: the terminal shows a moving bar
-    with a percentage, and its last frame is 100 %."""
+    """In a child process on a pseudo-terminal, the brute-force map counts its normal–sample
+    products: the terminal shows a moving bar with a percentage, its last frame is 100 %,
+    and the screen ends with the closing line."""
     args = ["irradiance", str(data / "probe.hdr"), "--method", "brute", "--size", "512x256",
             "-o", str(tmp_path / "b.exr")]
     rc, raw = run_in_terminal(args)
