@@ -270,3 +270,35 @@ def test_tables_only_when_they_are_the_product(data, tmp_path, monkeypatch):
     rc, lines = run_to_file(["error", str(data / "probe.hdr"), "--normals", "4", "-F", "json"],
                             tmp_path / "e.txt", monkeypatch)
     assert rc == 0 and '"rows"' in "\n".join(lines)
+
+
+def test_a_long_job_says_its_estimate_first(data, tmp_path, monkeypatch):
+    """A job whose cost model (the one its memory check uses) says over 30 s prints the
+    estimate before it starts; a short one does not."""
+    from shprobe.lighting import reference
+    from shprobe.limits import cores, format_bytes, format_seconds
+    from shprobe.probes.layouts import load_env
+
+    args = ["irradiance", str(data / "probe.hdr"), "--method", "brute", "--size", "16x8",
+            "-o", str(tmp_path / "a.exr")]
+    rc, lines = run_to_file(args, tmp_path / "short.txt", monkeypatch)
+    assert rc == 0 and not any("on this machine" in ln for ln in lines)
+    monkeypatch.setattr(reference, "PAIRS_PER_CORE_SECOND", 1e3)  # a slow machine
+    cost = reference.reference_cost(load_env(data / "probe.hdr"), 16 * 8)
+    assert cost.seconds > 30
+    args[-1] = str(tmp_path / "b.exr")
+    from shprobe.cli import progress as terminal
+    from shprobe.cli.main import main
+
+    monkeypatch.setattr(terminal, "LOG_AFTER", 0.0)
+    path = tmp_path / "long.txt"
+    with open(path, "w", encoding="utf-8") as f:
+        monkeypatch.setattr(sys, "stderr", f)
+        rc = main(args)
+        monkeypatch.undo()
+    assert rc == 0
+    lines = path.read_text(encoding="utf-8").splitlines()
+    assert lines[0] == (f"the brute-force irradiance map 16x8: about "
+                        f"{format_seconds(cost.seconds)} and "
+                        f"{format_bytes(cost.nbytes)} on this machine ({cores()} cores)")
+    assert lines[1].endswith("(brute force) …") and lines[-1].startswith("wrote ")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from typing import TypeVar
 
 import click
@@ -27,6 +27,17 @@ def progress(items: Iterable[T], description: str, total: int | None = None) -> 
     from .output import progress as reporter
 
     yield from track(items, reporter(), description, total)
+
+
+def reading(source) -> AbstractContextManager:
+    """The stage of reading (and projecting) a command's lighting source, on the terminal
+    reporter: a large probe takes seconds."""
+    from ..progress import stage
+    from .output import progress as reporter
+
+    if isinstance(source, list | tuple):
+        source = f"{len(source)} cube faces" if len(source) > 1 else next(iter(source), None)
+    return stage(reporter(), f"reading {source or 'the lighting'}")
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import force_option, parse_exposure
+from .common import force_option, parse_exposure, reading
 from .output import detail, estimate, progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
@@ -160,7 +160,8 @@ def register(group: click.Group) -> None:
 
         if output:
             check_output_path(output, force)  # refuse before the work
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
+        with reading(probe or preset or coeffs_file):
+            src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
         if fmt == "table":
             if output:
                 write_text(output, coeff_text(src.coeffs), force)
@@ -218,8 +219,9 @@ def register(group: click.Group) -> None:
 
         check_image_output(output, force)
         fixed = parse_exposure(exposure)  # a bad value is refused before the work
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
-                             need_env=(method == "brute"))
+        with reading(probe or preset or coeffs_file):
+            src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
+                                 need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")
         lay = get_layout(name)
         sz = _grid_size(size, lay.name)
@@ -265,7 +267,8 @@ def register(group: click.Group) -> None:
         from ..lighting.reference import error_report, reference_cost
         from ..progress import stage
 
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
+        with reading(probe or preset or coeffs_file):
+            src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
         if src.env.layout.name != "latlong":  # lat-long maps: row sums, milliseconds
             estimate(reference_cost(src.env, 2 * grid_h * grid_h),
                      f"the exact irradiance at {2 * grid_h * grid_h} normals")
@@ -354,9 +357,9 @@ def register(group: click.Group) -> None:
             con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
                                           "(R&H 2001 Fig. 2 layout)"))
             con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
-        detail(f"the .pngs show E/π, the radiance of a white diffuse surface, at exposure "
-               f"{stops:+.1f} EV{' (auto)' if fixed is None else ''}")
+        detail("the .pngs show E/π, the radiance of a white diffuse surface, at the sky's "
+               "exposure")
         e2 = rep.row(2)
         wrote([out / n for n in names],
-              f"lmax 2 error {100 * e2.mean_frac:.2g} % mean, {100 * e2.max_frac:.2g} % max "
-              "of ∫L dω")
+              f"E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}; lmax 2 "
+              f"error {100 * e2.mean_frac:.2g} % mean, {100 * e2.max_frac:.2g} % max of ∫L dω")

@@ -68,7 +68,9 @@ class TerminalProgress:
 
     def begin(self, description: str, total: float | None = None) -> None:
         task: Any = None
-        if not self.quiet and not self.interactive:
+        if not self.quiet and not self.interactive and self.log_after <= 0:
+            self._log(f"{description} …\n")
+        elif not self.quiet and not self.interactive:
             task = threading.Timer(self.log_after, self._log, (f"{description} …\n",))
             task.daemon = True
             task.start()
