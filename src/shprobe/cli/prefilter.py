@@ -212,7 +212,7 @@ def register(group: click.Group) -> None:
         import numpy as np
 
         from ..lighting.irradiance import irradiance_map
-        from ..lighting.reference import reference_cost, reference_irradiance_map
+        from ..lighting.reference import MAP_CHUNK, reference_cost, reference_irradiance_map
         from ..probes.figures import exposure_for
         from ..probes.images import check_image_output
         from ..probes.layouts import get_layout, write_env
@@ -229,7 +229,7 @@ def register(group: click.Group) -> None:
             emap = irradiance_map(src.coeffs, lay, sz)
         else:
             grid = lay.grid_shape(sz)
-            estimate(reference_cost(src.env, int(lay.valid_mask(grid).sum())),
+            estimate(reference_cost(src.env, int(lay.valid_mask(grid).sum()), chunk=MAP_CHUNK),
                      f"the brute-force irradiance map {'x'.join(map(str, grid[::-1]))}")
             emap = reference_irradiance_map(src.env, lay, sz, progress=progress())
         shown, note = emap, ""

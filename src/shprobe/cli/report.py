@@ -35,7 +35,7 @@ def register(group: click.Group) -> None:
         certificate and the window `auto` chooses, the nine basis images of the mesh and a
         render of it. PROBE is one image, or six cube faces (+X -X +Y -Y +Z -Z)."""
         from ..files import check_output_path
-        from ..lighting.reference import reference_cost
+        from ..lighting.reference import MAP_CHUNK, reference_cost
         from ..report import probe_report, write_report
         from .output import estimate, progress, wrote
         from .sources import resolve_coeffs
@@ -54,7 +54,7 @@ def register(group: click.Group) -> None:
             from ..scene import load_mesh
 
             geo, name = load_mesh(mesh), os.path.basename(mesh)
-        estimate(reference_cost(src.env, 2 * map_size * map_size),
+        estimate(reference_cost(src.env, 2 * map_size * map_size, chunk=MAP_CHUNK),
                  f"the report's exact irradiance at {2 * map_size * map_size} normals")
         rep = probe_report(src.env, geo, name, map_height=map_size, render_size=render_size,
                            progress=progress())

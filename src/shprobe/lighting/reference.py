@@ -35,6 +35,9 @@ __all__ = [
 #: figure the time estimates use).
 PAIRS_PER_CORE_SECOND = 2e8
 
+#: Samples per chunk of :func:`reference_irradiance_map` (its many normals: smaller chunks).
+MAP_CHUNK = 1 << 16
+
 
 def reference_cost(env: Env, n_normals: int, subdivide: int = 1,
                    chunk: int = 1 << 18) -> Cost:
@@ -394,5 +397,5 @@ def reference_irradiance_map(env: Env, layout: str | Layout = "latlong",
     dirs = lay.pixel_directions(grid)
     valid = lay.valid_mask(grid)
     e = np.zeros((*grid, 3), dtype=np.float32)
-    e[valid] = reference_irradiance(env, dirs[valid], chunk=1 << 16, progress=progress)
+    e[valid] = reference_irradiance(env, dirs[valid], chunk=MAP_CHUNK, progress=progress)
     return Env(e, lay)
