@@ -11,9 +11,11 @@ terminal reporter of the :mod:`shprobe.progress` protocol.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import click
 
@@ -25,6 +27,7 @@ class Verbosity:
     quiet: bool = False
     verbose: bool = False
     started: float = field(default_factory=time.monotonic)
+    reporter: Any = None  # the command's one terminal reporter, made on first use
 
 
 def verbosity() -> Verbosity:
@@ -36,10 +39,14 @@ def verbosity() -> Verbosity:
 
 
 def progress():
-    """The terminal reporter for this command (quiet under ``-q``)."""
+    """The terminal reporter of this command (quiet under ``-q``): one per command, so that
+    stages begun anywhere in it nest in one display."""
     from .progress import TerminalProgress
 
-    return TerminalProgress(quiet=verbosity().quiet)
+    v = verbosity()
+    if v.reporter is None or v.reporter.stream is not sys.stderr:
+        v.reporter = TerminalProgress(quiet=v.quiet)
+    return v.reporter
 
 
 def _size(paths: Sequence[str | os.PathLike]) -> str:
