@@ -85,3 +85,17 @@ def test_study_counts_its_bases():
     n = len(all_bases())
     i = rec.events.index(("begin", f"3/4: the IMSE of {n} bases", n))
     assert [e[1] for e in rec.events[i + 1:i + 1 + n]] == list(range(1, n + 1))
+
+
+def test_study_cost_counts_its_arrays():
+    """The study's estimate is the bytes of the arrays it holds at once: the signals' SH and
+    two copies of their non-zero irradiance coefficients (Â_l ≠ 0)."""
+    from shprobe.hbasis.study import LMAX_SIGNAL, random_signals, study_cost
+    from shprobe.sh import degrees
+    from shprobe.sh.zonal import clamped_cosine_factors
+
+    sig = random_signals(5, seed=3)
+    nonzero = int(np.count_nonzero(clamped_cosine_factors(LMAX_SIGNAL)[degrees(LMAX_SIGNAL)]))
+    sh = sig.sh(LMAX_SIGNAL)
+    assert study_cost(5).nbytes == sh.nbytes + 2 * sh[:, :nonzero].nbytes
+    assert study_cost(200_000).long and not study_cost(2000).long

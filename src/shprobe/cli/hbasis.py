@@ -36,7 +36,7 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, show_table: bool,
     """Fig. 3 study: mean IMSE (eq. 16) of every hemispherical basis, random signals. The
     tables go to hbasis_study.md (printed with --table, or when there is no --output)."""
     from ..files import atomic_output, check_output_path, write_text
-    from ..hbasis.study import run_study
+    from ..hbasis.study import run_study, study_cost
 
     names = ("hbasis_study.md", "hbasis_study.csv", "hbasis_study.png")
     if outdir is not None:  # refuse before the work, not after it
@@ -45,6 +45,7 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, show_table: bool,
         if outdir.exists():
             for name in names:
                 check_output_path(outdir / name, force)
+    estimate(study_cost(signals), f"the study of {signals:,} signals")
     res = run_study(signals, seed, progress=progress())
     if show_table or outdir is None:
         click.echo(res.markdown(), nl=False)
