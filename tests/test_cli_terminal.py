@@ -302,3 +302,11 @@ def test_a_long_job_says_its_estimate_first(data, tmp_path, monkeypatch):
             f"{format_bytes(cost.nbytes)} on this machine ({cores()} cores)")
     assert said in lines and lines[-1].startswith("wrote ")
     assert lines[lines.index(said) + 1] == "exact irradiance at 128 normals (brute force) …"
+
+
+def test_an_estimate_over_the_memory_limit_is_a_one_line_refusal(tmp_path, monkeypatch):
+    rc, lines = run_to_file(["--max-memory", "1G", "hbasis", "study", "--signals", "200000",
+                             "-o", str(tmp_path / "s")], tmp_path / "log.txt", monkeypatch)
+    assert rc == 1 and len(lines) == 2 and lines[1] == ""
+    assert lines[0].startswith("shprobe: error: the study of 200,000 signals would need about")
+    assert not (tmp_path / "s").exists()

@@ -86,7 +86,12 @@ def wrote(paths: Sequence[str | os.PathLike] | str | os.PathLike, what: str = ""
 
 def estimate(cost, what: str) -> None:
     """Say ``what`` will take ``cost`` (a :class:`shprobe.limits.Cost`) before it starts, when
-    it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length)."""
+    it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length). A job
+    whose bytes are over the memory limit is refused first, in one line
+    (:func:`shprobe.limits.check_memory`, the check the job itself makes)."""
+    from ..limits import check_memory
+
+    check_memory(cost.nbytes, what)
     v = verbosity()
     if not v.quiet and (cost.long or v.verbose):
         click.echo(f"{what}: {cost}", err=True)
