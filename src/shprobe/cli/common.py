@@ -31,7 +31,10 @@ def progress(items: Iterable[T], description: str, total: int | None = None) -> 
 
 def reading(source) -> AbstractContextManager:
     """The stage of reading (and projecting) a command's lighting source, on the terminal
-    reporter: a large probe takes seconds."""
+    reporter: a large probe takes seconds. The reader's modules are imported before the stage
+    begins, so that a bad file's refusal stays one line in a log (a stage gets its log line
+    only once it has lasted a second)."""
+    from ..lighting import projection, source  # noqa: F401  (imported before the stage)
     from ..progress import stage
     from .output import progress as reporter
 

@@ -79,10 +79,9 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     from ..scene.mesh import load_mesh
 
     check_output_path(output, force)
-    with Steps(progress(), 3) as step:
-        step("reading the mesh and the lighting")
-        m = load_mesh(mesh)
-        light = read_lighting(probe)
+    m = load_mesh(mesh)  # bad input is refused here, in one line, before any stage
+    light = read_lighting(probe)
+    with Steps(progress(), 2) as step:
         step(f"baking {basis.upper()} at {len(m.vertices):,} vertices")
         bk = bake_mesh(m, light, n=6 if basis == "h6" else 4, bands=bands)
         step("writing")
