@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import contextmanager
 from typing import TypeVar
 
 import click
@@ -27,20 +27,6 @@ def progress(items: Iterable[T], description: str, total: int | None = None) -> 
     from .output import progress as reporter
 
     yield from track(items, reporter(), description, total)
-
-
-def reading(source) -> AbstractContextManager:
-    """The stage of reading (and projecting) a command's lighting source, on the terminal
-    reporter: a large probe takes seconds. The reader's modules are imported before the stage
-    begins, so that a bad file's refusal stays one line in a log (a stage gets its log line
-    only once it has lasted a second)."""
-    from ..lighting import projection, source  # noqa: F401  (imported before the stage)
-    from ..progress import stage
-    from .output import progress as reporter
-
-    if isinstance(source, list | tuple):
-        source = f"{len(source)} cube faces" if len(source) > 1 else next(iter(source), None)
-    return stage(reporter(), f"reading {source or 'the lighting'}")
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:

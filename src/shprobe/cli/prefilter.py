@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import force_option, parse_exposure, reading
+from .common import force_option, parse_exposure
 from .output import detail, estimate, progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
@@ -160,8 +160,7 @@ def register(group: click.Group) -> None:
 
         if output:
             check_output_path(output, force)  # refuse before the work
-        with reading(probe or preset or coeffs_file):
-            src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
         if fmt == "table":
             if output:
                 write_text(output, coeff_text(src.coeffs), force)
@@ -219,9 +218,8 @@ def register(group: click.Group) -> None:
 
         check_image_output(output, force)
         fixed = parse_exposure(exposure)  # a bad value is refused before the work
-        with reading(probe or preset or coeffs_file):
-            src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
-                                 need_env=(method == "brute"))
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
+                             need_env=(method == "brute"))
         name = out_layout if out_layout != "same" else (src.layout or "latlong")
         lay = get_layout(name)
         sz = _grid_size(size, lay.name)
@@ -266,8 +264,7 @@ def register(group: click.Group) -> None:
 
         from ..lighting.reference import error_report, reference_cost
 
-        with reading(probe or preset or coeffs_file):
-            src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
+        src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
         if src.env.layout.name != "latlong":  # lat-long maps: row sums, milliseconds
             estimate(reference_cost(src.env, 2 * grid_h * grid_h),
                      f"the exact irradiance at {2 * grid_h * grid_h} normals")

@@ -7,7 +7,7 @@ import os
 import click
 
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option, reading
+from .common import clamp_option, force_option, layout_option
 
 
 def register(group: click.Group) -> None:
@@ -46,9 +46,8 @@ def register(group: click.Group) -> None:
         if not output.lower().endswith((".html", ".htm")):
             raise ShprobeError("a report is written as .html", output)
         check_output_path(output, force)  # refuse before the work
-        with reading(list(probe)):
-            src = resolve_coeffs(probe[0] if len(probe) == 1 else list(probe), layout=layout,
-                                 lmax=2, clamp=clamp, need_env=True)
+        src = resolve_coeffs(probe[0] if len(probe) == 1 else list(probe), layout=layout,
+                             lmax=2, clamp=clamp, need_env=True)
         geo, name = None, "the unit sphere"
         if mesh:
             from ..scene import load_mesh
