@@ -79,11 +79,22 @@ def test_terminal_progress_plain_lines_off_a_terminal():
     from shprobe.progress import stage, track
 
     buf = io.StringIO()
-    rep = TerminalProgress(stream=buf)
+    rep = TerminalProgress(stream=buf, log_after=0)
     assert list(track(range(3), rep, "tracing rays", index=1, count=2)) == [0, 1, 2]
     with stage(rep, "gathering", total=5, index=2, count=2) as bar:
         bar.advance(5)
     assert buf.getvalue() == "1/2: tracing rays …\n2/2: gathering …\n"
+    # by default a log gets the line of a stage still under way after a second, only
+    import time
+
+    buf = io.StringIO()
+    rep = TerminalProgress(stream=buf, log_after=0.2)
+    with stage(rep, "quick", index=1, count=2):
+        pass
+    with stage(rep, "slow", index=2, count=2):
+        time.sleep(0.5)
+        assert buf.getvalue() == "2/2: slow …\n"
+    assert buf.getvalue() == "2/2: slow …\n"
     quiet = io.StringIO()
     list(track(range(3), TerminalProgress(quiet=True, stream=quiet), "x"))
     assert quiet.getvalue() == ""

@@ -172,9 +172,10 @@ def test_error_table_flags_a_max_that_did_not_converge():
 @pytest.mark.filterwarnings("ignore:.*8/16-bit")
 def test_demo_writes_everything_once(tmp_path, capsys):
     out = tmp_path / "demo"
-    rc, stdout, _ = run(["demo", "--out", out, "--size", "64"], capsys)
+    rc, stdout, err = run(["demo", "--out", out, "--size", "64", "--table"], capsys)
     assert rc == 0
-    assert "L2-2" in stdout and "sMAPE" in stdout
+    assert "L2-2" in stdout and "sMAPE" in stdout  # the tables, asked for
+    assert err.splitlines()[-1].startswith(f"wrote 5 files in {out}")
     names = {"probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
              "coefficients.json"}
     assert {p.name for p in out.iterdir()} == names

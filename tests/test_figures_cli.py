@@ -32,7 +32,7 @@ def shared_probes() -> list:
 
 def test_demo_pictures_are_labelled_and_exposed(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--size", "64x32"]) == 0
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err  # the closing line, on stderr
     assert "(auto)" in out and "EV" in out
     side = tmp_path / "side_by_side.png"
     meta = read_panels(side)

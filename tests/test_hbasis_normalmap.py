@@ -169,7 +169,7 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     assert "already exists" in capsys.readouterr().err
     png = tmp_path / "r.png"
     assert main(["hbasis", "render", str(bunny_path), str(grace_path), "-o", str(png),
-                 "--size", "48"]) == 0
+                 "--size", "48", "--table"]) == 0
     text = capsys.readouterr().out
     assert "| H6 |" in text and "| SH9 |" in text
     from PIL import Image
@@ -186,13 +186,13 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     # bake → render: the baked coefficients give the same render as baking in place
     png2 = tmp_path / "r2.png"
     assert main(["hbasis", "render", str(bunny_path), str(grace_path), "--coeffs", str(out),
-                 "-o", str(png2), "--size", "48"]) == 0
+                 "-o", str(png2), "--size", "48", "--table"]) == 0
     assert capsys.readouterr().out == text
     np.testing.assert_array_equal(np.asarray(Image.open(png2)), np.asarray(Image.open(png)))
     # the bake in place of PROBE: its coefficients and its stored radiance SH (l ≤ 16)
     png3 = tmp_path / "r3.png"
     assert main(["hbasis", "render", str(bunny_path), str(out), "-o", str(png3),
-                 "--size", "48"]) == 0
+                 "--size", "48", "--table"]) == 0
     text3 = capsys.readouterr().out
     assert "SH (l ≤ 16) of the baked probe" in text3 and "| H6 |" in text3
     np.testing.assert_allclose(z["L"], project(load_env(grace_path), 16), rtol=1e-12)
@@ -202,7 +202,7 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
                  "--basis", "h4"]) == 0
     png4 = tmp_path / "r4.png"
     assert main(["hbasis", "render", str(bunny_path), str(grace_path), "--coeffs", str(out4),
-                 "-o", str(png4), "--size", "32"]) == 0
+                 "-o", str(png4), "--size", "32", "--table"]) == 0
     text4 = capsys.readouterr().out
     assert "| H6 |" not in text4 and "| H4 |" in text4
     assert [q["title"] for q in read_panels(png4)["panels"]][:3] == ["reference (exact)", "H4",
@@ -228,8 +228,9 @@ def test_cli_study_and_errors(tmp_path, capsys, monkeypatch):
     for ext in ("md", "csv", "png"):
         assert (tmp_path / "s" / f"hbasis_study.{ext}").stat().st_size > 100
     out = capsys.readouterr().out
-    assert "| 6 | H6 |" in out and "Gram matrix of SH4 (LSQ)" in out
-    assert "Gram matrix" in (tmp_path / "s" / "hbasis_study.md").read_text()
+    assert out == ""  # the tables are the files' (--table prints them too)
+    md = (tmp_path / "s" / "hbasis_study.md").read_text()
+    assert "| 6 | H6 |" in md and "Gram matrix of SH4 (LSQ)" in md
     # existing outputs are refused before the study runs, not after
     import shprobe.hbasis.study as study_mod
 

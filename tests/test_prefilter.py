@@ -345,18 +345,23 @@ def test_reference_chunking_and_generic_path_agree():
 
 def test_reference_blocks_over_normals_and_reports_progress():
     """Many normals and few samples: the work is split over normals too, and the progress
-    callback moves steadily to T·S while the result stays the direct sum."""
+    reported (one stage of the progress protocol) moves steadily to T·S while the result stays
+    the direct sum."""
+    from shprobe.progress import Recorder
+
     rad = np.random.default_rng(53).random((16, 32, 3)).astype(np.float32)
     env = Env(rad, "latlong")
     n = random_dirs(200_000, seed=54)
-    calls = []
-    got = reference_irradiance(env, n, progress=lambda d, t: calls.append((d, t)))
+    rec = Recorder()
+    got = reference_irradiance(env, n, progress=rec)
     d, L, dw = env.samples()
     np.testing.assert_allclose(got[::97], np.maximum(n[::97] @ d.T, 0.0) @ (L * dw[:, None]),
                                rtol=1e-10)
-    done = [c[0] for c in calls]
-    assert len(calls) >= 10 and done == sorted(done)
-    assert calls[-1] == (200_000 * 512, 200_000 * 512)
+    assert rec.events[0] == ("begin", "exact irradiance at 200,000 normals (brute force)",
+                             200_000 * 512)
+    done = [e[1] for e in rec.events if e[0] == "update"]
+    assert len(done) >= 10 and done == sorted(done)
+    assert done[-1] == 200_000 * 512 and rec.events[-1][0] == "end"
 
 
 # ----------------------------------------------------------------------------- JSON

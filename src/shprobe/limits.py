@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import os
 import re
+from dataclasses import dataclass
 from typing import Any
 
 from .errors import ShprobeError
 
-__all__ = ["CHUNK_BYTES", "check_memory", "format_bytes", "memory_limit", "parse_bytes"]
+__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "Cost", "check_memory", "cores", "format_bytes",
+           "format_seconds", "memory_limit", "parse_bytes"]
 
 #: Working-set target of one chunk of chunked work (samples, rows, normals).
 CHUNK_BYTES = 64 << 20
@@ -72,3 +74,48 @@ def check_memory(nbytes: float, what: str, where: Any = None) -> None:
             f"{what} would need about {format_bytes(nbytes)}, over the limit of "
             f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
             where)
+
+
+# ----------------------------------------------------------------------------- time
+
+#: A job estimated to take longer than this says its estimate before it starts.
+LONG_JOB_SECONDS = 30.0
+
+
+def cores() -> int:
+    """The cores this process may run on (the parallel kernels' threads)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def format_seconds(s: float) -> str:
+    """Seconds for people: '40 s', '1½ min', '12 min', '2.5 h'."""
+    if s < 60:
+        return f"{max(1, round(s))} s"
+    if s < 600:
+        halves = max(2, round(s / 30))
+        whole, half = divmod(halves, 2)
+        return f"{whole}{'½' if half else ''} min"
+    if s < 3600 * 2:
+        return f"{round(s / 60)} min"
+    return f"{s / 3600:.1f} h"
+
+
+@dataclass(frozen=True)
+class Cost:
+    """A job's estimate before it starts: seconds on this machine and peak bytes (the bytes
+    are the figure the job's memory check refuses on)."""
+
+    seconds: float
+    nbytes: float
+
+    @property
+    def long(self) -> bool:
+        """Over :data:`LONG_JOB_SECONDS`: say it before starting."""
+        return self.seconds > LONG_JOB_SECONDS
+
+    def __str__(self) -> str:
+        return (f"about {format_seconds(self.seconds)} and {format_bytes(self.nbytes)} on "
+                f"this machine ({cores()} cores)")

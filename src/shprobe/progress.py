@@ -16,7 +16,7 @@ calls to the page. ``None`` means quiet.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Protocol, TypeVar, runtime_checkable
 
@@ -91,6 +91,45 @@ def track(items: Iterable[T], progress: Progress | None, description: str,
             bar.advance(1)
 
 
+class Steps:
+    """The stages of one job in sequence, "1/N: …" to "N/N: …", for code that reads better as
+    a list of steps than as nested blocks::
+
+        with Steps(progress, 3) as step:
+            step("reading the mesh")
+            ...
+            bar = step("tracing rays", total=n)
+            ...
+
+    Each call ends the stage before it and begins the next (returning its :class:`Stage`);
+    leaving the block ends the last one, also on an error.
+    """
+
+    def __init__(self, progress: Progress | None, count: int) -> None:
+        self.progress, self.count, self.index = progress, int(count), 0
+        self._open = False
+
+    def __call__(self, description: str, total: float | None = None) -> Stage:
+        self.close()
+        self.index += 1
+        if self.progress is not None:
+            self.progress.begin(label(description, self.index, self.count), total)
+            self._open = True
+        return Stage(self.progress)
+
+    def close(self) -> None:
+        """End the stage under way, if any."""
+        if self._open and self.progress is not None:
+            self.progress.end()
+        self._open = False
+
+    def __enter__(self) -> Steps:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 class Recorder:
     """A reporter that keeps every call, for tests and for forwarding (the viewer)."""
 
@@ -110,3 +149,23 @@ class Recorder:
     def stages(self) -> list[str]:
         """The descriptions of the stages begun, in order."""
         return [str(d) for kind, d, _ in self.events if kind == "begin"]
+
+
+class Fraction:
+    """A reporter that hands the fraction done of the outermost countable stage to
+    ``report(fraction)``, for a display that shows one number (a server's task state)."""
+
+    def __init__(self, report: Callable[[float], None]) -> None:
+        self.report = report
+        self._totals: list[float | None] = []
+
+    def begin(self, description: str, total: float | None = None) -> None:
+        self._totals.append(total)
+
+    def update(self, done: float) -> None:
+        if len(self._totals) == 1 and self._totals[0]:
+            self.report(min(1.0, done / self._totals[0]))
+
+    def end(self) -> None:
+        if self._totals:
+            self._totals.pop()

@@ -43,47 +43,35 @@ def register(group: click.Group) -> None:
         afresh. See docs/batch.md for the columns and for running on a cluster.
         """
         from ..batch import run_batch
-        from .common import console
+        from .output import progress
 
-        con = console(stderr=True)
-        with _bar(con) as update:
+        bar = _Counted(progress(), "prefiltering probes")
+        try:
             table = run_batch(inputs, output, lmax=lmax, layout=layout, clamp=clamp,
                               reference=reference, thumbnail=thumbnail, window=window,
                               scheduler=scheduler,
-                              workers=workers, force=force, progress=update)
+                              workers=workers, force=force, progress=bar)
+        finally:
+            bar.close()
         bad = table.num_rows - table.column("error").null_count
         click.echo(f"wrote {output}: {table.num_rows} probes, {bad} failed"
                    + (" (see the 'error' column)" if bad else ""), err=True)
 
 
-def _bar(con):
-    """A rich progress bar with probes/s and ETA; yields ``update(done, total)``."""
-    from contextlib import contextmanager
+class _Counted:
+    """The batch engine's ``progress(done, total)`` as one stage of the terminal reporter
+    (:mod:`shprobe.progress`): begun at the first call, when the total is known."""
 
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        ProgressColumn,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-    from rich.text import Text
+    def __init__(self, reporter, description: str) -> None:
+        self.reporter, self.description, self.started = reporter, description, False
 
-    class Rate(ProgressColumn):
-        def render(self, task):
-            return Text(f"{task.speed:.1f} probes/s" if task.speed else "… probes/s")
+    def __call__(self, done: int, total: int) -> None:
+        if not self.started:
+            self.reporter.begin(f"{self.description} ({total:,})", total)
+            self.started = True
+        self.reporter.update(done)
 
-    @contextmanager
-    def bar():
-        with Progress(TextColumn("batch"), BarColumn(), MofNCompleteColumn(), Rate(),
-                      TimeRemainingColumn(), console=con, transient=True,
-                      disable=not con.is_terminal) as p:
-            task = p.add_task("batch", total=None)
-
-            def update(done: int, total: int) -> None:
-                p.update(task, completed=done, total=total)
-
-            yield update
-
-    return bar()
+    def close(self) -> None:
+        if self.started:
+            self.reporter.end()
+            self.started = False

@@ -1,8 +1,8 @@
-"""Shared CLI helpers: console, option types, progress bars."""
+"""Shared CLI helpers: console, option types."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TypeVar
 
@@ -18,14 +18,6 @@ def console(stderr: bool = False):
     from rich.console import Console
 
     return Console(stderr=stderr, highlight=False)
-
-
-def progress(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
-    """Iterate with a rich progress bar on stderr (quiet when stderr is not a terminal)."""
-    from rich.progress import track
-
-    yield from track(items, description=description, total=total, console=console(stderr=True),
-                     transient=True)
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:

@@ -6,6 +6,7 @@ import click
 
 from ..lighting.export import FORMATS as EXPORT_FORMATS
 from .common import force_option
+from .output import progress, verbosity, wrote
 
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
 
@@ -95,13 +96,16 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
     from ..lighting.export import export_coeffs
     from ..probes.images import write_image
 
+    written = []
     if any(images.values()):
         ims = fit_images(result)
         for name, p in images.items():
             if p and name in ims:
                 write_image(p, ims[name], overwrite=force)
+                written.append(p)
     if report:
         save_fit_figure(report, photo, result, title, overwrite=force)
+        written.append(report)
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
@@ -110,12 +114,23 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
         text = export_coeffs(result.coeffs, fmt, source=source)
     if output:
         write_text(output, text, force)
+        written.insert(0, output)
     else:
         click.echo(text, nl=not text.endswith("\n"))
-    if ph is not None and ph.exposure:
+    if ph is not None and ph.exposure and not verbosity().quiet:
         click.echo(f"shprobe: {source}: the exposure {ph.exposure:+.3g} EV recorded in its "
                    "metadata was undone", err=True)
-    click.echo(f"shprobe: {result.summary()}", err=True)
+    if written:
+        wrote(written, result.summary())
+    elif not verbosity().quiet:  # the coefficients went to stdout: the fit's summary alone
+        click.echo(f"shprobe: {result.summary()}", err=True)
+
+
+def _fitting(what: str):
+    """The fit's stage on the terminal reporter."""
+    from ..progress import stage
+
+    return stage(progress(), f"fitting the lighting to {what}")
 
 
 def _table_text(rows) -> str:
@@ -155,8 +170,9 @@ def register(group: click.Group) -> None:
                   "irradiance": irradiance}
         c, cam = _ball(circle, camera_text)
         ph, img, sat = _start(photo, saturation, output, images, report, force)
-        res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
-                            robust=not no_robust, path=photo)
+        with _fitting("the grey ball"):
+            res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
+                                robust=not no_robust, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}", ph)
 
     @fit_group.command("chrome-ball")
@@ -176,8 +192,9 @@ def register(group: click.Group) -> None:
         images = {"residual": residual, "fitted": fitted, "rejected": mask}
         c, cam = _ball(circle, camera_text)
         ph, img, sat = _start(photo, saturation, output, images, report, force)
-        res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
-                              inset=inset, path=photo)
+        with _fitting("the chrome ball"):
+            res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
+                                  inset=inset, path=photo)
         _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}", ph)
 
     @fit_group.command("normals")
@@ -203,7 +220,8 @@ def register(group: click.Group) -> None:
 
             raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
                                f"{img.shape[1]}x{img.shape[0]}", normal_map)
-        res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
+        with _fitting("the normal map's pixels"):
+            res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}", ph)
 
     @fit_group.command("mesh")
@@ -236,6 +254,7 @@ def register(group: click.Group) -> None:
         m = load_mesh(mesh)
         cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
                      distance, None, margin)
-        res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
+        with _fitting(f"the {len(m.vertices):,}-vertex mesh"):
+            res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
         _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}", ph)
 

@@ -7,7 +7,12 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import ROTATE_HELP, console, force_option, parse_rotation
+from ..progress import Steps
+from .common import ROTATE_HELP, force_option, parse_rotation
+from .output import estimate, progress, wrote
+
+table_option = click.option("--table", "show_table", is_flag=True,
+                            help="Also print the result's tables (markdown) on stdout.")
 
 
 @click.group("hbasis")
@@ -22,12 +27,16 @@ def hbasis_group() -> None:
                                       "2000 on one core).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Generator seed.")
 @click.option("--output", "-o", "outdir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="Folder for hbasis_study.{md,csv,png} (created if missing).")
+              default=None, help="Folder for hbasis_study.{md,csv,png} (created if missing); "
+                                 "without it, the tables are printed.")
+@table_option
 @force_option
-def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None:
-    """Fig. 3 study: mean IMSE (eq. 16) of every hemispherical basis, random signals."""
+def study_cmd(signals: int, seed: int, outdir: Path | None, show_table: bool,
+              force: bool) -> None:
+    """Fig. 3 study: mean IMSE (eq. 16) of every hemispherical basis, random signals. The
+    tables go to hbasis_study.md (printed with --table, or when there is no --output)."""
     from ..files import atomic_output, check_output_path, write_text
-    from ..hbasis.study import run_study
+    from ..hbasis.study import run_study, study_cost
 
     names = ("hbasis_study.md", "hbasis_study.csv", "hbasis_study.png")
     if outdir is not None:  # refuse before the work, not after it
@@ -36,8 +45,10 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None
         if outdir.exists():
             for name in names:
                 check_output_path(outdir / name, force)
-    res = run_study(signals, seed)
-    click.echo(res.markdown(), nl=False)
+    estimate(study_cost(signals), f"the study of {signals:,} signals")
+    res = run_study(signals, seed, progress=progress())
+    if show_table or outdir is None:
+        click.echo(res.markdown(), nl=False)
     if outdir is None:
         return
     outdir.mkdir(parents=True, exist_ok=True)
@@ -45,7 +56,9 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None
     write_text(outdir / names[1], res.csv(), overwrite=force)
     with atomic_output(outdir / names[2], overwrite=force) as tmp:
         res.plot(tmp)
-    console(stderr=True).print(f"wrote {outdir}/hbasis_study.md, .csv, .png")
+    best = min(zip(res.mean_imse, res.names, strict=True))
+    wrote([outdir / n for n in names], f"{len(res.names)} bases over {signals:,} signals; "
+                                       f"lowest mean IMSE {best[1]} {best[0]:.3g}")
 
 
 def _lighting(probe: Path):
@@ -78,11 +91,14 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     from ..scene.mesh import load_mesh
 
     check_output_path(output, force)
-    m = load_mesh(mesh)
-    bk = bake_mesh(m, _lighting(probe), n=6 if basis == "h6" else 4, bands=bands)
-    save_bake(output, bk, overwrite=force)
-    console(stderr=True).print(f"wrote {output}: {len(m.vertices)} vertices × "
-                               f"{bk.h.shape[1]} × 3")
+    m = load_mesh(mesh)  # bad input is refused here, in one line, before any stage
+    light = _lighting(probe)
+    with Steps(progress(), 2) as step:
+        step(f"baking {basis.upper()} at {len(m.vertices):,} vertices")
+        bk = bake_mesh(m, light, n=6 if basis == "h6" else 4, bands=bands)
+        step("writing")
+        save_bake(output, bk, overwrite=force)
+    wrote(output, f"{len(m.vertices)} vertices × {bk.h.shape[1]} × 3")
 
 
 #: Largest brute-force reference `hbasis render` starts (pixels × probe texels): minutes.
@@ -105,12 +121,14 @@ MAX_REFERENCE_PAIRS = 2e11
 @click.option("--normal-map", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Tangent-space normal-map image (needs a mesh with UVs) instead of the bump.")
 @click.option("--rotate", default=None, help="Turn the lighting. " + ROTATE_HELP)
+@table_option
 @force_option
 def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size: int,
                bump: float, gain: float, normal_map: Path | None, rotate: str | None,
-               force: bool) -> None:
+               show_table: bool, force: bool) -> None:
     """Render MESH with a procedural normal map under PROBE, shading with per-vertex H6, H4 and
-    SH9 against the brute-force reference; prints the relative RMS errors.
+    SH9 against the brute-force reference; the closing line gives the relative RMS errors
+    (--table prints them as a table).
 
     PROBE may also be a `hbasis bake` .npz: its coefficients are used (as with --coeffs) and
     the reference is its stored radiance SH expansion (l ≤ 16) instead of brute force.
@@ -148,21 +166,30 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
 
         R = parse_rotation(rotate)
         light = rotate_lighting(light, R) if isinstance(light, np.ndarray) else light.rotated(R)
-    with console(stderr=True).status("baking per-vertex bases, tracing and the brute-force "
-                                     "reference irradiance …"):
+    if not isinstance(light, np.ndarray):
+        from ..lighting.reference import reference_cost
+
+        estimate(reference_cost(light, size * size), f"the brute-force reference at --size "
+                                                     f"{size}")
+    with Steps(progress(), 2) as step:
+        step("baking per-vertex bases, tracing and the reference irradiance")
         res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
                                    baked=baked)
-    save_panel(output, res, gain, overwrite=force)
+        step("writing the panel")
+        save_panel(output, res, gain, overwrite=force)
     if not isinstance(light, np.ndarray):
         ref = "brute force"
     elif coeffs == probe:
         ref = "SH (l ≤ 16) of the baked probe"
     else:
         ref = "the SH expansion of PROBE"
-    click.echo(f"| basis | relative RMS error vs {ref} |\n| --- | ---: |")
-    for k, v in res.info["rel_rms"].items():
-        click.echo(f"| {k} | {v:.4f} |")
-    console(stderr=True).print(f"wrote {output}")
+    if show_table:
+        click.echo(f"| basis | relative RMS error vs {ref} |\n| --- | ---: |")
+        for k, v in res.info["rel_rms"].items():
+            click.echo(f"| {k} | {v:.4f} |")
+    wrote(output, "relative RMS error " + ", ".join(f"{k} {v:.4f}" for k, v in
+                                                    res.info["rel_rms"].items())
+          + f" vs {ref}")
 
 
 def register(group: click.Group) -> None:

@@ -1,16 +1,21 @@
-"""What a command says when it is done: one line naming what it wrote.
+"""What a command says: its estimate before a long job, one line naming what it wrote.
 
 Every command that writes files ends with :func:`wrote` (silenced by ``-q``; ``-v`` adds
 detail lines through :func:`detail`). The product of a command (a table, a JSON document sent
-to stdout) goes to stdout; this line goes to stderr so that a command's stdout stays its product.
+to stdout) goes to stdout; these lines go to stderr so that a command's stdout stays its
+product. A job estimated over :data:`shprobe.limits.LONG_JOB_SECONDS` says so before it starts
+(:func:`estimate`, from the cost model its memory check uses); :func:`progress` is the one
+terminal reporter of the :mod:`shprobe.progress` protocol.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import click
 
@@ -22,6 +27,7 @@ class Verbosity:
     quiet: bool = False
     verbose: bool = False
     started: float = field(default_factory=time.monotonic)
+    reporter: Any = None  # the command's one terminal reporter, made on first use
 
 
 def verbosity() -> Verbosity:
@@ -33,10 +39,14 @@ def verbosity() -> Verbosity:
 
 
 def progress():
-    """The terminal reporter for this command (quiet under ``-q``)."""
+    """The terminal reporter of this command (quiet under ``-q``): one per command, so that
+    stages begun anywhere in it nest in one display."""
     from .progress import TerminalProgress
 
-    return TerminalProgress(quiet=verbosity().quiet)
+    v = verbosity()
+    if v.reporter is None or v.reporter.stream is not sys.stderr:
+        v.reporter = TerminalProgress(quiet=v.quiet)
+    return v.reporter
 
 
 def _size(paths: Sequence[str | os.PathLike]) -> str:
@@ -60,10 +70,31 @@ def wrote(paths: Sequence[str | os.PathLike] | str | os.PathLike, what: str = ""
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
     names = [os.fspath(p) for p in paths]
-    shown = (", ".join(names) if len(names) <= 3
-             else f"{names[0]} … {names[-1]} ({len(names)} files)")
+    folders = {os.path.dirname(n) for n in names}
+    if len(names) <= 3:
+        shown = ", ".join(names)
+    elif len(folders) == 1 and "" not in folders:
+        shown = (f"{len(names)} files in {folders.pop()}{os.sep}: "
+                 f"{os.path.basename(names[0])} … {os.path.basename(names[-1])}")
+    else:
+        shown = f"{len(names)} files: {names[0]} … {names[-1]}"
+    for n in names if len(names) > 3 else ():
+        detail(f"  {n}")
     parts = [p for p in (what, _size(names), f"{time.monotonic() - v.started:.1f} s") if p]
     click.echo(f"wrote {shown} ({', '.join(parts)})", err=True)
+
+
+def estimate(cost, what: str) -> None:
+    """Say ``what`` will take ``cost`` (a :class:`shprobe.limits.Cost`) before it starts, when
+    it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length). A job
+    whose bytes are over the memory limit is refused first, in one line
+    (:func:`shprobe.limits.check_memory`, the check the job itself makes)."""
+    from ..limits import check_memory
+
+    check_memory(cost.nbytes, what)
+    v = verbosity()
+    if not v.quiet and (cost.long or v.verbose):
+        click.echo(f"{what}: {cost}", err=True)
 
 
 def detail(message: str) -> None:

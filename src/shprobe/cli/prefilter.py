@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -10,30 +9,12 @@ import click
 from ..errors import ShprobeError
 from ..lighting.export import FORMATS as EXPORT_FORMATS
 from .common import force_option, parse_exposure
+from .output import detail, estimate, progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.lighting.export).
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
 OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
-
-
-@contextmanager
-def _progress_bar(description: str):
-    """A rich progress bar on stderr; yields ``update(done, total)``."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    from .common import console
-
-    con = console(stderr=True)
-    with Progress(TextColumn(description), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeRemainingColumn(), console=con, transient=True,
-                  disable=not con.is_terminal) as bar:
-        task = bar.add_task(description, total=None)
-
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield update
 
 
 def coeff_table(coeffs, title: str | None = None):
@@ -184,6 +165,7 @@ def register(group: click.Group) -> None:
         if fmt == "table":
             if output:
                 write_text(output, coeff_text(src.coeffs), force)
+                wrote(output, f"table, lmax {lmax}")
             else:
                 from .common import console
 
@@ -199,6 +181,7 @@ def register(group: click.Group) -> None:
             text = export_coeffs(src.coeffs, fmt, source=src.source)
         if output:
             write_text(output, text, force)
+            wrote(output, f"{fmt}, lmax {lmax}")
         else:
             click.echo(text, nl=not text.endswith("\n"))
 
@@ -229,7 +212,7 @@ def register(group: click.Group) -> None:
         import numpy as np
 
         from ..lighting.irradiance import irradiance_map
-        from ..lighting.reference import reference_irradiance_map
+        from ..lighting.reference import MAP_CHUNK, reference_cost, reference_irradiance_map
         from ..probes.env import write_env
         from ..probes.figures import exposure_for
         from ..probes.images import check_image_output
@@ -245,8 +228,10 @@ def register(group: click.Group) -> None:
         if method == "sh":
             emap = irradiance_map(src.coeffs, lay, sz)
         else:
-            with _progress_bar("brute-force irradiance") as update:
-                emap = reference_irradiance_map(src.env, lay, sz, progress=update)
+            grid = lay.grid_shape(sz)
+            estimate(reference_cost(src.env, int(lay.valid_mask(grid).sum()), chunk=MAP_CHUNK),
+                     f"the brute-force irradiance map {'x'.join(map(str, grid[::-1]))}")
+            emap = reference_irradiance_map(src.env, lay, sz, progress=progress())
         shown, note = emap, ""
         if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
             from ..probes.env import Env
@@ -258,8 +243,8 @@ def register(group: click.Group) -> None:
         else:
             stops = 0.0
         write_env(output, shown, overwrite=force, exposure=stops)
-        click.echo(f"wrote {output} ({lay.name} {'x'.join(map(str, emap.grid[::-1]))}, "
-                   f"{method}, lmax {lmax}{note})", err=True)
+        wrote(output, f"{lay.name} {'x'.join(map(str, emap.grid[::-1]))}, {method}, "
+                      f"lmax {lmax}{note}")
 
     @group.command("error")
     @coeff_source_options
@@ -279,13 +264,16 @@ def register(group: click.Group) -> None:
         of the total intensity ∫L dω (R&H 2001 §3.1)."""
         import json
 
-        from ..lighting.reference import error_report
+        from ..lighting.reference import error_report, reference_cost
 
         src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
-        with _progress_bar("reference irradiance") as update:
-            rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
-                               normal_grid=grid_h, progress=update,
-                               **({} if tol is None else {"tol": tol}))
+        if src.env.layout.name != "latlong":  # lat-long maps: row sums, milliseconds
+            estimate(reference_cost(src.env, 2 * grid_h * grid_h),
+                     f"the exact irradiance at {2 * grid_h * grid_h} normals")
+        # lat-long: row sums, milliseconds; other layouts: the brute-force stage, counted
+        rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
+                           normal_grid=grid_h, progress=progress(),
+                           **({} if tol is None else {"tol": tol}))
         if fmt == "json":
             click.echo(json.dumps(error_document(rep, src.source), indent=2))
         else:
@@ -303,11 +291,15 @@ def register(group: click.Group) -> None:
     @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
                   help="Exposure of the PNGs in stops; auto maps the 99th percentile of the "
                   "largest channel of the sky and E/π together to white.")
+    @click.option("--table", "show_table", is_flag=True,
+                  help="Also print the coefficient and error tables (the error table is "
+                  "always in the closing line's summary).")
     @force_option
-    def demo_cmd(out_dir, size, exposure, force):
+    def demo_cmd(out_dir, size, exposure, show_table, force):
         """The main job with no files: a procedural sky → SH coefficients → irradiance map,
-        a labelled side-by-side picture and the error table. The PNGs show E/π (the radiance
-        a white diffuse surface reflects) at the sky's exposure, so the two compare."""
+        a labelled side-by-side picture and the error against the exact integral. The PNGs
+        show E/π (the radiance a white diffuse surface reflects) at the sky's exposure, so
+        the two compare."""
         import numpy as np
 
         from ..files import check_output_path, write_json
@@ -318,7 +310,7 @@ def register(group: click.Group) -> None:
         from ..probes.environments import procedural_env
         from ..probes.figures import Panel, exposure_for, figure
         from ..probes.images import write_image
-        from .common import console
+        from ..progress import Steps
 
         out = Path(out_dir)
         if out.exists() and not out.is_dir():
@@ -329,29 +321,41 @@ def register(group: click.Group) -> None:
             check_output_path(out / n, force)
         fixed = parse_exposure(exposure)
         w, h = _grid_size(size, "latlong")
-        env = procedural_env(w, h)
-        coeffs = project(env, 2)
-        con = console()
-        con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
-                                      "(R&H 2001 Fig. 2 layout)"))
-        emap = irradiance_map(coeffs, "latlong", (w, h))
-        shown = emap.radiance / np.pi
-        stops = (exposure_for(np.concatenate([env.radiance, shown], axis=1))
-                 if fixed is None else fixed)
-        side = figure([Panel(env.radiance, "procedural sky: radiance L", units="relative "
-                             "radiance", exposure=stops),
-                       Panel(shown, "irradiance E/π (SH, lmax 2)",
-                             units="white diffuse radiance", exposure=stops)],
-                      title="probe | its SH irradiance map (lat-long, +Y up)")
-        write_image(out / "probe.exr", env.radiance, overwrite=force)
-        write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
-        write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
-        side.save(out / "side_by_side.png", overwrite=force)
-        write_json(out / "coefficients.json", coeffs_document(coeffs, "procedural", "latlong"),
-                   overwrite=force)
-        with _progress_bar("reference irradiance") as update:
-            rep = error_report(env, progress=update)
-        con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
-        con.print(f"wrote {', '.join(names)} in {out}/ (the .pngs show E/π, the radiance of a "
-                  f"white diffuse surface, at exposure {stops:+.1f} EV"
-                  f"{' (auto)' if fixed is None else ''})")
+        with Steps(progress(), 4) as step:
+            step("the procedural sky and its SH coefficients (R&H eq. 10)")
+            env = procedural_env(w, h)
+            coeffs = project(env, 2)
+            step("its irradiance map (R&H eq. 7)")
+            emap = irradiance_map(coeffs, "latlong", (w, h))
+            shown = emap.radiance / np.pi
+            stops = (exposure_for(np.concatenate([env.radiance, shown], axis=1))
+                     if fixed is None else fixed)
+            side = figure([Panel(env.radiance, "procedural sky: radiance L",
+                                 units="relative radiance", exposure=stops),
+                           Panel(shown, "irradiance E/π (SH, lmax 2)",
+                                 units="white diffuse radiance", exposure=stops)],
+                          title="probe | its SH irradiance map (lat-long, +Y up)")
+            bar = step(f"writing {len(names)} files", total=len(names))
+            write_image(out / "probe.exr", env.radiance, overwrite=force)
+            write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
+            write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
+            bar.set(3)
+            side.save(out / "side_by_side.png", overwrite=force)
+            write_json(out / "coefficients.json",
+                       coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
+            bar.set(5)
+            step("the error against the exact irradiance (R&H §3.1)")
+            rep = error_report(env)
+        if show_table:
+            from .common import console
+
+            con = console()
+            con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
+                                          "(R&H 2001 Fig. 2 layout)"))
+            con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
+        detail("the .pngs show E/π, the radiance of a white diffuse surface, at the sky's "
+               "exposure")
+        e2 = rep.row(2)
+        wrote([out / n for n in names],
+              f"E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}; lmax 2 "
+              f"error {100 * e2.mean_frac:.2g} % mean, {100 * e2.max_frac:.2g} % max of ∫L dω")

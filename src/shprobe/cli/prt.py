@@ -128,7 +128,7 @@ def register(group: click.Group) -> None:
         (`shprobe prt render --mode ... --bounces ...`)."""
         from ..files import check_output_path
         from ..prt import ACCURATE, QUICK, bake, estimate_bake, load_scene
-        from .output import detail, progress, verbosity, wrote
+        from .output import detail, estimate, progress, wrote
 
         check_output_path(output, force)
         if accurate_contact and refine is False:
@@ -144,9 +144,7 @@ def register(group: click.Group) -> None:
             raise ShprobeError("--refine needs a traced bake (--mode shadowed or interreflected)")
         est = estimate_bake(sc, mode, lmax, samples if traced else 16, bounces, settings,
                             threads)
-        if est.seconds > 30 and not verbosity().quiet:
-            click.echo(f"{mode} bake of {sc.n_vertices:,} vertices at lmax {lmax}: {est} on "
-                       "this machine", err=True)
+        estimate(est, f"{mode} bake of {sc.n_vertices:,} vertices at lmax {lmax}")
         t = bake(sc, mode=mode, lmax=lmax, samples=samples, bounces=bounces, seed=seed,
                  threads=threads, progress=progress(),
                  refine=settings if settings is not None else False)

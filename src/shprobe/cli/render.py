@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ from .common import (
     parse_floats,
     parse_size,
 )
+from .output import progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
 WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
@@ -91,6 +91,23 @@ def load_geometry(mesh, sphere):
     return None if (sphere or not mesh) else load_mesh(mesh)
 
 
+def _basis_sheet(B, lmax, scale, out, force, obj):
+    """The labelled pyramid sheet: band l on row l, centred; one colour bar, sign
+    legend."""
+    from ..probes.figures import Panel, write_figure
+    from ..sh import sh_lm
+
+    rows = [[None] * (2 * lmax + 1) for _ in range(lmax + 1)]
+    for k in range(B.shape[-1]):
+        l, m = sh_lm(k)
+        rows[l][lmax + m] = Panel(B[..., k], f"(l, m) = ({l}, {m:+d})", "signed",
+                                  units="Â_l y_lm(n) / π", scale=scale)
+    write_figure(out / "basis.png", rows, overwrite=force, shared_colorbar=True,
+                 title=f"irradiance basis images of {obj} (R&H 2001 Fig. 4): the object "
+                       "under L = e_lm",
+                 display_width=min(B.shape[1], 192))
+
+
 # ----------------------------------------------------------------------------- commands
 
 
@@ -126,9 +143,9 @@ def register(group: click.Group) -> None:
         albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
         probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
         from ..probes.images import check_image_output
+        from ..progress import Steps
         from ..scene.render import render
 
-        t0 = time.perf_counter()
         check_image_output(output, force)
         stops = parse_exposure(exposure)  # a bad value is refused before the work
         if exr:
@@ -148,22 +165,26 @@ def register(group: click.Group) -> None:
         else:
             bg = parse_floats(background, 3, "background colour")
         alb = parse_floats(albedo, 3, "albedo") if albedo else None
-        res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
-        if stops is None:
-            from ..probes.tonemap import auto_exposure
+        with Steps(progress(), 2) as step:
+            step(f"rendering {cam.width}x{cam.height} ({mode} shading)")
+            res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
+            step("writing")
+            auto = stops is None
+            if auto:
+                from ..probes.tonemap import auto_exposure
 
-            stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image, 1.0)
-            if output.lower().endswith((".png", ".jpg", ".jpeg")):
-                click.echo(f"exposure {stops:+.2f} stops (auto)")
-        res.save(output, exposure=stops, overwrite=force)
-        if exr:
-            res.save(exr, overwrite=force)
-        dt = time.perf_counter() - t0
-        if wdesc:
-            click.echo(wdesc)
-        click.echo(f"{output}: {cam.width}x{cam.height} {mode} shading of "
-                   f"{'sphere' if geo is None else os.path.basename(mesh)} under {name}, "
-                   f"{100 * res.mask.mean():.1f}% object pixels, {dt:.2f} s")
+                stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image,
+                                      1.0)
+            res.save(output, exposure=stops, overwrite=force)
+            if exr:
+                res.save(exr, overwrite=force)
+        ldr = output.lower().endswith((".png", ".jpg", ".jpeg"))
+        wrote([output, *([exr] if exr else [])],
+              f"{cam.width}x{cam.height} {mode} shading of "
+              f"{'sphere' if geo is None else os.path.basename(mesh)} under {name}, "
+              f"{100 * res.mask.mean():.1f}% object pixels"
+              + (f", exposure {stops:+.2f} stops{' (auto)' if auto else ''}" if ldr else "")
+              + (f"; {wdesc}" if wdesc else ""))
 
     @group.command("basis-images")
     @click.argument("mesh", required=False, type=click.Path(dir_okay=False))
@@ -183,6 +204,7 @@ def register(group: click.Group) -> None:
 
         from ..files import check_output_path
         from ..probes.images import write_image
+        from ..progress import Steps
         from ..scene.render import basis_images, basis_visual
         from ..sh import check_lmax, num_coeffs, sh_lm
 
@@ -198,30 +220,23 @@ def register(group: click.Group) -> None:
             check_output_path(p, force)
         geo = load_geometry(mesh, sphere)
         cam = make_camera(size, azimuth, elevation, fov, ortho)
-        res = basis_images(geo, cam, lmax=lmax, mode=mode)
-        B = res.image
-        scale = float(np.abs(B).max())
-        tiles = []
-        for k, stem in enumerate(stems):
-            write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
-            vis = basis_visual(B[..., k], scale)
-            write_image(stem.with_suffix(".png"), vis, overwrite=force)
-            tiles.append(vis)
-        # labelled pyramid sheet: band l on row l, centred; one colour bar, sign legend
-        from ..probes.figures import Panel, write_figure
-
-        rows = [[None] * (2 * lmax + 1) for _ in range(lmax + 1)]
-        for k in range(len(stems)):
-            l, m = sh_lm(k)
-            rows[l][lmax + m] = Panel(B[..., k], f"(l, m) = ({l}, {m:+d})", "signed",
-                                      units="Â_l y_lm(n) / π", scale=scale)
-        write_figure(out / "basis.png", rows, overwrite=force, shared_colorbar=True,
-                     title=f"irradiance basis images of "
-                           f"{'the unit sphere' if geo is None else os.path.basename(mesh)} "
-                           "(R&H 2001 Fig. 4): the object under L = e_lm",
-                     display_width=min(B.shape[1], 192))
-        click.echo(f"{out}: {B.shape[-1]} basis images (PNG + EXR) and basis.png; common "
-                   f"scale {scale:.4g}")
+        with Steps(progress(), 3) as step:
+            step(f"rendering {len(stems)} basis images {cam.width}x{cam.height}")
+            res = basis_images(geo, cam, lmax=lmax, mode=mode)
+            B = res.image
+            scale = float(np.abs(B).max())
+            bar = step(f"writing {2 * len(stems)} images (EXR + PNG)", total=2 * len(stems))
+            for k, stem in enumerate(stems):
+                write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
+                write_image(stem.with_suffix(".png"), basis_visual(B[..., k], scale),
+                            overwrite=force)
+                bar.advance(2)
+            step("the labelled sheet basis.png")
+            _basis_sheet(B, lmax, scale, out, force,
+                         "the unit sphere" if geo is None else os.path.basename(mesh))
+        wrote([*(st.with_suffix(e) for st in stems for e in (".exr", ".png")),
+               out / "basis.png"], f"{B.shape[-1]} basis images, PNG + EXR and the sheet; "
+                                   f"common scale {scale:.4g}")
 
     @group.command("edit")
     @source_options
@@ -278,10 +293,8 @@ def register(group: click.Group) -> None:
             "rotate": rotations, "window": window}, layout, clamp)
         write_text(output, export_coeffs(L, fmt, source=name or "shprobe edit"),
                    overwrite=force)
-        if wdesc:
-            click.echo(wdesc)
-        click.echo(f"{output}: {fmt}, lmax {lmax_of(L.shape[0])}, "
-                   f"from {name or 'darkness'}")
+        wrote(output, f"{fmt}, lmax {lmax_of(L.shape[0])}, from {name or 'darkness'}"
+              + (f"; {wdesc}" if wdesc else ""))
 
     @group.command("window")
     @source_options
@@ -338,6 +351,7 @@ def register(group: click.Group) -> None:
         if output:
             write_text(output, export_coeffs(apply_window(coeffs, f), "json", source=name),
                        overwrite=force)
+            wrote(output, f"json, lmax {lmax}, windowed")
 
     @group.command("export")
     @source_options
@@ -360,6 +374,6 @@ def register(group: click.Group) -> None:
         text = export_coeffs(coeffs, fmt, source=name)
         if output:
             write_text(output, text, overwrite=force)
-            click.echo(f"{output}: {fmt}" + (f"; {wdesc}" if wdesc else ""))
+            wrote(output, fmt + (f"; {wdesc}" if wdesc else ""))
         else:
             click.echo(text, nl=False)

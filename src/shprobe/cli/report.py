@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import time
 
 import click
 
@@ -35,11 +34,10 @@ def register(group: click.Group) -> None:
         the coefficient table (R&H 2001 Fig. 2 layout), M (eq. 11-12), the non-negativity
         certificate and the window `auto` chooses, the nine basis images of the mesh and a
         render of it. PROBE is one image, or six cube faces (+X -X +Y -Y +Z -Z)."""
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
         from ..files import check_output_path
+        from ..lighting.reference import MAP_CHUNK, reference_cost
         from ..report import probe_report, write_report
-        from .common import console
+        from .output import estimate, progress, wrote
         from .sources import resolve_coeffs
 
         if len(probe) not in (1, 6):
@@ -48,7 +46,6 @@ def register(group: click.Group) -> None:
         if not output.lower().endswith((".html", ".htm")):
             raise ShprobeError("a report is written as .html", output)
         check_output_path(output, force)  # refuse before the work
-        t0 = time.perf_counter()
         src = resolve_coeffs(probe[0] if len(probe) == 1 else list(probe), layout=layout,
                              lmax=2, clamp=clamp, need_env=True)
         geo, name = None, "the unit sphere"
@@ -56,21 +53,9 @@ def register(group: click.Group) -> None:
             from ..scene import load_mesh
 
             geo, name = load_mesh(mesh), os.path.basename(mesh)
-        con = console(stderr=True)
-        with Progress(TextColumn("{task.description}"), BarColumn(),
-                      TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(),
-                      console=con, transient=True, disable=not con.is_terminal) as bar:
-            task = bar.add_task("report", total=None)
-
-            def step(text: str) -> None:
-                bar.update(task, description=text, completed=0, total=None)
-
-            def update(done: int, total: int) -> None:
-                bar.update(task, completed=done, total=total)
-
-            rep = probe_report(src.env, geo, name, map_height=map_size,
-                               render_size=render_size, step=step, progress=update)
-            write_report(output, rep, force)
-        click.echo(f"wrote {output} ({len(rep.html) / 1024:.0f} KiB, {len(rep.figures)} "
-                   f"figures; window auto: {rep.window.kind}; "
-                   f"{time.perf_counter() - t0:.1f} s)", err=True)
+        estimate(reference_cost(src.env, 2 * map_size * map_size, chunk=MAP_CHUNK),
+                 f"the report's exact irradiance at {2 * map_size * map_size} normals")
+        rep = probe_report(src.env, geo, name, map_height=map_size, render_size=render_size,
+                           progress=progress())
+        write_report(output, rep, force)
+        wrote(output, f"{len(rep.figures)} figures; window auto: {rep.window.kind}")

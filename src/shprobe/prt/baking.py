@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ShprobeError
+from ..limits import Cost
 from ..progress import Progress
 from ..sh import check_lmax, num_coeffs
 from .geometry import BakeScene, load_scene
@@ -71,21 +72,15 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
 
 
 @dataclass(frozen=True)
-class BakeEstimate:
-    """What a bake is expected to cost on this machine: ``seconds``, peak ``bytes`` and the
-    ``vertices`` of its final geometry."""
+class BakeEstimate(Cost):
+    """What a bake is expected to cost on this machine (:class:`shprobe.limits.Cost`: seconds
+    and peak bytes) and the ``vertices`` of its final geometry."""
 
-    seconds: float
-    bytes: float
-    vertices: int
+    vertices: int = 0
 
-    def __str__(self) -> str:
-        from ..limits import format_bytes
-
-        s = self.seconds
-        when = (f"{s:.1f} s" if s < 10 else f"{s:.0f} s" if s < 90 else f"{s / 60:.1f} min"
-                if s < 5400 else f"{s / 3600:.1f} h")
-        return f"about {when} and {format_bytes(self.bytes)}"
+    @property
+    def bytes(self) -> float:
+        return self.nbytes
 
 
 #: Seconds per (input vertex × sample) of a bake at lmax 2 on two threads, by mode and

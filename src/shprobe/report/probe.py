@@ -20,7 +20,6 @@ from __future__ import annotations
 import base64
 import html
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,7 @@ from ..errors import ShprobeError
 from ..probes.env import Env
 from ..probes.figures import Figure, Panel, exposure_for, figure
 from ..probes.layouts import LatLong
+from ..progress import Progress, Steps
 
 #: The page loads nothing: only inline styles and data: images (a browser enforces it).
 _CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'"
@@ -96,16 +96,32 @@ def _vec(v) -> str:
 
 def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
                  map_height: int = 32, render_size: int = 256,
-                 step: Callable[[str], None] | None = None,
-                 progress: Callable[[int, int], None] | None = None) -> ProbeReport:
+                 progress: Progress | None = None) -> ProbeReport:
     """Build the report of ``env``.
 
     ``mesh``: a trimesh mesh for the basis images and the render (None: the unit sphere);
     ``mesh_name``: its name on the page. ``map_height``: rows of the lat-long irradiance maps
     (2N × N normals; the exact map and the error table use the same normals). ``render_size``:
-    side of the basis images and the render. ``step(description)`` is called as each stage
-    starts; ``progress(done, total)`` reports the brute-force integral.
+    side of the basis images and the render. ``progress`` gets the job's
+    :data:`REPORT_STAGES` stages "k/N: …" (the brute-force integral counted inside its stage).
     """
+    h = int(map_height)
+    if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
+        raise ShprobeError(f"map height {h} must be 2..256")
+    r = int(render_size)
+    if not 16 <= r <= MAX_RENDER:
+        raise ShprobeError(f"render size {r} must be 16..{MAX_RENDER}")
+    with Steps(progress, REPORT_STAGES) as say:
+        return _build(env, mesh, mesh_name, h, r, say, progress)
+
+
+#: The stages of :func:`probe_report` (what ``progress`` is told).
+REPORT_STAGES = 7
+
+
+def _build(env: Env, mesh: Any, mesh_name: str | None, h: int, r: int, say: Steps,
+           progress: Progress | None) -> ProbeReport:
+    """:func:`probe_report`'s work, one stage after the other."""
     from .._version import __version__
     from ..lighting.irradiance import irradiance_map, irradiance_matrix
     from ..lighting.projection import project, total_intensity
@@ -114,13 +130,6 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     from ..scene import Camera, basis_images, render
     from ..sh import sh_lm
 
-    h = int(map_height)
-    if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
-        raise ShprobeError(f"map height {h} must be 2..256")
-    r = int(render_size)
-    if not 16 <= r <= MAX_RENDER:
-        raise ShprobeError(f"render size {r} must be 16..{MAX_RENDER}")
-    say = step or (lambda s: None)
     source = os.path.basename(env.path) if env.path else "environment"
     obj = mesh_name or ("the unit sphere" if mesh is None else "the mesh")
     figs: dict[str, Figure] = {}
@@ -137,7 +146,7 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
                                   units="radiance L (relative)", exposure=e_probe + 4.0)],
                            display_width=min(512, max(256, view.shape[1])))
 
-    say("exact irradiance (brute force)")
+    say(f"exact irradiance map {2 * h}x{h}")
     ref = reference_irradiance_map(env, "latlong", (2 * h, h), progress=progress)
     say("error table")
     rep = error_report(env, (1, 2, 3, 4), reference=ref.radiance.reshape(-1, 3),
@@ -183,7 +192,7 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
                            units="radiance ρE/π", exposure=e_obj))
     figs["render"] = figure(shots, display_width=max(288, min(r, 384)))
 
-    say("writing the page")
+    say("building the page")
     coeff_rows = []
     k = 0
     for l in range(3):

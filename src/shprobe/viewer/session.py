@@ -48,11 +48,6 @@ class Task:
     def end(self) -> None:
         self.done = 1.0
 
-    def __call__(self, done: float, total: float) -> None:
-        """The ``(done, total)`` calls of :func:`shprobe.lighting.reference.
-        reference_irradiance`."""
-        self.done = done / max(total, 1)
-
 
 class Session:
     """Everything one ``shprobe view`` serves: sources, mesh, transfer, uploads."""
