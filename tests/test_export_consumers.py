@@ -36,6 +36,7 @@ from shprobe.sh import sh_basis
 from shprobe.sh.rotation import from_axis_angle
 
 from .conftest import REPO, shared_dir
+from .npm_packages import ensure_npm_packages
 
 CONSUMERS = REPO / "tests" / "consumers"
 TOL = 1e-5
@@ -107,7 +108,7 @@ def require_node(package: str) -> str:
     node = shutil.which("node")
     if node is None:
         pytest.skip("node not installed (.ci/run installs the consumers with npm ci)")
-    if not (CONSUMERS / "node_modules" / package).is_dir():
+    if not (CONSUMERS / "node_modules" / package).is_dir() and not ensure_npm_packages():
         pytest.skip(f"npm package {package} not installed (cd tests/consumers && npm ci)")
     return node
 

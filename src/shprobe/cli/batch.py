@@ -42,6 +42,9 @@ def register(group: click.Group) -> None:
         with the same --output skips probes already done (by content hash); --force starts
         afresh. See docs/batch.md for the columns and for running on a cluster.
         """
+        from .extras import require
+
+        require("batch", "batch")
         from ..batch import run_batch
         from .output import progress
 

@@ -36,7 +36,10 @@ def register(group: click.Group) -> None:
         import time
         import webbrowser
 
+        from .extras import require
+
         t_cli = time.time()
+        require("viewer", "view")
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
         # the files start loading first (viewer.loader), in a fork that shares what both

@@ -24,8 +24,8 @@ def coeffs_document(coeffs: ArrayLike, source: str | None = None, layout: str | 
                     ) -> dict[str, Any]:
     """The JSON document of ``shprobe prefilter --format json``.
 
-    Keys: shprobe_version, source, layout, lmax, convention, labels, coefficients [k][rgb],
-    irradiance_coefficients [k][rgb] (Â_l L_lm) and, for lmax ≥ 2, M [rgb][4][4] (eq. 11–12).
+    Keys: shprobe_version, source, layout, lmax, convention, labels, coefficients `[k][rgb]`,
+    irradiance_coefficients `[k][rgb]` (Â_l L_lm) and, for lmax ≥ 2, M `[rgb][4][4]` (eq. 11–12).
     """
     c = as_coeffs(coeffs)
     if c.shape[1] == 1:
@@ -53,7 +53,7 @@ _OTHER_FORMATS = {"condon-shortley": "cs-phase", "three.SphericalHarmonics3": "t
 
 def coeffs_from_document(doc: Any, where: Any = None) -> NDArray[np.float64]:
     """L_lm (K, C) of a parsed shprobe JSON document (any object with ``coefficients``
-    [k][channel] in shprobe's convention)."""
+    `[k][channel]` in shprobe's convention)."""
     if not isinstance(doc, dict):
         raise ShprobeError("JSON coefficient file must hold an object", where)
     fmt = doc.get("format", "shprobe-coeffs")

@@ -12,7 +12,7 @@ glsl/hlsl  functions of the world-space normal returning irradiance E(n) (not /�
 /wgsl      E = nᵀMn with the three 4×4 matrices M baked in (``shprobe_irradiance``), and the
            eq. 13 polynomial in the 9 L_lm (``shprobe_irradiance_poly``). l ≤ 2 only.
 json       the ``shprobe prefilter --format json`` document (``lighting.document.coeffs_document``):
-           ``coefficients`` L_lm [k][rgb], ``irradiance_coefficients`` E_lm = Â_l L_lm,
+           ``coefficients`` L_lm `[k][rgb]`, ``irradiance_coefficients`` E_lm = Â_l L_lm,
            ``M`` (eq. 11–12), R&H signs, any lmax.
 three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array of
            ``toArray()`` (9 RGB triples, index k = l(l+1)+m). three.js stores radiance L_lm
