@@ -56,7 +56,9 @@ def _upgrade(t: Any, path: Any):
         raise ShprobeError(f"is a batch table of schema version {version}; this shprobe reads "
                            f"versions up to {SCHEMA_VERSION} (upgrade shprobe)", path)
     names = [RENAMED.get(n, n) if version < 2 else n for n in t.column_names]
-    return t.rename_columns(names) if names != t.column_names else t
+    if names == t.column_names:
+        return t
+    return t.rename_columns(names).replace_schema_metadata(t.schema.metadata)
 
 
 def read_table(path: str | os.PathLike[str]):
