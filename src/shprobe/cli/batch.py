@@ -5,7 +5,6 @@ from __future__ import annotations
 import click
 
 from ..errors import ShprobeError
-
 from .common import clamp_option, force_option, layout_option
 
 
@@ -45,7 +44,8 @@ def register(group: click.Group) -> None:
         of paths (.txt one per line; .csv / .parquet with a 'path' and optional 'layout'
         column). A bad file becomes a row with its message in the 'failure' column; the exit
         is then 1 unless --allow-failures. Re-running with the same --output skips probes
-        already done (by content hash); --force starts afresh. See docs/batch.md for the columns and for running on a cluster.
+        already done (by content hash); --force starts afresh. See docs/batch.md for the
+        columns and for running on a cluster.
         """
         from ..batch import run_batch
         from .common import console

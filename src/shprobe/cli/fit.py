@@ -88,27 +88,28 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
           title: str) -> None:
     import json
 
-    from ..files import write_text
+    from ..files import transaction, write_text
     from ..fitting.report import fit_document, fit_images, fit_table_rows, save_fit_figure
     from ..lighting.export import export_coeffs
     from ..probes.images import write_image
 
-    if any(images.values()):
-        ims = fit_images(result)
-        for name, p in images.items():
-            if p and name in ims:
-                write_image(p, ims[name], overwrite=force)
-    if report:
-        save_fit_figure(report, photo, result, title, overwrite=force)
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
         text = json.dumps(fit_document(result, source), indent=2) + "\n"
     else:
         text = export_coeffs(result.coeffs, fmt, source=source)
-    if output:
-        write_text(output, text, force)
-    else:
+    with transaction():  # the images, the report and the coefficients: all or none
+        if any(images.values()):
+            ims = fit_images(result)
+            for name, p in images.items():
+                if p and name in ims:
+                    write_image(p, ims[name], overwrite=force)
+        if report:
+            save_fit_figure(report, photo, result, title, overwrite=force)
+        if output:
+            write_text(output, text, force)
+    if not output:
         click.echo(text, nl=not text.endswith("\n"))
     click.echo(f"shprobe: {result.summary()}", err=True)
 

@@ -26,7 +26,7 @@ def hbasis_group() -> None:
 @force_option
 def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None:
     """Fig. 3 study: mean IMSE (eq. 16) of every hemispherical basis, random signals."""
-    from ..files import atomic_output, check_output_path, write_text
+    from ..files import atomic_output, check_output_path, transaction, write_text
     from ..hbasis.study import run_study
 
     names = ("hbasis_study.md", "hbasis_study.csv", "hbasis_study.png")
@@ -41,10 +41,11 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None
     if outdir is None:
         return
     outdir.mkdir(parents=True, exist_ok=True)
-    write_text(outdir / names[0], res.markdown(), overwrite=force)
-    write_text(outdir / names[1], res.csv(), overwrite=force)
-    with atomic_output(outdir / names[2], overwrite=force) as tmp:
-        res.plot(tmp)
+    with transaction():  # the table, the CSV and the plot together or none
+        write_text(outdir / names[0], res.markdown(), overwrite=force)
+        write_text(outdir / names[1], res.csv(), overwrite=force)
+        with atomic_output(outdir / names[2], overwrite=force) as tmp:
+            res.plot(tmp)
     console(stderr=True).print(f"wrote {outdir}/hbasis_study.md, .csv, .png")
 
 

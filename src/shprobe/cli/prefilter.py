@@ -341,12 +341,15 @@ def register(group: click.Group) -> None:
                        Panel(shown, "irradiance E/π (SH, lmax 2)",
                              units="white diffuse radiance", exposure=stops)],
                       title="probe | its SH irradiance map (lat-long, +Y up)")
-        write_image(out / "probe.exr", env.radiance, overwrite=force)
-        write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
-        write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
-        side.save(out / "side_by_side.png", overwrite=force)
-        write_json(out / "coefficients.json", coeffs_document(coeffs, "procedural", "latlong"),
-                   overwrite=force)
+        from ..files import transaction
+
+        with transaction():  # the five files together or none
+            write_image(out / "probe.exr", env.radiance, overwrite=force)
+            write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
+            write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
+            side.save(out / "side_by_side.png", overwrite=force)
+            write_json(out / "coefficients.json",
+                       coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
         with _progress_bar("reference irradiance") as update:
             rep = error_report(env, progress=update)
         con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))

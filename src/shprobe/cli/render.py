@@ -178,9 +178,12 @@ def register(group: click.Group) -> None:
             stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image, 1.0)
             if output.lower().endswith((".png", ".jpg", ".jpeg")):
                 click.echo(f"exposure {stops:+.2f} stops (auto)")
-        res.save(output, exposure=stops, overwrite=force)
-        if exr:
-            res.save(exr, overwrite=force)
+        from ..files import transaction
+
+        with transaction():  # the image and its EXR: both or neither
+            res.save(output, exposure=stops, overwrite=force)
+            if exr:
+                res.save(exr, overwrite=force)
         dt = time.perf_counter() - t0
         if wdesc:
             click.echo(wdesc)
@@ -224,25 +227,28 @@ def register(group: click.Group) -> None:
         res = basis_images(geo, cam, lmax=lmax, mode=mode)
         B = res.image
         scale = float(np.abs(B).max())
-        tiles = []
-        for k, stem in enumerate(stems):
-            write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
-            vis = basis_visual(B[..., k], scale)
-            write_image(stem.with_suffix(".png"), vis, overwrite=force)
-            tiles.append(vis)
-        # labelled pyramid sheet: band l on row l, centred; one colour bar, sign legend
-        from ..probes.figures import Panel, write_figure
+        from ..files import transaction
 
-        rows = [[None] * (2 * lmax + 1) for _ in range(lmax + 1)]
-        for k in range(len(stems)):
-            l, m = sh_lm(k)
-            rows[l][lmax + m] = Panel(B[..., k], f"(l, m) = ({l}, {m:+d})", "signed",
-                                      units="Â_l y_lm(n) / π", scale=scale)
-        write_figure(out / "basis.png", rows, overwrite=force, shared_colorbar=True,
-                     title=f"irradiance basis images of "
-                           f"{'the unit sphere' if geo is None else os.path.basename(mesh)} "
-                           "(R&H 2001 Fig. 4): the object under L = e_lm",
-                     display_width=min(B.shape[1], 192))
+        with transaction():  # every basis image and the sheet, or none of them
+            tiles = []
+            for k, stem in enumerate(stems):
+                write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
+                vis = basis_visual(B[..., k], scale)
+                write_image(stem.with_suffix(".png"), vis, overwrite=force)
+                tiles.append(vis)
+            # labelled pyramid sheet: band l on row l, centred; one colour bar, sign legend
+            from ..probes.figures import Panel, write_figure
+
+            rows = [[None] * (2 * lmax + 1) for _ in range(lmax + 1)]
+            for k in range(len(stems)):
+                l, m = sh_lm(k)
+                rows[l][lmax + m] = Panel(B[..., k], f"(l, m) = ({l}, {m:+d})", "signed",
+                                          units="Â_l y_lm(n) / π", scale=scale)
+            write_figure(out / "basis.png", rows, overwrite=force, shared_colorbar=True,
+                         title=f"irradiance basis images of "
+                               f"{'the unit sphere' if geo is None else os.path.basename(mesh)} "
+                               "(R&H 2001 Fig. 4): the object under L = e_lm",
+                         display_width=min(B.shape[1], 192))
         click.echo(f"{out}: {B.shape[-1]} basis images (PNG + EXR) and basis.png; common "
                    f"scale {scale:.4g}")
 

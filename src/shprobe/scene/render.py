@@ -345,7 +345,11 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
     """Write a render with :func:`shprobe.images.write_image`: ``.png`` tone-mapped by
-    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear."""
+    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear.
+    Radiance is never negative: where a truncated SH irradiance dips below zero (per-vertex
+    shading interpolates it unclamped) the file holds 0, so that shprobe's readers (``fit``)
+    accept what ``render`` writes."""
     from ..probes.images import write_image
 
-    write_image(path, image, overwrite=overwrite, exposure=exposure)
+    write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),
+                overwrite=overwrite, exposure=exposure)
