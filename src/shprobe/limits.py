@@ -16,7 +16,8 @@ from typing import Any
 
 from .errors import ShprobeError
 
-__all__ = ["CHUNK_BYTES", "check_memory", "format_bytes", "memory_limit", "parse_bytes"]
+__all__ = ["CHUNK_BYTES", "MAX_PAIRS", "check_memory", "check_pairs", "format_bytes",
+           "memory_limit", "pairs_limit", "parse_bytes"]
 
 #: Working-set target of one chunk of chunked work (samples, rows, normals).
 CHUNK_BYTES = 64 << 20
@@ -72,3 +73,39 @@ def check_memory(nbytes: float, what: str, where: Any = None) -> None:
             f"{what} would need about {format_bytes(nbytes)}, over the limit of "
             f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
             where)
+
+
+#: Brute-force work one call starts unasked, in normal × sample products (the exact
+#: irradiance's hemisphere sums): about 2 minutes at the ~1.5e9 products a second of the
+#: 2-core box's numba kernel. ``SHPROBE_MAX_PAIRS`` raises (or lowers) it.
+MAX_PAIRS = 2e11
+#: Products a second the estimates in the messages assume (bench/bench_refusals.py's box).
+PAIRS_PER_SECOND = 1.5e9
+
+
+def pairs_limit() -> float:
+    """Normal × sample products one call may start: :data:`MAX_PAIRS`, or
+    ``SHPROBE_MAX_PAIRS`` (a number, e.g. 1e12) when set."""
+    env = os.environ.get("SHPROBE_MAX_PAIRS")
+    if env:
+        try:
+            value = float(env)
+        except ValueError:
+            raise ShprobeError(f"SHPROBE_MAX_PAIRS={env!r} is not a number (e.g. 1e12)") from None
+        if not value > 0:
+            raise ShprobeError(f"SHPROBE_MAX_PAIRS={env!r} must be positive")
+        return value
+    return MAX_PAIRS
+
+
+def check_pairs(pairs: float, what: str, where: Any = None, smaller: str = "") -> None:
+    """Refuse brute-force work of ``pairs`` normal × sample products over
+    :func:`pairs_limit`, in one line with the estimated time, what to make ``smaller`` and
+    how to raise the limit."""
+    limit = pairs_limit()
+    if pairs > limit:
+        minutes = pairs / PAIRS_PER_SECOND / 60.0
+        raise ShprobeError(
+            f"{what} would take {pairs:.2g} normal x sample products (about {minutes:.3g} min), "
+            f"over the limit of {limit:.2g}: {smaller + ', or ' if smaller else ''}raise the "
+            "limit with SHPROBE_MAX_PAIRS=N", where)

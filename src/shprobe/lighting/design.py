@@ -9,7 +9,8 @@ nothing is modified in place. Windows and the non-negativity certificate are
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import functools
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -196,6 +197,29 @@ class Edited:
                 f"channels={self.coeffs.shape[1]}, window={self.window!r})")
 
 
+#: Largest coefficient magnitude an edit may produce: far above any real lighting, and far
+#: enough below the float64 range that the irradiance, windows and renders computed from it
+#: do not overflow.
+MAX_EDITED = 1e30
+
+
+def _bounded(fn: Callable[..., Edited]) -> Callable[..., Edited]:
+    """Run an edit with floating-point overflow silenced (no warnings on the terminal) and
+    refuse, in one line, a result that overflowed or left :data:`MAX_EDITED`."""
+    @functools.wraps(fn)
+    def run(*args: Any, **kwargs: Any) -> Edited:
+        with np.errstate(over="ignore", invalid="ignore"):
+            res = fn(*args, **kwargs)
+        big = float(np.max(np.abs(res.coeffs), initial=0.0))
+        if not big <= MAX_EDITED:
+            raise ShprobeError(f"the edits give coefficients of magnitude {big:.3g}, beyond "
+                               f"{MAX_EDITED:g}: a weight, scale or intensity is too large")
+        return res
+
+    return run
+
+
+@_bounded
 def edit_lighting(base: ArrayLike | None, edits: Edits, lmax: int = 2,
                   weight: float = 1.0) -> Edited:
     """Apply ``edits`` to ``base`` (L_lm, or None: start from darkness) at degree ``lmax``

@@ -93,6 +93,30 @@ def _vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in np.asarray(v, dtype=float).ravel()) + ")"
 
 
+#: Radiance the report analyses: ∫L dω of the brightest channel within these bounds. Outside,
+#: the exposure of its pictures (2^stops) and the certificate's products leave the float range.
+INTEGRAL_RANGE = (1e-30, 1e30)
+
+
+def _check_probe(env: Env, map_height: int) -> None:
+    """Refuse, before any work, a probe the report cannot analyse: radiance too small or too
+    large for its pictures, or an exact irradiance map beyond the brute-force limit."""
+    from ..lighting.projection import total_intensity
+    from ..lighting.reference import check_env, reference_cost
+    from ..limits import check_pairs
+
+    check_env(env, "the probe")
+    top = float(np.max(total_intensity(env)))
+    if not INTEGRAL_RANGE[0] <= top <= INTEGRAL_RANGE[1]:
+        raise ShprobeError(f"its radiance integrates to {top:.3g} (brightest channel), outside "
+                           f"the {INTEGRAL_RANGE[0]:g}..{INTEGRAL_RANGE[1]:g} a report "
+                           "analyses: scale its pixel values",
+                           env.path)
+    check_pairs(reference_cost(env, 2 * map_height * map_height),
+                f"the exact irradiance map at --map-size {map_height}", env.path,
+                "use a smaller --map-size or a smaller probe")
+
+
 def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
                  map_height: int = 32, render_size: int = 256,
                  step: Callable[[str], None] | None = None,
@@ -119,6 +143,7 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     r = int(render_size)
     if not 16 <= r <= MAX_RENDER:
         raise ShprobeError(f"render size {r} must be 16..{MAX_RENDER}")
+    _check_probe(env, h)
     say = step or (lambda s: None)
     source = os.path.basename(env.path) if env.path else "environment"
     obj = mesh_name or ("the unit sphere" if mesh is None else "the mesh")
