@@ -103,13 +103,13 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
         raise ShprobeError(f"subdivide must be an integer >= 1, got {subdivide!r}")
     pixels = int(np.prod(env.grid))
+    if env.layout.name != "latlong":  # the k²-times larger pixel tables are built whole
+        check_memory(pixels * int(k) ** 2 * 8.0 * 8, f"subdivide={k} on a {env.layout.name} "
+                     f"map of {pixels} pixels", env.path)
     check_pairs(reference_cost(env, int(np.prod(n.shape[:-1])), int(k)),
                 f"the brute-force irradiance of {int(np.prod(n.shape[:-1]))} normals over "
                 f"{pixels} pixels{f' x {int(k)}x{int(k)} sub-pixels' if k > 1 else ''}",
                 env.path, "use fewer normals, a smaller subdivide or a smaller probe")
-    if env.layout.name != "latlong":  # the k²-times larger pixel tables are built whole
-        check_memory(pixels * int(k) ** 2 * 8.0 * 8, f"subdivide={k} on a {env.layout.name} "
-                     f"map of {pixels} pixels", env.path)
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     t = flat.shape[0]
     out = np.zeros((t, 3))
