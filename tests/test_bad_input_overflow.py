@@ -15,7 +15,7 @@ from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.lighting.reference import reference_irradiance
 from shprobe.limits import MAX_PAIRS, check_pairs
-from shprobe.probes.images import write_image
+from shprobe.probes.images import read_image, write_image
 from shprobe.probes.layouts import Env, env_from_function
 from shprobe.probes.presets import get_preset
 from shprobe.scene import Camera, render
@@ -58,6 +58,20 @@ def test_fit_arguments_that_overflowed(tmp_path, grey, bunny_path, capsys):
     assert rc == 0 and out.exists()  # an ordinary field of view is fine
 
 
+def test_render_arguments_that_overflowed(tmp_path, capsys):
+    out = tmp_path / "r.exr"
+    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
+                      "1e308,1e308,1e308", "-o", out], capsys)
+    _one_line(rc, lines, "albedo must be in [0, 1e+30]")  # was: a float32 cast overflow
+    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--fov", "1e-300",
+                      "-o", out], capsys)
+    _one_line(rc, lines, "field of view", "1e-300")
+    assert not out.exists()
+    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
+                      "1e-320,1e-320,1e-320", "-o", out], capsys)
+    assert rc == 0 and read_image(out).max() == 0.0  # a subnormal albedo is black
+
+
 def test_edits_that_overflowed(tmp_path, capsys):
     out = tmp_path / "e.json"
     rc, lines = _run(["edit", "--preset", "grace", "--scale", "0,0=1e308", "--scale",
@@ -92,7 +106,7 @@ def test_report_map_size_is_estimated_before_the_work(tmp_path, capsys):
 def test_reference_irradiance_bounds_and_types(monkeypatch):
     env = env_from_function(lambda d: 1.0 + 0.5 * d, "latlong", 16)  # 32 x 16
     n = np.array([[0.0, 0.0, 1.0]])
-    with pytest.raises(ShprobeError, match="must be an Env .* got ndarray"):
+    with pytest.raises(ShprobeError, match=r"must be an Env .* got ndarray"):
         reference_irradiance(env.radiance, n)
     t0 = time.monotonic()
     with pytest.raises(ShprobeError, match=r"1000x1000 sub-pixels .* SHPROBE_MAX_PAIRS"):

@@ -169,6 +169,10 @@ class RenderResult:
         save_image(path, self.image, exposure=exposure, overwrite=overwrite)
 
 
+#: Largest albedo a render multiplies by: the radiance is kept in 32-bit floats.
+MAX_ALBEDO = 1e30
+
+
 def _albedo_per_pixel(mesh, albedo, hits: Hits, hit: NDArray, C: int) -> NDArray | None:
     """Per-hit albedo (Ph, C) or None for 1."""
     if albedo is None:
@@ -190,7 +194,11 @@ def _albedo_per_pixel(mesh, albedo, hits: Hits, hit: NDArray, C: int) -> NDArray
         if mc is not None:
             return np.broadcast_to(mc[None, :C], (int(hit.sum()), min(C, 3)))
         return None
-    a = np.asarray(albedo, dtype=np.float32)
+    a64 = np.asarray(albedo, dtype=np.float64)
+    if not np.all((a64 >= 0) & (a64 <= MAX_ALBEDO)):  # NaN fails too
+        raise ShprobeError(f"albedo must be in [0, {MAX_ALBEDO:g}] (radiance is albedo x E / "
+                           "pi, in 32-bit floats)")
+    a = a64.astype(np.float32)
     if a.ndim <= 1:
         return np.broadcast_to(a.reshape(1, -1), (int(hit.sum()), a.size if a.ndim else 1))
     if mesh is None or a.shape[0] != len(mesh.vertices):
