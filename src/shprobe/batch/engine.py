@@ -8,7 +8,8 @@ previous ``T.parquet`` are merged into ``T.parquet`` (again temp + rename) and t
 folder is removed. Re-running with the same output reads the table and any parts left by an
 interrupted run, skips every file whose content hash already has a successful row (failed
 rows are tried again) and computes the rest. Ctrl-C, or a crash, loses at most the rows not
-yet flushed; a worker that dies has its probes recomputed by Dask on another worker.
+yet flushed; a worker that dies has its probes recomputed by Dask on another worker. One
+batch writes an output at a time (:func:`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
 """
 
 from __future__ import annotations
