@@ -102,8 +102,7 @@ def _check_probe(env: Env, map_height: int) -> None:
     """Refuse, before any work, a probe the report cannot analyse: radiance too small or too
     large for its pictures, or an exact irradiance map beyond the brute-force limit."""
     from ..lighting.projection import total_intensity
-    from ..lighting.reference import check_env, reference_cost
-    from ..limits import check_pairs
+    from ..lighting.reference import check_env
 
     check_env(env, "the probe")
     top = float(np.max(total_intensity(env)))
@@ -112,8 +111,18 @@ def _check_probe(env: Env, map_height: int) -> None:
                            f"the {INTEGRAL_RANGE[0]:g}..{INTEGRAL_RANGE[1]:g} a report "
                            "analyses: scale its pixel values",
                            env.path)
-    check_pairs(reference_cost(env, 2 * map_height * map_height),
-                f"the exact irradiance map at --map-size {map_height}", env.path,
+    check_map_cost(float(np.prod(env.grid, dtype=np.float64)), map_height, env.path)
+
+
+def check_map_cost(pixels: float, map_height: int, where: Any = None) -> None:
+    """Refuse an exact irradiance map of 2N² normals (N = ``map_height``) over a probe of
+    ``pixels`` pixels beyond the brute-force limit (:func:`shprobe.limits.check_pairs`); the
+    CLI calls it with the size in the file's header, before the probe is read."""
+    from ..lighting.reference import SAMPLE_COST
+    from ..limits import check_pairs
+
+    check_pairs(float(pixels) * (2.0 * map_height * map_height + SAMPLE_COST),
+                f"the exact irradiance map at --map-size {map_height}", where,
                 "use a smaller --map-size or a smaller probe")
 
 
