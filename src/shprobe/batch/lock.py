@@ -34,8 +34,11 @@ def output_lock(output: Path | None) -> Iterator[None]:
     if output is None:
         yield
         return
-    import fcntl
-
+    try:
+        import fcntl
+    except ImportError:  # not POSIX (Windows): no advisory locks; one batch per output by hand
+        yield
+        return
     lock = lock_path(output)
     try:
         lock.parent.mkdir(parents=True, exist_ok=True)
