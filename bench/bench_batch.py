@@ -65,7 +65,8 @@ def bench_decoders(hdr: Path, repeat: int) -> list[str]:
     """Wall and CPU time (the box is shared: CPU time is the steadier figure)."""
     import OpenImageIO as oiio
 
-    from shprobe.probes.images import _read_oiio, _rgbe_half_step, read_image
+    from shprobe.probes.codecs import read_oiio, rgbe_half_step
+    from shprobe.probes.images import read_image
 
     ref = read_image(hdr)
 
@@ -79,7 +80,7 @@ def bench_decoders(hdr: Path, repeat: int) -> list[str]:
         ("shprobe.read_image (numba RGBE decoder, (m + 0.5) step built in)",
          lambda: read_image(hdr)),
         ("before: OpenImageIO + half-step pass (read_image until this issue)",
-         lambda: _rgbe_half_step(_read_oiio(hdr)[0])),
+         lambda: rgbe_half_step(read_oiio(hdr)[0])),
         ("peer: OpenImageIO read_image (m·2^k, no half step)", oiio_raw)]
     try:
         import cv2
@@ -316,7 +317,7 @@ def bench_big(d: Path, w: int, h: int) -> list[str]:
     streamed = ("import sys, numpy as np; from shprobe.lighting.projection import project_file; "
                 "np.save(sys.argv[2], project_file(sys.argv[1], 2).coeffs)")
     whole = ("import sys, numpy as np; from shprobe.lighting import project; "
-             "from shprobe.probes.layouts import load_env; "
+             "from shprobe.probes.env import load_env; "
              "np.save(sys.argv[2], project(load_env(sys.argv[1]), 2))")
     rows = ["| what (one process each) | peak RSS MiB | wall s |", "| --- | ---: | ---: |"]
     res = {}

@@ -39,7 +39,7 @@ PROBES = ("grace", "ennis")
 
 _ONE = """
 import json, sys, time
-from shprobe.probes.layouts import load_env
+from shprobe.probes.env import load_env
 from shprobe.lighting.reference import error_report
 env = load_env(sys.argv[1])
 error_report(env)
@@ -60,7 +60,7 @@ def accuracy(grid: int) -> None:
         reference_irradiance,
     )
     from shprobe.lighting.sphere_search import tangent_patch
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     def frac(coeffs, lm, n, ref, tot):
         return (np.abs(irradiance(coeffs[: (lm + 1) ** 2], n) - ref) / tot).max(-1)

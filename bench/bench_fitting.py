@@ -41,7 +41,7 @@ from shprobe.sh import sh_basis  # noqa: E402
 
 
 def photo(W: int = 3840, H: int = 2160, r: float = 900.0):
-    from shprobe.fitting._scene import Camera, render
+    from shprobe.scene import Camera, render
 
     L = get_preset("grace")
     cam = Camera(W, H, "orthographic", ortho_height=2.0 * H / (2 * r), margin=1.0)

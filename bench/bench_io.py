@@ -33,7 +33,8 @@ def main() -> None:
 
     import OpenImageIO as oiio
 
-    from shprobe.probes.images import read_image, read_rgbe, write_image
+    from shprobe.probes.codecs import read_rgbe
+    from shprobe.probes.images import read_image, write_image
     from shprobe.probes.layouts import get_layout
 
     rng = np.random.default_rng(0)

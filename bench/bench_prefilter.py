@@ -22,7 +22,8 @@ import numpy as np
 from shprobe.lighting.irradiance import irradiance_map
 from shprobe.lighting.projection import _project_latlong, project
 from shprobe.lighting.reference import reference_irradiance
-from shprobe.probes.layouts import Env, get_layout
+from shprobe.probes.env import Env
+from shprobe.probes.layouts import get_layout
 from shprobe.sh import sh_basis
 
 

@@ -61,9 +61,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
-from tests.prt_gather import Gather  # noqa: E402
-
 from _machine import machine  # noqa: E402
+from prt_gather import Gather  # noqa: E402
 from shprobe.prt import bake, relight  # noqa: E402
 from shprobe.prt.refine import bake_refined  # noqa: E402
 

@@ -47,8 +47,9 @@ FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component
 
 
 def make_probe(folder: Path) -> Path:
+    from shprobe.probes.env import load_env
     from shprobe.probes.images import write_image
-    from shprobe.probes.layouts import LatLong, load_env
+    from shprobe.probes.layouts import LatLong
 
     data = Path(os.environ.get("SHPROBE_TEST_DATA", REPO.parent / "shared"))
     env = load_env(data / "probes" / "grace.hdr")

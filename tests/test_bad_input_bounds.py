@@ -57,7 +57,7 @@ def test_sh_basis_of_a_huge_request_is_refused_before_allocating():
 
 def test_projection_is_refused_up_front(monkeypatch):
     from shprobe.lighting import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     env = load_env(data_file("probes", "grace.hdr"))
     _refused_quickly(lambda: project(env, 1024), "goes to lmax 256")
@@ -80,7 +80,7 @@ def test_irradiance_map_and_irradiance_are_bounded(monkeypatch):
 
 def test_subdivided_brute_force_is_bounded():
     from shprobe.lighting import reference_irradiance
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     env = env_from_function(lambda d: np.ones((*d.shape[:-1], 3)), "angular", 64)
     _refused_quickly(lambda: reference_irradiance(env, [[0, 1.0, 0]], subdivide=1000),

@@ -15,8 +15,8 @@ from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.lighting.reference import reference_irradiance
 from shprobe.limits import MAX_PAIRS, check_pairs
+from shprobe.probes.env import Env, env_from_function
 from shprobe.probes.images import read_image, write_image
-from shprobe.probes.layouts import Env, env_from_function
 from shprobe.probes.presets import get_preset
 from shprobe.scene import Camera, render
 

@@ -25,7 +25,7 @@ from shprobe.lighting import (
 )
 from shprobe.lighting.export import import_coeffs, parse_coeffs
 from shprobe.lighting.windows import auto_window, min_irradiance
-from shprobe.probes.layouts import env_from_function
+from shprobe.probes.env import env_from_function
 from shprobe.probes.presets import get_preset
 from shprobe.sh import check_lmax, sh_basis
 from shprobe.sh.rotation import rotate, unit_vectors, wigner_d

@@ -30,9 +30,9 @@ from shprobe.lighting import (
     project,
     total_intensity,
 )
+from shprobe.probes.env import env_from_function, load_env, write_env
 from shprobe.probes.environments import procedural_env
 from shprobe.probes.images import write_image
-from shprobe.probes.layouts import env_from_function, load_env, write_env
 
 from .conftest import write_raw_pfm
 

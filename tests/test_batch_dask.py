@@ -14,8 +14,8 @@ import pytest
 
 from shprobe.batch import run_batch
 from shprobe.batch.engine import LOCAL_CLUSTER_CONFIG, _local_cluster
+from shprobe.probes.env import env_from_function, write_env
 from shprobe.probes.environments import procedural_env
-from shprobe.probes.layouts import env_from_function, write_env
 
 distributed = pytest.importorskip("distributed")
 

@@ -14,8 +14,8 @@ import pytest
 
 from shprobe.batch import parts_dir, read_table
 from shprobe.batch.lock import lock_path
+from shprobe.probes.env import write_env
 from shprobe.probes.environments import procedural_env
-from shprobe.probes.layouts import write_env
 
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals")

@@ -16,8 +16,8 @@ import pytest
 
 from shprobe.batch import expand_inputs, read_table, run_batch
 from shprobe.batch.lock import lock_path
+from shprobe.probes.env import write_env
 from shprobe.probes.environments import procedural_env
-from shprobe.probes.layouts import write_env
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="POSIX files")
 

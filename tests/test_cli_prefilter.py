@@ -11,8 +11,8 @@ from PIL import Image
 from shprobe.cli.main import main
 from shprobe.lighting.irradiance import irradiance, irradiance_map
 from shprobe.lighting.projection import project
+from shprobe.probes.env import Env
 from shprobe.probes.images import read_image, write_image
-from shprobe.probes.layouts import Env
 from shprobe.probes.presets import get_preset
 
 from .conftest import write_raw_pfm
@@ -272,7 +272,7 @@ def test_unwritable_extension_is_refused_before_any_work(command, probe, tmp_pat
 def test_six_cube_face_files(tmp_path, capsys):
     """PROBE given as six face images (+X −X +Y −Y +Z −Z): f = 1 + a·ω has L00 = √(4π) and
     L_1m = a·√(4π/3) on (y, z, x) (R&H signs)."""
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     a = np.array([0.5, 0.2, -0.3])
     env = env_from_function(lambda d: 1.0 + d @ a[:, None] * np.ones(3), "cube", 16)

@@ -11,7 +11,7 @@ from shprobe.lighting.projection import project, total_intensity
 from shprobe.lighting.reference import error_report, reference_irradiance
 from shprobe.lighting.sphere_search import refine_max, tangent_patch
 from shprobe.lighting.windows import _fibonacci, min_irradiance
-from shprobe.probes.layouts import Env, load_env
+from shprobe.probes.env import Env, load_env
 
 from .conftest import data_file
 

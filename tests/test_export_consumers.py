@@ -31,7 +31,7 @@ import pytest
 from shprobe.lighting import irradiance, irradiance_coeffs, project
 from shprobe.lighting.design import directional_light, negate_coeff, rotate_lighting
 from shprobe.lighting.export import export_coeffs, parse_coeffs
-from shprobe.probes.layouts import load_env
+from shprobe.probes.env import load_env
 from shprobe.sh import sh_basis
 from shprobe.sh.rotation import from_axis_angle
 

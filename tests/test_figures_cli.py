@@ -67,8 +67,8 @@ def test_irradiance_png_of_every_shared_probe_does_not_clip(probe, tmp_path, cap
 def test_probe_figure_of_every_shared_probe_does_not_clip(probe, tmp_path):
     """The probe as the report and the demo draw it: a radiance panel at the automatic
     exposure, read back from the PNG."""
+    from shprobe.probes.env import load_env
     from shprobe.probes.figures import Panel, write_figure
-    from shprobe.probes.layouts import load_env
 
     env = load_env(probe)
     fig = write_figure(tmp_path / "p.png", [Panel(env.radiance, probe.name, units="L")])
@@ -125,7 +125,7 @@ def test_error_table_says_why_odd_rows_repeat(capsys):
 
     from shprobe.cli.prefilter import error_table
     from shprobe.lighting import error_report
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     rep = error_report(load_env(probe), (1, 2, 3), normal_grid=6)
     con = Console(width=200, record=True, file=io.StringIO())

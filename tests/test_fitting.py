@@ -164,7 +164,7 @@ def test_grey_ball_from_probe_brute_force(probe):
     half, pinv(A) · E_{4..10}(n) (from the probe's l ≤ 10 projection): within 0.5 % of L00,
     while the ill-determined coefficients themselves are off by up to 50 % (grace) / 150 %
     (ennis): what the report flags. The visible irradiance agrees to 1.5 % of π L00 (mean)."""
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     env = load_env(data_file("probes", f"{probe}.hdr"))
     n = 96
@@ -194,8 +194,8 @@ def test_grey_ball_photo_roundtrip(tmp_path, probe, kind):
     exact circle the EXR fit is exact to 1e-7: the error is the detected radius, 0.03 px
     short, amplified by the ill-determined coefficients; black pixels where ennis's l ≤ 2
     radiance is negative are rejected.)"""
+    from shprobe.probes.env import load_env
     from shprobe.probes.images import read_image, write_image
-    from shprobe.probes.layouts import load_env
 
     L = project(load_env(data_file("probes", f"{probe}.hdr")), 2)
     albedo = 0.5

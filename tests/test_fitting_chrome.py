@@ -9,7 +9,7 @@ import pytest
 
 from shprobe.fitting import BallCamera, Circle, ball_pixels, fit_chrome_ball
 from shprobe.lighting import project
-from shprobe.probes.layouts import Env, load_env
+from shprobe.probes.env import Env, load_env
 from shprobe.scene import Camera, trace
 
 from .conftest import data_file

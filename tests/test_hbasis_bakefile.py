@@ -1,4 +1,4 @@
-"""H-basis bake files (hbasis.normalmap save_bake / load_bake): the round trip, atomic output,
+"""H-basis bake files (hbasis.bakefile save_bake / load_bake): the round trip, atomic output,
 and one-line refusals of truncated, malformed, oversized or foreign files — checked from the
 .npy headers before anything is inflated."""
 
@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
+from shprobe.hbasis import bakefile as bf
 from shprobe.hbasis import normalmap as nm
 from shprobe.hbasis.basis import sh_to_h_matrix
 from shprobe.scene import mesh_hash, sphere_mesh
@@ -38,43 +39,43 @@ def test_round_trip_keeps_everything(tmp_path, ball, lighting):
     bk = nm.bake_mesh(ball, lighting, n=6, bands=4)
     assert bk.mesh_hash == mesh_hash(ball.vertices, ball.faces) and bk.bands == 4
     path = tmp_path / "b.npz"
-    nm.save_bake(path, bk)
-    back = nm.load_bake(path, ball)
+    bf.save_bake(path, bk)
+    back = bf.load_bake(path, ball)
     for name in ("h", "sh", "frames", "handedness", "lighting"):
         np.testing.assert_array_equal(getattr(back, name), getattr(bk, name))
     assert (back.bands, back.mesh_hash, back.basis) == (4, bk.mesh_hash, "H6")
-    assert repr(back).startswith("Bake(42 vertices, H6, 3 channels, bands ≤ 4, mesh ")
+    assert repr(back).startswith("NormalMapBake(42 vertices, H6, 3 channels, bands ≤ 4, mesh ")
     with np.load(path) as z:  # the documented layout, readable without shprobe
         np.testing.assert_array_equal(z["t_h"], sh_to_h_matrix(4, 6))
-        assert str(z["basis"]) == "H6" and str(z["format"]) == nm.BAKE_FORMAT
-    assert nm.is_bake(path) and not nm.is_bake(tmp_path / "none.npz")
+        assert str(z["basis"]) == "H6" and str(z["format"]) == bf.BAKE_FORMAT
+    assert bf.is_bake(path) and not bf.is_bake(tmp_path / "none.npz")
     # the coefficients are the bake of the mesh's frames under E = Â L (bands ≤ 4)
     from shprobe.lighting import irradiance_coeffs
 
-    want = nm.bake(irradiance_coeffs(lighting), bk.frames, n=6, lmax=4)
+    want = nm.bake_normalmap(irradiance_coeffs(lighting), bk.frames, n=6, lmax=4)
     np.testing.assert_allclose(back.h, want.h, rtol=1e-12, atol=1e-14)
     # outputs are atomic and never replace a file unasked
     with pytest.raises(ShprobeError, match="already exists"):
-        nm.save_bake(path, bk)
-    nm.save_bake(path, bk, overwrite=True)
+        bf.save_bake(path, bk)
+    bf.save_bake(path, bk, overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["b.npz"]
     # a bake without a mesh (bare frames) cannot be saved: it could never be checked
     with pytest.raises(ShprobeError, match="bake_mesh"):
-        nm.save_bake(tmp_path / "x.npz", want)
+        bf.save_bake(tmp_path / "x.npz", want)
 
 
 def test_foreign_mesh_and_missing_arrays(tmp_path, ball, lighting):
     path = tmp_path / "b.npz"
-    nm.save_bake(path, nm.bake_mesh(ball, lighting))
+    bf.save_bake(path, nm.bake_mesh(ball, lighting))
     with pytest.raises(ShprobeError) as e:
-        nm.load_bake(path, sphere_mesh(2))
+        bf.load_bake(path, sphere_mesh(2))
     assert "another mesh" in _one_line(e) and "b.npz" in str(e.value)
     with np.load(path) as z:
         arrays = dict(z)
     del arrays["frames"]
     np.savez(tmp_path / "m.npz", **arrays)
     with pytest.raises(ShprobeError, match="missing frames"):
-        nm.load_bake(tmp_path / "m.npz")
+        bf.load_bake(tmp_path / "m.npz")
 
 
 def _rewrite(src, dst, **changes):
@@ -97,22 +98,22 @@ def _rewrite(src, dst, **changes):
 ])
 def test_malformed_arrays_are_refused(tmp_path, ball, lighting, change, msg):
     good = tmp_path / "g.npz"
-    nm.save_bake(good, nm.bake_mesh(ball, lighting))
+    bf.save_bake(good, nm.bake_mesh(ball, lighting))
     _rewrite(good, tmp_path / "bad.npz", **change)
     with pytest.raises(ShprobeError, match=msg) as e:
-        nm.load_bake(tmp_path / "bad.npz")
+        bf.load_bake(tmp_path / "bad.npz")
     assert "bad.npz" in _one_line(e)
 
 
 def test_truncated_and_lying_files_are_refused_before_inflating(tmp_path, ball, lighting,
                                                                  monkeypatch):
     good = tmp_path / "g.npz"
-    nm.save_bake(good, nm.bake_mesh(ball, lighting))
+    bf.save_bake(good, nm.bake_mesh(ball, lighting))
     raw = good.read_bytes()
     for cut in (0, 10, len(raw) // 2, len(raw) - 5):
         (tmp_path / "t.npz").write_bytes(raw[:cut])
         with pytest.raises(ShprobeError) as e:
-            nm.load_bake(tmp_path / "t.npz")
+            bf.load_bake(tmp_path / "t.npz")
         assert "t.npz" in _one_line(e)
     # an h.npy whose header promises 10⁹ vertices over a few bytes of data: refused from the
     # header (stored size ≠ promised size) without allocating anything
@@ -126,9 +127,9 @@ def test_truncated_and_lying_files_are_refused_before_inflating(tmp_path, ball, 
         for n, data in members.items():
             z.writestr(n, data)
     with pytest.raises(ShprobeError, match="truncated or malformed") as e:
-        nm.load_bake(tmp_path / "lie.npz")
+        bf.load_bake(tmp_path / "lie.npz")
     assert "lie.npz" in _one_line(e)
     # an honest file larger than the memory limit is refused before reading
-    monkeypatch.setattr(nm, "MAX_BAKE_BYTES", 1000)
+    monkeypatch.setattr(bf, "MAX_BAKE_BYTES", 1000)
     with pytest.raises(ShprobeError, match="would take"):
-        nm.load_bake(good)
+        bf.load_bake(good)

@@ -8,17 +8,11 @@ import pytest
 
 from shprobe.cli.main import main
 from shprobe.hbasis import get_basis, h_basis, project_h
-from shprobe.hbasis.normalmap import (
-    bake,
-    bump_normals,
-    frame_from_normal,
-    shade_h,
-    shade_sh,
-    tangent_frames,
-    to_tangent_sh,
-)
+from shprobe.hbasis.frames import tangent_frames, to_tangent_sh
+from shprobe.hbasis.normalmap import bake_normalmap, bump_normals, shade_h, shade_sh
 from shprobe.hbasis.study import LMAX_SIGNAL, imse, random_irradiance
 from shprobe.sh import sh_basis
+from shprobe.sh.rotation import frame_from_normal
 from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
 from .conftest import random_dirs
@@ -85,13 +79,13 @@ def test_tangent_sh_is_function_in_frame(rng):
 def test_bake_equals_projection_of_direct_evaluation():
     e = random_irradiance(1, seed=3)[0][:25]  # l ≤ 4
     F = frame_from_normal(random_dirs(5, seed=6))
-    bk = bake(e, F, n=6, lmax=None)
+    bk = bake_normalmap(e, F, n=6, lmax=None)
     for i in range(len(F)):
         direct = project_h(lambda v, i=i: sh_basis(v @ F[i].T, 4) @ e)  # ∫ E(F v) Hⁱ(v) dv
         np.testing.assert_allclose(bk.h[i], direct, atol=1e-10)
     # l ≤ 2 only: the paper's 6×9 T_h
-    bk2 = bake(e, F, lmax=2)
-    np.testing.assert_allclose(bk2.h, bake(e[:9], F, lmax=None).h, atol=1e-12)
+    bk2 = bake_normalmap(e, F, lmax=2)
+    np.testing.assert_allclose(bk2.h, bake_normalmap(e[:9], F, lmax=None).h, atol=1e-12)
     assert bk.sh.shape == (5, 9, 3)
 
 
@@ -110,12 +104,12 @@ def test_shaded_error_is_the_study_basis_error():
     y = sh_basis(v, lmax)
     for i in range(len(F)):
         direct = sh_basis(v @ F[i].T, lmax) @ e[i]  # E at the perturbed world normal F v
-        bk = bake(e[i], F[i][None], lmax=None)
+        bk = bake_normalmap(e[i], F[i][None], lmax=None)
         err = np.einsum("n,nc->c", w, (shade_h(bk.h[0], v) - direct) ** 2)
         np.testing.assert_allclose(err, study[i], rtol=1e-6)
         # default bake: |√err4 − √IMSE| ≤ ‖h4 − h‖ (H orthonormal: triangle inequality in
         # coefficient space) ≤ ‖E − E_≤4‖ on Ω+ (‖P‖ = 1)
-        bk4 = bake(e[i], F[i][None])
+        bk4 = bake_normalmap(e[i], F[i][None])
         err4 = np.einsum("n,nc->c", w, (shade_h(bk4.h[0], v) - direct) ** 2)
         dh = np.linalg.norm(bk4.h[0] - bk.h[0], axis=0)
         dropped = np.sqrt(np.einsum("n,nc->c", w, (y[:, 25:] @ tsh[i][25:]) ** 2))
@@ -142,7 +136,7 @@ def test_probe_sh_matches_brute_force(grace_path):
     """The shared lighting pipeline the H-basis now uses: the probe's SH (l ≤ 16, project) against
     the brute-force reference (reference_irradiance)."""
     from shprobe.lighting import project, reference_irradiance
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     env = load_env(grace_path)
@@ -164,12 +158,12 @@ def test_cli_bake_and_render(tmp_path, bunny_path, grace_path, capsys):
     _orthonormal_right_handed(z["frames"])
     # the file's coefficients are T_h applied to the frame-rotated irradiance
     from shprobe.lighting import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     L = project(load_env(grace_path), 16)[:25]  # the bake keeps l ≤ 16, uses bands ≤ 4
     e = convolve(L, clamped_cosine_factors(4))
-    want = bake(e, z["frames"][:20]).h
+    want = bake_normalmap(e, z["frames"][:20]).h
     np.testing.assert_allclose(z["h"][:20], want, rtol=1e-12, atol=1e-14 * np.abs(want).max())
     assert main(["hbasis", "bake", str(bunny_path), str(grace_path), "-o", str(out)]) == 1
     assert "already exists" in capsys.readouterr().err
@@ -265,7 +259,9 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
     import trimesh
     from PIL import Image
 
-    from shprobe.hbasis.normalmap import read_lighting, read_normal_map, render_normal_mapped
+    from shprobe.hbasis.normalmap import read_normal_map
+    from shprobe.hbasis.rendering import render_normal_mapped
+    from shprobe.lighting.source import resolve_lighting
     from shprobe.sh.zonal import clamped_cosine_factors, convolve
 
     g = np.linspace(-1, 1, 5)
@@ -289,7 +285,7 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
     L = rng.normal(size=(9, 3))
     L[0] += 6
     np.save(tmp_path / "L.npy", L)
-    light = read_lighting(tmp_path / "L.npy")
+    light = resolve_lighting(coeffs=tmp_path / "L.npy", lmax=None).coeffs
     res = render_normal_mapped(mesh, light, size=16, normal_map=nmap)
     t = nmap[0, 0]
     world = np.array([t[0], -t[1] if mirror else t[1], t[2]])
@@ -305,7 +301,7 @@ def test_render_with_normal_map_image_on_uv_plane(tmp_path, mirror):
     fr = tangent_frames(verts, np.array(faces), uvs=uv)
     np.testing.assert_allclose(fr.handedness, -1 if mirror else 1)
     vt = np.array([t[0], -t[1] if mirror else t[1], t[2]])
-    h6 = shade_h(bake(e, fr.matrix[:1]).h[0], vt)
+    h6 = shade_h(bake_normalmap(e, fr.matrix[:1]).h[0], vt)
     np.testing.assert_allclose(res.layers["H6"][res.mask], np.broadcast_to(h6, ref.shape),
                                rtol=1e-10)
 
@@ -315,9 +311,9 @@ def test_render_pixels_match_independent_projection(bunny_path, probe):
     """Rendered pixels of `hbasis render` against an independent per-pixel computation that
     uses neither SH, rotation nor T_h: brute-force irradiance straight from the probe's pixels,
     projected onto H6 by quadrature in each vertex's frame (and in each pixel's own frame)."""
-    from shprobe.hbasis.normalmap import render_normal_mapped
+    from shprobe.hbasis.rendering import render_normal_mapped
     from shprobe.lighting import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
     from shprobe.scene import load_mesh
 
     from .conftest import data_file

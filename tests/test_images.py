@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.probes.images import LDRWarning, read_image, read_rgbe, srgb_to_linear, write_image
+from shprobe.probes.codecs import read_rgbe
+from shprobe.probes.images import LDRWarning, read_image, write_image
+from shprobe.probes.tonemap import srgb_to_linear
 
 
 def _img(h=6, w=10, seed=0):

@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.probes.layouts import (
-    Env,
-    LatLong,
-    detect_layout,
-    env_from_function,
-    get_layout,
-    load_env,
-)
+from shprobe.probes.env import Env, env_from_function, load_env
+from shprobe.probes.layouts import LatLong, detect_layout, get_layout
 
 FOUR_PI = 4.0 * np.pi
 
@@ -304,7 +298,7 @@ def test_same_environment_same_coefficients_in_every_layout(tmp_path, layout, si
     O(Δ²) with Δ the pixel's angular size (≈ 0.025 rad here for every layout; measured errors
     are 3e-5..1e-4, falling 4× per halving of Δ). RGBE (.hdr) keeps 8 mantissa bits, a
     per-pixel error up to 2⁻⁸ that only partly averages out on a smooth map: 1e-3 there."""
-    from shprobe.probes.layouts import write_env
+    from shprobe.probes.env import write_env
 
     lmax = 4
     ref = _reference_coeffs(lmax)

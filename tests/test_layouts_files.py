@@ -8,8 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
+from shprobe.probes.env import env_from_function, load_env, write_env
 from shprobe.probes.images import LDRWarning, read_image
-from shprobe.probes.layouts import env_from_function, load_env, write_env
 
 N = 9  # odd: the middle texel of a face looks exactly along its axis
 S3 = 1.0 / np.sqrt(3.0)

@@ -21,7 +21,8 @@ from shprobe.lighting.irradiance import (
 )
 from shprobe.lighting.projection import project, project_samples, total_intensity
 from shprobe.lighting.reference import error_report, reference_irradiance
-from shprobe.probes.layouts import Env, get_layout
+from shprobe.probes.env import Env
+from shprobe.probes.layouts import get_layout
 from shprobe.sh import sh_basis
 
 from .conftest import data_file, random_dirs
@@ -136,7 +137,7 @@ def test_other_layouts_project_the_same_function(name):
     lay = get_layout(name)
     coeffs = np.random.default_rng(7).normal(size=(9, 3))
     size = 48 if name == "cube" else 256
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     env = env_from_function(lambda d: rh_basis9(d) @ coeffs, lay, size)
     got = project(env, 2)
@@ -146,7 +147,7 @@ def test_other_layouts_project_the_same_function(name):
 
 def test_latlong_projection_recovers_known_coefficients():
     coeffs = np.random.default_rng(8).normal(size=(9, 3))
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     env = env_from_function(lambda d: rh_basis9(d) @ coeffs, "latlong", 256)
     np.testing.assert_allclose(project(env, 2), coeffs, atol=2e-4 * np.abs(coeffs).max())
@@ -156,8 +157,8 @@ def test_latlong_projection_recovers_known_coefficients():
 
 @pytest.mark.parametrize("probe", ["grace", "ennis"])
 def test_probe_coefficients_equal_independent_quadrature(probe):
+    from shprobe.probes.env import load_env
     from shprobe.probes.images import read_image
-    from shprobe.probes.layouts import load_env
 
     from .conftest import data_file
 
@@ -202,7 +203,7 @@ def test_small_disc_gives_clamped_cosine_lobe():
 
 def test_tilted_disc_lobe_follows_its_direction():
     """A disc away from the pole (pixel-centre coverage): E_SH depends on n·d only."""
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     alpha = math.radians(10.0)
     d0 = np.array([0.6, -0.3, 0.74])
@@ -296,7 +297,7 @@ def test_directional_light_max_error_is_9_4_percent():
 
 @pytest.mark.parametrize("probe", ["grace", "ennis"])
 def test_rh_claim_on_natural_light(probe):
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     from .conftest import data_file
 
@@ -308,7 +309,7 @@ def test_rh_claim_on_natural_light(probe):
 
 
 def test_brute_force_converges_with_subdivision(grace_path):
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     env = load_env(grace_path)
     n = random_dirs(64, seed=41)
@@ -330,7 +331,7 @@ def test_reference_chunking_and_generic_path_agree():
     np.testing.assert_allclose(reference_irradiance(env, n, chunk=7), direct, rtol=1e-10)
     np.testing.assert_allclose(reference_irradiance(env, n), direct, rtol=1e-10)
     # the generic (sample) path of the other layouts, with subdivision
-    from shprobe.probes.layouts import env_from_function
+    from shprobe.probes.env import env_from_function
 
     for name, size in (("angular", 24), ("cube", 8)):
         genv = env_from_function(lambda d: 1.0 + d * [0.5, 0.2, -0.3], name, size)

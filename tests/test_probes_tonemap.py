@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from shprobe.probes.images import auto_exposure, tonemap
+from shprobe.probes.tonemap import auto_exposure, tonemap
 
 
 def test_tonemap_operator():

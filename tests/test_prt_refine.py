@@ -1,5 +1,5 @@
 """Issue 17: interreflected PRT right where an object touches the ground — adaptive refinement
-(shprobe.prt.refine) checked against an independent gather (tests/prt_gather.py: own ray loop,
+(shprobe.prt.refine) checked against an independent gather (bench/prt_gather.py: own ray loop,
 no transfer vectors) under band-limited lighting (lmax 2: PRT at lmax 2 is exact up to noise).
 Full-size figures (bunny): bench/bench_prt_contact.py and docs/benchmarks.md."""
 
@@ -8,12 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from bench.prt_gather import Gather
 
 from shprobe.errors import ShprobeError
 from shprobe.prt import bake, load_scene, load_transfer, relight
 from shprobe.prt.refine import _edges, bake_refined, split_edges
-
-from .prt_gather import Gather
 
 L = np.zeros(9)
 L[0], L[1], L[3], L[6] = 3.0, 1.0, 0.5, 0.3  # positive sky radiance, brighter above

@@ -136,7 +136,7 @@ def test_cli_edit_lights_and_edits(tmp_path, capsys):
 def test_cli_edit_blends_a_probe_image(tmp_path, grace_path, ennis_path):
     """--blend PROBE:W projects the image: grace + 0.5·ennis."""
     from shprobe.lighting.projection import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     out = tmp_path / "b.json"
     assert run("edit", grace_path, "--blend", f"{ennis_path}:0.5", "-o", out) == 0
@@ -192,7 +192,7 @@ def test_bunny_loads(bunny_path):
 def test_cli_prefilter_export_feeds_render(tmp_path, grace_path):
     """`shprobe prefilter --format gltf` → `render --coeffs` uses the same lighting as the probe."""
     from shprobe.lighting.projection import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     out = tmp_path / "g.gltf.json"
     assert run("prefilter", grace_path, "--format", "gltf", "-o", out) == 0

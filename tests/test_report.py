@@ -64,7 +64,7 @@ def test_page_shows_the_library_numbers(page):
         min_irradiance,
         project,
     )
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     path, grace = page
     text = path.read_text(encoding="utf-8")

@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from shprobe.errors import ShprobeError
-from shprobe.probes.layouts import Env, env_from_function, load_env, write_env
+from shprobe.probes.env import Env, env_from_function, load_env, write_env
 from shprobe.sh.rotation import from_quaternion, rotate
 
 

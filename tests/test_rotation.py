@@ -250,7 +250,7 @@ def test_closed_form_low_degree_matches_recurrence(lmax):
 def test_lh_recurrence_at_any_beta_matches_the_pi_half_construction(beta):
     # The LH recurrence run directly at β (accurate for small l) equals the d(π/2)-based
     # D(Ry(β)) that wigner_d builds; its opposite-sign quadrants are zero.
-    from shprobe.sh._rotation_kernels import d_tables
+    from shprobe.sh._kernels_rotation import d_tables
 
     lmax = 10
     P, Q = d_tables(np.cos(beta), np.sin(beta), lmax)

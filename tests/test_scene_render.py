@@ -8,7 +8,7 @@ import pytest
 
 from shprobe.errors import ShprobeError
 from shprobe.lighting.irradiance import quadratic_form, shade_irradiance
-from shprobe.probes.images import tonemap
+from shprobe.probes.tonemap import tonemap
 from shprobe.scene import (
     Camera,
     load_mesh,
@@ -187,7 +187,8 @@ def test_albedo_constant_vertex_and_texture():
 def test_background_is_environment_lookup():
     """Env radiance = direction + 1 on a lat-long grid: an orthographic camera sees one
     direction, its view direction, in every background pixel."""
-    from shprobe.probes.layouts import Env, get_layout
+    from shprobe.probes.env import Env
+    from shprobe.probes.layouts import get_layout
 
     d = get_layout("latlong").pixel_directions((64, 128))
     env = Env((d + 1).astype(np.float32), "latlong")

@@ -158,7 +158,7 @@ def test_generated_unrolled_module_is_current():
     spec = importlib.util.spec_from_file_location("gen", root / "tools" / "gen_sh_unrolled.py")
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
-    assert (root / "src" / "shprobe" / "sh" / "_unrolled.py").read_text() == gen.source()
+    assert (root / "src" / "shprobe" / "sh" / "_kernels_unrolled.py").read_text() == gen.source()
 
 
 def test_import_does_not_load_numba():
@@ -213,7 +213,7 @@ def test_streamed_output_equals_plain_stores(monkeypatch):
 def test_large_out_at_unrolled_degrees_goes_through_the_stream_kernels(monkeypatch):
     # (the values are checked above; here: that a large out= takes the streaming path)
     import shprobe.sh.basis as basis
-    from shprobe.sh import _unrolled
+    from shprobe.sh import _kernels_unrolled as _unrolled
 
     calls, real = [], _unrolled.STREAM_KERNELS
 

@@ -1,4 +1,4 @@
-"""Streaming: images read a block of rows at a time (shprobe.probes.images.ImageRows) and
+"""Streaming: images read a block of rows at a time (shprobe.probes.streaming.ImageRows) and
 projected block by block (shprobe.lighting.projection.project_file) equal the whole-image
 path, in memory bounded by the block, not the image."""
 
@@ -16,9 +16,11 @@ from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.lighting import source as lighting_source
 from shprobe.lighting.projection import cube_face_rows, project, project_file
+from shprobe.probes.env import env_from_function, load_env, write_env
 from shprobe.probes.environments import procedural_env
-from shprobe.probes.images import ImageRows, LDRWarning, image_size, read_image, write_image
-from shprobe.probes.layouts import Cube, env_from_function, load_env, write_env
+from shprobe.probes.images import LDRWarning, read_image, write_image
+from shprobe.probes.layouts import Cube
+from shprobe.probes.streaming import ImageRows, image_size
 
 from .conftest import write_raw_pfm
 
@@ -203,12 +205,12 @@ def test_rgbe_decoder_agrees_with_openimageio(tmp_path):
     read buffer smaller than a block (resumed mid-file)."""
     from pathlib import Path
 
-    from shprobe.probes.images import _read_oiio, _rgbe_half_step, read_rgbe
+    from shprobe.probes.codecs import read_oiio, read_rgbe, rgbe_half_step
 
     img = _image(61, 122, 4) ** 3 * 100  # a wide dynamic range
     p = tmp_path / "a.hdr"
     write_image(p, img)
-    ref = _rgbe_half_step(_read_oiio(Path(p))[0])[..., :3]
+    ref = rgbe_half_step(read_oiio(Path(p))[0])[..., :3]
     assert np.array_equal(read_rgbe(p), ref)
     assert np.array_equal(read_image(p), ref)
     got, n = _stream(p, 3)  # 3-row blocks: 4 KB reads, each ending inside a scanline

@@ -286,7 +286,7 @@ def test_blend_probes_command_line_and_uploaded(page, served, probe_path, tmp_pa
     Σ wᵢ project(probeᵢ, lmax) computed here."""
     from shprobe.cli.main import main
     from shprobe.lighting.projection import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     other = data_file("probes", "ennis.hdr")
     _state(page, {"lmax": 3})
@@ -328,7 +328,7 @@ def test_three_lightprobe_driven_by_three_export(page):
 
 def test_compare_view_shows_library_numbers(page, probe_path):
     from shprobe.lighting.reference import error_report
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
 
     page.select_option("#mode", "error")
     page.wait_for_function("() => window.__shprobe.compare", timeout=60000)
@@ -387,8 +387,9 @@ def test_cube_faces_upload(browser, served, probe_path, tmp_path):
     or five faces, is one line naming the problem, and the source, the edit state and the
     server are kept."""
     from shprobe.lighting.source import resolve_lighting
+    from shprobe.probes.env import load_env
     from shprobe.probes.images import write_image
-    from shprobe.probes.layouts import CUBE, load_env
+    from shprobe.probes.layouts import CUBE
 
     env = load_env(probe_path)
     faces = env.sample(CUBE.pixel_directions((6, 24, 24)))
@@ -588,7 +589,7 @@ def test_cli_view_prints_url_and_serves(probe_path):
         tok = {"token": url.split("token=")[1]}
         r = httpx.post(base + "/api/design", params=tok, content='{"lmax": 4}', timeout=60)
         from shprobe.lighting.projection import project
-        from shprobe.probes.layouts import load_env
+        from shprobe.probes.env import load_env
 
         np.testing.assert_allclose(r.json()["coeffs"], project(load_env(probe_path), 4),
                                    rtol=0, atol=1e-13)

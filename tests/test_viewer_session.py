@@ -149,7 +149,7 @@ def test_env_is_sent_when_a_view_asks_for_it(monkeypatch):
     decoded probe waits in the loader until a view needs it, then arrives equal to the
     library's own decode and projection."""
     from shprobe.lighting.projection import project
-    from shprobe.probes.layouts import load_env
+    from shprobe.probes.env import load_env
     from shprobe.viewer import loader
 
     monkeypatch.setattr(loader, "ENV_WAIT", 120.0)  # read by the forked process

@@ -41,7 +41,7 @@ _EXPORTS: dict[str, str] = {
     "relight": "prt",
     "load_transfer": "prt",
     # probes in, irradiance out
-    "load_env": "probes.layouts",
+    "load_env": "probes.env",
     "project": "lighting.projection",
     "irradiance": "lighting.irradiance",
     "irradiance_matrix": "lighting.irradiance",
@@ -61,11 +61,11 @@ _EXPORTS: dict[str, str] = {
     "read_image": "probes.images",
     "write_image": "probes.images",
     # layouts
-    "Env": "probes.layouts",
-    "env_from_function": "probes.layouts",
+    "Env": "probes.env",
+    "env_from_function": "probes.env",
     "get_layout": "probes.layouts",
     "detect_layout": "probes.layouts",
-    "write_env": "probes.layouts",
+    "write_env": "probes.env",
     # rendering, lighting design, export
     "Camera": "scene.camera",
     "render_vertex_colors": "scene.render",
@@ -108,16 +108,10 @@ if TYPE_CHECKING:  # pragma: no cover
     from .lighting.projection import project, project_samples
     from .lighting.reference import error_report, reference_irradiance
     from .lighting.windows import auto_window, min_irradiance, window_factors
+    from .probes.env import Env, env_from_function, load_env, write_env
     from .probes.environments import procedural_env
     from .probes.images import read_image, write_image
-    from .probes.layouts import (
-        Env,
-        detect_layout,
-        env_from_function,
-        get_layout,
-        load_env,
-        write_env,
-    )
+    from .probes.layouts import detect_layout, get_layout
     from .probes.presets import PRESETS, get_preset
     from .prt import bake, load_transfer, relight
     from .scene.camera import Camera

@@ -145,12 +145,12 @@ def _warm() -> None:
 
     from ..lighting import auto_window, min_irradiance
     from ..lighting.projection import _project_kernel
-    from ..probes.images import _rgbe_half_step, _rgbe_row_sums, _rgbe_rows
+    from ..probes.codecs import rgbe_half_step, rgbe_row_sums, rgbe_rows
     from ..probes.presets import get_preset
 
-    _rgbe_half_step(np.ones((2, 2, 3), np.float32))
-    _rgbe_rows(np.zeros(0, np.uint8), 0, np.empty((0, 8, 3), np.float32))
-    _rgbe_row_sums(np.zeros(0, np.uint8), 0, np.empty((0, 1, 3)), np.ones((1, 8), np.float32))
+    rgbe_half_step(np.ones((2, 2, 3), np.float32))
+    rgbe_rows(np.zeros(0, np.uint8), 0, np.empty((0, 8, 3), np.float32))
+    rgbe_row_sums(np.zeros(0, np.uint8), 0, np.empty((0, 1, 3)), np.ones((1, 8), np.float32))
     _project_kernel(np.array([[0.0, 0.0, 1.0]]), np.ones((1, 3)), np.ones(1), 2)
     c = get_preset("grace")
     min_irradiance(c)

@@ -185,7 +185,7 @@ class _Thumb:
     def png(self) -> tuple[bytes, float]:
         from PIL import Image
 
-        from ..probes.images import auto_exposure, tonemap
+        from ..probes.tonemap import auto_exposure, tonemap
 
         widths = np.diff(np.append(self.cols, self.w))
         img = self.sum / (self.count[:, None, None] * widths[None, :, None])
@@ -250,7 +250,7 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
                     thumb.append(_Thumb(opt.thumbnail, im_w[0], im_h[0]))
                 thumb[0].add(y0, blk)
 
-        from ..probes.images import image_size
+        from ..probes.streaming import image_size
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", LDRWarning)
@@ -286,7 +286,7 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
         except ShprobeError:  # no window helps (L_00 ≤ 0): leave the columns null
             pass
         if opt.reference:
-            from ..probes.layouts import load_env
+            from ..probes.env import load_env
 
             env = load_env(path, None if fp.layout is None else fp.layout, clamp=opt.clamp)
             rep = error_report(env, (opt.lmax,), normal_grid=opt.reference).row(opt.lmax)

@@ -82,7 +82,7 @@ def parse_rotation(text: str):
 
 def parse_exposure(text: str) -> float | None:
     """The one ``--exposure`` grammar: ``auto`` → None (the command picks it by
-    :func:`shprobe.probes.images.auto_exposure` and prints it); otherwise finite stops."""
+    :func:`shprobe.probes.tonemap.auto_exposure` and prints it); otherwise finite stops."""
     import math
 
     if str(text).strip().lower() == "auto":
@@ -128,7 +128,7 @@ force_option = click.option(
 )
 
 
-# layouts (see shprobe.layouts); names listed here so `--help` needs no numpy import
+# layouts (see shprobe.probes.layouts); names listed here so `--help` needs no numpy import
 LAYOUT_CHOICES = ("auto", "latlong", "angular", "mirrorball", "cube")
 
 layout_option = click.option(

@@ -45,26 +45,27 @@ def _ball_options(f):
 
 
 def _read_photo(path: str):
-    """(image, was 8/16-bit): LDR photos give one warning line, not a Python warning."""
+    """The photo (:func:`shprobe.fitting.read_photo`): LDR photos give one warning line, not a
+    Python warning; an exposure shprobe recorded is undone (said by :func:`_emit`)."""
     import warnings
 
-    from ..probes.images import LDRWarning, read_image
+    from ..fitting import read_photo
+    from ..probes.images import LDRWarning
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LDRWarning)
-        img = read_image(path)
-    ldr = any(issubclass(w.category, LDRWarning) for w in caught)
-    if ldr:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LDRWarning)
+        photo = read_photo(path)
+    if photo.ldr:
         click.echo(f"shprobe: warning: {path}: 8/16-bit photo decoded from sRGB; pixels at "
                    "the top code value are treated as clipped", err=True)
-    return img, ldr
+    return photo
 
 
 def _start(photo: str, saturation, output, images: dict, report, force: bool):
-    """Refuse outputs before the work, read the photo: (image, saturation level)."""
+    """Refuse outputs before the work, read the photo: (photo, image, saturation level)."""
     _check(output, {**images, "report": report}, force)
-    img, ldr = _read_photo(photo)
-    return img, (saturation if saturation is not None else (0.999 if ldr else None))
+    ph = _read_photo(photo)
+    return ph, ph.image, ph.saturation(saturation)
 
 
 def _ball(circle, camera_text):
@@ -85,7 +86,7 @@ def _check(output, images: dict, force: bool) -> None:
 
 
 def _emit(result, photo, source: str, fmt: str, output, images: dict, report, force: bool,
-          title: str) -> None:
+          title: str, ph=None) -> None:
     import json
 
     from ..files import transaction, write_text
@@ -96,7 +97,7 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
-        text = json.dumps(fit_document(result, source), indent=2) + "\n"
+        text = json.dumps(fit_document(result, source, ph), indent=2) + "\n"
     else:
         text = export_coeffs(result.coeffs, fmt, source=source)
     with transaction():  # the images, the report and the coefficients: all or none
@@ -111,6 +112,9 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
             write_text(output, text, force)
     if not output:
         click.echo(text, nl=not text.endswith("\n"))
+    if ph is not None and ph.exposure:
+        click.echo(f"shprobe: {source}: the exposure {ph.exposure:+.3g} EV recorded in its "
+                   "metadata was undone", err=True)
     click.echo(f"shprobe: {result.summary()}", err=True)
 
 
@@ -150,10 +154,10 @@ def register(group: click.Group) -> None:
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
         c, cam = _ball(circle, camera_text)
-        img, sat = _start(photo, saturation, output, images, report, force)
+        ph, img, sat = _start(photo, saturation, output, images, report, force)
         res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
                             robust=not no_robust, path=photo)
-        _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}")
+        _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}", ph)
 
     @fit_group.command("chrome-ball")
     @click.argument("photo", type=click.Path(dir_okay=False))
@@ -171,10 +175,10 @@ def register(group: click.Group) -> None:
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask}
         c, cam = _ball(circle, camera_text)
-        img, sat = _start(photo, saturation, output, images, report, force)
+        ph, img, sat = _start(photo, saturation, output, images, report, force)
         res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
                               inset=inset, path=photo)
-        _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}")
+        _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}", ph)
 
     @fit_group.command("normals")
     @click.argument("photo", type=click.Path(dir_okay=False))
@@ -192,7 +196,7 @@ def register(group: click.Group) -> None:
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
-        img, sat = _start(photo, saturation, output, images, report, force)
+        ph, img, sat = _start(photo, saturation, output, images, report, force)
         nrm = read_normal_map(normal_map)
         if nrm.shape[:2] != img.shape[:2]:
             from ..errors import ShprobeError
@@ -200,7 +204,7 @@ def register(group: click.Group) -> None:
             raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
                                f"{img.shape[1]}x{img.shape[0]}", normal_map)
         res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
-        _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}")
+        _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}", ph)
 
     @fit_group.command("mesh")
     @click.argument("photo", type=click.Path(dir_okay=False))
@@ -228,10 +232,10 @@ def register(group: click.Group) -> None:
 
         images = {"residual": residual, "fitted": fitted, "rejected": mask,
                   "irradiance": irradiance}
-        img, sat = _start(photo, saturation, output, images, report, force)
+        ph, img, sat = _start(photo, saturation, output, images, report, force)
         m = load_mesh(mesh)
         cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
                      distance, None, margin)
         res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
-        _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}")
+        _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}", ph)
 

@@ -49,6 +49,17 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, force: bool) -> None
     console(stderr=True).print(f"wrote {outdir}/hbasis_study.md, .csv, .png")
 
 
+def _lighting(probe: Path):
+    """PROBE as the H-basis commands take it, through the one resolver: radiance SH (K, 3)
+    from an .npy / .npz (a bake file gives its probe's L), else the probe image itself (the
+    exact reference needs its pixels)."""
+    from ..lighting.source import resolve_lighting
+
+    if probe.suffix.lower() in (".npy", ".npz"):
+        return resolve_lighting(coeffs=probe, lmax=None).coeffs
+    return resolve_lighting(probe=probe, need_env=True).env
+
+
 @hbasis_group.command("bake")
 @click.argument("mesh", type=click.Path(path_type=Path))
 @click.argument("probe", type=click.Path(path_type=Path))
@@ -63,12 +74,13 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     .npy/.npz SH radiance coefficients (K, 3)). The .npz also keeps the mesh's hash and the
     probe's radiance SH L (l ≤ 16), so `hbasis render MESH FILE.npz` can use it directly."""
     from ..files import check_output_path
-    from ..hbasis.normalmap import bake_mesh, read_lighting, save_bake
+    from ..hbasis.bakefile import save_bake
+    from ..hbasis.normalmap import bake_mesh
     from ..scene.mesh import load_mesh
 
     check_output_path(output, force)
     m = load_mesh(mesh)
-    bk = bake_mesh(m, read_lighting(probe), n=6 if basis == "h6" else 4, bands=bands)
+    bk = bake_mesh(m, _lighting(probe), n=6 if basis == "h6" else 4, bands=bands)
     save_bake(output, bk, overwrite=force)
     console(stderr=True).print(f"wrote {output}: {len(m.vertices)} vertices × "
                                f"{bk.h.shape[1]} × 3")
@@ -107,14 +119,9 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
     import numpy as np
 
     from ..files import check_output_path
-    from ..hbasis.normalmap import (
-        is_bake,
-        load_bake,
-        read_lighting,
-        read_normal_map,
-        render_normal_mapped,
-        save_panel,
-    )
+    from ..hbasis.bakefile import is_bake, load_bake
+    from ..hbasis.normalmap import read_normal_map
+    from ..hbasis.rendering import render_normal_mapped, save_panel
     from ..scene.mesh import load_mesh
 
     if output.suffix.lower() != ".png":
@@ -125,7 +132,7 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
         coeffs = probe
     baked = None if coeffs is None else load_bake(coeffs, m)
     nmap = None if normal_map is None else read_normal_map(normal_map)
-    light = read_lighting(probe)
+    light = _lighting(probe)
     if not isinstance(light, np.ndarray):  # the exact reference: every pixel × every texel
         pairs = float(size) ** 2 * float(np.prod(light.grid))
         if pairs > MAX_REFERENCE_PAIRS:

@@ -21,6 +21,7 @@ COMMANDS: dict[str, str] = {
     "window": "render",
     "hbasis": "hbasis", "prt": "prt", "fit": "fit", "report": "report", "batch": "batch",
     "view": "view",
+    "splat": "splat",
 }
 
 

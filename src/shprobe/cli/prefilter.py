@@ -11,7 +11,7 @@ from ..errors import ShprobeError
 from .common import force_option, parse_exposure
 from .sources import coeff_source_options, resolve_coeffs
 
-#: --format choices of `shprobe prefilter` (all but table/json go to shprobe.export).
+#: --format choices of `shprobe prefilter` (all but table/json go to shprobe.lighting.export).
 FORMATS = ("table", "json", "glsl", "hlsl", "wgsl", "three", "gltf", "cmgen", "cs-phase")
 OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
 
@@ -68,7 +68,7 @@ def coeff_text(coeffs) -> str:
 
 
 def error_table(report, title: str | None = None):
-    """A rich table of an :class:`~shprobe.prefilter.ErrorReport`."""
+    """A rich table of an :class:`~shprobe.lighting.reference.ErrorReport`."""
     from rich.table import Table
 
     from ..report.probe import error_note
@@ -162,7 +162,7 @@ def register(group: click.Group) -> None:
                   help="Highest SH degree l.")
     @click.option("--format", "-F", "fmt", type=click.Choice(FORMATS), default="table",
                   show_default=True, help="Output: R&H Fig. 2 table, JSON, or a shader/engine "
-                  "format (shprobe.export).")
+                  "format (shprobe.lighting.export).")
     @click.option("--output", "-o", type=click.Path(dir_okay=False),
                   help="Write to FILE instead of stdout.")
     @force_option
@@ -229,9 +229,10 @@ def register(group: click.Group) -> None:
 
         from ..lighting.irradiance import irradiance_map
         from ..lighting.reference import reference_irradiance_map
+        from ..probes.env import write_env
         from ..probes.figures import exposure_for
         from ..probes.images import check_image_output
-        from ..probes.layouts import get_layout, write_env
+        from ..probes.layouts import get_layout
 
         check_image_output(output, force)
         fixed = parse_exposure(exposure)  # a bad value is refused before the work
@@ -247,7 +248,7 @@ def register(group: click.Group) -> None:
                 emap = reference_irradiance_map(src.env, lay, sz, progress=update)
         shown, note = emap, ""
         if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
-            from ..probes.layouts import Env
+            from ..probes.env import Env
 
             shown = Env(emap.radiance / np.pi, emap.layout)
             stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))

@@ -210,7 +210,8 @@ def register(group: click.Group) -> None:
                    size, azimuth, elevation, exposure, turntable, scene_check, layout, clamp,
                    output, force):
         """Relight TRANSFER under PROBE (or --preset / --coeffs / --cone) and render it."""
-        from ..probes.images import auto_exposure, check_image_output
+        from ..probes.images import check_image_output
+        from ..probes.tonemap import auto_exposure
         from ..prt import load_transfer
         from ..prt.view import frame_radiance, render_frame
         from ..sh.rotation import from_axis_angle

@@ -1,5 +1,5 @@
-"""CLI commands: render, basis-images, edit, window, export (see ``shprobe.render``,
-``shprobe.design``, ``shprobe.export``)."""
+"""CLI commands: render, basis-images, edit, window, export (see ``shprobe.scene.render``,
+``shprobe.lighting.design``, ``shprobe.lighting.export``)."""
 
 from __future__ import annotations
 
@@ -173,7 +173,7 @@ def register(group: click.Group) -> None:
         alb = parse_floats(albedo, 3, "albedo") if albedo else None
         res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
         if stops is None:
-            from ..probes.images import auto_exposure
+            from ..probes.tonemap import auto_exposure
 
             stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image, 1.0)
             if output.lower().endswith((".png", ".jpg", ".jpeg")):

@@ -7,7 +7,8 @@ coefficients L_lm through a linear least-squares problem.
 - :mod:`.circle`: a ball's outline, given (``CX,CY,R``) or detected;
 - :mod:`.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera);
 - :mod:`.objects`: any diffuse object — per-pixel normals, or a mesh seen by cameras, with
-  optional per-vertex albedo fitted jointly.
+  optional per-vertex albedo fitted jointly;
+- :mod:`.photo`: the photo read for a fit, the exposure a shprobe picture records undone.
 
 Scene names come from :mod:`shprobe.scene`.
 """
@@ -23,6 +24,7 @@ from .ball import (
 )
 from .circle import Circle, check_circle, detect_circle, parse_circle
 from .objects import ObjectFit, fit_mesh, fit_normals, read_normal_map
+from .photo import Photo, read_photo
 from .solve import LightingFit, design_factors, fit_samples
 
 __all__ = [
@@ -32,6 +34,7 @@ __all__ = [
     "Circle",
     "LightingFit",
     "ObjectFit",
+    "Photo",
     "ball_pixels",
     "check_circle",
     "design_factors",
@@ -44,4 +47,5 @@ __all__ = [
     "parse_ball_camera",
     "parse_circle",
     "read_normal_map",
+    "read_photo",
 ]

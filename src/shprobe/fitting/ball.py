@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from ..scene.camera import MIN_FOV
 from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
-from .solve import LightingFit, fit_samples
+from .solve import LightingFit, check_level, fit_samples
 
 #: Largest ball radius (px) a grey-ball fit works at; bigger balls are block-averaged.
 MAX_RADIUS = 512.0
@@ -318,6 +318,7 @@ def fit_chrome_ball(image: NDArray, circle: Circle | None = None,
         raise ShprobeError(f"the ball covers only {px.rows.size} pixels", path)
     vals = img[px.rows, px.cols]
     clipped = 0
+    check_level(saturation, "saturation")
     if saturation is not None:
         sat = np.any(vals >= saturation, axis=1)
         clipped = int(sat.sum())

@@ -71,15 +71,17 @@ def fit_normals(image: ArrayLike, normals: ArrayLike, mask: ArrayLike | None = N
                 albedo: ArrayLike | float = 1.0, saturation: float | None = None,
                 robust: bool = True) -> ObjectFit:
     """Lighting from an image (H, W, 3) and per-pixel normals (H, W, 3) in the lighting's
-    frame (e.g. a G-buffer). Pixels with a zero (or non-finite) normal, or outside ``mask``,
-    are background. ``albedo``: a number, or a known (H, W[, 3]) albedo image."""
+    frame (e.g. a G-buffer). Pixels with a zero normal, or outside ``mask``, are background;
+    NaN or infinite normals are refused. ``albedo``: a number, or a known (H, W[, 3]) albedo
+    image."""
     img = _photo(image, "image")
     n = np.asarray(normals, dtype=np.float64)
     if n.shape[:2] != img.shape[:2] or n.ndim != 3 or n.shape[2] < 3:
         raise ShprobeError(f"normal map {n.shape} does not match the image {img.shape}")
     n = n[..., :3]
+    _check_normals(n)
     ln = np.linalg.norm(n, axis=-1)
-    valid = np.isfinite(ln) & (ln > 0.5)
+    valid = ln > 0.5
     if mask is not None:
         valid &= np.asarray(mask, bool)
     rows, cols = np.nonzero(valid)
@@ -239,9 +241,9 @@ def read_normal_map(path) -> NDArray[np.float32]:
     if ext == ".pfm":
         from pathlib import Path
 
-        from ..probes.images import _read_pfm
+        from ..probes.codecs import read_pfm
 
-        a = _read_pfm(Path(p))
+        a = read_pfm(Path(p))
     else:
         import OpenImageIO as oiio
 
@@ -255,4 +257,13 @@ def read_normal_map(path) -> NDArray[np.float32]:
     a = np.asarray(a, np.float32)
     if a is None or a.ndim != 3 or a.shape[2] < 3:
         raise ShprobeError("normal map must have 3 channels", p)
+    _check_normals(a[..., :3], p)
     return a[..., :3]
+
+
+def _check_normals(n: NDArray, path=None) -> None:
+    """Refuse NaN or infinite normals (background is a zero normal, not a missing one)."""
+    bad = int(np.count_nonzero(~np.all(np.isfinite(n), axis=-1)))
+    if bad:
+        raise ShprobeError(f"normal map has {bad} pixels with NaN or infinite normals "
+                           "(mark background with zero normals)", path)

@@ -14,6 +14,7 @@ from ..lighting.document import coeffs_document
 from ..lighting.irradiance import irradiance
 from .ball import BallFit
 from .objects import ObjectFit
+from .photo import Photo
 from .solve import POOR_CONDITION
 
 __all__ = ["fit_document", "fit_images", "fit_table_rows", "save_fit_figure"]
@@ -21,9 +22,12 @@ __all__ = ["fit_document", "fit_images", "fit_table_rows", "save_fit_figure"]
 Result = BallFit | ObjectFit
 
 
-def fit_document(result: Result, source: str | None) -> dict[str, Any]:
+def fit_document(result: Result, source: str | None, photo: Photo | None = None
+                 ) -> dict[str, Any]:
     """The document of ``shprobe prefilter --format json`` (``coefficients`` …) with a
-    ``fit`` object: quality, standard errors and conditioning per coefficient, the circle."""
+    ``fit`` object: quality, standard errors and conditioning per coefficient, the circle,
+    and, given the ``photo``, the exposure its metadata recorded (undone before the fit) or
+    null with the scale the coefficients then carry."""
     f = result.fit
     doc = coeffs_document(f.coeffs, source, "photo")
     q: dict[str, Any] = {
@@ -31,6 +35,7 @@ def fit_document(result: Result, source: str | None) -> dict[str, Any]:
         "rms_relative": f.info.get("rms_relative"), "rejected_fraction": f.rejected_fraction,
         "clipped": int(f.clipped.sum()), "albedo": f.albedo,
         "scale_note": "coefficients = L_lm x (albedo x exposure) / albedo",
+        "photo_exposure": None if photo is None else photo.exposure,
         "stderr": f.stderr.tolist(), "conditioning": dict(zip(RH_LABELS, f.conditioning.tolist(),
                                                               strict=True)),
         "condition": f.condition, "poor_condition_threshold": POOR_CONDITION,
@@ -48,6 +53,9 @@ def fit_document(result: Result, source: str | None) -> dict[str, Any]:
         q.update(views=len(result.views), frame="world")
         if result.vertex_albedo is not None:
             q.update(albedo_rounds=result.info.get("albedo_iterations"))
+    if photo is not None and photo.exposure is not None:
+        q["scale_note"] = (f"the photo's recorded exposure ({photo.exposure:+.6g} EV) was "
+                           "undone: coefficients = L_lm x albedo / albedo")
     doc["fit"] = q
     return doc
 
@@ -105,7 +113,7 @@ def save_fit_figure(path: str | os.PathLike[str], photo: NDArray, result: Result
     import matplotlib.pyplot as plt
 
     from ..files import atomic_output
-    from ..probes.images import tonemap
+    from ..probes.tonemap import tonemap
 
     if getattr(result, "photo", None) is not None:  # a block-averaged fit: its own photo
         photo = result.photo

@@ -127,15 +127,15 @@ class LightingFit:
                 f"condition={self.condition:.3g})")
 
 
+def check_level(value: float | None, name: str) -> None:
+    """A clipping level (``saturation``, ``black level``) is None or a finite number: NaN
+    would compare false with every pixel and silently clip nothing."""
+    if value is not None and not np.isfinite(value):
+        raise ShprobeError(f"{name} must be a finite number, got {value}")
+
+
 def _design(dirs: NDArray, factors: NDArray) -> NDArray[np.float64]:
     return sh_basis(np.ascontiguousarray(dirs, dtype=np.float64), 2) * factors
-
-
-def _predict(dirs: NDArray, X: NDArray, factors: NDArray) -> NDArray[np.float64]:
-    out = np.empty((dirs.shape[0], X.shape[1]))
-    for s in range(0, dirs.shape[0], _CHUNK):
-        out[s:s + _CHUNK] = _design(dirs[s:s + _CHUNK], factors) @ X
-    return out
 
 
 def _solve(G: NDArray, R: NDArray) -> NDArray[np.float64]:
@@ -283,9 +283,8 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
                                f"{ALBEDO_RANGE[1]:g}] (positive and finite)")
         ys = y / a
         wch = np.broadcast_to(a * a, y.shape)
-    for name, v in (("saturation", saturation), ("black level", black)):
-        if v is not None and not np.isfinite(v):
-            raise ShprobeError(f"{name} must be a finite number, got {v}")
+    check_level(saturation, "saturation")
+    check_level(black, "black level")
     clipped = np.zeros(P, bool)
     for c in range(y.shape[1]):  # per channel (a reduction over a length-3 axis is slow)
         if saturation is not None:

@@ -74,10 +74,20 @@ def _check_n(n: int) -> int:
     return int(n)
 
 
-def _float_array(a: ArrayLike) -> NDArray[np.floating]:
-    x = np.asarray(a)
-    if x.dtype not in (np.float32, np.float64):
-        x = x.astype(np.float64)
+def _float_array(a: ArrayLike, what: str) -> NDArray[np.floating]:
+    """float32 stays float32, anything else numeric becomes float64; non-numeric input (object
+    arrays, strings) and NaN or infinite values are one :class:`ShprobeError`."""
+    try:
+        x = np.asarray(a)
+        if x.dtype not in (np.float32, np.float64):
+            if x.dtype.kind not in "biuf":
+                raise TypeError
+            x = x.astype(np.float64)
+    except (TypeError, ValueError):
+        raise ShprobeError(f"{what} must be an array of numbers") from None
+    # two reductions, no temporaries: NaN propagates through min/max, ±inf shows in one of them
+    if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
+        raise ShprobeError(f"{what} hold NaN or infinite values")
     return x
 
 
@@ -99,7 +109,7 @@ def h_basis(normals: ArrayLike, n: int = 6,
     single-threaded numba kernel that writes each row straight into the output.
     """
     n = _check_n(n)
-    d = _float_array(normals)
+    d = _float_array(normals, "normals")
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {d.shape}")
     shape = (*d.shape[:-1], n)
@@ -131,8 +141,8 @@ def evaluate_h(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.floating]:
     leading axes. Returns (..., C), or (...) for 1-D coefficients. One-channel per-point
     coefficients are (P, n, 1), not (P, n).
     """
-    c = np.asarray(coeffs)
-    nd = _float_array(normals)
+    c = _float_array(coeffs, "H coefficients")
+    nd = _float_array(normals, "normals")
     if nd.ndim < 1 or nd.shape[-1] != 3:
         raise ShprobeError(f"normals must have shape (..., 3), got {nd.shape}")
     if c.ndim == 1:
@@ -218,7 +228,7 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
     streaming stores).
     """
     n = _check_n(n)
-    c = _float_array(sh_coeffs)
+    c = _float_array(sh_coeffs, "SH coefficients")
     if c.ndim == 0:
         raise ShprobeError("SH coefficients must be (K,) or (..., K, C), got a scalar")
     k = c.shape[-1] if c.ndim == 1 else c.shape[-2]

@@ -254,11 +254,6 @@ def random_signals(n_signals: int, seed: int = 0) -> Signals:
                    int(seed))
 
 
-def random_lighting(n_signals: int, seed: int = 0, lmax: int = LMAX_SIGNAL) -> NDArray:
-    """Radiance SH coefficients L_lm (S, K, 3) of :func:`random_signals`."""
-    return np.array(random_signals(n_signals, seed).sh(lmax))
-
-
 def random_irradiance(n_signals: int, seed: int = 0, lmax: int = LMAX_SIGNAL) -> NDArray:
     """Irradiance SH coefficients E_lm = Â_l L_lm (S, K, 3) of :func:`random_signals`."""
     return random_signals(n_signals, seed).irradiance_sh(lmax)

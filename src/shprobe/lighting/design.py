@@ -121,7 +121,7 @@ def cone_light(axis: ArrayLike, aperture: float, radiance: Any = 1.0,
                lmax: int = 2) -> NDArray[np.float64]:
     """A circular window (disc light) of constant ``radiance`` and half-angle ``aperture`` ζ
     (radians, 0 < ζ ≤ π) around ``axis``: L_lm = radiance · (2π ∫ h P_l) · y_lm(axis)
-    (Funk–Hecke), by the foundation's ``shprobe.zonal.circular_window`` (LH eq. 11)."""
+    (Funk–Hecke), by the foundation's ``shprobe.sh.zonal.circular_window`` (LH eq. 11)."""
     return np.asarray(circular_window(unit_vectors(axis), float(aperture), check_lmax(lmax),
                                       radiance=_rgb(radiance)), dtype=np.float64)
 
@@ -151,7 +151,7 @@ def blend(items: Iterable[tuple[ArrayLike, float]]) -> NDArray[np.float64]:
 
 def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float64]:
     """The lighting turned by ``rotation`` (3×3 matrix): coefficients of L∘R⁻¹, via the
-    foundation's Wigner matrices (``shprobe.rotation.rotate``, LH eq. 4–5)."""
+    foundation's Wigner matrices (``shprobe.sh.rotation.rotate``, LH eq. 4–5)."""
     return np.asarray(rotate(as_coeffs(coeffs), one_rotation(rotation)), dtype=np.float64)
 
 

@@ -11,7 +11,7 @@ format     content
 glsl/hlsl  functions of the world-space normal returning irradiance E(n) (not /π): eq. 11,
 /wgsl      E = nᵀMn with the three 4×4 matrices M baked in (``shprobe_irradiance``), and the
            eq. 13 polynomial in the 9 L_lm (``shprobe_irradiance_poly``). l ≤ 2 only.
-json       the ``shprobe prefilter --format json`` document (``prefilter.coeffs_document``):
+json       the ``shprobe prefilter --format json`` document (``lighting.document.coeffs_document``):
            ``coefficients`` L_lm [k][rgb], ``irradiance_coefficients`` E_lm = Â_l L_lm,
            ``M`` (eq. 11–12), R&H signs, any lmax.
 three      three.js ``SphericalHarmonics3`` / ``LightProbe.sh``: the flat array of
@@ -425,6 +425,34 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
 
 def import_coeffs(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Read lighting coefficients L_lm (K, C) back from any export format (detected from the
-    file's content)."""
+    file's content), or from a NumPy ``.npy`` / ``.npz`` array (:func:`read_coeffs_array`)."""
     p = os.fspath(path)
+    if p.lower().endswith((".npy", ".npz")):
+        return read_coeffs_array(p)
     return parse_coeffs(read_text(p, "text coefficient file"), p)[0]
+
+
+def read_coeffs_array(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """SH coefficients (K, C) from an ``.npy`` array, or from an ``.npz`` archive's array ``L``,
+    else ``coeffs``, else its first array (an ``shprobe hbasis bake`` file gives its probe's
+    ``L``); npz headers and sizes are checked before anything is inflated."""
+    from ..files import load_npz
+
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise ShprobeError("no such file", p)
+    try:
+        if p.lower().endswith(".npy"):
+            c = np.load(p, allow_pickle=False)
+        else:
+            data = load_npz(p, what="file of SH coefficients")
+            key = next((k for k in ("L", "coeffs") if k in data), None)
+            if key is None and not data:
+                raise ShprobeError("holds no array of SH coefficients", p)
+            c = data[key or next(iter(data))]
+    except ShprobeError:
+        raise
+    except Exception as e:  # numpy/zipfile raise many types on bad files
+        raise ShprobeError(f"cannot read SH coefficients: {' '.join(str(e).split())[:200]}",
+                           p) from None
+    return as_coeffs(c, p, "SH coefficients")

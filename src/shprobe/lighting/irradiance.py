@@ -16,7 +16,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from ..probes.layouts import Env, Layout, get_layout
+from ..probes.env import Env
+from ..probes.layouts import Layout, get_layout
 from ..sh import lmax_of, sh_basis
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import clamped_cosine_factors, convolve

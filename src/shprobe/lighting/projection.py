@@ -24,11 +24,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
+from ..probes.env import Env
 from ..probes.layouts import (
-    _CUBE_AXES,
     CUBE_ARRANGEMENTS,
+    CUBE_AXES,
     Cube,
-    Env,
     LatLong,
     cube_arrangement,
     detect_layout,
@@ -77,8 +77,8 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
     """Coefficients in the world frame from those in the frame ω' = Qω: c = Dᵀ c'.
 
     c' are the coefficients of f∘Q⁻¹, so c = rotate(c', Q⁻¹). Up to lmax 12 the per-band D is
-    built here by exact quadrature (independent of shprobe.rotation); above, by the Wigner
-    recurrence of :func:`shprobe.rotation.rotate`, which needs no (nodes × K) table.
+    built here by exact quadrature (independent of shprobe.sh.rotation); above, by the Wigner
+    recurrence of :func:`shprobe.sh.rotation.rotate`, which needs no (nodes × K) table.
     """
     lmax = lmax_of(cp.shape[0])
     if lmax > 12:
@@ -289,14 +289,14 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
                  on_block: Callable[[int, NDArray[np.float32]], None] | None = None
                  ) -> FileProjection:
     """:func:`project` of an image file, streamed: the file is read a block of rows at a time
-    (:class:`shprobe.probes.images.ImageRows`) and each block's share of R&H eq. 10 is added
+    (:class:`shprobe.probes.streaming.ImageRows`) and each block's share of R&H eq. 10 is added
     up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
     image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding. This is
     shprobe's streaming entry point, the equivalent of a lazy ``load_env`` for projection
     (``shprobe prefilter`` takes it for big probes, ``shprobe batch`` always).
 
     Radiance files are decoded and reduced in one pass (each scanline's Σ_ψ L cos/sin(mψ)
-    while it is in cache, :meth:`~shprobe.probes.images.ImageRows.row_sums`), in float32 as
+    while it is in cache, :meth:`~shprobe.probes.streaming.ImageRows.row_sums`), in float32 as
     :func:`project`'s matrix product but in another order: equal to it to float32 rounding.
 
     Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row
@@ -305,7 +305,7 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
     streaming path: the image is read whole (``streamed=False``). ``on_block(y0, block)`` sees
     every decoded block of image rows (e.g. to build a thumbnail in the same pass).
     """
-    from ..probes.images import BLOCK_BYTES, ImageRows
+    from ..probes.streaming import BLOCK_BYTES, ImageRows
 
     lmax = check_lmax(lmax)
     with ImageRows(path, clamp=clamp, block_bytes=block_bytes or BLOCK_BYTES) as im:
@@ -317,7 +317,7 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
         elif name == "cube":
             coeffs = _stream_cube(im, lmax, on_block)
         else:
-            from ..probes.layouts import env_from_image
+            from ..probes.env import env_from_image
 
             img = np.empty((h, w, 3), np.float32)
             for y0, blk in im.blocks():
@@ -352,7 +352,7 @@ def cube_face_rows(face: int, n: int, j0: int, j1: int
     c = -1.0 + 2.0 * (np.arange(n) + 0.5) / n
     tc = c[j0:j1]
     u = 1.0 / np.sqrt(1.0 + c[None, :] ** 2 + tc[:, None] ** 2)
-    ax = _CUBE_AXES[face]
+    ax = CUBE_AXES[face]
     d = (u[..., None] * ax[0] + (c[None, :] * u)[..., None] * ax[1]
          + (tc[:, None] * u)[..., None] * ax[2])
     e = -1.0 + 2.0 * np.arange(n + 1) / n

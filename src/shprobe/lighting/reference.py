@@ -16,7 +16,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory, check_pairs
-from ..probes.layouts import Env, LatLong, Layout, get_layout
+from ..probes.env import Env
+from ..probes.layouts import LatLong, Layout, get_layout
 from ..sh import check_lmax, num_coeffs
 from .irradiance import irradiance, unit_normals
 from .projection import project, total_intensity
@@ -229,7 +230,7 @@ class ErrorRow:
     both are lower bounds of the true worst case; the refined one is never below the grid's,
     and no finer sampling near it is expected to beat it by more than ``max_tol`` (a numerical
     statement, checked against dense brute-force patches, not a proof). A finer grid's max is
-    no substitute: grids straddle narrow ridges (docs/benchmarks.md, issue 17).
+    no substitute: a grid straddles any ridge narrower than its spacing, whatever the spacing.
     ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and N×N/2 grids
     (NaN for given normals): the mean's stated accuracy.
     """

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..probes.layouts import Env, load_env
+from ..probes.env import Env, load_env
 from ..probes.presets import get_preset
 from ..sh import check_lmax, lmax_of, num_coeffs
 from ..sh.rotation import unit_vectors
@@ -48,7 +48,7 @@ STREAM_ABOVE_BYTES = 256 << 20
 
 def _streamed(probe: str | os.PathLike[str], layout: str | None, lmax: int | None,
               clamp: bool) -> Lighting | None:
-    from ..probes.images import image_size
+    from ..probes.streaming import image_size
 
     if layout in ("angular", "mirrorball") or not os.path.isfile(probe):
         return None

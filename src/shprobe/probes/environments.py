@@ -11,7 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from .layouts import Env, LatLong
+from .env import Env
+from .layouts import LatLong
 
 #: Unit direction of the sun of :func:`procedural_env`.
 SUN_DIRECTION = np.array([0.45, 0.6, -0.66]) / np.linalg.norm([0.45, 0.6, -0.66])

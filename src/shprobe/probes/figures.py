@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from .images import auto_exposure
+from .tonemap import auto_exposure
 
 KINDS = ("radiance", "signed", "error")
 
@@ -74,7 +74,7 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
         v = v[v >= v.max()]
     if not v.size or not float(v.max()) > 0:
         return 0.0
-    # the one percentile-to-white rule (probes.images.auto_exposure), in steps of 0.1 stop
+    # the one percentile-to-white rule (probes.tonemap.auto_exposure), in steps of 0.1 stop
     e = float(np.floor(auto_exposure(v[:, None], 1.0, percentile) * 10.0) / 10.0)
     allowed = (100.0 - percentile) / 100.0
     for _ in range(200):  # ties at the percentile (flat regions): step down until it holds
@@ -242,7 +242,7 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     from matplotlib.figure import Figure as MplFigure
     from matplotlib.patches import Patch
 
-    from .images import tonemap
+    from .tonemap import tonemap
 
     if panels and not isinstance(panels[0], Panel | type(None)):
         rows = [list(r) for r in panels]  # type: ignore[arg-type]

@@ -29,8 +29,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..probes.env import Env
 from ..probes.figures import Figure, Panel, exposure_for, figure
-from ..probes.layouts import Env, LatLong
+from ..probes.layouts import LatLong
 
 #: The page loads nothing: only inline styles and data: images (a browser enforces it).
 _CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'"

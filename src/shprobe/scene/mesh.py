@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..probes.images import srgb_to_linear
-from ..probes.layouts import _bilinear
+from ..probes.layouts.base import bilinear
+from ..probes.tonemap import srgb_to_linear
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -238,4 +238,4 @@ def sample_texture(tex: ArrayLike, uv: ArrayLike) -> NDArray[np.floating]:
     t = np.asarray(tex)
     uv = np.asarray(uv, dtype=np.float64)
     h, w = t.shape[:2]
-    return _bilinear(t, (uv[..., 0] % 1.0) * w, (1.0 - uv[..., 1] % 1.0) * h, wrap_x=True)
+    return bilinear(t, (uv[..., 0] % 1.0) * w, (1.0 - uv[..., 1] % 1.0) * h, wrap_x=True)

@@ -10,7 +10,7 @@ nᵀ M n of eq. 11–12 (:func:`shprobe.lighting.irradiance.shade_irradiance`). 
 * ``"vertex"``: E is evaluated at the vertices and the radiance is interpolated across the
   triangles — the procedural shader of R&H §3.2.
 
-Tone mapping (PNG output): :func:`shprobe.probes.images.tonemap` — ``exposure`` stops
+Tone mapping (PNG output): :func:`shprobe.probes.tonemap.tonemap` — ``exposure`` stops
 (× 2^exposure), clamp to [0, 1], sRGB transfer curve, 8 bits. EXR output is linear radiance,
 untouched. Camera frame: see :mod:`.camera`.
 """
@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..lighting.irradiance import shade_irradiance
-from ..probes.images import tonemap
+from ..probes.tonemap import tonemap
 from .camera import Camera
 from .mesh import (
     bounding_sphere,
@@ -223,7 +223,7 @@ def _background(background: Any, dirs: NDArray, C: int) -> NDArray[np.float32]:
         return np.asarray(background(dirs), dtype=np.float32).reshape(-1, C)
     b = np.asarray(background, dtype=np.float32)
     if b.ndim == 3:
-        from ..probes.layouts import Env
+        from ..probes.env import Env
 
         return Env(b, "latlong").sample(dirs)[:, :C]
     return np.broadcast_to(b.reshape(1, -1), (dirs.shape[0], C)).astype(np.float32)
@@ -352,7 +352,7 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
-    """Write a render with :func:`shprobe.images.write_image`: ``.png`` tone-mapped by
+    """Write a render with :func:`shprobe.probes.images.write_image`: ``.png`` tone-mapped by
     :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear.
     Radiance is never negative: where a truncated SH irradiance dips below zero (per-vertex
     shading interpolates it unclamped) the file holds 0, so that shprobe's readers (``fit``)

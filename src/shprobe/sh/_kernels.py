@@ -52,8 +52,8 @@ BUF_BYTES = 16384
 #: zeroed by the kernel at the first store into each. Allocating calls against sphericart's
 #: (process CPU, per-round medians, AMD EPYC, 1 MiB L2): float64 in place 0.86–0.92 at lmax
 #: 10–34, through the buffer 0.96–1.12; float32 in place 0.67–0.83 at lmax 40–48
-#: (docs/benchmarks.md, issue 16, 2026-11-27). On the earlier Intel box float64 in place was
-#: 1.05–1.08× the buffer at lmax 16–24 and only float32 went in place.
+#: (docs/benchmarks.md, ``bench/bench_sh.py``). On an Intel box float64 in place was
+#: 1.05–1.08× the buffer at lmax 16–24: float32 gains there too, float64 about breaks even.
 FRESH_FOUR_MAX_BYTES = 40 << 10
 
 
@@ -112,7 +112,7 @@ def stream_rows(kern, dirs, out, a0):  # pragma: no cover - compiled
     """out = kern's rows of dirs, computed ``BUF_BYTES`` at a time into a buffer that stays in
     L1 and copied out with streaming stores (``_stream_copy``; flat index j of ``out`` is
     64-byte aligned iff j ≡ a0); ``kern(dirs, out)`` fills rows in place (the generated
-    unrolled kernels, ``shprobe.sh._unrolled``, whose ``*_stream`` variants inline this)."""
+    unrolled kernels, ``shprobe.sh._kernels_unrolled``, whose ``*_stream`` variants inline this)."""
     n = dirs.shape[0]
     K = out.shape[1]
     B = max(16, BUF_BYTES // (K * out.itemsize))

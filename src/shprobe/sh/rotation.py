@@ -11,7 +11,7 @@ Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quate
 
 The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
 z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
-(``shprobe._rotation_kernels``, compiled once and cached on disk). Run forward in l at a
+(``shprobe.sh._kernels_rotation``, compiled once and cached on disk). Run forward in l at a
 general β the recurrence loses accuracy (orthogonality error ~1e-3 by l = 40 at β = 0.5), so
 it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is obtained as
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
@@ -201,7 +201,7 @@ def _j_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 
 @cache
 def _j_full(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    from ._rotation_kernels import d_tables  # numba, imported lazily
+    from ._kernels_rotation import d_tables  # numba, imported lazily
 
     P, Q = d_tables(0.0, 1.0, lmax)
     P.flags.writeable = False
@@ -212,7 +212,7 @@ def _j_full(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 def _run_rotate(Rk: NDArray[np.float64], ck: NDArray[np.float64], lmax: int):
     """Kernel dispatch: closed form for lmax ≤ 2, the J-table path above. A degenerate matrix
     (e.g. all zeros) that divides by zero in the kernel is refused like any non-rotation."""
-    from ._rotation_kernels import rotate_batch, rotate_low_batch  # numba, imported lazily
+    from ._kernels_rotation import rotate_batch, rotate_low_batch  # numba, imported lazily
 
     try:
         if lmax <= 2:
@@ -241,7 +241,7 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
             f"wigner_d at lmax={lmax} would be {size / 2**30:.1f} GiB of dense (K, K) "
             f"matrices (limit {WIGNER_D_MAX_BYTES / 2**30:.0f} GiB); rotate() applies the "
             "rotation block by block without forming them")
-    from ._rotation_kernels import wigner_full  # numba, imported lazily
+    from ._kernels_rotation import wigner_full  # numba, imported lazily
 
     try:
         out, err = wigner_full(R.reshape(-1, 3, 3), lmax, *_j_tables(lmax))

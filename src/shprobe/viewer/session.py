@@ -1041,9 +1041,10 @@ def hbasis_panel(session: Session, state: dict[str, Any], size: int = 160
 
     from PIL import Image
 
-    from ..hbasis.normalmap import panel_image, render_normal_mapped
-    from ..probes.images import auto_exposure, tonemap
-    from ..probes.layouts import Env, LatLong
+    from ..hbasis.rendering import panel_image, render_normal_mapped
+    from ..probes.env import Env
+    from ..probes.layouts import LatLong
+    from ..probes.tonemap import auto_exposure, tonemap
     from ..scene import sphere_mesh
 
     st = {**state, "lmax": 4}

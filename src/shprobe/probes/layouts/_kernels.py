@@ -1,4 +1,4 @@
-"""numba kernel of :mod:`shprobe.layouts`: the disc layouts' pixel tables (imported lazily).
+"""numba kernel of :mod:`shprobe.probes.layouts`: the disc layouts' pixel tables (imported lazily).
 
 The solid angles and directions of an n × n disc image, computed on one quadrant (rows and
 columns ``< (n+1)//2``: a ≤ 0, b ≥ 0) and mirrored (the tables are symmetric in a and in b).

@@ -1,4 +1,4 @@
-"""numba kernels for :mod:`shprobe.rotation` (imported lazily: ``import shprobe`` stays fast).
+"""numba kernels for :mod:`shprobe.sh.rotation` (imported lazily: ``import shprobe`` stays fast).
 
 Real-basis Wigner matrices in shprobe's basis (R&H signs), Lisle & Huang 2007 §2.2.
 

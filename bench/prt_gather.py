@@ -1,4 +1,4 @@
-"""An independent reference for interreflected PRT (issue 17): a per-point gather of direct,
+"""An independent reference for interreflected PRT: a per-point gather of direct,
 1- and 2-bounce exit radiance under band-limited SH lighting, written without the transfer
 machinery — its own Embree scene and ray loop, cosine-weighted stratified (Malley) hemisphere
 sampling in each point's own frame, exact hit points from the ray distance, smooth normals and

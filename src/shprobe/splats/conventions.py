@@ -1,0 +1,63 @@
+"""The SH convention of Gaussian-splat files, and converters to shprobe's.
+
+The 3DGS reference renderer (Kerbl et al. 2023, ``computeColorFromSH`` in
+diff-gaussian-rasterization) evaluates, per splat and colour channel,
+
+    c(d) = max(0, Σ_k sh_k Y^CS_k(d) + 0.5),   d = normalize(splat_position − camera_position)
+
+with real SH constants that carry the Condon–Shortley phase (``-C1·y·sh[1] + C1·z·sh[2] −
+C1·x·sh[3]``, C1 = 0.4886025119029199, …): Y^CS_lm = (−1)^|m| y_lm in shprobe's basis (R&H
+signs, :mod:`shprobe.sh.conventions`). So a file's coefficients convert to shprobe's by the
+same sign flip, a_lm = (−1)^|m| sh_lm, through the one registry
+(:func:`shprobe.sh.conventions.from_condon_shortley`). The DC term is ``f_dc``; the +0.5 is a
+bias of the renderer, not a coefficient: the coefficient of the constant 0.5 would be
+0.5 / C0. SPZ and glTF ``KHR_gaussian_splatting`` store the same coefficients.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..sh.conventions import from_condon_shortley, to_condon_shortley
+
+#: Y_00 = 1 / (2√π), the renderer's C0.
+SH_C0 = 0.28209479177387814
+#: The renderer adds this to the SH sum before clamping at 0.
+DC_BIAS = 0.5
+#: Largest SH degree of the 3DGS renderer (16 coefficients per channel).
+MAX_DEGREE = 3
+
+__all__ = ["DC_BIAS", "MAX_DEGREE", "SH_C0", "colour_to_dc", "dc_to_colour", "from_shprobe",
+           "to_shprobe", "view_colour"]
+
+
+def to_shprobe(sh: ArrayLike) -> NDArray[np.floating]:
+    """Splat-file SH (..., K, C) (CS phase, as the renderer evaluates them) → shprobe's
+    coefficients of the same function without the bias: a_lm = (−1)^|m| sh_lm."""
+    return from_condon_shortley(sh)
+
+
+def from_shprobe(coeffs: ArrayLike) -> NDArray[np.floating]:
+    """shprobe coefficients (..., K, C) → splat-file SH (the same involution)."""
+    return to_condon_shortley(coeffs)
+
+
+def dc_to_colour(dc: ArrayLike) -> NDArray[np.floating]:
+    """The view-independent colour of ``f_dc``: C0·dc + 0.5 (before the renderer's clamp)."""
+    return np.asarray(dc) * SH_C0 + DC_BIAS
+
+
+def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
+    """``f_dc`` of a view-independent colour (the inverse of :func:`dc_to_colour`)."""
+    return (np.asarray(colour) - DC_BIAS) / SH_C0
+
+
+def view_colour(sh: ArrayLike, directions: ArrayLike) -> NDArray[np.float64]:
+    """The renderer's colour max(0, Σ sh_k Y^CS_k(d) + 0.5) of splats with SH ``sh`` (N, K, C)
+    seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis."""
+    from ..sh.basis import lmax_of, sh_basis_numpy
+
+    c = to_shprobe(np.asarray(sh, dtype=np.float64))
+    y = sh_basis_numpy(np.asarray(directions, dtype=np.float64), lmax_of(c.shape[-2]))
+    return np.maximum(0.0, np.einsum("nk,nkc->nc", y, c) + DC_BIAS)
