@@ -80,7 +80,7 @@ def register(group: click.Group) -> None:
 def _check_cost(probe, map_size: int) -> None:
     """The exact map's cost from the image headers, before the probe is read (a file that is
     not an image is left to the reader's own one-line error)."""
-    from ..probes.images import image_size
+    from ..probes.streaming import image_size
     from ..report.probe import check_map_cost
 
     try:
