@@ -24,19 +24,19 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="si
 def test_sigint_stops_a_dask_driver_and_loses_no_finished_row(tmp_path):
     lib = tmp_path / "lib"
     lib.mkdir()
-    n = 60
+    n = 120  # tens of seconds of work on one worker: Ctrl-C comes in the middle
     for i in range(n):
-        write_env(lib / f"p{i:02d}.hdr", procedural_env(128 + 4 * i, 64 + 2 * i))
+        write_env(lib / f"p{i:03d}.hdr", procedural_env(384 + 4 * i, 192 + 2 * i))
     out = tmp_path / "T.parquet"
     cmd = [sys.executable, "-m", "shprobe", "batch", str(lib), "-o", str(out), "-j", "1",
-           "--reference", "24"]
+           "--reference", "32"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
         while not lock_path(out).exists():
             assert proc.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
-        time.sleep(12)  # the cluster starts, some probes finish
+        time.sleep(6)  # the cluster starts, some probes finish
         assert proc.poll() is None, "the batch ended before Ctrl-C: make it longer"
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=90)

@@ -288,7 +288,9 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
         client.register_plugin(_plugin(keep_heap=own is True))
     except Exception:  # an old scheduler without plugins: workers warm on their first task
         pass
-    done_f = client.scatter(done, broadcast=True) if done else done
+    # scattered as one object: scatter() of a set scatters its elements, and a task given a
+    # frozenset of futures would see no hash in it (a resume on Dask recomputed everything)
+    done_f = client.scatter([done], broadcast=True)[0] if done else done
     try:
         threads = sum(client.nthreads().values())
     except Exception:
