@@ -102,7 +102,7 @@ def test_row_against_independent_results(tmp_path):
     row = probe_row(str(p), options=BatchOptions(lmax=2, reference=6, thumbnail=32))
     env = load_env(p)
     c = project(env, 2)
-    assert row["error"] is None and row["warning"] is None
+    assert row["failure"] is None and row["warning"] is None
     assert (row["layout"], row["width"], row["height"], row["lmax"]) == ("latlong", 256, 128, 2)
     assert row["size_bytes"] == p.stat().st_size and row["content_hash"] == content_hash(p)
     assert content_hash(p) == xxhash.xxh3_128_hexdigest(p.read_bytes())  # read in chunks
@@ -140,7 +140,7 @@ def test_table_errors_and_schema(library, tmp_path):
     assert out.exists() and not parts_dir(out).exists()
     rows = {r["path"].split("/lib/")[1]: r for r in t.to_pylist()}
     assert len(rows) == 7
-    errs = {k: r["error"] for k, r in rows.items() if r["error"] is not None}
+    errs = {k: r["failure"] for k, r in rows.items() if r["failure"] is not None}
     assert set(errs) == {"bad.exr", "nan.pfm", "wide.exr"}
     for k, msg in errs.items():
         assert msg.startswith(str(library / k) + ": ") and "\n" not in msg
@@ -164,7 +164,7 @@ def test_table_errors_and_schema(library, tmp_path):
     meta = json.loads(back.schema.metadata[b"shprobe"])
     assert "R&H 2001 signs" in meta["convention"] and meta["options"]["lmax"] == 3
     df = back.to_pandas()
-    assert df["error"].isna().sum() == 4 and df["width"].dtype.kind in "if"
+    assert df["failure"].isna().sum() == 4 and df["width"].dtype.kind in "if"
 
 
 def test_resume_interrupt_and_options(library, tmp_path):
@@ -189,7 +189,7 @@ def test_resume_interrupt_and_options(library, tmp_path):
     assert t.drop(drop).equals(full.drop(drop))
     secs = {r["path"]: r["seconds"] for r in t.to_pylist()}
     for r in kept:
-        if r["error"] is None:
+        if r["failure"] is None:
             assert secs[r["path"]] == r["seconds"]
     # a copy of a done probe under a new name is filled from its hash; a new probe computed
     (library / "copy.exr").write_bytes((library / "a.exr").read_bytes())
@@ -218,9 +218,13 @@ def test_cli(library, tmp_path, capsys):
     rc = main(["batch", str(library / "a.exr"), str(library / "bad.exr"), "-o", str(out),
                "--scheduler", "inline", "--thumbnails", "16"])
     err = capsys.readouterr().err
-    assert rc == 0 and "2 probes, 1 failed" in err
+    assert rc == 1 and "2 probes, 1 failed" in err  # a failed row fails the command
+    assert err.splitlines()[-1].startswith(f"shprobe: error: {out}: 1 of 2 probes failed")
     t = pq.read_table(out)
     assert t.column("thumbnail").null_count == 1
+    rc = main(["batch", str(library / "a.exr"), str(library / "bad.exr"), "-o", str(out),
+               "--scheduler", "inline", "--thumbnails", "16", "--allow-failures"])
+    assert rc == 0 and "2 probes, 1 failed" in capsys.readouterr().err
     rc = main(["batch", str(library / "a.exr"), "-o", str(out), "--scheduler", "inline",
                "-n", "4"])
     err = capsys.readouterr().err

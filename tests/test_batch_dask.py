@@ -72,7 +72,7 @@ def _same_rows(a, b) -> None:
 def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     out = tmp_path / "t.parquet"
     t = run_batch([library], out, scheduler=cluster.scheduler_address, reference=4)
-    assert t.num_rows == 8 and t.column("error").null_count == 7
+    assert t.num_rows == 8 and t.column("failure").null_count == 7
     _same_rows(t, inline)
     assert np.isfinite(np.asarray(t.column("seconds"))).all()
     # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
@@ -182,7 +182,7 @@ def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
     finally:
         cluster.close()
     paths = t.column("path").to_pylist()
-    errors = dict(zip(paths, t.column("error").to_pylist(), strict=True))
+    errors = dict(zip(paths, t.column("failure").to_pylist(), strict=True))
     assert "worker failed" in errors.pop(str(poison))
     assert [os.path.basename(n) for n, e in errors.items() if e] == ["broken.hdr"]
     keep = [i for i, n in enumerate(paths) if n != str(poison)]

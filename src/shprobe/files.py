@@ -5,12 +5,16 @@ Nothing is half-written and an existing file is only replaced when the caller as
 
 from __future__ import annotations
 
+import contextvars
 import json
 import os
+import re
 import secrets
 import stat
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +67,142 @@ def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> 
     return p
 
 
+#: Temporary outputs: ``.shprobe-<pid>-<8 hex>.tmp<suffix>`` beside their target.
+_TMP_NAME = re.compile(r"\.shprobe-([0-9]+)-[0-9a-f]{8}\.tmp(\.[^/]*)?")
+#: A dead writer's temporary file is removed only when it has not changed for this long:
+#: the PID in its name is of this machine's process table, and a folder shared with another
+#: machine or container may hold a live writer's file under a PID that is free here.
+STALE_SECONDS = 60.0
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):  # someone else's live process, or cannot tell
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike[str],
+                             min_age: float = STALE_SECONDS) -> list[Path]:
+    """Remove the temporary outputs that writers killed outright (SIGKILL, power loss) left in
+    ``folder``: only files named as shprobe names them (``.shprobe-<pid>-<hex>.tmp…``),
+    regular files, whose PID is no running process and that have not changed for
+    ``min_age`` seconds. Never an error (a file another process removes first is fine)."""
+    gone: list[Path] = []
+    now = time.time()
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return gone
+    for e in entries:
+        m = _TMP_NAME.fullmatch(e.name)
+        if not m or int(m.group(1)) == os.getpid() or _alive(int(m.group(1))):
+            continue
+        try:
+            st = e.stat(follow_symlinks=False)
+            if stat.S_ISREG(st.st_mode) and now - st.st_mtime >= min_age:
+                os.unlink(e.path)
+                gone.append(Path(e.path))
+        except OSError:
+            pass
+    return gone
+
+
+@dataclass
+class _Pending:
+    tmp: Path
+    target: Path
+    overwrite: bool
+
+
+@dataclass
+class Transaction:
+    """Outputs written by :func:`atomic_output` inside :func:`transaction`: each is written to
+    its temporary file as usual, but moved into place only when the whole block succeeds."""
+
+    pending: list[_Pending] = field(default_factory=list)
+
+    def commit(self) -> None:
+        """Move every output into place; if one fails, undo the ones already moved (a
+        replaced file is restored) and raise."""
+        done: list[tuple[Path, Path | None]] = []  # (target, backup of what it replaced)
+        try:
+            for w in self.pending:
+                backup = None
+                if w.overwrite and os.path.lexists(w.target):
+                    backup = w.tmp.with_name(w.tmp.name + ".old")
+                    try:
+                        os.link(w.target, backup, follow_symlinks=False)
+                    except OSError:
+                        backup = None
+                _place(w.tmp, w.target, w.overwrite)
+                done.append((w.target, backup))
+        except BaseException:
+            for target, backup in reversed(done):
+                try:
+                    if backup is not None:
+                        os.replace(backup, target)
+                    else:
+                        target.unlink()
+                except OSError:
+                    pass
+            raise
+        finally:
+            for w in self.pending:
+                for q in (w.tmp, w.tmp.with_name(w.tmp.name + ".old")):
+                    if os.path.lexists(q):
+                        q.unlink()
+
+
+_TRANSACTION: contextvars.ContextVar[Transaction | None] = contextvars.ContextVar(
+    "shprobe_output_transaction", default=None)
+
+
+@contextmanager
+def transaction() -> Iterator[Transaction]:
+    """Commit several outputs together or not at all: every :func:`atomic_output` (and so
+    every writer of shprobe) inside the block writes its temporary file, and all are renamed
+    into place when the block ends without an error; on any error — a full disk on the last
+    file, Ctrl-C — none of them appears and nothing is replaced. Nested blocks join the
+    outermost one."""
+    if _TRANSACTION.get() is not None:
+        yield _TRANSACTION.get()  # type: ignore[misc]
+        return
+    t = Transaction()
+    token = _TRANSACTION.set(t)
+    try:
+        yield t
+    except BaseException:
+        _TRANSACTION.reset(token)
+        for w in t.pending:
+            if os.path.lexists(w.tmp):
+                w.tmp.unlink()
+        raise
+    _TRANSACTION.reset(token)
+    t.commit()
+
+
+def _place(tmp: Path, p: Path, overwrite: bool) -> None:
+    """Move the written ``tmp`` to ``p``: an atomic rename with ``overwrite``, else a hard link
+    that fails if ``p`` appeared meanwhile."""
+    if overwrite:
+        os.replace(tmp, p)
+        return
+    try:
+        os.link(tmp, p)
+    except FileExistsError:
+        raise ShprobeError("already exists (pass --force / overwrite=True to replace "
+                           "it)", p) from None
+    except OSError:  # a file system without hard links: check, then rename
+        if os.path.lexists(p):
+            raise ShprobeError("already exists (pass --force / overwrite=True to "
+                               "replace it)", p) from None
+        os.replace(tmp, p)
+
+
 @contextmanager
 def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix); move it to ``path`` on success.
@@ -71,13 +211,18 @@ def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iter
     if ``path`` appeared meanwhile (no race with another writer); with it, an atomic rename.
     On any error — or SIGTERM / SIGHUP in the CLI, which raise SystemExit — the temporary
     file is removed and ``path`` is left as it was. Errors name ``path``, not the temporary.
+    Inside :func:`transaction` the move waits for the end of the block. Temporary files that
+    killed writers left in the folder are removed first (:func:`remove_stale_temporaries`).
     """
     p = check_output_path(path, overwrite)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise ShprobeError(f"cannot make folder {p.parent}: {e.strerror or e}", p) from None
+    remove_stale_temporaries(p.parent)
     tmp = p.with_name(f".shprobe-{os.getpid()}-{secrets.token_hex(4)}.tmp{p.suffix}")
+    txn = _TRANSACTION.get()
+    kept = False
     try:
         try:
             yield tmp
@@ -85,21 +230,15 @@ def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iter
             raise ShprobeError(f"cannot write: {e.strerror or e}", p) from None
         if not tmp.exists():
             raise ShprobeError("nothing was written", p)
-        if overwrite:
-            os.replace(tmp, p)
+        if txn is not None:
+            if any(w.target == p for w in txn.pending):
+                raise ShprobeError("is written twice by one command", p)
+            txn.pending.append(_Pending(tmp, p, overwrite))
+            kept = True
         else:
-            try:
-                os.link(tmp, p)
-            except FileExistsError:
-                raise ShprobeError("already exists (pass --force / overwrite=True to replace "
-                                   "it)", p) from None
-            except OSError:  # a file system without hard links: check, then rename
-                if os.path.lexists(p):
-                    raise ShprobeError("already exists (pass --force / overwrite=True to "
-                                       "replace it)", p) from None
-                os.replace(tmp, p)
+            _place(tmp, p, overwrite)
     finally:
-        if os.path.lexists(tmp):
+        if not kept and os.path.lexists(tmp):
             tmp.unlink()
 
 

@@ -17,8 +17,9 @@ from typing import Any
 
 from .errors import ShprobeError
 
-__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "Cost", "check_memory", "cores", "format_bytes",
-           "format_seconds", "memory_limit", "parse_bytes"]
+__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "MAX_PAIRS", "Cost", "check_memory", "check_pairs",
+           "cores", "format_bytes", "format_seconds", "memory_limit", "pairs_limit",
+           "parse_bytes"]
 
 #: Working-set target of one chunk of chunked work (samples, rows, normals).
 CHUNK_BYTES = 64 << 20
@@ -74,6 +75,44 @@ def check_memory(nbytes: float, what: str, where: Any = None) -> None:
             f"{what} would need about {format_bytes(nbytes)}, over the limit of "
             f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
             where)
+
+
+#: Brute-force work one call starts unasked, in normal × sample products (the exact
+#: irradiance's hemisphere sums): minutes on the 2-core box's numba kernel.
+#: ``SHPROBE_MAX_PAIRS`` raises (or lowers) it.
+MAX_PAIRS = 2e11
+#: Normal–sample products per second and core of the brute-force kernel (grace 256×128 and
+#: 8000 normals: 0.37·10⁹ /s on 2 cores of a busy machine, so 2·10⁸ per core is the cautious
+#: figure every time estimate uses).
+PAIRS_PER_CORE_SECOND = 2e8
+
+
+def pairs_limit() -> float:
+    """Normal × sample products one call may start: :data:`MAX_PAIRS`, or
+    ``SHPROBE_MAX_PAIRS`` (a number, e.g. 1e12) when set."""
+    env = os.environ.get("SHPROBE_MAX_PAIRS")
+    if env:
+        try:
+            value = float(env)
+        except ValueError:
+            raise ShprobeError(f"SHPROBE_MAX_PAIRS={env!r} is not a number (e.g. 1e12)") from None
+        if not value > 0:
+            raise ShprobeError(f"SHPROBE_MAX_PAIRS={env!r} must be positive")
+        return value
+    return MAX_PAIRS
+
+
+def check_pairs(pairs: float, what: str, where: Any = None, smaller: str = "") -> None:
+    """Refuse brute-force work of ``pairs`` normal × sample products over
+    :func:`pairs_limit`, in one line with the estimated time, what to make ``smaller`` and
+    how to raise the limit."""
+    limit = pairs_limit()
+    if pairs > limit:
+        raise ShprobeError(
+            f"{what} would take {pairs:.2g} normal x sample products (about "
+            f"{format_seconds(pairs / (PAIRS_PER_CORE_SECOND * cores()))}), "
+            f"over the limit of {limit:.2g}: {smaller + ', or ' if smaller else ''}raise the "
+            "limit with SHPROBE_MAX_PAIRS=N", where)
 
 
 # ----------------------------------------------------------------------------- time

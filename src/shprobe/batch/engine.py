@@ -8,7 +8,8 @@ previous ``T.parquet`` are merged into ``T.parquet`` (again temp + rename) and t
 folder is removed. Re-running with the same output reads the table and any parts left by an
 interrupted run, skips every file whose content hash already has a successful row (failed
 rows are tried again) and computes the rest. Ctrl-C, or a crash, loses at most the rows not
-yet flushed; a worker that dies has its probes recomputed by Dask on another worker.
+yet flushed; a worker that dies has its probes recomputed by Dask on another worker. One
+batch writes an output at a time (:func:`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
 """
 
 from __future__ import annotations
@@ -20,13 +21,15 @@ import secrets
 import shutil
 import time
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import ShprobeError
 from ..files import atomic_output, check_output_path
 from .inputs import expand_inputs
-from .rows import COLUMNS, BatchOptions, empty_row, probe_row, schema
+from .lock import interruptible, output_lock
+from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
 
 __all__ = ["parts_dir", "read_table", "run_batch"]
 
@@ -46,10 +49,27 @@ def table_meta(table: Any) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def _upgrade(t: Any, path: Any):
+    """A table (or part) of any schema version with today's column names (:data:`RENAMED`);
+    one made by a newer shprobe is refused."""
+    version = table_meta(t).get("schema_version", 1)
+    if not isinstance(version, int) or version > SCHEMA_VERSION:
+        raise ShprobeError(f"is a batch table of schema version {version}; this shprobe reads "
+                           f"versions up to {SCHEMA_VERSION} (upgrade shprobe)", path)
+    names = [RENAMED.get(n, n) if version < 2 else n for n in t.column_names]
+    if names == t.column_names:
+        return t
+    return t.rename_columns(names).replace_schema_metadata(t.schema.metadata)
+
+
 def read_table(path: str | os.PathLike[str]):
-    """A batch table (pyarrow.Table) with its metadata; one line for a file that is not one."""
+    """A batch table (pyarrow.Table) with its metadata, columns named as today (a table of an
+    older schema version has its renamed columns renamed); one line for a file that is not
+    one."""
     import pyarrow.parquet as pq
 
+    if os.path.exists(path) and not os.path.isfile(path):
+        raise ShprobeError("is not a regular file", path)
     try:
         t = pq.read_table(path)
     except FileNotFoundError:
@@ -59,7 +79,7 @@ def read_table(path: str | os.PathLike[str]):
                            path) from None
     if "options" not in table_meta(t) or "content_hash" not in t.column_names:
         raise ShprobeError("not a shprobe batch table", path)
-    return t
+    return _upgrade(t, path)
 
 
 def _rows_table(rows: list[dict[str, Any]], meta: dict[str, Any]):
@@ -72,7 +92,7 @@ def _rows_table(rows: list[dict[str, Any]], meta: dict[str, Any]):
 def _write_part(folder: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) -> Path:
     import pyarrow.parquet as pq
 
-    folder.mkdir(exist_ok=True)
+    folder.mkdir(parents=True, exist_ok=True)
     p = folder / f"part-{time.time_ns():020d}-{os.getpid()}-{secrets.token_hex(3)}.parquet"
     with atomic_output(p) as tmp:
         pq.write_table(_rows_table(rows, meta), tmp)
@@ -91,9 +111,10 @@ def _existing_rows(output: Path, meta: dict[str, Any]) -> list[dict[str, Any]]:
     if folder.is_dir():
         for p in sorted(folder.glob("part-*.parquet")):
             try:
-                tables.append((p, pq.read_table(p)))
+                t = pq.read_table(p)
             except Exception:  # a part is renamed into place whole; anything else is not ours
                 continue
+            tables.append((p, _upgrade(t, p)))
     rows: list[dict[str, Any]] = []
     for p, t in tables:
         have = table_meta(t).get("options")
@@ -267,7 +288,9 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
         client.register_plugin(_plugin(keep_heap=own is True))
     except Exception:  # an old scheduler without plugins: workers warm on their first task
         pass
-    done_f = client.scatter(done, broadcast=True) if done else done
+    # scattered as one object: scatter() of a set scatters its elements, and a task given a
+    # frozenset of futures would see no hash in it (a resume on Dask recomputed everything)
+    done_f = client.scatter([done], broadcast=True)[0] if done else done
     try:
         threads = sum(client.nthreads().values())
     except Exception:
@@ -290,7 +313,7 @@ def _run_dask(jobs, options, done, client, chunk: int | None = None
                 rows = f.result()
             except Exception as e:  # the task itself never raises: a worker died too often
                 rows = [empty_row(part[0][0]) | {
-                    "error": f"{part[0][0]}: worker failed: {type(e).__name__}: "
+                    "failure": f"{part[0][0]}: worker failed: {type(e).__name__}: "
                              + " ".join(str(e).split())[:300]}]
                 if len(part) > 1:  # find the probe that does it: one task each
                     rows = []
@@ -345,19 +368,37 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
 
     check_lmax(options.lmax)
     meta = {"options": options.key()}
-    out = None
-    old: list[dict[str, Any]] = []
-    if output is not None:
-        out = Path(output)
+    out = None if output is None else Path(output)
+    if out is not None:
         if out.suffix.lower() != ".parquet":
             raise ShprobeError("the batch table must be a .parquet file", out)
         check_output_path(out, overwrite=True)
+    with output_lock(out), interruptible() as interrupted:
+        return _run(inputs, out, layout, options, meta, force, progress, interrupted,
+                    _Engine(scheduler, workers, client, chunk), flush_rows, flush_seconds)
+
+
+@dataclass
+class _Engine:
+    scheduler: str | None
+    workers: int | None
+    client: Any
+    chunk: int | None
+
+
+def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
+         force: bool, progress: Progress | None, interrupted: list[int], engine: _Engine,
+         flush_rows: int, flush_seconds: float):
+    """:func:`run_batch` once the output is locked."""
+    old: list[dict[str, Any]] = []
+    if out is not None:
         if force:
             shutil.rmtree(parts_dir(out), ignore_errors=True)
         else:
             old = _existing_rows(out, meta)
     jobs = expand_inputs(inputs, layout)
-    good = {r["content_hash"]: r for r in old if r.get("error") is None and r.get("content_hash")}
+    good = {r["content_hash"]: r for r in old
+            if r.get("failure") is None and r.get("content_hash")}
     done = frozenset(good)
     total = len(jobs)
     fresh: list[dict[str, Any]] = []
@@ -375,20 +416,23 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         last = time.monotonic()
 
     own = None
+    client = engine.client
     try:
-        if client is None and scheduler != "inline":
-            addr = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+        if client is None and engine.scheduler != "inline":
+            addr = engine.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
             from distributed import Client
 
             if addr:
                 client = own = Client(addr, timeout="30s")
             else:
-                cluster = _local_cluster(workers)
+                cluster = _local_cluster(engine.workers)
                 client = own = Client(cluster)
                 own._shprobe_cluster = cluster  # closed below
         rows = (_run_inline(jobs, options, done) if client is None
-                else _run_dask(jobs, options, done, client, chunk))
+                else _run_dask(jobs, options, done, client, engine.chunk))
         for row in rows:
+            if interrupted:  # a Ctrl-C that a library swallowed on its way
+                raise KeyboardInterrupt
             if row.pop("skipped", False):
                 src = good[row["content_hash"]]
                 if src["path"] != row["path"]:  # same content under another path: copy
@@ -405,6 +449,8 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
             if len(pending) >= flush_rows or time.monotonic() - last >= flush_seconds:
                 flush()
         flush()
+        if interrupted:
+            raise KeyboardInterrupt
     except BaseException:
         flush()  # Ctrl-C or a crash: keep what is finished
         raise
@@ -422,4 +468,6 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         with atomic_output(out, overwrite=True) as tmp:
             pq.write_table(table, tmp)
         shutil.rmtree(parts_dir(out), ignore_errors=True)
+    if interrupted:
+        raise KeyboardInterrupt
     return table

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import csv
+import fnmatch
 import glob
 import os
 from collections.abc import Iterable
@@ -35,6 +36,50 @@ def _images_under(folder: Path) -> list[Path]:
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
         out += [Path(root, f) for f in sorted(files)
                 if not f.startswith(".") and Path(f).suffix.lower() in READ_EXTENSIONS]
+    return out
+
+
+def _match(parts: list[str], names: list[str]) -> bool:
+    """Whether the path components ``names`` match the pattern components ``parts`` (``**``:
+    zero or more folders; a leading dot only matched by a pattern's leading dot, as glob)."""
+    if not parts:
+        return not names
+    if parts[0] == "**":
+        return any(_match(parts[1:], names[i:]) for i in range(len(names) + 1)
+                   if not any(n.startswith(".") for n in names[:i]))
+    return (bool(names) and (parts[0].startswith(".") or not names[0].startswith("."))
+            and fnmatch.fnmatchcase(names[0], parts[0]) and _match(parts[1:], names[1:]))
+
+
+def _glob(pattern: str) -> list[str]:
+    """Paths matching ``pattern`` (``**`` recursive): :func:`glob.glob` where the pattern has
+    no ``**``; otherwise a walk below the pattern's fixed folder that follows links to folders
+    but enters each folder (device, inode) once, so links to ``.`` or to a parent give each
+    file once and end (glob's own ``**`` follows them until the path is too long)."""
+    if "**" not in pattern:
+        return glob.glob(pattern)
+    parts = pattern.split(os.sep)
+    k = next(i for i, c in enumerate(parts) if _GLOB_CHARS & set(c))
+    root = os.sep.join(parts[:k]) or ("/" if pattern.startswith(os.sep) else ".")
+    rest = parts[k:]
+    out: list[str] = []
+    seen: set[tuple[int, int]] = set()
+    for top, dirs, files in os.walk(root, followlinks=True):
+        try:
+            st = os.stat(top)
+        except OSError:
+            dirs[:] = []
+            continue
+        if (st.st_dev, st.st_ino) in seen:
+            dirs[:] = []
+            continue
+        seen.add((st.st_dev, st.st_ino))
+        dirs.sort()
+        rel = os.path.relpath(top, root)
+        base = [] if rel == "." else rel.split(os.sep)
+        for name in sorted(files) + dirs:
+            if _match(rest, [*base, name]):
+                out.append(os.path.join(top, name))
     return out
 
 
@@ -102,9 +147,9 @@ def expand_inputs(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[st
             for a, b in _read_list(p):
                 add(a, b, s)
         elif not p.exists() and _GLOB_CHARS & set(s):
-            hits = sorted(glob.glob(s, recursive=True))
+            hits = sorted(_glob(s))
             hits = [h for h in hits if Path(h).suffix.lower() in READ_EXTENSIONS
-                    and Path(h).is_file()]
+                    and not Path(h).is_dir()]
             if not hits:
                 raise ShprobeError("no image files match this pattern", s)
             for h in hits:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import io
 import math
 import os
+import stat
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -23,12 +24,19 @@ from numpy.typing import NDArray
 
 from ..errors import ShprobeError
 
-__all__ = ["COLUMNS", "BatchOptions", "content_hash", "probe_row", "schema"]
+__all__ = ["COLUMNS", "SCHEMA_VERSION", "BatchOptions", "content_hash", "probe_row", "schema"]
 
 CONVENTION = ("real orthonormal SH, R&H 2001 signs (no Condon-Shortley phase), k = l(l+1)+m, "
               "world +Y up (lat-long row 0 = +Y, u = 0.5 -> -Z); coefficients [k][R,G,B]; "
               "E(n) = sum_k irradiance_coefficients[k] y_k(n); E(n) = n~^T M[c] n~ with "
               "n~ = (x, y, z, 1) (R&H eq. 12)")
+
+#: Version of the table layout, in the schema's ``shprobe`` metadata. 2: the failure message
+#: column is ``failure`` (1, unversioned: ``error``); tables of version 1 are still read
+#: (:func:`shprobe.batch.read_table` renames the column) and resumed.
+SCHEMA_VERSION = 2
+#: Columns renamed since version 1: old name -> new name.
+RENAMED = {"error": "failure"}
 
 #: Rec. 709 luminance weights used to combine RGB for the dominant direction.
 LUMA = (0.2126, 0.7152, 0.0722)
@@ -71,7 +79,8 @@ COLUMNS: dict[str, tuple[str, str, str]] = {
     "thumbnail": ("binary", "PNG", "tone-mapped thumbnail of the file (null unless asked)"),
     "thumbnail_exposure": ("float64", "stops", "exposure applied to the thumbnail"),
     "warning": ("string", "", "one-line warning (e.g. an 8-bit image), else null"),
-    "error": ("string", "", "one-line message when the probe failed, else null"),
+    "failure": ("string", "", "one-line message naming the file when the probe failed, else "
+                "null (not to be confused with error_mean / error_max, the SH accuracy)"),
     "seconds": ("float64", "s", "time spent on the probe by its worker"),
 }
 
@@ -102,7 +111,8 @@ def schema(meta: dict[str, Any] | None = None):
                        metadata={"unit": u, "description": d}
                        | ({"algorithm": HASH} if n == "content_hash" else {}))
               for n, (t, u, d) in COLUMNS.items()]
-    doc = {"shprobe_version": __version__, "convention": CONVENTION, **(meta or {})}
+    doc = {"shprobe_version": __version__, "schema_version": SCHEMA_VERSION,
+           "convention": CONVENTION, **(meta or {})}
     return pa.schema(fields, metadata={"shprobe": json.dumps(doc)})
 
 
@@ -138,13 +148,18 @@ HASH = "xxh3_128"
 
 
 def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """XXH3-128 of a file's bytes, hex (:data:`HASH`)."""
+    """XXH3-128 of a file's bytes, hex (:data:`HASH`); a regular file only (opened without
+    blocking, so a FIFO put in its place meanwhile is refused, not waited on)."""
     import xxhash
 
     h = xxhash.xxh3_128()
     buf = bytearray(chunk)
     view = memoryview(buf)
-    with open(path, "rb", buffering=0) as f:
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ShprobeError("is not a regular file: only files are probes", path)
+    with open(fd, "rb", buffering=0) as f:
         while n := f.readinto(buf):
             h.update(view[:n])
     return h.hexdigest()
@@ -199,7 +214,7 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
               done: frozenset[str] | set[str] | None = None) -> dict[str, Any]:
     """Compute one row (a dict of the :data:`COLUMNS`, plain Python values).
 
-    Never raises for a bad probe: its one-line message goes to ``error`` and the columns not
+    Never raises for a bad probe: its one-line message goes to ``failure`` and the columns not
     reached stay null. When the file's content hash is in ``done`` the work is skipped and
     the row has only ``path``, ``size_bytes``, ``content_hash`` and ``"skipped": True``.
     """
@@ -218,7 +233,11 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
     t0 = time.perf_counter()
     row = empty_row(path)
     try:
-        row["size_bytes"] = os.stat(path).st_size
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):  # /dev/zero, a FIFO, a socket: reading never ends
+            raise ShprobeError("is not a regular file (a device, pipe, socket or folder): "
+                               "only files are probes", path)
+        row["size_bytes"] = st.st_size
         row["content_hash"] = content_hash(path)
         if done is not None and row["content_hash"] in done:
             return {"path": path, "size_bytes": row["size_bytes"],
@@ -280,7 +299,7 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
                 row[k] = None  # never write a non-finite number
     except Exception as e:  # a bad probe is a row, never the end of the batch
         keep = {k: row[k] for k in ("path", "size_bytes", "content_hash")}
-        row = empty_row(path) | keep | {"error": _one_line(e, path),
+        row = empty_row(path) | keep | {"failure": _one_line(e, path),
                                         "layout": None if layout == "auto" else layout}
     row["seconds"] = time.perf_counter() - t0
     return row

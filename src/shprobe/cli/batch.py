@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..errors import ShprobeError
 from .common import clamp_option, force_option, layout_option
 
 
@@ -31,22 +32,26 @@ def register(group: click.Group) -> None:
                        "local cluster); 'inline' runs in this process.")
     @click.option("--workers", "-j", type=click.IntRange(1, 1024),
                   help="Worker processes of the local cluster (default: one per core).")
+    @click.option("--allow-failures", is_flag=True,
+                  help="Exit 0 even when some probes failed (their rows carry the message in "
+                       "the 'failure' column); by default any failed probe makes the exit 1.")
     @force_option
     def batch_cmd(inputs, output, lmax, layout, clamp, reference, thumbnail, window, scheduler,
-                  workers, force):
+                  workers, allow_failures, force):
         """Prefilter a library of probes into one Parquet table, one row per probe.
 
         INPUTS are image files, folders (searched recursively), globs ('**' recursive) or lists
         of paths (.txt one per line; .csv / .parquet with a 'path' and optional 'layout'
-        column). A bad file becomes a row with its message in the 'error' column. Re-running
-        with the same --output skips probes already done (by content hash); --force starts
-        afresh. See docs/batch.md for the columns and for running on a cluster.
+        column). A bad file becomes a row with its message in the 'failure' column; the exit
+        is then 1 unless --allow-failures. Re-running with the same --output skips probes
+        already done (by content hash); --force starts afresh. See docs/batch.md for the
+        columns and for running on a cluster.
         """
         from .extras import require
 
         require("batch", "batch")
         from ..batch import run_batch
-        from .output import progress
+        from .output import progress, wrote
 
         bar = _Counted(progress(), "prefiltering probes")
         try:
@@ -56,9 +61,12 @@ def register(group: click.Group) -> None:
                               workers=workers, force=force, progress=bar)
         finally:
             bar.close()
-        bad = table.num_rows - table.column("error").null_count
-        click.echo(f"wrote {output}: {table.num_rows} probes, {bad} failed"
-                   + (" (see the 'error' column)" if bad else ""), err=True)
+        bad = table.num_rows - table.column("failure").null_count
+        wrote(output, f"{table.num_rows} probes, {bad} failed"
+              + (" (see the 'failure' column)" if bad else ""))
+        if bad and not allow_failures:
+            raise ShprobeError(f"{bad} of {table.num_rows} probes failed (their messages are in "
+                               "the table's 'failure' column; --allow-failures exits 0)", output)
 
 
 class _Counted:

@@ -91,31 +91,32 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
           title: str, ph=None) -> None:
     import json
 
-    from ..files import write_text
+    from ..files import transaction, write_text
     from ..fitting.report import fit_document, fit_images, fit_table_rows, save_fit_figure
     from ..lighting.export import export_coeffs
     from ..probes.images import write_image
 
-    written = []
-    if any(images.values()):
-        ims = fit_images(result)
-        for name, p in images.items():
-            if p and name in ims:
-                write_image(p, ims[name], overwrite=force)
-                written.append(p)
-    if report:
-        save_fit_figure(report, photo, result, title, overwrite=force)
-        written.append(report)
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
         text = json.dumps(fit_document(result, source, ph), indent=2) + "\n"
     else:
         text = export_coeffs(result.coeffs, fmt, source=source)
-    if output:
-        write_text(output, text, force)
-        written.insert(0, output)
-    else:
+    written = []
+    with transaction():  # the images, the report and the coefficients: all or none
+        if any(images.values()):
+            ims = fit_images(result)
+            for name, p in images.items():
+                if p and name in ims:
+                    write_image(p, ims[name], overwrite=force)
+                    written.append(p)
+        if report:
+            save_fit_figure(report, photo, result, title, overwrite=force)
+            written.append(report)
+        if output:
+            write_text(output, text, force)
+            written.insert(0, output)
+    if not output:
         click.echo(text, nl=not text.endswith("\n"))
     if ph is not None and ph.exposure and not verbosity().quiet:
         click.echo(f"shprobe: {source}: the exposure {ph.exposure:+.3g} EV recorded in its "

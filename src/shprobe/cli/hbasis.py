@@ -35,7 +35,7 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, show_table: bool,
               force: bool) -> None:
     """Fig. 3 study: mean IMSE (eq. 16) of every hemispherical basis, random signals. The
     tables go to hbasis_study.md (printed with --table, or when there is no --output)."""
-    from ..files import atomic_output, check_output_path, write_text
+    from ..files import atomic_output, check_output_path, transaction, write_text
     from ..hbasis.study import run_study, study_cost
 
     names = ("hbasis_study.md", "hbasis_study.csv", "hbasis_study.png")
@@ -52,10 +52,11 @@ def study_cmd(signals: int, seed: int, outdir: Path | None, show_table: bool,
     if outdir is None:
         return
     outdir.mkdir(parents=True, exist_ok=True)
-    write_text(outdir / names[0], res.markdown(), overwrite=force)
-    write_text(outdir / names[1], res.csv(), overwrite=force)
-    with atomic_output(outdir / names[2], overwrite=force) as tmp:
-        res.plot(tmp)
+    with transaction():  # the table, the CSV and the plot together or none
+        write_text(outdir / names[0], res.markdown(), overwrite=force)
+        write_text(outdir / names[1], res.csv(), overwrite=force)
+        with atomic_output(outdir / names[2], overwrite=force) as tmp:
+            res.plot(tmp)
     best = min(zip(res.mean_imse, res.names, strict=True))
     wrote([outdir / n for n in names], f"{len(res.names)} bases over {signals:,} signals; "
                                        f"lowest mean IMSE {best[1]} {best[0]:.3g}")

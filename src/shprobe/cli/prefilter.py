@@ -336,14 +336,17 @@ def register(group: click.Group) -> None:
                                  units="white diffuse radiance", exposure=stops)],
                           title="probe | its SH irradiance map (lat-long, +Y up)")
             bar = step(f"writing {len(names)} files", total=len(names))
-            write_image(out / "probe.exr", env.radiance, overwrite=force)
-            write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
-            write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
-            bar.set(3)
-            side.save(out / "side_by_side.png", overwrite=force)
-            write_json(out / "coefficients.json",
-                       coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
-            bar.set(5)
+            from ..files import transaction
+
+            with transaction():  # the five files together or none
+                write_image(out / "probe.exr", env.radiance, overwrite=force)
+                write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
+                write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
+                bar.set(3)
+                side.save(out / "side_by_side.png", overwrite=force)
+                write_json(out / "coefficients.json",
+                           coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
+                bar.set(5)
             step("the error against the exact irradiance (R&H §3.1)")
             rep = error_report(env)
         if show_table:

@@ -175,9 +175,12 @@ def register(group: click.Group) -> None:
 
                 stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image,
                                       1.0)
-            res.save(output, exposure=stops, overwrite=force)
-            if exr:
-                res.save(exr, overwrite=force)
+            from ..files import transaction
+
+            with transaction():  # the image and its EXR: both or neither
+                res.save(output, exposure=stops, overwrite=force)
+                if exr:
+                    res.save(exr, overwrite=force)
         ldr = output.lower().endswith((".png", ".jpg", ".jpeg"))
         wrote([output, *([exr] if exr else [])],
               f"{cam.width}x{cam.height} {mode} shading of "
@@ -226,14 +229,17 @@ def register(group: click.Group) -> None:
             B = res.image
             scale = float(np.abs(B).max())
             bar = step(f"writing {2 * len(stems)} images (EXR + PNG)", total=2 * len(stems))
-            for k, stem in enumerate(stems):
-                write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
-                write_image(stem.with_suffix(".png"), basis_visual(B[..., k], scale),
-                            overwrite=force)
-                bar.advance(2)
-            step("the labelled sheet basis.png")
-            _basis_sheet(B, lmax, scale, out, force,
-                         "the unit sphere" if geo is None else os.path.basename(mesh))
+            from ..files import transaction
+
+            with transaction():  # every basis image and the sheet, or none of them
+                for k, stem in enumerate(stems):
+                    write_image(stem.with_suffix(".exr"), B[..., k], overwrite=force)
+                    write_image(stem.with_suffix(".png"), basis_visual(B[..., k], scale),
+                                overwrite=force)
+                    bar.advance(2)
+                step("the labelled sheet basis.png")
+                _basis_sheet(B, lmax, scale, out, force,
+                             "the unit sphere" if geo is None else os.path.basename(mesh))
         wrote([*(st.with_suffix(e) for st in stems for e in (".exr", ".png")),
                out / "basis.png"], f"{B.shape[-1]} basis images, PNG + EXR and the sheet; "
                                    f"common scale {scale:.4g}")

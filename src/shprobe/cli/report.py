@@ -46,6 +46,7 @@ def register(group: click.Group) -> None:
         if not output.lower().endswith((".html", ".htm")):
             raise ShprobeError("a report is written as .html", output)
         check_output_path(output, force)  # refuse before the work
+        _check_cost(probe, map_size)
         src = resolve_coeffs(probe[0] if len(probe) == 1 else list(probe), layout=layout,
                              lmax=2, clamp=clamp, need_env=True)
         geo, name = None, "the unit sphere"
@@ -59,3 +60,16 @@ def register(group: click.Group) -> None:
                            progress=progress())
         write_report(output, rep, force)
         wrote(output, f"{len(rep.figures)} figures; window auto: {rep.window.kind}")
+
+
+def _check_cost(probe, map_size: int) -> None:
+    """The exact map's cost from the image headers, before the probe is read (a file that is
+    not an image is left to the reader's own one-line error)."""
+    from ..probes.streaming import image_size
+    from ..report.probe import check_map_cost
+
+    try:
+        pixels = sum(float(w) * h for w, h in (image_size(p) for p in probe))
+    except (ValueError, OSError):  # ShprobeError is a ValueError
+        return
+    check_map_cost(pixels, map_size, probe[0])

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..scene.camera import MIN_FOV
 from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
 from .solve import LightingFit, check_level, fit_samples
 
@@ -46,9 +47,10 @@ class BallCamera:
             raise ShprobeError(f"camera must be orthographic or perspective:FOV, got "
                                f"{self.projection!r}")
         if self.projection == "perspective" and not (
-                self.fov is not None and 0.0 < self.fov < 180.0):
-            raise ShprobeError(f"perspective field of view must be in (0, 180) degrees, got "
-                               f"{self.fov}")
+                self.fov is not None and MIN_FOV <= self.fov < 180.0):
+            raise ShprobeError(f"perspective field of view must be in [{MIN_FOV:g}, 180) "
+                               f"degrees, got {self.fov} (orthographic is the limit of a "
+                               "narrow one)")
 
     def __str__(self) -> str:
         return self.projection if self.projection == "orthographic" else \
@@ -63,9 +65,11 @@ def parse_ball_camera(text: str) -> BallCamera:
     if t.startswith("perspective"):
         _, _, fov = t.partition(":")
         try:
-            return BallCamera("perspective", float(fov))
+            value = float(fov)
         except ValueError:
             pass
+        else:
+            return BallCamera("perspective", value)
     raise ShprobeError(f"cannot parse camera {text!r}: expected orthographic or "
                        "perspective:FOV (vertical field of view in degrees)")
 

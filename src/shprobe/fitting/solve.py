@@ -50,6 +50,9 @@ LTS_H = 0.75
 #: Pixels used for the IRLS iterations; the final weighted solve uses every pixel.
 IRLS_SAMPLES = 1 << 16
 _CHUNK = 1 << 19
+#: Albedos a fit accepts: the lighting is the pixels over the albedo, and outside this range
+#: the quotient of ordinary pixel values leaves the floating-point range.
+ALBEDO_RANGE = (1e-30, 1e30)
 
 
 def design_factors(model: str) -> NDArray[np.float64]:
@@ -267,13 +270,17 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     a = np.asarray(albedo, dtype=np.float64)
     if a.ndim == 0:
         scalar_albedo = float(a)
-        if not (np.isfinite(scalar_albedo) and scalar_albedo > 0):
-            raise ShprobeError(f"albedo must be a positive number, got {albedo}")
+        if not (np.isfinite(scalar_albedo) and ALBEDO_RANGE[0] <= scalar_albedo
+                <= ALBEDO_RANGE[1]):
+            raise ShprobeError(f"albedo must be a positive number in [{ALBEDO_RANGE[0]:g}, "
+                               f"{ALBEDO_RANGE[1]:g}] (the lighting is the pixels divided by "
+                               f"it), got {albedo}")
         ys, wch = y, None
     else:
         a = a.reshape(P, -1)
-        if np.any(a <= 0) or not np.all(np.isfinite(a)):
-            raise ShprobeError("per-pixel albedo must be positive and finite")
+        if not np.all((a >= ALBEDO_RANGE[0]) & (a <= ALBEDO_RANGE[1])):
+            raise ShprobeError(f"per-pixel albedo must be in [{ALBEDO_RANGE[0]:g}, "
+                               f"{ALBEDO_RANGE[1]:g}] (positive and finite)")
         ys = y / a
         wch = np.broadcast_to(a * a, y.shape)
     check_level(saturation, "saturation")

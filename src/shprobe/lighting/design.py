@@ -9,6 +9,7 @@ nothing is modified in place. Windows and the non-negativity certificate are
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -195,6 +196,29 @@ def _steps(spec: EditSpec, blends: BlendResolver) -> list[Callable[[NDArray], ND
     return out
 
 
+#: Largest coefficient magnitude an edit may produce: far above any real lighting, and far
+#: enough below the float64 range that the irradiance, windows and renders computed from it
+#: do not overflow.
+MAX_EDITED = 1e30
+
+
+def _bounded(fn: Callable[..., Edited]) -> Callable[..., Edited]:
+    """Run an edit with floating-point overflow silenced (no warnings on the terminal) and
+    refuse, in one line, a result that overflowed or left :data:`MAX_EDITED`."""
+    @functools.wraps(fn)
+    def run(*args: Any, **kwargs: Any) -> Edited:
+        with np.errstate(over="ignore", invalid="ignore"):
+            res = fn(*args, **kwargs)
+        big = float(np.max(np.abs(res.coeffs), initial=0.0))
+        if not big <= MAX_EDITED:
+            raise ShprobeError(f"the edits give coefficients of magnitude {big:.3g}, beyond "
+                               f"{MAX_EDITED:g}: a weight, scale or intensity is too large")
+        return res
+
+    return run
+
+
+@_bounded
 def edit_lighting(base: ArrayLike | None, spec: EditSpec,
                   blends: BlendResolver | None = None) -> Edited:
     """Apply the edits of ``spec`` (:class:`~shprobe.lighting.edits.EditSpec`) to ``base``

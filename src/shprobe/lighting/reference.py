@@ -9,12 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..limits import Cost, check_memory, cores
+from ..limits import PAIRS_PER_CORE_SECOND, Cost, check_memory, check_pairs, cores
 from ..probes.env import Env
 from ..probes.layouts import LatLong, Layout, get_layout
 from ..progress import Progress, stage
@@ -29,12 +30,8 @@ __all__ = [
     "reference_cost",
     "reference_irradiance",
     "reference_irradiance_map",
+    "reference_pairs",
 ]
-
-#: Normal–sample products per second and core of the brute-force kernel (grace 256×128 and
-#: 8000 normals: 0.37·10⁹ /s on 2 cores of a busy machine, so 2·10⁸ per core is the cautious
-#: figure the time estimates use).
-PAIRS_PER_CORE_SECOND = 2e8
 
 #: Samples per chunk of :func:`reference_irradiance_map` (its many normals: smaller chunks).
 MAP_CHUNK = 1 << 16
@@ -48,7 +45,7 @@ def reference_cost(env: Env, n_normals: int, subdivide: int = 1,
     tables its memory check refuses on)."""
     k = int(subdivide)
     pixels = int(np.prod(env.grid))
-    pairs = float(n_normals) * pixels * k * k
+    pairs = reference_pairs(env, n_normals, k)
     nbytes = 2 * 24.0 * n_normals + 2 * 48.0 * min(chunk, pixels * k * k)
     if env.layout.name != "latlong":
         nbytes += pixels * k * k * 8.0 * 8
@@ -89,6 +86,25 @@ def _sample_chunks(env: Env, subdivide: int, chunk: int
         yield dirs[s0:s1], vals[s0:s1].astype(np.float64) * dws[s0:s1, None]
 
 
+#: Work of generating one (sub-)sample of the brute force, in normal × sample products
+#: (measured: a subdivided lat-long sub-pixel costs about as much as 64 products).
+SAMPLE_COST = 64
+
+
+def check_env(env: Any, what: str = "env") -> Env:
+    if not isinstance(env, Env):
+        raise ShprobeError(f"{what} must be an Env (shprobe.probes.load_env(path), or "
+                           f"Env(radiance, layout) for an array), got {type(env).__name__}")
+    return env
+
+
+def reference_pairs(env: Env, normals: int, subdivide: int = 1) -> float:
+    """Normal × sample products of :func:`reference_irradiance` at ``normals`` normals: the
+    (sub-)samples times the normals, plus the making of each sample."""
+    samples = float(np.prod(env.grid, dtype=np.float64)) * float(subdivide) ** 2
+    return samples * (float(normals) + SAMPLE_COST)
+
+
 def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
                          subdivide: int = 1, progress: Progress | None = None
                          ) -> NDArray[np.float64]:
@@ -105,6 +121,7 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     """
     from ._kernels import brute_kernel as kern  # numba, imported lazily
 
+    check_env(env)
     n = unit_normals(normals)
     k = subdivide
     if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
@@ -113,6 +130,10 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     if env.layout.name != "latlong":  # the k²-times larger pixel tables are built whole
         check_memory(pixels * int(k) ** 2 * 8.0 * 8, f"subdivide={k} on a {env.layout.name} "
                      f"map of {pixels} pixels", env.path)
+    check_pairs(reference_pairs(env, int(np.prod(n.shape[:-1])), int(k)),
+                f"the brute-force irradiance of {int(np.prod(n.shape[:-1]))} normals over "
+                f"{pixels} pixels{f' x {int(k)}x{int(k)} sub-pixels' if k > 1 else ''}",
+                env.path, "use fewer normals, a smaller subdivide or a smaller probe")
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     t = flat.shape[0]
     out = np.zeros((t, 3))
@@ -322,6 +343,7 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     """
     from .sphere_search import refine_max
 
+    check_env(env)
     if normals is None:
         nrm, wts = _normal_grid(normal_grid)
     else:
@@ -393,6 +415,7 @@ def reference_irradiance_map(env: Env, layout: str | Layout = "latlong",
     """The brute-force irradiance map: :func:`reference_irradiance` at every pixel of a grid of
     any layout (``size`` as in :func:`shprobe.lighting.irradiance.irradiance_map`) → Env;
     pixels outside a disc layout are 0."""
+    check_env(env)
     lay = get_layout(layout)
     grid = lay.grid_shape(size)
     dirs = lay.pixel_directions(grid)

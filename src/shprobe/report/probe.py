@@ -94,6 +94,39 @@ def _vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in np.asarray(v, dtype=float).ravel()) + ")"
 
 
+#: Radiance the report analyses: ∫L dω of the brightest channel within these bounds. Outside,
+#: the exposure of its pictures (2^stops) and the certificate's products leave the float range.
+INTEGRAL_RANGE = (1e-30, 1e30)
+
+
+def _check_probe(env: Env, map_height: int) -> None:
+    """Refuse, before any work, a probe the report cannot analyse: radiance too small or too
+    large for its pictures, or an exact irradiance map beyond the brute-force limit."""
+    from ..lighting.projection import total_intensity
+    from ..lighting.reference import check_env
+
+    check_env(env, "the probe")
+    top = float(np.max(total_intensity(env)))
+    if not INTEGRAL_RANGE[0] <= top <= INTEGRAL_RANGE[1]:
+        raise ShprobeError(f"its radiance integrates to {top:.3g} (brightest channel), outside "
+                           f"the {INTEGRAL_RANGE[0]:g}..{INTEGRAL_RANGE[1]:g} a report "
+                           "analyses: scale its pixel values",
+                           env.path)
+    check_map_cost(float(np.prod(env.grid, dtype=np.float64)), map_height, env.path)
+
+
+def check_map_cost(pixels: float, map_height: int, where: Any = None) -> None:
+    """Refuse an exact irradiance map of 2N² normals (N = ``map_height``) over a probe of
+    ``pixels`` pixels beyond the brute-force limit (:func:`shprobe.limits.check_pairs`); the
+    CLI calls it with the size in the file's header, before the probe is read."""
+    from ..lighting.reference import SAMPLE_COST
+    from ..limits import check_pairs
+
+    check_pairs(float(pixels) * (2.0 * map_height * map_height + SAMPLE_COST),
+                f"the exact irradiance map at --map-size {map_height}", where,
+                "use a smaller --map-size or a smaller probe")
+
+
 def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
                  map_height: int = 32, render_size: int = 256,
                  progress: Progress | None = None) -> ProbeReport:
@@ -111,6 +144,7 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     r = int(render_size)
     if not 16 <= r <= MAX_RENDER:
         raise ShprobeError(f"render size {r} must be 16..{MAX_RENDER}")
+    _check_probe(env, h)
     with Steps(progress, REPORT_STAGES) as say:
         return _build(env, mesh, mesh_name, h, r, say, progress)
 

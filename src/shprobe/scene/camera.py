@@ -20,6 +20,12 @@ __all__ = ["PROJECTIONS", "Camera"]
 PROJECTIONS = ("perspective", "orthographic")
 
 
+#: Narrowest field of view, degrees: narrower, the focal length 1/tan(fov/2) overflows the
+#: ray arithmetic long before the picture changes.
+MIN_FOV = 1e-3
+#: Largest camera distance: ray origins are 32-bit floats in the caster's frame.
+MAX_DISTANCE = 1e30
+
 @dataclass(frozen=True)
 class Camera:
     """A pinhole (perspective) or orthographic camera orbiting the object.
@@ -47,8 +53,13 @@ class Camera:
             raise ShprobeError(f"projection must be one of {PROJECTIONS}, got {self.projection!r}")
         if int(self.width) <= 0 or int(self.height) <= 0:
             raise ShprobeError(f"image size must be positive, got {self.width}x{self.height}")
-        if not 0.0 < float(self.fov) < 180.0:
-            raise ShprobeError(f"field of view must be in (0, 180) degrees, got {self.fov}")
+        if not MIN_FOV <= float(self.fov) < 180.0:
+            raise ShprobeError(f"field of view must be in [{MIN_FOV:g}, 180) degrees, got "
+                               f"{self.fov} (an orthographic camera is the limit of a narrow "
+                               "one)")
+        if self.distance is not None and not 0.0 < abs(float(self.distance)) <= MAX_DISTANCE:
+            raise ShprobeError(f"camera distance must be non-zero and at most {MAX_DISTANCE:g} "
+                               f"(rays are traced in 32-bit floats), got {self.distance}")
         if not self.margin > 0.0:
             raise ShprobeError(f"margin must be positive, got {self.margin}")
         for name in ("azimuth", "elevation", "fov", "margin", "distance", "ortho_height"):

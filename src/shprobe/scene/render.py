@@ -169,6 +169,10 @@ class RenderResult:
         save_image(path, self.image, exposure=exposure, overwrite=overwrite)
 
 
+#: Largest albedo a render multiplies by: the radiance is kept in 32-bit floats.
+MAX_ALBEDO = 1e30
+
+
 def _albedo_per_pixel(mesh, albedo, hits: Hits, hit: NDArray, C: int) -> NDArray | None:
     """Per-hit albedo (Ph, C) or None for 1."""
     if albedo is None:
@@ -190,7 +194,11 @@ def _albedo_per_pixel(mesh, albedo, hits: Hits, hit: NDArray, C: int) -> NDArray
         if mc is not None:
             return np.broadcast_to(mc[None, :C], (int(hit.sum()), min(C, 3)))
         return None
-    a = np.asarray(albedo, dtype=np.float32)
+    a64 = np.asarray(albedo, dtype=np.float64)
+    if not np.all((a64 >= 0) & (a64 <= MAX_ALBEDO)):  # NaN fails too
+        raise ShprobeError(f"albedo must be in [0, {MAX_ALBEDO:g}] (radiance is albedo x E / "
+                           "pi, in 32-bit floats)")
+    a = a64.astype(np.float32)
     if a.ndim <= 1:
         return np.broadcast_to(a.reshape(1, -1), (int(hit.sum()), a.size if a.ndim else 1))
     if mesh is None or a.shape[0] != len(mesh.vertices):
@@ -345,7 +353,11 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
     """Write a render with :func:`shprobe.probes.images.write_image`: ``.png`` tone-mapped by
-    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear."""
+    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear.
+    Radiance is never negative: where a truncated SH irradiance dips below zero (per-vertex
+    shading interpolates it unclamped) the file holds 0, so that shprobe's readers (``fit``)
+    accept what ``render`` writes."""
     from ..probes.images import write_image
 
-    write_image(path, image, overwrite=overwrite, exposure=exposure)
+    write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),
+                overwrite=overwrite, exposure=exposure)
