@@ -74,14 +74,19 @@ def test_render_arguments_that_overflowed(tmp_path, capsys):
 
 def test_edits_that_overflowed(tmp_path, capsys):
     out = tmp_path / "e.json"
+    # a number beyond the edit language's range is refused as it is read
     rc, lines = _run(["edit", "--preset", "grace", "--scale", "0,0=1e308", "--scale",
                       "0,0=1e308", "-o", out], capsys)
-    _one_line(rc, lines, "magnitude inf", "too large")
+    _one_line(rc, lines, "at most 1e+09", "1e308")
     rc, lines = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e308", "-o", out],
                      capsys)
-    _one_line(rc, lines, "magnitude 7.9e+307")  # was written
+    _one_line(rc, lines, "at most 1e+09", "1e308")  # was written as 7.9e307
+    # numbers in range whose product leaves the edited range: refused once applied
+    rc, lines = _run(["edit", "--preset", "grace", *["--scale", "0,0=1e9"] * 4, "-o", out],
+                     capsys)
+    _one_line(rc, lines, "magnitude", "too large")
     assert not out.exists()
-    rc, lines = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e20", "-o", out],
+    rc, lines = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e8", "-o", out],
                      capsys)
     assert rc == 0 and out.exists()
 
