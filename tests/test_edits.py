@@ -190,3 +190,26 @@ def test_any_json_is_a_spec_or_one_line(doc):
         return
     assert abs(spec.weight) <= MAX_VALUE
     assert EditSpec.from_text(spec.to_text()) == spec
+
+
+def test_auto_window_is_chosen_before_the_rotation():
+    """A window acts per band, so the library chooses 'auto' on the lighting before its
+    rotations, as the viewer does while dragging: both give the same coefficients (a 1°
+    turn at lmax 3 once moved the numeric search's strength by 5e-5)."""
+    from shprobe.viewer.design import Designer, read_state
+
+    state = {"lmax": 3, "weight": 1.0, "blends": [], "directional": [], "cone": [],
+             "sky": None, "scale": {}, "scale_band": {},
+             "rotation": {"axis": [1.0, 1.0, 1.0], "degrees": 1.0}, "window": "auto"}
+    spec = read_state(state)
+    base = get_preset("grace")
+    shown = Designer().design("grace", lambda lmax: base, spec,
+                              lambda b, lmax: get_preset(b.name)).coeffs
+    cli = edit_lighting(base, EditSpec.from_text(spec.to_text())).coeffs
+    np.testing.assert_allclose(shown, cli, rtol=1e-9, atol=1e-9)
+    unturned = edit_lighting(base, EditSpec.from_text(
+        EditSpec.from_json({**state, "rotation": None}).to_text()))
+    from shprobe.lighting.design import rotate_lighting
+
+    np.testing.assert_allclose(cli, rotate_lighting(unturned.coeffs, spec.rotation_matrix()),
+                               rtol=1e-9, atol=1e-12)

@@ -231,18 +231,26 @@ def edit_lighting(base: ArrayLike | None, spec: EditSpec,
     lmax = spec.lmax
     if blends is None:
         from .source import blend_lighting as blends
+    steps = _steps(spec, blends)
+    turns = len(spec.rotations)  # the rotations come last
     with np.errstate(over="ignore", invalid="ignore"):  # overflow is refused, in one line
         L = np.zeros((num_coeffs(lmax), 3)) if base is None else pad_coeffs(base, lmax)
         L = L * spec.weight
-        for step in [lambda x: x, *_steps(spec, blends)]:
+        for i, step in enumerate([lambda x: x, *steps]):
+            if i == len(steps) - turns + 1:
+                unrotated = L
             L = step(L)
             if not np.all(np.isfinite(L)):
                 raise ShprobeError("the edits overflow: the lighting is not finite (use "
                                    "smaller weights or factors)")
+    if turns == 0:
+        unrotated = L
     if spec.window is None:
         return Edited(L)
     if spec.window == "auto":
-        ch = auto_window(L)
+        # chosen on the lighting before its rotations: a window acts per band, so it commutes
+        # with them, and the viewer, which turns the lighting while dragging, chooses the same
+        ch = auto_window(unrotated)
         desc = (f"window auto -> {ch.kind}" + (f" strength {ch.strength:.4g}" if ch.strength
                                                 else "") + f", bias {100 * ch.bias:.2f}% (L2 of E)")
         return Edited(apply_window(L, ch.factors), desc)

@@ -134,35 +134,11 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
 
 
 def read_coeff_file(path: str | os.PathLike[str]) -> NDArray[np.float64]:
-    """Lighting coefficients L_lm (K, 3) from a file: any export format
-    (:func:`~shprobe.lighting.export.import_coeffs`), or an .npy / .npz of L_lm (K, 3) or (K,)
-    (npz: array ``L``, else ``coeffs``, else the first; read by the checked
-    :func:`shprobe.files.load_npz`). One channel is repeated to RGB."""
-    from ..files import load_npz
-
+    """Lighting coefficients L_lm (K, 3) from a file: any export format, or an .npy / .npz of
+    L_lm (K, 3) or (K,) (:func:`~shprobe.lighting.export.import_coeffs`, which reads the arrays
+    through the checked :func:`shprobe.files.load_npz`). One channel is repeated to RGB."""
     p = os.fspath(path)
-    ext = os.path.splitext(p)[1].lower()
-    if ext not in (".npy", ".npz"):
-        return as_rgb(import_coeffs(p), p)
-    if not os.path.isfile(p):
-        raise ShprobeError("no such file", p)
-    try:
-        if ext == ".npy":
-            c = np.load(p, allow_pickle=False, mmap_mode="r")
-        else:
-            data = load_npz(p, what="file of SH coefficients")
-            key = next((k for k in ("L", "coeffs") if k in data), None)
-            if key is None and not data:
-                raise ShprobeError("holds no array of SH coefficients", p)
-            c = data[key or next(iter(data))]
-    except ShprobeError:
-        raise
-    except Exception as e:  # numpy raises many types on bad files
-        raise ShprobeError(f"cannot read SH coefficients: {' '.join(str(e).split())[:200]}",
-                           p) from None
-    if c.ndim > 2 or c.size > 1 << 24:
-        raise ShprobeError(f"SH coefficients must be (K, 3) or (K,), got {c.shape}", p)
-    return as_rgb(np.asarray(c), p, "SH coefficients")
+    return as_rgb(import_coeffs(p), p)
 
 
 def blend_lighting(blend: Any, lmax: int, layout: str | None = None,
