@@ -181,7 +181,7 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
     cluster.close()
     pool.shutdown()
     n = len(paths)
-    assert table is not None and table.column("error").null_count == n
+    assert table is not None and table.column("failure").null_count == n
     secs = np.asarray(table.column("seconds"))
     windows = table.column("window").to_pylist()
     names = {"dec": f"decode only (read_image in {workers} processes)",

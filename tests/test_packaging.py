@@ -246,7 +246,7 @@ def test_installed_wheel_core_then_viewer_then_batch_then_the_tour(dists, tmp_pa
         cwd=work)
     run([py, "-c", "import numpy as np, shprobe, pyarrow.parquet as pq\n"
          "t = pq.read_table('t.parquet').to_pylist()\n"
-         "assert len(t) == 2 and all(r['error'] is None for r in t), t\n"
+         "assert len(t) == 2 and all(r['failure'] is None for r in t), t\n"
          "for r in t:\n"
          "    L = shprobe.project(shprobe.load_env(r['path']), lmax=2)\n"
          "    np.testing.assert_allclose(np.asarray(r['coefficients']), L, rtol=1e-5)\n"],

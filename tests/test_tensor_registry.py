@@ -78,7 +78,7 @@ def test_e3nn_closed_form():
 
 
 def test_e3nn_itself():
-    """e3nn, where installed (the bench extra), evaluates its own harmonics."""
+    """e3nn itself (a dev requirement) evaluates its own harmonics."""
     c = coeffs(4)
     b = convert(c, to="e3nn")
     torch = pytest.importorskip("torch")
