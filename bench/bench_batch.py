@@ -150,7 +150,7 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
 
     from distributed import Client
 
-    from shprobe.batch import run_batch
+    from shprobe.batch import BatchOptions, Engine, run_batch
     from shprobe.batch.engine import _local_cluster
 
     paths = [str(p) for p in files]
@@ -160,7 +160,7 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
     list(pool.map(_decode, paths[: 2 * workers]))  # start and warm the pool
     cluster = _local_cluster(workers)  # the cluster `shprobe batch` starts
     client = Client(cluster)
-    run_batch(paths[:workers], None, client=client)  # warm plugin + first tasks
+    run_batch(paths[:workers], None, engine=Engine(client=client))  # warm plugin + first tasks
     wall: dict[str, list[float]] = {"dec": [], "bat": [], "now": []}
     cpu: dict[str, list[float]] = {"dec": [], "bat": [], "now": []}
     decoded = 0
@@ -175,8 +175,9 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
 
     for _ in range(repeat):  # interleaved passes
         decoded = timed("dec", lambda: sum(pool.map(_decode, paths)))
-        table = timed("bat", lambda: run_batch(paths, None, client=client))
-        timed("now", lambda: run_batch(paths, None, client=client, window=False))
+        table = timed("bat", lambda: run_batch(paths, None, engine=Engine(client=client)))
+        timed("now", lambda: run_batch(paths, None, options=BatchOptions(window=False),
+                                       engine=Engine(client=client)))
     client.close()
     cluster.close()
     pool.shutdown()

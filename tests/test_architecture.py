@@ -235,3 +235,29 @@ def test_no_hand_written_module_over_500_lines():
             fine.append(rel)
     assert not over, f"modules over {MAX_LINES} lines: {over}"
     assert not fine, f"now within {MAX_LINES} lines, drop from OVER_LIMIT_FOR_NOW: {fine}"
+
+
+def _parameters(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    a = fn.args
+    n = (len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None)
+         + (a.kwarg is not None))
+    return n - (1 if a.args and a.args[0].arg in ("self", "cls") else 0)
+
+
+def test_no_function_outside_the_cli_takes_more_than_12_parameters():
+    """Functions take a settings object rather than a dozen keywords (the CLI's command
+    functions take one parameter per option, as click hands them)."""
+    over = []
+    for p in SRC.rglob("*.py"):
+        if p.relative_to(SRC).parts[0] == "cli":
+            continue
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) \
+                    and _parameters(node) > 12:
+                over.append(f"{p.relative_to(SRC)}: {node.name} ({_parameters(node)})")
+    assert not over, over
+
+
+def test_the_parameter_count_sees_a_long_signature():
+    fn = ast.parse("def f(self, a, b, c, d, e, f, g, h, i, j, k, l, *m, n=1, **o): pass").body[0]
+    assert _parameters(fn) == 15

@@ -17,7 +17,7 @@ import pytest
 import xxhash
 from PIL import Image
 
-from shprobe.batch import BatchOptions, expand_inputs, parts_dir, probe_row, run_batch
+from shprobe.batch import BatchOptions, Engine, expand_inputs, parts_dir, probe_row, run_batch
 from shprobe.batch.rows import content_hash
 from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
@@ -33,8 +33,11 @@ from shprobe.lighting import (
 from shprobe.probes.env import env_from_function, load_env, write_env
 from shprobe.probes.environments import procedural_env
 from shprobe.probes.images import write_image
+from shprobe.progress import Recorder
 
 from .conftest import write_raw_pfm
+
+INLINE = Engine(scheduler="inline")  # the batch in this process
 
 AXIS = np.array([0.48, 0.6, -0.64])  # unit
 
@@ -136,7 +139,7 @@ def test_row_against_independent_results(tmp_path):
 
 def test_table_errors_and_schema(library, tmp_path):
     out = tmp_path / "t.parquet"
-    t = run_batch([library], out, scheduler="inline", lmax=3)
+    t = run_batch([library], out, options=BatchOptions(lmax=3), engine=INLINE)
     assert out.exists() and not parts_dir(out).exists()
     rows = {r["path"].split("/lib/")[1]: r for r in t.to_pylist()}
     assert len(rows) == 7
@@ -169,21 +172,22 @@ def test_table_errors_and_schema(library, tmp_path):
 
 def test_resume_interrupt_and_options(library, tmp_path):
     out = tmp_path / "t.parquet"
-    full = run_batch([library], None, scheduler="inline")
+    full = run_batch([library], None, engine=INLINE)
     seen = []
 
-    def stop_after_three(done, total):
-        seen.append(done)
-        if done == 3:
-            raise KeyboardInterrupt
+    class StopAfterThree(Recorder):  # a shprobe.progress reporter
+        def update(self, done):
+            seen.append(done)
+            if done == 3:
+                raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_batch([library], out, scheduler="inline", flush_rows=2, progress=stop_after_three)
+        run_batch([library], out, engine=INLINE, flush_rows=2, progress=StopAfterThree())
     assert not out.exists()
     kept = pq.read_table(parts_dir(out)).to_pylist()  # parts are whole Parquet files
     assert len(kept) == 3  # one part of 2 rows + the flush on interrupt
     # re-run: finishes the rest; done rows are not recomputed (their timing is kept)
-    t = run_batch([library], out, scheduler="inline")
+    t = run_batch([library], out, engine=INLINE)
     assert not parts_dir(out).exists()
     drop = ["seconds"]
     assert t.drop(drop).equals(full.drop(drop))
@@ -193,13 +197,14 @@ def test_resume_interrupt_and_options(library, tmp_path):
             assert secs[r["path"]] == r["seconds"]
     # a copy of a done probe under a new name is filled from its hash; a new probe computed
     (library / "copy.exr").write_bytes((library / "a.exr").read_bytes())
-    t2 = run_batch([library], out, scheduler="inline").to_pylist()
+    t2 = run_batch([library], out, engine=INLINE).to_pylist()
     by = {r["path"].split("/lib/")[1]: r for r in t2}
     assert len(by) == 8 and by["copy.exr"]["seconds"] == 0.0
     assert by["copy.exr"]["coefficients"] == by["a.exr"]["coefficients"]
     with pytest.raises(ShprobeError, match="other options"):
-        run_batch([library], out, scheduler="inline", lmax=1)
-    t3 = run_batch([library / "a.exr"], out, scheduler="inline", lmax=1, force=True)
+        run_batch([library], out, options=BatchOptions(lmax=1), engine=INLINE)
+    t3 = run_batch([library / "a.exr"], out, options=BatchOptions(lmax=1), engine=INLINE,
+                   force=True)
     assert t3.num_rows == 1 and len(t3.column("coefficients")[0]) == 4
     # a table whose hashes were made by another algorithm (SHA-256 before) is refused by name
     meta = json.loads(t3.schema.metadata[b"shprobe"])
@@ -208,9 +213,9 @@ def test_resume_interrupt_and_options(library, tmp_path):
     meta["options"]["hash"] = "sha256"
     pq.write_table(t3.replace_schema_metadata({"shprobe": json.dumps(meta)}), out)
     with pytest.raises(ShprobeError, match="content hashes are sha256"):
-        run_batch([library], out, scheduler="inline", lmax=1)
+        run_batch([library], out, options=BatchOptions(lmax=1), engine=INLINE)
     with pytest.raises(ShprobeError, match=r"\.parquet file"):
-        run_batch([library], tmp_path / "t.csv", scheduler="inline")
+        run_batch([library], tmp_path / "t.csv", engine=INLINE)
 
 
 def test_cli(library, tmp_path, capsys):

@@ -12,10 +12,14 @@ import dask
 import numpy as np
 import pytest
 
-from shprobe.batch import run_batch
+from shprobe.batch import BatchOptions, Engine, run_batch
 from shprobe.batch.engine import LOCAL_CLUSTER_CONFIG, _local_cluster
 from shprobe.probes.env import env_from_function, write_env
 from shprobe.probes.environments import procedural_env
+from shprobe.progress import Recorder
+
+INLINE = Engine(scheduler="inline")  # the batch in this process
+REF4 = BatchOptions(reference=4)  # rows with the exact-irradiance error
 
 distributed = pytest.importorskip("distributed")
 
@@ -44,7 +48,7 @@ def library(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def inline(library):
-    return run_batch([library], None, scheduler="inline", reference=4)
+    return run_batch([library], None, options=REF4, engine=INLINE)
 
 
 def _close(x, y, where: str) -> None:
@@ -71,13 +75,13 @@ def _same_rows(a, b) -> None:
 
 def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     out = tmp_path / "t.parquet"
-    t = run_batch([library], out, scheduler=cluster.scheduler_address, reference=4)
+    t = run_batch([library], out, options=REF4, engine=Engine(scheduler=cluster.scheduler_address))
     assert t.num_rows == 8 and t.column("failure").null_count == 7
     _same_rows(t, inline)
     assert np.isfinite(np.asarray(t.column("seconds"))).all()
     # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
-    _same_rows(run_batch([library], None, scheduler=cluster.scheduler_address, reference=4,
-                         chunk=3), inline)
+    _same_rows(run_batch([library], None, options=REF4,
+                         engine=Engine(scheduler=cluster.scheduler_address, chunk=3)), inline)
     # a user's cluster keeps its heap (Dask's MALLOC_TRIM_THRESHOLD_=65536): a second 16 MiB
     # buffer is mapped afresh, page by page
     with distributed.Client(cluster) as client:
@@ -91,14 +95,15 @@ def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
         pids = client.run(os.getpid)
         killed = []
 
-        def kill_one(done, total):
-            if done == 2 and not killed:  # mid-batch: the other probes are queued or running
-                pid = sorted(pids.values())[0]
-                os.kill(pid, signal.SIGKILL)
-                killed.append(pid)
+        class KillOne(Recorder):  # a shprobe.progress reporter
+            def update(self, done):
+                if done == 2 and not killed:  # mid-batch: the others are queued or running
+                    pid = sorted(pids.values())[0]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
 
-        t = run_batch([library], tmp_path / "t.parquet", client=client, reference=4,
-                      progress=kill_one)
+        t = run_batch([library], tmp_path / "t.parquet", options=REF4,
+                      engine=Engine(client=client), progress=KillOne())
         assert killed
         client.wait_for_workers(2, timeout=60)  # the nanny restarted it
         assert killed[0] not in client.run(os.getpid).values()
@@ -129,10 +134,10 @@ def test_own_local_cluster(library, inline):
     cluster = _local_cluster(1)
     try:
         with distributed.Client(cluster) as client:
-            t = run_batch([library], None, client=client, reference=4)
+            t = run_batch([library], None, options=REF4, engine=Engine(client=client))
             state = next(iter(client.run(_worker_state).values()))
             with distributed.get_task_stream(client) as stream:  # chunk below 1: one a task
-                t0 = run_batch([library], None, client=client, reference=4, chunk=0)
+                t0 = run_batch([library], None, options=REF4, engine=Engine(client=client, chunk=0))
     finally:
         cluster.close()
     _same_rows(t, inline)
@@ -178,7 +183,8 @@ def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
     try:
         with distributed.Client(cluster) as client:
             client.register_plugin(type("Poison", (_Poison, WorkerPlugin), {})())
-            t = run_batch([library, poison], None, client=client, reference=4, chunk=3)
+            t = run_batch([library, poison], None, options=REF4, engine=Engine(client=client,
+                          chunk=3))
     finally:
         cluster.close()
     paths = t.column("path").to_pylist()

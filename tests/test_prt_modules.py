@@ -53,16 +53,6 @@ def test_no_import_cycle_inside_prt():
         raise AssertionError("the cycle check missed a cycle")
 
 
-def test_no_function_takes_more_than_12_parameters():
-    for p in PRT.glob("*.py"):
-        for node in ast.walk(ast.parse(p.read_text())):
-            if isinstance(node, ast.FunctionDef):
-                a = node.args
-                n = (len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs)
-                     + (a.vararg is not None) + (a.kwarg is not None))
-                assert n <= 12, f"{p.name}: {node.name} takes {n} parameters"
-
-
 def test_package_names_its_modules_and_the_source_states_the_present():
     doc = prt.__doc__
     for p in PRT.glob("*.py"):

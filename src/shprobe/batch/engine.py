@@ -31,7 +31,7 @@ from .inputs import expand_inputs
 from .lock import interruptible, output_lock
 from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
 
-__all__ = ["parts_dir", "read_table", "run_batch"]
+__all__ = ["Engine", "parts_dir", "read_table", "run_batch"]
 
 #: Progress callback: (done, total) after each probe.
 Progress = Callable[[int, int], None]
@@ -335,35 +335,45 @@ def _plugin(keep_heap: bool = False):
     return WarmPlugin(keep_heap)
 
 
+@dataclass(frozen=True)
+class Engine:
+    """Where a batch runs: ``client`` (a ``distributed.Client``) if given; else ``scheduler``:
+    ``"inline"`` runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS``
+    when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
+    processes (default: one per core) × 1 thread is started and closed again. On Dask, each
+    task computes ``chunk`` probes (below 1 means 1; default :func:`chunk_size`: up to 8, fewer
+    for small batches), the largest files first."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+    client: Any = None
+    chunk: int | None = None
+
+
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
-              output: str | os.PathLike[str] | None = None, *, lmax: int = 2,
-              layout: str = "auto", clamp: bool = False, reference: int | None = None,
-              thumbnail: int = 0, window: bool = True, scheduler: str | None = None,
-              workers: int | None = None,
-              client: Any = None, force: bool = False, flush_rows: int = 256,
-              flush_seconds: float = 30.0, progress: Progress | None = None,
-              block_bytes: int = 16 << 20, chunk: int | None = None):
+              output: str | os.PathLike[str] | None = None, *,
+              options: BatchOptions | None = None, layout: str = "auto",
+              engine: Engine | None = None, force: bool = False,
+              progress: Progress | None = None, flush_rows: int = 256,
+              flush_seconds: float = 30.0):
     """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
     it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
 
-    Engine: ``client`` (a ``distributed.Client``) if given; else ``scheduler``: ``"inline"``
-    runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS`` when
-    ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
-    processes (default: one per core) × 1 thread is started and closed again.
+    ``options`` (:class:`BatchOptions`): what each row computes (default: lmax 2). ``engine``
+    (:class:`Engine`): where it runs (default: a local Dask cluster). ``progress`` gets one
+    stage counting the probes (:mod:`shprobe.progress`).
 
-    On Dask, each task computes ``chunk`` probes (below 1 means 1; default
-    :func:`chunk_size`: up to 8, fewer for small batches), the largest files first.
-
-    ``output`` (``.parquet``): written in parts and committed atomically, resumable (module
-    doc). An existing table made with other options is refused unless ``force``, which
-    starts afresh.
+    ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
+    ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
+    made with other options is refused unless ``force``, which starts afresh.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
 
-    options = BatchOptions(lmax=int(lmax), clamp=bool(clamp),
-                           reference=None if not reference else int(reference),
-                           thumbnail=int(thumbnail or 0), window=bool(window),
-                           block_bytes=int(block_bytes))
+    o = options or BatchOptions()
+    options = BatchOptions(lmax=int(o.lmax), clamp=bool(o.clamp),
+                           reference=None if not o.reference else int(o.reference),
+                           thumbnail=int(o.thumbnail or 0), window=bool(o.window),
+                           block_bytes=int(o.block_bytes))
     from ..sh import check_lmax
 
     check_lmax(options.lmax)
@@ -375,20 +385,12 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         check_output_path(out, overwrite=True)
     with output_lock(out), interruptible() as interrupted:
         return _run(inputs, out, layout, options, meta, force, progress, interrupted,
-                    _Engine(scheduler, workers, client, chunk), flush_rows, flush_seconds)
-
-
-@dataclass
-class _Engine:
-    scheduler: str | None
-    workers: int | None
-    client: Any
-    chunk: int | None
+                    engine or Engine(), (flush_rows, flush_seconds))
 
 
 def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
-         force: bool, progress: Progress | None, interrupted: list[int], engine: _Engine,
-         flush_rows: int, flush_seconds: float):
+         force: bool, progress: Progress | None, interrupted: list[int], engine: Engine,
+         flush_every: tuple[int, float]):
     """:func:`run_batch` once the output is locked."""
     old: list[dict[str, Any]] = []
     if out is not None:
@@ -405,8 +407,9 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
     pending: list[dict[str, Any]] = []
     last = time.monotonic()
     n_done = 0
-    if progress:
-        progress(0, total)
+    flush_rows, flush_seconds = flush_every
+    if progress is not None:
+        progress.begin(f"prefiltering {total:,} probes", total)
 
     def flush() -> None:
         nonlocal last
@@ -444,8 +447,8 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
                 fresh.append(row)
                 pending.append(row)
             n_done += 1
-            if progress:
-                progress(n_done, total)
+            if progress is not None:
+                progress.update(n_done)
             if len(pending) >= flush_rows or time.monotonic() - last >= flush_seconds:
                 flush()
         flush()
@@ -455,6 +458,8 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
         flush()  # Ctrl-C or a crash: keep what is finished
         raise
     finally:
+        if progress is not None:
+            progress.end()
         if own is not None:
             cluster = getattr(own, "_shprobe_cluster", None)
             own.close()

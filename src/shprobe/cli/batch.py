@@ -50,39 +50,17 @@ def register(group: click.Group) -> None:
         from .extras import require
 
         require("batch", "batch")
-        from ..batch import run_batch
+        from ..batch import BatchOptions, Engine, run_batch
         from .output import progress, wrote
 
-        bar = _Counted(progress(), "prefiltering probes")
-        try:
-            table = run_batch(inputs, output, lmax=lmax, layout=layout, clamp=clamp,
-                              reference=reference, thumbnail=thumbnail, window=window,
-                              scheduler=scheduler,
-                              workers=workers, force=force, progress=bar)
-        finally:
-            bar.close()
+        table = run_batch(inputs, output,
+                          options=BatchOptions(lmax=lmax, clamp=clamp, reference=reference,
+                                               thumbnail=thumbnail, window=window),
+                          layout=layout, engine=Engine(scheduler, workers), force=force,
+                          progress=progress())
         bad = table.num_rows - table.column("failure").null_count
         wrote(output, f"{table.num_rows} probes, {bad} failed"
               + (" (see the 'failure' column)" if bad else ""))
         if bad and not allow_failures:
             raise ShprobeError(f"{bad} of {table.num_rows} probes failed (their messages are in "
                                "the table's 'failure' column; --allow-failures exits 0)", output)
-
-
-class _Counted:
-    """The batch engine's ``progress(done, total)`` as one stage of the terminal reporter
-    (:mod:`shprobe.progress`): begun at the first call, when the total is known."""
-
-    def __init__(self, reporter, description: str) -> None:
-        self.reporter, self.description, self.started = reporter, description, False
-
-    def __call__(self, done: int, total: int) -> None:
-        if not self.started:
-            self.reporter.begin(f"{self.description} ({total:,})", total)
-            self.started = True
-        self.reporter.update(done)
-
-    def close(self) -> None:
-        if self.started:
-            self.reporter.end()
-            self.started = False

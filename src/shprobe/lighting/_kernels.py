@@ -242,12 +242,13 @@ def latlong_exact_parallel(nrm, ct, st, cx, cz, pre, out):  # pragma: no cover -
 
 
 @numba.njit(cache=True)
-def latlong_error(nrm, ct, st, cx, cz, pre, elm, lmax, a, b, inv_tot, out, chan
+def latlong_error(nrm, ct, st, cx, cz, pre, elm, a, b, inv_tot, out, chan
                   ):  # pragma: no cover - compiled
     """max_c |Σ_k E_lm,c y_k(n) − E_ref,c(n)| · inv_tot_c per normal → out (T,), and the
     channel where it occurs → chan (T,): the error of the SH irradiance (R&H eq. 7) against
     the exact sum, for the refinement's candidates (one call per batch, no temporaries)."""
     k = elm.shape[0]
+    lmax = int(np.sqrt(k) + 0.5) - 1  # elm holds (lmax + 1)² coefficients
     nch = elm.shape[1]
     y = np.empty(k)
     e = np.empty(nch)

@@ -225,8 +225,8 @@ class _Exact:
             flat = np.ascontiguousarray(np.asarray(n, dtype=np.float64).reshape(-1, 3))
             out = np.empty(flat.shape[0])
             chan = np.empty(flat.shape[0], dtype=np.int64)
-            latlong_error(flat, self.ct, self.st, self.cx, self.cz, self.pre, elm, lmax, a, b,
-                          inv, out, chan)
+            latlong_error(flat, self.ct, self.st, self.cx, self.cz, self.pre, elm, a, b, inv,
+                          out, chan)
             return out, chan
 
         return fast
