@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..lighting import as_coeffs, irradiance_coeffs, project
+from ..lighting import irradiance_coeffs, project
+from ..lighting.coeffs import as_rgb
 from ..probes.env import Env
 from ..scene import mesh_hash, mesh_uvs
 from ..sh import lmax_of, num_coeffs, sh_basis
@@ -151,8 +152,7 @@ def lighting_coeffs(lighting: Env | ArrayLike) -> NDArray[np.float64]:
     or the coefficients given."""
     if isinstance(lighting, Env):
         return project(lighting, LIGHTING_LMAX)
-    c = as_coeffs(lighting, what="SH lighting coefficients")
-    return np.repeat(c, 3, axis=1) if c.shape[1] == 1 else c
+    return as_rgb(lighting, what="SH lighting coefficients")
 
 
 def bake_mesh(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, n: int = 6,

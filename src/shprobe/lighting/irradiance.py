@@ -26,7 +26,7 @@ from ..probes.layouts import Layout, get_layout
 from ..sh import _xp, lmax_of, sh_basis
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import clamped_cosine_factors, convolve
-from .coeffs import RH_CONSTANTS, as_coeffs, check_coeffs, nine
+from .coeffs import RH_CONSTANTS, as_coeffs, as_rgb, check_coeffs, nine
 
 __all__ = [
     "irradiance",
@@ -152,7 +152,7 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
     grid = lay.grid_shape(size)
     c = check_coeffs(coeffs)
     if c.ndim == 1:
-        c = np.repeat(c[:, None], 3, axis=1)
+        c = as_rgb(c)  # one channel: grey light
     px = int(np.prod(grid))
     check_memory(px * (8.0 * (c.shape[-2] + 4) + 4.0 * c.shape[-1]),
                  f"an irradiance map of {px} pixels at lmax {lmax_of(c.shape[-2])}")
