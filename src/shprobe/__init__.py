@@ -81,6 +81,9 @@ _EXPORTS: dict[str, str] = {
     "project_cube": "lighting.maps",
     "latlong_radiance": "lighting.maps",
     "latlong_irradiance": "lighting.maps",
+    # probe grids (irradiance volumes)
+    "load_grid": "grids",
+    "ProbeGrid": "grids",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -1,0 +1,8 @@
+"""SH probe grids (irradiance volumes): baked from a scene under a probe's lighting with
+leak control, interpolated as engines do, exported to three.js, Unity and Godot."""
+
+from .grid import GRID_FORMAT, GRID_VERSION, ProbeGrid, cell_centres, plain_weights
+from .io import load_grid, save_grid
+
+__all__ = ["GRID_FORMAT", "GRID_VERSION", "ProbeGrid", "cell_centres", "load_grid",
+           "plain_weights", "save_grid"]

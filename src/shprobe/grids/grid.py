@@ -1,0 +1,178 @@
+"""A grid of SH irradiance probes (an irradiance volume) and its engine-side interpolation.
+
+The volume ``bounds`` is split into one cell per probe, the probes at the cell centres, the
+convention of three.js's ``LightProbeGrid`` (so the three.js export is the data as it stands).
+Each probe holds the radiance L_lm it sees (R&H 2001 eq. 6), RGB, in the world frame (+Y up,
+shprobe's real SH); irradiance is Â_l L_lm (R&H eq. 7) at the normal.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShprobeError
+from ..lighting.irradiance import irradiance_coeffs, unit_normals
+from ..sh.basis import sh_basis
+from ..sh.indexing import lmax_of
+
+__all__ = ["GRID_FORMAT", "GRID_VERSION", "ProbeGrid", "cell_centres", "plain_weights"]
+
+#: The ``format`` string of a grid file and its version.
+GRID_FORMAT = "shprobe-grid"
+GRID_VERSION = 1
+
+
+@dataclass(frozen=True, repr=False)
+class ProbeGrid:
+    """An irradiance volume.
+
+    coeffs (NX, NY, NZ, (lmax+1)², 3) radiance L_lm per probe (lmax 1 or 2); bounds (2, 3) the
+    volume's min and max corners (probes at cell centres); positions (NX, NY, NZ, 3) where each
+    probe was baked, when a probe was moved out of geometry (None: the cell centres); validity
+    (NX, NY, NZ) in [0, 1], 0 for a probe that was inside geometry and whose value is filled
+    from its neighbours (None: all valid); depth (NX, NY, NZ, D, D, 2) mean and mean-square
+    distance to the first hit over an octahedral map of directions (None: no visibility data,
+    interpolation is plain trilinear); meta: how it was baked (lmax, bounces, albedo, samples,
+    lighting, scene).
+    """
+
+    coeffs: NDArray[np.float32]
+    bounds: NDArray[np.float64]
+    positions: NDArray[np.float64] | None = None
+    validity: NDArray[np.float32] | None = None
+    depth: NDArray[np.float32] | None = None
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.coeffs)
+        if c.ndim != 5 or c.shape[-1] != 3 or c.shape[-2] not in (4, 9) or min(c.shape[:3]) < 1:
+            raise ShprobeError(f"grid coefficients must be (NX, NY, NZ, 4 or 9, 3), got {c.shape}")
+        b = np.asarray(self.bounds, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
+            raise ShprobeError("grid bounds must be finite (min corner, max corner) with "
+                               "max > min on every axis")
+        object.__setattr__(self, "bounds", b)
+        n = c.shape[:3]
+        for name, tail in (("positions", (3,)), ("validity", ()), ("depth", None)):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            a = np.asarray(a)
+            if a.shape[:3] != n or (tail is not None and a.shape[3:] != tail):
+                raise ShprobeError(f"grid {name} has shape {a.shape}, not that of its "
+                                   f"{n} probes")
+
+    # ------------------------------------------------------------------ shape
+    @property
+    def resolution(self) -> tuple[int, int, int]:
+        """Probes along X, Y, Z."""
+        nx, ny, nz = self.coeffs.shape[:3]
+        return int(nx), int(ny), int(nz)
+
+    @property
+    def lmax(self) -> int:
+        return lmax_of(self.coeffs.shape[-2])
+
+    @property
+    def spacing(self) -> NDArray[np.float64]:
+        """Cell size along X, Y, Z."""
+        return (self.bounds[1] - self.bounds[0]) / np.asarray(self.resolution, dtype=np.float64)
+
+    def centres(self) -> NDArray[np.float64]:
+        """Cell centres (NX, NY, NZ, 3): where the probes stand unless moved."""
+        return cell_centres(self.bounds, self.resolution)
+
+    def probe_positions(self) -> NDArray[np.float64]:
+        """Where each probe was baked (NX, NY, NZ, 3)."""
+        return self.centres() if self.positions is None else np.asarray(self.positions,
+                                                                        dtype=np.float64)
+
+    # ------------------------------------------------------------------ lighting
+    def interpolate(self, points: ArrayLike, normals: ArrayLike,
+                    leak_control: bool = True) -> NDArray[np.float64]:
+        """Radiance coefficients (..., (lmax+1)², 3) seen at ``points`` for surfaces facing
+        ``normals`` (both (..., 3)): the engine-side blend of the neighbouring probes.
+
+        Plain (``leak_control=False``, or a grid without depth data): three.js's
+        ``LightProbeGrid`` sampling — the point moved half a cell along the normal, clamped to
+        the outermost probe centres, trilinear weights.
+        """
+        p, n = _points_normals(points, normals)
+        if leak_control and self.depth is not None:
+            from .visibility import visibility_weights
+
+            idx, w = visibility_weights(self, p, n)
+        else:
+            idx, w = plain_weights(self.bounds, self.resolution, p, n)
+        c = np.asarray(self.coeffs, dtype=np.float64).reshape(-1, *self.coeffs.shape[-2:])
+        out = np.einsum("...j,...jkc->...kc", w, c[idx])
+        return out
+
+    def irradiance(self, points: ArrayLike, normals: ArrayLike,
+                   leak_control: bool = True) -> NDArray[np.float64]:
+        """Irradiance E (..., 3) at ``points`` on surfaces facing ``normals`` (R&H eq. 7 on the
+        interpolated L_lm), clamped at 0 as three.js's shader does."""
+        n = unit_normals(normals)
+        c = irradiance_coeffs(self.interpolate(points, n, leak_control))
+        y = sh_basis(n, self.lmax)
+        return np.maximum(np.einsum("...k,...kc->...c", y, c), 0.0)
+
+    def __repr__(self) -> str:
+        nx, ny, nz = self.resolution
+        lo, hi = self.bounds
+        extra = ", leak control" if self.depth is not None else ""
+        return (f"ProbeGrid({nx}×{ny}×{nz}, lmax {self.lmax}, bounds "
+                f"{np.round(lo, 3).tolist()}..{np.round(hi, 3).tolist()}{extra})")
+
+
+def cell_centres(bounds: ArrayLike, resolution: tuple[int, int, int]) -> NDArray[np.float64]:
+    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways."""
+    b = np.asarray(bounds, dtype=np.float64)
+    axes = [b[0, a] + (np.arange(resolution[a]) + 0.5) * (b[1, a] - b[0, a]) / resolution[a]
+            for a in range(3)]
+    g = np.meshgrid(*axes, indexing="ij")
+    return np.stack(g, axis=-1)
+
+
+def plain_weights(bounds: ArrayLike, resolution: tuple[int, int, int], points: NDArray,
+                  normals: NDArray) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Flat probe indices (..., 8) and trilinear weights (..., 8) as three.js samples its
+    ``LightProbeGrid`` texture: sample point p + n·spacing/2, clamped to the outer probe
+    centres, hardware trilinear filtering between cell centres."""
+    b = np.asarray(bounds, dtype=np.float64)
+    res = np.asarray(resolution, dtype=np.float64)
+    spacing = (b[1] - b[0]) / res
+    s = points + normals * spacing * 0.5
+    uvw = np.clip((s - b[0]) / (b[1] - b[0]), 0.5 / res, 1.0 - 0.5 / res)
+    g = uvw * res - 0.5  # continuous probe index, probe i at i
+    i0 = np.clip(np.floor(g).astype(np.int64), 0, np.maximum(res.astype(np.int64) - 2, 0))
+    f = np.clip(g - i0, 0.0, 1.0)
+    nx, ny, nz = (int(r) for r in resolution)
+    idx, w = [], []
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                ix = np.minimum(i0[..., 0] + dx, nx - 1)
+                iy = np.minimum(i0[..., 1] + dy, ny - 1)
+                iz = np.minimum(i0[..., 2] + dz, nz - 1)
+                wx = f[..., 0] if dx else 1.0 - f[..., 0]
+                wy = f[..., 1] if dy else 1.0 - f[..., 1]
+                wz = f[..., 2] if dz else 1.0 - f[..., 2]
+                idx.append((ix * ny + iy) * nz + iz)
+                w.append(wx * wy * wz)
+    return np.stack(idx, axis=-1), np.stack(w, axis=-1)
+
+
+def _points_normals(points: ArrayLike, normals: ArrayLike
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    p = np.asarray(points, dtype=np.float64)
+    n = unit_normals(normals)
+    if p.shape[-1:] != (3,) or not np.all(np.isfinite(p)):
+        raise ShprobeError("grid lookup points must be finite (..., 3) arrays")
+    p, n = np.broadcast_arrays(p, n)
+    return p, n
