@@ -38,23 +38,12 @@ __all__ = ["latlong_irradiance", "latlong_radiance", "project_cube", "project_la
 def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float64], ...]:
     """float64 (trig (M, W); lam (M, L, H) = Λ_l|m|(θ_row), zero for l < |m|; dω per row
     (H,); A (K, M·L) gathering the (m, l) grid and turning the frame ω' = (z, x, y) back)."""
-    from .projection import _from_pole_y
+    from .projection import _from_pole_y, latlong_pole_factors
 
-    psi = LatLong.column_azimuth(w)
-    m = np.arange(-lmax, lmax + 1)
-    # in the frame ω' the azimuth is φ' = −ψ: cos(mφ') = cos(mψ), sin(|m|φ') = −sin(|m|ψ)
-    trig = np.where(m[:, None] >= 0, np.cos(np.abs(m)[:, None] * psi[None]),
-                    -np.sin(np.abs(m)[:, None] * psi[None]))
-    theta = LatLong.row_theta(h)
-    pole = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)
-    basis = sh_basis(pole, lmax)  # y'_l|m| at φ' = 0
-    ks = np.arange(num_coeffs(lmax))
-    ls = np.floor(np.sqrt(ks)).astype(np.int64)
-    ms = ks - ls * (ls + 1)
-    lam = np.zeros((2 * lmax + 1, lmax + 1, h))
-    lam[ms + lmax, ls] = basis[:, ls * (ls + 1) + np.abs(ms)].T
-    sel = np.zeros((num_coeffs(lmax), (2 * lmax + 1) * (lmax + 1)))
-    sel[ks, (ms + lmax) * (lmax + 1) + ls] = 1.0
+    trig, lam, mi, li = latlong_pole_factors(h, w, lmax)
+    k = np.arange(mi.size)
+    sel = np.zeros((k.size, lam.shape[0] * lam.shape[1]))
+    sel[k, mi * lam.shape[1] + li] = 1.0
     A = _from_pole_y(sel)  # c = A g: the world-frame coefficients of the (m, l) grid g
     out = (trig, lam, LatLong.row_solid_angle(h, w), A)
     for t in out:

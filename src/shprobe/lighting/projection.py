@@ -92,11 +92,13 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-@lru_cache(maxsize=16)
-def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDArray[np.float64],
-                                                        NDArray[np.int64], NDArray[np.int64]]:
-    """(trig (M, W) float32 for m = −lmax..lmax; row weights by m, (M, lmax+1, H) float64:
-    [m, l, row] = dω_row Λ_l|m|(θ_row), zero for l < |m|; the (m, l) place of each k)."""
+def latlong_pole_factors(h: int, w: int, lmax: int
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64],
+                                    NDArray[np.int64]]:
+    """The separable factors of the SH on an H × W lat-long grid, in the frame ω' = (z, x, y)
+    whose pole is +Y: (trig (M, W) for m = −lmax..lmax; Λ (M, lmax+1, H): [m, l, row] =
+    y_l|m|(θ_row) at φ' = 0, zero for l < |m|; the (m, l) place of each flat index k).
+    Projection and synthesis both build on these (y_lm' = trig_m(ψ) Λ_lm(θ))."""
     psi = LatLong.column_azimuth(w)
     m = np.arange(-lmax, lmax + 1)
     # in the frame ω' the azimuth is φ' = −ψ: cos(mφ') = cos(mψ), sin(|m|φ') = −sin(|m|ψ)
@@ -104,17 +106,26 @@ def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDA
                     -np.sin(np.abs(m)[:, None] * psi[None]))
     theta = LatLong.row_theta(h)
     pole = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)
-    lam = sh_basis(pole, lmax)  # y_l|m| at φ' = 0: √2 P̄_l|m| sin^|m| θ (m > 0), P̄_l0 (m = 0)
+    basis = sh_basis(pole, lmax)  # y_l|m| at φ' = 0: √2 P̄_l|m| sin^|m| θ (m > 0), P̄_l0 (m = 0)
     ks = np.arange(num_coeffs(lmax))
     ls = np.floor(np.sqrt(ks)).astype(np.int64)
     ms = ks - ls * (ls + 1)
-    weights = lam[:, ls * (ls + 1) + np.abs(ms)] * LatLong.row_solid_angle(h, w)[:, None]
-    by_m = np.zeros((2 * lmax + 1, lmax + 1, h))
-    by_m[ms + lmax, ls] = weights.T
+    lam = np.zeros((2 * lmax + 1, lmax + 1, h))
+    lam[ms + lmax, ls] = basis[:, ls * (ls + 1) + np.abs(ms)].T
+    return trig, lam, ms + lmax, ls
+
+
+@lru_cache(maxsize=16)
+def _latlong_tables(h: int, w: int, lmax: int) -> tuple[NDArray[np.float32], NDArray[np.float64],
+                                                        NDArray[np.int64], NDArray[np.int64]]:
+    """(trig (M, W) float32; row weights by m (M, lmax+1, H) float64: [m, l, row] =
+    dω_row Λ_l|m|(θ_row); the (m, l) place of each k)."""
+    trig, lam, mi, li = latlong_pole_factors(h, w, lmax)
+    by_m = lam * LatLong.row_solid_angle(h, w)
     trig = np.ascontiguousarray(trig, dtype=np.float32)
     for t in (trig, by_m):
         t.flags.writeable = False
-    return trig, by_m, ms + lmax, ls
+    return trig, by_m, mi, li
 
 
 #: Below this many multiply-adds (pixels × channels × (2 lmax + 1)) the per-row products run
