@@ -44,6 +44,31 @@ def label(description: str, index: int | None = None, count: int | None = None) 
     return description
 
 
+class Numbered:
+    """A reporter that shows another's stages as "k/N: …": for a library call whose stage is
+    one step of its caller's sequence (``reference_irradiance(..., progress=Numbered(p, 3,
+    3))``)."""
+
+    __slots__ = ("count", "index", "progress")
+
+    def __init__(self, progress: Progress, index: int, count: int) -> None:
+        self.progress, self.index, self.count = progress, int(index), int(count)
+
+    def begin(self, description: str, total: float | None = None) -> None:
+        self.progress.begin(label(description, self.index, self.count), total)
+
+    def update(self, done: float) -> None:
+        self.progress.update(done)
+
+    def end(self) -> None:
+        self.progress.end()
+
+
+def numbered(progress: Progress | None, index: int, count: int) -> Progress | None:
+    """``progress`` with its stages labelled "index/count: …" (None stays None)."""
+    return None if progress is None else Numbered(progress, index, count)
+
+
 class Stage:
     """Handle on the stage under way: counts work done and forwards it to the reporter."""
 

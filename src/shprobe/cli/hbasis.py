@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from ..progress import Steps
+from ..progress import Steps, stage
 from .common import ROTATE_HELP, force_option, parse_rotation
 from .output import estimate, progress, wrote
 
@@ -172,11 +172,10 @@ def render_cmd(mesh: Path, probe: Path, output: Path, coeffs: Path | None, size:
 
         estimate(reference_cost(light, size * size), f"the brute-force reference at --size "
                                                      f"{size}")
-    with Steps(progress(), 2) as step:
-        step("baking per-vertex bases, tracing and the reference irradiance")
-        res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
-                                   baked=baked)
-        step("writing the panel")
+    rep = progress()
+    res = render_normal_mapped(m, light, size=size, bump_amplitude=bump, normal_map=nmap,
+                               baked=baked, progress=rep)
+    with stage(rep, "writing the panel"):
         save_panel(output, res, gain, overwrite=force)
     if not isinstance(light, np.ndarray):
         ref = "brute force"

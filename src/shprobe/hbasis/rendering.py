@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ShprobeError
 from ..lighting import irradiance, irradiance_coeffs, reference_irradiance
 from ..probes.env import Env
+from ..progress import Progress, numbered, stage
 from ..scene import Camera, RenderResult, mesh_uvs, render_result, sample_texture, trace
 from ..sh.rotation import unit_vectors
 from .frames import Frames, tangent_frames
@@ -37,7 +38,8 @@ __all__ = ["panel_image", "render_normal_mapped", "save_panel"]
 def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size: int = 256,
                          bump_amplitude: float = 0.3, bump_frequency: float | None = None,
                          normal_map: NDArray | None = None,
-                         baked: NormalMapBake | None = None) -> RenderResult:
+                         baked: NormalMapBake | None = None,
+                         progress: Progress | None = None) -> RenderResult:
     """Render ``mesh`` under ``lighting`` (an Env, or radiance SH (K, 3)) with a tangent-space
     ``normal_map`` (H, W, 3) looked up bilinearly at the interpolated UV (u wraps, v up;
     green flipped on mirrored charts; needs UVs), or else a UV-free procedural bump
@@ -56,6 +58,8 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
     "tangent_normals" v = F_pᵀ n′ and "frames" F_p (H, W, 3, 3), the frame interpolated at each
     pixel; ``info["rel_rms"]`` the RMS error of each basis over hit pixels and channels divided
     by the RMS of the reference there. Everything is 0 where no surface was hit (``mask``).
+    ``progress`` gets three stages (the bake, the camera rays, the reference; the brute-force
+    reference counts its normal–pixel pairs, so it shows an ETA).
     """
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
@@ -63,7 +67,8 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
     L = lighting_coeffs(lighting)
     e = irradiance_coeffs(L)
     if baked is None:
-        bk = bake_normalmap(e, frames.matrix, n=6)
+        with stage(progress, "baking per-vertex H6, H4 and SH9", index=1, count=3):
+            bk = bake_normalmap(e, frames.matrix, n=6)
     else:
         if baked.h.shape[0] != len(v) or baked.frames.shape != (len(v), 3, 3):
             raise ShprobeError(f"baked coefficients are for {baked.h.shape[0]} vertices, the "
@@ -76,7 +81,8 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
     c = 0.5 * (lo + hi)
     cam = Camera(size, size, projection="orthographic", target=tuple(c), ortho_height=ext,
                  distance=float(hi[2] - c[2]) + ext)
-    hits = trace(mesh, cam)
+    with stage(progress, f"tracing {size}x{size} camera rays", index=2, count=3):
+        hits = trace(mesh, cam)
     hit = hits.face >= 0
     tri = f[hits.face[hit]]  # (P, 3)
     bary = hits.bary[hit].astype(np.float64)
@@ -107,7 +113,11 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
         vals["H6"] = shade_h(interp(bk.h), vt)
     vals["H4"] = shade_h(interp(bk.h[:, :4]), vt)
     vals["SH9"] = shade_sh(interp(bk.sh), vt)
-    ref = reference_irradiance(lighting, nw) if isinstance(lighting, Env) else irradiance(L, nw)
+    if isinstance(lighting, Env):
+        ref = reference_irradiance(lighting, nw, progress=numbered(progress, 3, 3))
+    else:
+        with stage(progress, "the reference from the lighting's SH", index=3, count=3):
+            ref = irradiance(L, nw)
     scale = float(np.sqrt(np.mean(ref**2)))
     rel = {k: float(np.sqrt(np.mean((val - ref) ** 2)) / scale) for k, val in vals.items()}
     P = hit.size
