@@ -123,7 +123,7 @@ function probeSpheres(pos, n, seg, rings) {  // one UV sphere per probe, merged
     for (let r = 0; r < rings; r++) {
       for (let s = 0; s < seg; s++) {
         const a = p * vs + r * (seg + 1) + s, b = a + seg + 1;
-        index.set([a, b, a + 1, a + 1, b, b + 1], o); o += 6;
+        index.set([a, a + 1, b, a + 1, b + 1, b], o); o += 6;  // counter-clockwise from outside
       }
     }
   }
@@ -271,8 +271,14 @@ api.probeScreen = (i) => {
   const c = new THREE.Vector3(...Array.from(data.probe_position.slice(3 * i, 3 * i + 3)));
   const n = camera.position.clone().sub(c).normalize();
   const s = c.clone().project(camera);
-  return { x: Math.round((s.x + 1) / 2 * W - 0.5), y: Math.round((1 - s.y) / 2 * H - 0.5),
-           normal: [n.x, n.y, n.z], depth: camera.position.distanceTo(c) };
+  const x = Math.round((s.x + 1) / 2 * W - 0.5), y = Math.round((1 - s.y) / 2 * H - 0.5);
+  // the normal of the (exact) sphere where the ray through that pixel's centre meets it
+  const d = new THREE.Vector3((x + 0.5) / W * 2 - 1, 1 - (y + 0.5) / H * 2, 0.5).unproject(camera)
+    .sub(camera.position).normalize();
+  const oc = camera.position.clone().sub(c), b = oc.dot(d);
+  const disc = b * b - oc.lengthSq() + probeMat.uniforms.uRadius.value ** 2;
+  if (disc >= 0) n.copy(oc.addScaledVector(d, -b - Math.sqrt(disc))).normalize();
+  return { x, y, normal: [n.x, n.y, n.z], depth: camera.position.distanceTo(c) };
 };
 api.readPixel = (x, y) => {  // (x, y) from the top left
   draw();
