@@ -115,3 +115,29 @@ def test_slider_moves_the_object_and_the_library_lights_it(page, grid):
     pts = view.local * req["size"] + np.array(req["position"])
     want = grid.irradiance(pts, view.normals, leak_control=False)
     assert np.allclose(np.array(data).reshape(-1, 3), want, rtol=1e-5, atol=1e-6)
+
+
+def test_shift_drag_moves_the_object(page, grid):
+    page.evaluate("() => window.__shprobe.settled()")
+    eye = page.evaluate("() => window.__shprobe.state().eye")
+    before = page.evaluate("() => window.__shprobe.state().placement.position")
+    o = page.evaluate("() => window.__shprobe.objectScreen()")
+    box = page.locator("#view").bounding_box()
+    x, y = box["x"] + o["x"], box["y"] + o["y"]
+    page.keyboard.down("Shift")
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x - 40, y + 10, steps=4)
+    page.mouse.up()
+    page.keyboard.up("Shift")
+    page.evaluate("() => window.__shprobe.settled()")
+    st = page.evaluate("() => window.__shprobe.state()")
+    after = st["placement"]["position"]
+    assert st["eye"] == eye  # the camera did not orbit
+    assert np.linalg.norm(np.subtract(after, before)) > 0.1
+    lo, hi = grid.bounds
+    assert np.all(np.array(after) >= lo - 1e-9) and np.all(np.array(after) <= hi + 1e-9)
+    # the object followed the pointer: its centre is where the pointer let go
+    o2 = page.evaluate("() => window.__shprobe.objectScreen()")
+    assert abs(o2["x"] - (o["x"] - 40)) < 2 and abs(o2["y"] - (o["y"] + 10)) < 2
+    assert page.evaluate("() => window.__shprobe.lastShade.request.position") == after

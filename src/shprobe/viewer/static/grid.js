@@ -241,6 +241,33 @@ function sliders() {
     show(); box.append(lab, inp, val);
   }
 }
+// shift-drag on the view: the object follows the pointer in the plane through it that faces
+// the camera (clamped to the volume); the orbit controls rest meanwhile
+function dragObject() {
+  const canvas = $('view');
+  let plane = null;
+  const hit = (e) => {
+    const r = canvas.getBoundingClientRect();
+    const ndc = new THREE.Vector3((e.clientX - r.left) / r.width * 2 - 1, 1 - (e.clientY - r.top) / r.height * 2, 0.5);
+    const d = ndc.unproject(camera).sub(camera.position).normalize();
+    const t = plane.n.dot(plane.p.clone().sub(camera.position)) / plane.n.dot(d);
+    return camera.position.clone().addScaledVector(d, t);
+  };
+  canvas.parentElement.addEventListener('pointerdown', (e) => {
+    if (!e.shiftKey || e.target !== canvas) return;
+    controls.enabled = false;
+    const n = new THREE.Vector3(); camera.getWorldDirection(n);
+    plane = { n, p: new THREE.Vector3(...place.position) };
+    plane.off = plane.p.clone().sub(hit(e));
+  }, true);
+  window.addEventListener('pointermove', (e) => {
+    if (!plane) return;
+    const [lo, hi] = head.bounds, q = hit(e).add(plane.off);
+    place.position = [0, 1, 2].map((a) => Math.min(hi[a], Math.max(lo[a], q.getComponent(a))));
+    refreshSliders(); placeObject();
+  });
+  window.addEventListener('pointerup', () => { if (plane) { plane = null; controls.enabled = true; } });
+}
 function refreshSliders() { for (const n of ['X', 'Y', 'Z', 'size']) $(`pos${n}`).refresh(); }
 
 function gridInfo() {
@@ -280,6 +307,10 @@ api.probeScreen = (i) => {
   if (disc >= 0) n.copy(oc.addScaledVector(d, -b - Math.sqrt(disc))).normalize();
   return { x, y, normal: [n.x, n.y, n.z], depth: camera.position.distanceTo(c) };
 };
+api.objectScreen = () => {  // the object's centre on the canvas (pixels from the top left)
+  const s = new THREE.Vector3(...place.position).project(camera);
+  return { x: (s.x + 1) / 2 * W, y: (1 - s.y) / 2 * H };
+};
 api.readPixel = (x, y) => {  // (x, y) from the top left
   draw();
   const gl = renderer.getContext(), px = new Uint8Array(4);
@@ -305,7 +336,7 @@ async function main() {
   const [lo, hi] = head.bounds, n = head.probes, K = (head.lmax + 1) ** 2;
   const mid = lo.map((v, a) => (v + hi[a]) / 2), rad = Math.hypot(...hi.map((h, a) => h - lo[a])) / 2;
   camera = new THREE.PerspectiveCamera(40, W / H, rad * 0.01, rad * 20);
-  const dist = rad / Math.sin(20 * Math.PI / 180) * 1.02;
+  const dist = rad / Math.sin(20 * Math.PI / 180) * 0.9;  // the box, not its bounding sphere, fills the view
   camera.position.set(mid[0] + dist * 0.55, mid[1] + dist * 0.5, mid[2] + dist * 0.67);
   controls = new OrbitControls(camera, $('view'));
   controls.target.set(...mid); controls.update();
@@ -376,6 +407,7 @@ async function main() {
     $(id).addEventListener('change', () => { for (const o of objs) if (o()) o().visible = $(id).checked; draw(); });
   }
   gridInfo();
+  dragObject();
   radiusCells($('radius').value);
   setExposure(autoExposure());
   placeObject();
