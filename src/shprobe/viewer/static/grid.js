@@ -279,16 +279,25 @@ function gridInfo() {
     ['depth data', head.has_depth ? 'yes (leak control available)' : 'no (plain trilinear only)'],
     ['brightest probe E', head.brightest.toPrecision(4)],
     ['scene', head.scene || '(none: --scene)'], ['object', head.object],
-    ...Object.entries(head.meta).map(([k, v]) => [k, Array.isArray(v) ? v.join(', ') : String(v)]),
+    // the bake settings, less what the rows above already give
+    ...Object.entries(head.meta).filter(([k]) => !['lmax', 'moved', 'invalid'].includes(k))
+      .map(([k, v]) => [['scene', 'object'].includes(k) ? `${k} (bake)` : k, Array.isArray(v) ? v.join(', ') : String(v)]),
   ];
   const t = $('gridinfo');
-  for (const [k, v] of rows) { const tr = t.insertRow(); tr.insertCell().textContent = k; tr.insertCell().textContent = v; }
+  for (const [k, v] of rows) {
+    const tr = t.insertRow(), text = String(v);
+    tr.insertCell().textContent = k;
+    const td = tr.insertCell();
+    td.textContent = text.length > 28 && !/\s/.test(text) ? `${text.slice(0, 12)}…${text.slice(-12)}` : text;
+    td.title = text;  // a long word (a hash) whole on hover
+  }
 }
 
 function radiusCells(v) {
   $('radval').textContent = Number(v).toFixed(2);
   const r = Number(v) * Math.min(...head.spacing);
   probeMat.uniforms.uRadius.value = r; cageMesh.material.uniforms.uScale.value = 1.5 * r;
+  cageMesh.userData.moved.uniforms.uScale.value = 1.3 * r;
   draw();
 }
 
@@ -361,19 +370,21 @@ async function main() {
   scene.add(probes);
 
   // marks: invalid probes caged, relocated probes tied to their cell centres
-  const invalid = [], moved = [], pts = [];
+  const invalid = [], moved = [];
   for (let p = 0; p < n; p++) {
     if (data.validity[p] < 0.5) invalid.push(p);
     const d = [0, 1, 2].map((a) => data.probe_position[3 * p + a] - data.probe_centre[3 * p + a]);
     if (Math.hypot(...d) > 1e-6 * Math.min(...head.spacing)) moved.push(p);
   }
   cageMesh = new THREE.Mesh(cages(data.probe_position, invalid), lineMaterial([1.0, 0.3, 0.3]));
+  const movedCages = new THREE.Mesh(cages(data.probe_position, moved), lineMaterial([0.95, 0.9, 0.25]));
+  movedCages.frustumCulled = false;
+  cageMesh.add(movedCages); cageMesh.userData.moved = movedCages.material;
   const mpts = [];
   moved.forEach((p) => mpts.push(...data.probe_centre.slice(3 * p, 3 * p + 3), ...data.probe_position.slice(3 * p, 3 * p + 3)));
   moveMesh = new THREE.Mesh(edges(mpts, null, moved.map((_, i) => [2 * i, 2 * i + 1])), lineMaterial([0.95, 0.9, 0.25]));
   boxMesh = new THREE.Mesh(boxEdges(lo, hi), lineMaterial([0.6, 0.6, 0.6]));
   for (const m of [cageMesh, moveMesh, boxMesh]) { m.frustumCulled = false; scene.add(m); }
-  pts.length = 0;
 
   // the object, in its unit bounding sphere: placed by position and scale
   objMat = objectMaterial();
