@@ -285,3 +285,5 @@ def test_grid_with_a_probe_is_refused(tmp_path):
     r = _run("--grid", str(tmp_path / "g.npz"), "--preset", "grace")
     assert r.returncode != 0 and "--grid" in r.stderr and "http" not in r.stdout
     assert len(r.stderr.strip().splitlines()) == 1
+    r = _run("--scene", str(tmp_path / "g.npz"))
+    assert r.returncode != 0 and "--scene goes with --grid" in r.stderr and "http" not in r.stdout

@@ -12,6 +12,7 @@ the page's toggle asks. Every body is bounded before it is read; a bad request i
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import time
@@ -36,6 +37,7 @@ MAX_VIEW_PROBES = 16384
 MAX_OBJECT_VERTICES = 1 << 20
 #: largest shading request body (bytes): a position, a size and a flag
 MAX_SHADE = 4096
+_log = logging.getLogger("shprobe.viewer")
 #: normals over which the brightest probe irradiance is found (the page's default exposure)
 _EXPOSURE_NORMALS = 512
 
@@ -230,6 +232,10 @@ class GridView:
             return Response(status_code=400)
         except ShprobeError as err:
             return JSONResponse({"error": str(err).splitlines()[0]}, 400)
+        except Exception as err:  # a library bug: one line in the log, the server stays up
+            line = str(err).splitlines()[0] if str(err) else type(err).__name__
+            _log.error("POST /api/grid/shade: %s: %s", type(err).__name__, line)
+            return JSONResponse({"error": line}, 500)
         ms = 1e3 * (time.perf_counter() - t)
         return Response(pack_binary({"leak_control": leak, "mean": e.mean(axis=0).tolist(),
                                      "ms": ms}, {"irradiance": e}),

@@ -424,6 +424,7 @@ async function main() {
   placeObject();
   await api.settled();
   api.ready = true;
-  $('status').textContent = 'ready';
+  api.readyMs = performance.now();
+  $('status').textContent = `ready in ${api.readyMs.toFixed(0)} ms`;
 }
 main().catch((e) => { showError(e); });
