@@ -417,6 +417,14 @@ async function main() {
   for (const [id, objs] of vis) {
     $(id).addEventListener('change', () => { for (const o of objs) if (o()) o().visible = $(id).checked; draw(); });
   }
+  // the camera framed on the volume, or brought to the object (same direction)
+  const frame = (target, d) => {
+    const dir = camera.position.clone().sub(controls.target).normalize();
+    controls.target.set(...target); camera.position.copy(controls.target).addScaledVector(dir, d);
+    controls.update(); draw();
+  };
+  $('frameobj').addEventListener('click', () => frame(place.position, place.size / Math.sin(20 * Math.PI / 180) * 1.6));
+  $('framevol').addEventListener('click', () => frame(mid, dist));
   gridInfo();
   dragObject();
   radiusCells($('radius').value);
