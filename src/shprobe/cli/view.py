@@ -20,12 +20,17 @@ def register(group: click.Group) -> None:
                        "sphere.")
     @click.option("--transfer", type=click.Path(dir_okay=False),
                   help="A `shprobe prt bake` output: relight it per vertex in the page.")
+    @click.option("--grid", "grid", type=click.Path(dir_okay=False),
+                  help="A `shprobe grid bake` output: show its probes and move --mesh through "
+                       "the volume, lit by interpolation (leak control on/off).")
+    @click.option("--scene", type=click.Path(dir_okay=False),
+                  help="With --grid: the scene the grid was baked from, drawn for context.")
     @click.option("--host", default="127.0.0.1", show_default=True,
                   help="Address to bind (0.0.0.0 exposes the viewer to the network).")
     @click.option("--port", default=0, show_default=True, type=click.IntRange(0, 65535),
                   help="Port (0: a free one).")
     @click.option("--no-browser", is_flag=True, help="Do not open a browser; print the URL.")
-    def view_cmd(probe, layout, preset, mesh, transfer, host, port, no_browser):
+    def view_cmd(probe, layout, preset, mesh, transfer, grid, scene, host, port, no_browser):
         """Interactive lighting design in the browser (R&H 2001 §3.3, LH 2007 §4): the probe,
         a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
         edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
@@ -42,6 +47,11 @@ def register(group: click.Group) -> None:
         require("viewer", "view")
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
+        if grid or scene:  # the grid page (viewer.grid): cli.view_grid
+            from .view_grid import view_grid
+
+            return view_grid(grid, mesh, scene, (probe, preset, transfer), host, port,
+                             no_browser)
         # the files start loading first (viewer.loader), in a fork that shares what both
         # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
         from .. import lighting  # noqa: F401

@@ -101,14 +101,17 @@ class Guard:
         await self.app(scope, receive, send)
 
 
-def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int = 0,
-               check_host: bool = True) -> Starlette:
+def create_app(session: Session | None, token: str, host: str = "127.0.0.1", port: int = 0,
+               check_host: bool = True, grid: Any = None) -> Starlette:
     """The viewer app for ``session``. ``port`` is the port it will listen on (for the Host
-    check; ``check_host=False`` accepts any Host, e.g. ``--host 0.0.0.0``)."""
+    check; ``check_host=False`` accepts any Host, e.g. ``--host 0.0.0.0``). ``grid`` (a
+    :class:`.grid.GridView`; session None): the grid page and its routes instead."""
     static = static_dir()
     index = (static / "index.html").read_text()
     h = Handlers(session, index, _csp(index), token, COOKIE.format(port=port))
     routes = [*h.routes(), Mount("/static", StaticFiles(directory=str(static)), name="static")]
+    if grid is not None:  # `shprobe view --grid`: the grid page and its API, not the viewer's
+        routes = [*grid.routes(_csp, token, COOKIE.format(port=port)), routes[-1]]
     app = Starlette(routes=routes)
     hosts = None
     if check_host:

@@ -1,0 +1,50 @@
+"""CLI: ``shprobe view --grid GRID [--mesh OBJECT] [--scene SCENE]``, the grid page of the
+viewer (:mod:`shprobe.viewer.grid`): its files are read before the URL is printed, so a bad
+one is one line and a non-zero exit, with no server started."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import webbrowser
+
+import click
+
+from ..errors import ShprobeError
+
+
+def view_grid(grid: str | None, mesh: str | None, scene: str | None,
+              others: tuple[str | None, ...], host: str, port: int, no_browser: bool) -> None:
+    """Serve the grid page for ``grid`` until Ctrl-C. ``others``: PROBE, --preset and
+    --transfer, which a grid's own lighting leaves no place for."""
+    if grid is None:
+        raise ShprobeError("--scene goes with --grid GRID")
+    if any(others):
+        raise ShprobeError("--grid shows the grid's own lighting: give no PROBE, --preset or "
+                           "--transfer with it")
+    from ..viewer import new_token
+    from ..viewer.grid import load_grid_view
+
+    view = load_grid_view(grid, mesh, scene)
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        click.echo(f"warning: --host {host} makes the viewer reachable from other machines; "
+                   "anyone with the URL's token can read what it serves", err=True)
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as e:
+        raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
+    sock.listen(128)
+    port = sock.getsockname()[1]
+    from ..viewer.app import create_app, make_server
+
+    token = new_token()
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+    url = f"http://{shown}:{port}/grid?token={token}"
+    local = host in ("127.0.0.1", "localhost", "::1")
+    server = make_server(create_app(None, token, host, port, check_host=local, grid=view))
+    click.echo(f"shprobe view: {url}")
+    if not no_browser:
+        threading.Timer(0.3, lambda: webbrowser.open(url)).start()
+    server.run(sockets=[sock])

@@ -1,0 +1,270 @@
+"""The grid view (``shprobe view --grid``): a probe grid (irradiance volume) in the page.
+
+The page draws what the library computes: each probe as a small sphere lit by its own SH (its
+irradiance coefficients E_lm = Â_l L_lm, R&H 2001 eq. 7, summed per pixel by the library's
+generated GLSL, :func:`~shprobe.lighting.glsl.glsl_irradiance`), the volume's box, the scene the
+grid was baked from (optional), and an object moved through the volume, lit per vertex by
+:meth:`ProbeGrid.irradiance <shprobe.grids.grid.ProbeGrid.irradiance>` at its vertices — with
+leak control (visibility-aware weights, where the grid has depth data) or plain trilinear, as
+the page's toggle asks. Every body is bounded before it is read; a bad request is one line,
+``{"error": ...}``, status 400.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from starlette.requests import Request
+from starlette.responses import JSONResponse, Response
+from starlette.routing import Route
+
+from ..errors import ShprobeError
+from ..grids import ProbeGrid, load_grid
+from .wire import pack_binary
+
+__all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "GridView", "Placement", "load_grid_view",
+           "parse_placement"]
+
+#: most probes the page draws (each a sphere of ~100 vertices)
+MAX_VIEW_PROBES = 16384
+#: most vertices of the moving object (each shading request interpolates at all of them)
+MAX_OBJECT_VERTICES = 1 << 20
+#: largest shading request body (bytes): a position, a size and a flag
+MAX_SHADE = 4096
+_log = logging.getLogger("shprobe.viewer")
+#: normals over which the brightest probe irradiance is found (the page's default exposure)
+_EXPOSURE_NORMALS = 512
+
+
+class Placement:
+    """Where the object stands: its bounding sphere's centre at ``position`` (3,), its radius
+    ``size``; ``leak_control`` as :meth:`ProbeGrid.irradiance` takes it."""
+
+    __slots__ = ("leak_control", "position", "size")
+
+    def __init__(self, position: NDArray[np.float64], size: float, leak_control: bool) -> None:
+        self.position, self.size, self.leak_control = position, size, leak_control
+
+    def place(self, local: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World positions of ``local`` points (the object in its unit bounding sphere)."""
+        return local * self.size + self.position
+
+
+def parse_placement(body: Any, grid: ProbeGrid) -> Placement:
+    """A shading request's JSON object ``{"position": [x, y, z], "size": r, "leak_control":
+    bool}`` checked against ``grid``: the position inside the volume's bounds, the size
+    positive and at most the volume's diagonal. One line on anything else."""
+    if not isinstance(body, dict) or set(body) - {"position", "size", "leak_control"}:
+        raise ShprobeError("shading request: want an object with position, size and "
+                           "leak_control only")
+    pos = body.get("position")
+    if not (isinstance(pos, list) and len(pos) == 3
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in pos)):
+        raise ShprobeError("shading request: position must be three numbers")
+    p = np.asarray(pos, dtype=np.float64)
+    lo, hi = grid.bounds
+    slack = 1e-9 * float(np.max(hi - lo))
+    if not np.all(np.isfinite(p)) or np.any(p < lo - slack) or np.any(p > hi + slack):
+        raise ShprobeError(f"shading request: position {np.round(p, 4).tolist()} is outside "
+                           f"the volume {np.round(lo, 4).tolist()}..{np.round(hi, 4).tolist()}")
+    size = body.get("size")
+    diag = float(np.linalg.norm(hi - lo))
+    if not (isinstance(size, int | float) and not isinstance(size, bool)
+            and np.isfinite(size) and 0 < size <= diag):
+        raise ShprobeError(f"shading request: size must be a number in (0, {diag:.4g}] "
+                           "(the volume's diagonal)")
+    leak = body.get("leak_control", True)
+    if not isinstance(leak, bool):
+        raise ShprobeError("shading request: leak_control must be true or false")
+    return Placement(p, float(size), leak)
+
+
+class GridView:
+    """Everything one ``shprobe view --grid`` serves: the grid, the object moved through it
+    (``obj`` a trimesh mesh, None: the unit sphere) and the scene it was baked from (None:
+    not drawn)."""
+
+    def __init__(self, grid: ProbeGrid, name: str, obj: Any = None, obj_name: str = "sphere",
+                 scene: Any = None, scene_name: str | None = None) -> None:
+        from ..scene import bounding_sphere, mesh_vertex_albedo, sphere_mesh
+
+        n = int(np.prod(grid.resolution))
+        if n > MAX_VIEW_PROBES:
+            raise ShprobeError(f"the grid has {n} probes; the viewer draws at most "
+                               f"{MAX_VIEW_PROBES}", name)
+        self.grid, self.name = grid, name
+        m = obj if obj is not None else sphere_mesh(4)
+        if len(m.vertices) > MAX_OBJECT_VERTICES:
+            raise ShprobeError(f"the object has {len(m.vertices)} vertices; the grid view "
+                               f"lights at most {MAX_OBJECT_VERTICES}", obj_name)
+        c, r = bounding_sphere(obj)
+        self.local = (np.asarray(m.vertices, dtype=np.float64) - c) / r
+        self.normals = np.asarray(m.vertex_normals, dtype=np.float64)
+        alb = mesh_vertex_albedo(m)
+        self.albedo = np.ones_like(self.local) if alb is None else np.asarray(alb)
+        self.faces = np.asarray(m.faces)
+        self.obj_name, self.scene, self.scene_name = obj_name, scene, scene_name
+        self._payload: bytes | None = None
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ what the page draws
+    def defaults(self) -> dict[str, Any]:
+        """The object's first placement: the volume's centre, radius half the smallest
+        cell."""
+        lo, hi = self.grid.bounds
+        return {"position": (0.5 * (lo + hi)).tolist(),
+                "size": 0.5 * float(np.min(self.grid.spacing)), "leak_control": True}
+
+    def probe_irradiance_coeffs(self) -> NDArray[np.float64]:
+        """E_lm = Â_l L_lm (N, K, 3) of every probe (flat index (ix·NY + iy)·NZ + iz, as
+        :func:`~shprobe.grids.grid.plain_weights` numbers them)."""
+        from ..lighting.irradiance import irradiance_coeffs
+
+        g = self.grid
+        return irradiance_coeffs(np.asarray(g.coeffs, dtype=np.float64)
+                                 .reshape(-1, *g.coeffs.shape[-2:]))
+
+    def brightest(self) -> float:
+        """The largest irradiance E (any channel) of any probe over a set of normals: what the
+        page's default exposure maps to white (interpolated irradiance is a convex blend of
+        the probes', so nothing the page draws is brighter)."""
+        from ..prt.directions import sample_directions
+        from ..sh.basis import sh_basis
+
+        y = sh_basis(sample_directions(_EXPOSURE_NORMALS), self.grid.lmax)
+        e = np.einsum("mk,nkc->nmc", y, self.probe_irradiance_coeffs())
+        return float(max(np.max(e), 0.0))
+
+    def payload(self) -> bytes:
+        """The page's data in one :func:`pack_binary` message (made once)."""
+        with self._lock:
+            if self._payload is None:
+                self._payload = self._make_payload()
+            return self._payload
+
+    def _make_payload(self) -> bytes:
+        from ..lighting.glsl import glsl_irradiance
+
+        g = self.grid
+        n = int(np.prod(g.resolution))
+        pos = g.probe_positions().reshape(n, 3)
+        cen = g.centres().reshape(n, 3)
+        val = (np.ones(n) if g.validity is None else np.asarray(g.validity).reshape(n))
+        moved = np.linalg.norm(pos - cen, axis=1) > 1e-6 * float(np.min(g.spacing))
+        head = {
+            "name": self.name, "resolution": list(g.resolution), "lmax": g.lmax,
+            "bounds": g.bounds.tolist(), "spacing": g.spacing.tolist(), "probes": n,
+            "has_depth": g.depth is not None, "meta": _json_safe(dict(g.meta)),
+            "invalid": int(np.sum(val < 0.5)), "relocated": int(np.sum(moved)),
+            "brightest": self.brightest(), "object": self.obj_name, "scene": self.scene_name,
+            "defaults": self.defaults(),
+            # the library's per-pixel E(n) (R&H eq. 7), its E_lm read per probe by the page
+            "glsl": glsl_irradiance(g.lmax)}
+        arrays = {"probe_position": pos, "probe_centre": cen, "validity": val,
+                  "probe_e": self.probe_irradiance_coeffs(),
+                  "object_position": self.local, "object_normal": self.normals,
+                  "object_albedo": self.albedo, "object_index": self.faces}
+        if self.scene is not None:
+            arrays["scene_position"] = np.asarray(self.scene.vertices)
+            arrays["scene_normal"] = np.asarray(self.scene.vertex_normals)
+            arrays["scene_index"] = np.asarray(self.scene.faces)
+        return pack_binary(head, arrays)
+
+    def shade(self, placement: Placement) -> tuple[NDArray[np.float64], bool]:
+        """Irradiance E (V, 3) at the object's vertices placed by ``placement``
+        (:meth:`ProbeGrid.irradiance`) and whether leak control was applied (it needs the
+        grid's depth data)."""
+        e = self.grid.irradiance(placement.place(self.local), self.normals,
+                                 leak_control=placement.leak_control)
+        return e, placement.leak_control and self.grid.depth is not None
+
+    # ------------------------------------------------------------------ HTTP
+    def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:
+        """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint."""
+        from .app import static_dir
+
+        html = (static_dir() / "grid.html").read_text()
+        csp = csp_of(html)
+
+        async def page(req: Request) -> Response:
+            r = Response(html, media_type="text/html", headers={
+                "Content-Security-Policy": csp, "Cache-Control": "no-store",
+                "Referrer-Policy": "no-referrer"})
+            r.set_cookie(cookie, token, httponly=True, samesite="strict")
+            return r
+
+        return [Route("/", page), Route("/grid", page),
+                Route("/api/grid", self._data), Route("/api/grid/shade", self._shade,
+                                                        methods=["POST"])]
+
+    async def _data(self, req: Request) -> Response:
+        from anyio import to_thread
+
+        data = await to_thread.run_sync(self.payload)
+        return Response(data, media_type="application/octet-stream")
+
+    async def _shade(self, req: Request) -> Response:
+        from anyio import to_thread
+        from starlette.requests import ClientDisconnect
+
+        from ..lighting.document import parse_json
+
+        try:
+            text = req.headers.get("content-length", "")
+            if text and (not text.isdigit() or int(text) > MAX_SHADE):
+                raise ShprobeError(f"shading request: over the {MAX_SHADE}-byte limit")
+            body = bytearray()
+            async for chunk in req.stream():
+                body += chunk
+                if len(body) > MAX_SHADE:
+                    raise ShprobeError(f"shading request: over the {MAX_SHADE}-byte limit")
+            spec = parse_placement(parse_json(body.decode("utf-8", "replace") or "{}",
+                                              "shading request"), self.grid)
+            t = time.perf_counter()
+            e, leak = await to_thread.run_sync(self.shade, spec)
+        except ClientDisconnect:
+            return Response(status_code=400)
+        except ShprobeError as err:
+            return JSONResponse({"error": str(err).splitlines()[0]}, 400)
+        except Exception as err:  # a library bug: one line in the log, the server stays up
+            line = str(err).splitlines()[0] if str(err) else type(err).__name__
+            _log.error("POST /api/grid/shade: %s: %s", type(err).__name__, line)
+            return JSONResponse({"error": line}, 500)
+        ms = 1e3 * (time.perf_counter() - t)
+        return Response(pack_binary({"leak_control": leak, "mean": e.mean(axis=0).tolist(),
+                                     "ms": ms}, {"irradiance": e}),
+                        media_type="application/octet-stream")
+
+
+def load_grid_view(grid_path: str, mesh_path: str | None = None,
+                   scene_path: str | None = None) -> GridView:
+    """Read what ``shprobe view --grid`` shows: the grid file, the object (``mesh_path``; the
+    viewer's default mesh where none is given) and the scene (``scene_path``, optional). A bad
+    file is one line naming it."""
+    from ..scene import load_mesh
+    from .loader import mesh_to_load
+
+    grid = load_grid(grid_path)
+    obj_path = mesh_to_load(mesh_path, None)
+    obj = None if obj_path is None else load_mesh(obj_path)
+    scene = None if scene_path is None else load_mesh(scene_path)
+    return GridView(grid, os.path.basename(grid_path), obj,
+                    "sphere" if obj_path is None else os.path.basename(obj_path),
+                    scene, None if scene_path is None else os.path.basename(scene_path))
+
+
+def _json_safe(meta: dict[str, Any]) -> dict[str, Any]:
+    """The grid's bake settings as the page shows them (scalars and short lists only)."""
+    out: dict[str, Any] = {}
+    for k, v in meta.items():
+        if isinstance(v, str | int | float | bool) or v is None:
+            out[str(k)] = v if not isinstance(v, str) else v[:200]
+        elif isinstance(v, list | tuple) and len(v) <= 16:
+            out[str(k)] = [x for x in v if isinstance(x, str | int | float | bool)]
+    return out
