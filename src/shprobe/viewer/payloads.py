@@ -22,16 +22,23 @@ BACKGROUND_H = 512
 VIEW_AZIMUTH, VIEW_ELEVATION = 30.0, 25.0
 
 
-def view_cameras(center: Any, radius: float) -> dict[str, Any]:
+#: a scene on a ground plane is framed this much wider than its object, so that the ground
+#: (and the object's shadow on it) is seen around the object
+GROUND_FRAMING = 1.6
+
+
+def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, Any]:
     """The page's two cameras for an object of bounding sphere (``center``, ``radius``):
     ``camera`` the library's default :class:`~shprobe.scene.Camera` (512×512, elevation 0:
     what the page's pixel reads compare with :func:`shprobe.scene.render`) and ``view`` the
-    orbit camera the page starts from (:data:`VIEW_AZIMUTH`, :data:`VIEW_ELEVATION`)."""
+    orbit camera the page starts from (:data:`VIEW_AZIMUTH`, :data:`VIEW_ELEVATION`; on a
+    ``ground``, :data:`GROUND_FRAMING` times wider)."""
     from ..scene import Camera
 
+    wide = GROUND_FRAMING if ground else 1.0
     return {"camera": camera_json(Camera(512, 512), center, radius),
             "view": camera_json(Camera(512, 512, azimuth=VIEW_AZIMUTH,
-                                       elevation=VIEW_ELEVATION), center, radius)}
+                                       elevation=VIEW_ELEVATION), center, wide * radius)}
 
 
 def ground_count(vertices: Any, normals: Any, has_ground: bool) -> int:

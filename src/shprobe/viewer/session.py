@@ -460,7 +460,7 @@ class Session:
             {"name": self.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
              "max_bounces": t.max_bounces, "mode": mode or t.mode, "bounces": bounces,
              "ground_vertices": ng, "center": c.tolist(), "radius": r,
-             **view_cameras(c, r)},
+             **view_cameras(c, r, ground=ng > 0)},
             {"position": v, "normal": t.normals, "index": t.faces,
              "transfer": T.reshape(T.shape[0], -1)})
 

@@ -21,11 +21,11 @@ export class View3D {
     this.fit();
   }
 
-  // the drawing buffer follows the canvas's size on the page (CSS pixels × devicePixelRatio,
-  // at most 2); → true when it changed
+  // the drawing buffer follows the canvas's size on the page (its content box, CSS pixels ×
+  // devicePixelRatio, at most 2; the canvas fills its wrapper); → true when it changed
   fit() {
     const r = Math.min(window.devicePixelRatio || 1, 2);
-    const w = Math.max(1, Math.round(this.wrap.clientWidth * r)), h = Math.max(1, Math.round(this.wrap.clientHeight * r));
+    const w = Math.max(1, Math.round(this.canvas.clientWidth * r)), h = Math.max(1, Math.round(this.canvas.clientHeight * r));
     if (w === this.size[0] && h === this.size[1]) return false;
     this.size = [w, h];
     this.renderer.setPixelRatio(1); this.renderer.setSize(w, h, false);
