@@ -51,7 +51,7 @@ def compare_data(src: Source, progress: Progress | None = None) -> dict[str, Any
 
 
 #: the H-basis view's panels, in order, with their captions (the page shows them as given)
-HBASIS_LABELS = {"reference": "reference: exact E(n′)", "H6": "H6: 6 per-vertex coefficients",
+HBASIS_LABELS = {"reference": "reference E(n′)", "H6": "H6: 6 per-vertex coefficients",
                  "H4": "H4: 4 per-vertex coefficients", "SH9": "SH9: 9 per-vertex coefficients"}
 
 
