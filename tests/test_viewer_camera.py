@@ -27,11 +27,12 @@ def _ndc(cam, points):
 
 
 def _layout(page):
-    return page.evaluate("""() => { const r = (id) => document.getElementById(id).getBoundingClientRect();
-      const v = r('view'), row = r('viewrow'), side = r('right');
-      return { view: [v.left, v.top, v.right, v.bottom], row: [row.left, row.top, row.right, row.bottom],
-               side: [side.left, side.top, side.right, side.bottom], w: innerWidth, h: innerHeight,
-               scrollW: document.documentElement.scrollWidth, scrollH: document.documentElement.scrollHeight }; }""")
+    return page.evaluate("""() => {
+      const r = (id) => { const b = document.getElementById(id).getBoundingClientRect();
+                          return [b.left, b.top, b.right, b.bottom]; };
+      const d = document.documentElement;
+      return { view: r('view'), row: r('viewrow'), side: r('right'), w: innerWidth,
+               h: innerHeight, scrollW: d.scrollWidth, scrollH: d.scrollHeight }; }""")
 
 
 def test_view_framed_from_above_and_follows_the_window():

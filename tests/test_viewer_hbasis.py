@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.viewer.design import read_state
 from shprobe.viewer.session import Session
 
 from .conftest import data_file
@@ -25,7 +24,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 PANELS = """() => [...document.querySelectorAll('#hbpanels figure')].map((f) => {
   const c = f.querySelector('canvas'), r = f.getBoundingClientRect();
-  return { id: c ? c.id : null, w: c ? c.width : 0, caption: f.querySelector('figcaption').textContent,
+  return { id: c ? c.id : null, w: c ? c.width : 0,
+           caption: f.querySelector('figcaption').textContent,
            box: [r.left, r.top, r.right, r.bottom] }; })"""
 
 
@@ -68,8 +68,7 @@ def test_hbasis_view_labelled_heat_map_in_percent():
         assert not page.locator("#view").is_visible()  # the panels take the view's place
         assert not page.locator("#lmax").is_visible()  # the H-basis view bakes at lmax 4
         caps = _check_panels(page, ["reference", "H6", "H4", "SH9"])
-        # the numbers, from the library's render of the same lighting
-        L, _ = s.session.design_exact(read_state({}).with_lmax(4))
+        # the numbers, from the library's render of the same lighting (no edits: the probe)
         dirs = LatLong().pixel_directions((64, 128))
         env = Env(np.asarray(s.session.source.env.sample(dirs), np.float32), LatLong())
         res = render_normal_mapped(s.session.mesh, env, size=160)

@@ -18,7 +18,8 @@ LABELS = """() => [...document.querySelectorAll('canvas')].filter((c) => c.offse
   .map((c) => { let e = c.closest('#viewwrap') || c, l = e.previousElementSibling;
     if (c.closest('figure')) l = c.closest('figure').querySelector('figcaption');
     const r = (l || c).getBoundingClientRect();
-    return { id: c.id, label: l ? l.textContent.trim() : '', box: [r.left, r.top, r.right, r.bottom] }; })"""
+    return { id: c.id, label: l ? l.textContent.trim() : '',
+             box: [r.left, r.top, r.right, r.bottom] }; })"""
 
 
 def _table(page):

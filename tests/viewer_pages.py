@@ -14,7 +14,7 @@ from typing import Any
 from .browser import chromium_page
 from .test_viewer import VENDOR, Served
 
-__all__ = ["bake_ball", "opened", "serving", "settle", "set_state", "shot"]
+__all__ = ["bake_ball", "opened", "serving", "set_state", "settle", "shot"]
 
 
 @contextlib.contextmanager
