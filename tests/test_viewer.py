@@ -645,13 +645,14 @@ def test_upload_coefficients_as_source(served):
 
 
 def test_every_three_name_the_page_uses_is_bundled():
-    """viewer.js's THREE.* names are exported by the bundle's entry (tools/js/entry.js): a
-    name missing there is undefined in the page, found otherwise only when that code runs."""
+    """The page's THREE.* names (viewer.js and its modules) are exported by the bundle's entry
+    (tools/js/entry.js): a name missing there is undefined in the page, found otherwise only
+    when that code runs."""
     import re
 
     root = Path(__file__).resolve().parents[1]
-    used = set(re.findall(r"\bTHREE\.(\w+)", (root / "src/shprobe/viewer/static/viewer.js")
-                          .read_text()))
+    used = {n for f in (root / "src/shprobe/viewer/static").glob("*.js")  # the page's modules
+            for n in re.findall(r"\bTHREE\.(\w+)", f.read_text())}
     entry = (root / "tools/js/entry.js").read_text()
     exported = set(re.findall(r"\b(\w+)\b", entry.split("export {", 1)[1].split("}", 1)[0]))
     assert used and used <= exported, sorted(used - exported)
