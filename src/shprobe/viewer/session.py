@@ -62,6 +62,7 @@ class Session:
         #: a ``shprobe hbasis bake`` file's per-vertex coefficients (``--hbasis``, an upload)
         self.hbasis_bake: Any = None
         self.hbasis_name: str | None = None
+        self._hbasis_made: Any = None  # (bake, its panel)
         self.uploads = Uploads()
         self.lock = threading.Lock()
         self.tasks: dict[str, Task] = {}
@@ -129,11 +130,11 @@ class Session:
             try:
                 if transfer:
                     self.load_transfer(transfer)
-                if self._hbasis_arg:  # checked against the mesh below, once it is in
-                    self._read_hbasis(self._hbasis_arg)
                 if mesh_path and not forked:
                     self.load_mesh(mesh_path, os.path.basename(mesh_path))
                     self.stamp("geometry_done")
+                if self._hbasis_arg:  # checked against the mesh below, once it is in
+                    self._read_hbasis(self._hbasis_arg)
             except BaseException as e:  # re-raised below, in the caller's thread
                 errors.append(e)
 
@@ -274,8 +275,12 @@ class Session:
         lmax 4; with an H-basis bake loaded, its per-vertex coefficients under the lighting
         they were baked for (``spec`` does not apply: a bake holds its lighting)."""
         bk = self.hbasis_bake
-        if bk is not None:
-            return hbasis_panel(bk.lighting, None, np.eye(3), self.mesh, baked=bk)
+        if bk is not None:  # the same picture whatever the edits: made once per bake
+            hit = self._hbasis_made
+            if hit is None or hit[0] is not bk:
+                hit = self._hbasis_made = (bk, hbasis_panel(bk.lighting, None, np.eye(3),
+                                                            self.mesh, baked=bk))
+            return hit[1]
         L, _ = self.design_exact(spec.with_lmax(4))
         return hbasis_panel(L, self.source.env, spec.rotation_matrix(), self.mesh)
 
@@ -374,6 +379,7 @@ class Session:
         with self._mesh_lock:
             self._mesh, self._mesh_path, self._mesh_bytes = m, None, None
             self.mesh_name = name or os.path.basename(path)
+        self.hbasis_bake = None  # per vertex of the mesh it was baked for
 
     def load_transfer(self, path: str, name: str | None = None) -> None:
         """A transfer file (``shprobe prt bake``), read by the library's checked reader; an
