@@ -38,6 +38,7 @@ def test_lmax6_transfer_every_degree_editable(tmp_path):
     tp = bake_ball(tmp_path, lmax=6, mode="interreflected", bounces=1)
     with serving(Session(preset="grace", transfer=str(tp))) as s, opened(s) as page:
         assert page.evaluate("() => window.__shprobe.lastError") is None
+        assert "preset:grace has no image" in page.locator("#probelabel").inner_text()
         # the design's degree: every degree a design may have, the transfer's chosen
         assert _options(page, "#lmax") == [str(l) for l in range(DESIGN_LMAX + 1)]
         assert page.locator("#lmax").input_value() == "6"

@@ -648,8 +648,12 @@ async function uploadCube() {  // six faces +X −X +Y −Y +Z −Z in one reque
   } catch (e) { showError(e); }  // the edit state and the current source are kept
   setStatus('');
 }
+function probeLabel(src) {  // a preset or coefficients have no picture: the panel says so
+  $('probelabel').textContent = src.has_env ? 'Probe (lat-long, +Y up, centre −Z; drag to rotate the lighting)'
+    : `Probe: ${src.name} has no image (grey here); drag to rotate the lighting, which the irradiance map below shows`;
+}
 async function newSource(src) {
-  $('source').textContent = src.name;
+  $('source').textContent = src.name; probeLabel(src);
   cmp = null; bgTex = null;
   if (src.has_env) await loadBackground();
   if ($('mode').value !== 'design' && $('mode').value !== 'prt') $('mode').value = 'design';
@@ -725,7 +729,7 @@ async function main() {
   const init = await first('init', () => call('/api/init'));
   mark('init');
   api.init = init;
-  $('source').textContent = init.source.name;
+  $('source').textContent = init.source.name; probeLabel(init.source);
   const saved = localStorage.getItem(KEY);   // the edit state survives a reload
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
   else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most design.DESIGN_LMAX
