@@ -204,26 +204,29 @@ def test_webgl_pixels_above_lmax_4_equal_library_render(page, served):
 
 
 def test_drag_on_probe_rotates_lighting_by_wigner(page):
-    """A horizontal drag of 64 px on the 512 px wide probe turns the lighting by −45° about +Y
-    (features follow the cursor); the page's coefficients are the library's rotation."""
+    """A horizontal drag of dx px on the probe panel (W px wide on the page) turns the
+    lighting by −360°·dx/W about +Y (features follow the cursor); the page's coefficients are
+    the library's rotation."""
     from shprobe.lighting.design import rotate_lighting
     from shprobe.sh.rotation import from_axis_angle
 
     _state(page, {})
     L0 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
     box = page.locator("#probe").bounding_box()
-    x, y = box["x"] + 200, box["y"] + 100
+    w, h = page.evaluate("() => [document.getElementById('probe').clientWidth, "
+                         "document.getElementById('probe').clientHeight]")
+    x, y = box["x"] + 100, box["y"] + 60
     page.mouse.move(x, y)
     page.mouse.down()
     for i in range(1, 9):
-        page.mouse.move(x + 8 * i, y)
+        page.mouse.move(x + 6 * i, y)
     page.mouse.up()
     _settle(page)
     L1 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
-    want = rotate_lighting(L0, from_axis_angle([0, 1, 0], -45.0))
+    want = rotate_lighting(L0, from_axis_angle([0, 1, 0], -360.0 * 48 / w))
     np.testing.assert_allclose(L1, want, atol=1e-9 * np.abs(L0).max())
     assert not np.allclose(L1, L0, atol=1e-3)
-    # then a vertical drag of 32 px (of 256): −22.5° about +X, composed on the left
+    # then a vertical drag of 32 px (of h): −180°·32/h about +X, composed on the left
     page.mouse.move(x, y)
     page.mouse.down()
     page.mouse.move(x, y + 16)
@@ -231,7 +234,8 @@ def test_drag_on_probe_rotates_lighting_by_wigner(page):
     page.mouse.up()
     _settle(page)
     L2 = np.array(page.evaluate("() => window.__shprobe.coeffs"))
-    R = from_axis_angle([1, 0, 0], -22.5) @ from_axis_angle([0, 1, 0], -45.0)
+    R = from_axis_angle([1, 0, 0], -180.0 * 32 / h) @ from_axis_angle([0, 1, 0],
+                                                                     -360.0 * 48 / w)
     np.testing.assert_allclose(L2, rotate_lighting(L0, R), atol=1e-9 * np.abs(L0).max())
     assert page.evaluate("() => window.__shprobe.localFrames") > 0  # drawn without a round trip
     # the page's own rotation (lmax <= 2, used while dragging) is the library's Wigner rotation
@@ -337,7 +341,8 @@ def test_compare_view_shows_library_numbers(page, probe_path):
         want = rep.row(r["lmax"])
         assert r["max_frac"] == pytest.approx(want.max_frac, rel=1e-9)
         assert r["mean_frac"] == pytest.approx(want.mean_frac, rel=1e-9)
-    assert page.locator("#legendmax").inner_text() == f"{rep.row(2).max_frac:.3g}"
+    # the legend's scale in % of ∫L dω, as the table and `shprobe error`
+    assert page.locator("#legendmax").inner_text() == f"{100 * rep.row(2).max_frac:.3f} %"
     page.screenshot(path=str(Path(os.environ.get("SHPROBE_VIEWER_SHOTS", "/tmp"))
                              / "viewer_error.png"))
     page.select_option("#mode", "design")
@@ -611,7 +616,8 @@ def test_hbasis_panel_in_page(page, served):
     _, want = served.session.hbasis(read_state({"rotation": rot}))
     assert got == pytest.approx(want, rel=1e-12)
     assert got["H6"] < got["H4"]
-    assert page.locator("#hbimg").evaluate("(e) => e.naturalWidth") > 0
+    for k in ("reference", "H6", "H4", "SH9"):
+        assert page.locator(f"#hb-{k}").evaluate("(e) => e.width") > 0
     page.select_option("#mode", "design")
 
 
@@ -639,13 +645,14 @@ def test_upload_coefficients_as_source(served):
 
 
 def test_every_three_name_the_page_uses_is_bundled():
-    """viewer.js's THREE.* names are exported by the bundle's entry (tools/js/entry.js): a
-    name missing there is undefined in the page, found otherwise only when that code runs."""
+    """The page's THREE.* names (viewer.js and its modules) are exported by the bundle's entry
+    (tools/js/entry.js): a name missing there is undefined in the page, found otherwise only
+    when that code runs."""
     import re
 
     root = Path(__file__).resolve().parents[1]
-    used = set(re.findall(r"\bTHREE\.(\w+)", (root / "src/shprobe/viewer/static/viewer.js")
-                          .read_text()))
+    used = {n for f in (root / "src/shprobe/viewer/static").glob("*.js")  # the page's modules
+            for n in re.findall(r"\bTHREE\.(\w+)", f.read_text())}
     entry = (root / "tools/js/entry.js").read_text()
     exported = set(re.findall(r"\b(\w+)\b", entry.split("export {", 1)[1].split("}", 1)[0]))
     assert used and used <= exported, sorted(used - exported)

@@ -25,12 +25,15 @@ def register(group: click.Group) -> None:
                        "the volume, lit by interpolation (leak control on/off).")
     @click.option("--scene", type=click.Path(dir_okay=False),
                   help="With --grid: the scene the grid was baked from, drawn for context.")
+    @click.option("--hbasis", type=click.Path(dir_okay=False),
+                  help="A `shprobe hbasis bake` output for the mesh shown: its H-basis view.")
     @click.option("--host", default="127.0.0.1", show_default=True,
                   help="Address to bind (0.0.0.0 exposes the viewer to the network).")
     @click.option("--port", default=0, show_default=True, type=click.IntRange(0, 65535),
                   help="Port (0: a free one).")
     @click.option("--no-browser", is_flag=True, help="Do not open a browser; print the URL.")
-    def view_cmd(probe, layout, preset, mesh, transfer, grid, scene, host, port, no_browser):
+    def view_cmd(probe, layout, preset, mesh, transfer, grid, scene, hbasis, host, port,
+                 no_browser):
         """Interactive lighting design in the browser (R&H 2001 §3.3, LH 2007 §4): the probe,
         a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
         edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
@@ -50,7 +53,7 @@ def register(group: click.Group) -> None:
         if grid or scene:  # the grid page (viewer.grid): cli.view_grid
             from .view_grid import view_grid
 
-            return view_grid(grid, mesh, scene, (probe, preset, transfer), host, port,
+            return view_grid(grid, mesh, scene, (probe, preset, transfer, hbasis), host, port,
                              no_browser)
         # the files start loading first (viewer.loader), in a fork that shares what both
         # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
@@ -59,7 +62,8 @@ def register(group: click.Group) -> None:
 
         # the loading stages' times, for bench/bench_viewer.py (served by /api/init)
         stamps = {"cli": t_cli} if os.environ.get("SHPROBE_VIEW_STAMPS") else None
-        session = Session(probe, preset, mesh, transfer, layout, load=False, stamps=stamps)
+        session = Session(probe, preset, mesh, transfer, layout, load=False, stamps=stamps,
+                          hbasis=hbasis)
         session.fork_loader()  # before any thread starts
         if host not in ("127.0.0.1", "localhost", "::1"):
             click.echo(f"warning: --host {host} makes the viewer reachable from other "

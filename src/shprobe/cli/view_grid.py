@@ -15,13 +15,13 @@ from ..errors import ShprobeError
 
 def view_grid(grid: str | None, mesh: str | None, scene: str | None,
               others: tuple[str | None, ...], host: str, port: int, no_browser: bool) -> None:
-    """Serve the grid page for ``grid`` until Ctrl-C. ``others``: PROBE, --preset and
-    --transfer, which a grid's own lighting leaves no place for."""
+    """Serve the grid page for ``grid`` until Ctrl-C. ``others``: PROBE, --preset,
+    --transfer and --hbasis, which a grid's own lighting leaves no place for."""
     if grid is None:
         raise ShprobeError("--scene goes with --grid GRID")
     if any(others):
-        raise ShprobeError("--grid shows the grid's own lighting: give no PROBE, --preset or "
-                           "--transfer with it")
+        raise ShprobeError("--grid shows the grid's own lighting: give no PROBE, --preset, "
+                           "--transfer or --hbasis with it")
     from ..viewer import new_token
     from ..viewer.grid import load_grid_view
 

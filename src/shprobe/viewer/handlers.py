@@ -36,7 +36,7 @@ __all__ = ["MAX_STATE", "Handlers"]
 #: largest edit-state body (bytes)
 MAX_STATE = 1 << 20
 #: upload kinds: what the page may send to /api/upload/{kind}
-KINDS = ("probe", "blend", "cube", "mesh", "transfer", "coeffs", "preset")
+KINDS = ("probe", "blend", "cube", "mesh", "transfer", "coeffs", "preset", "hbasis")
 
 _log = logging.getLogger("shprobe.viewer")
 Handler = Callable[[Request], Awaitable[Response]]
@@ -202,6 +202,12 @@ class Handlers:
             # the design's degree for it (a default bake's lmax 10 is over DESIGN_LMAX)
             "design_lmax": min(t.lmax, DESIGN_LMAX)}
 
+    def _hbasis_info(self) -> dict[str, Any] | None:
+        bk = self.session.hbasis_bake
+        return None if bk is None else {
+            "name": self.session.hbasis_name, "basis": bk.basis, "bands": bk.bands,
+            "n_vertices": int(bk.h.shape[0])}
+
     @api
     async def init(self, req: Request) -> Response:
         from ..lighting.export import FORMATS
@@ -212,7 +218,9 @@ class Handlers:
         return JSONResponse({
             "source": self._source_info(), "formats": list(FORMATS), "windows": list(WINDOWS),
             "presets": list(PRESETS), "mesh": s.mesh_name, "transfer": self._transfer_info(),
-            "timings": s.stamps or {}, "probes": s.probe_list()})
+            "hbasis": self._hbasis_info(), "timings": s.stamps or {}, "probes": s.probe_list(),
+            # the degrees the page offers: a design's (the lmax menu), the compare view's
+            "design_lmax": DESIGN_LMAX, "compare_lmax": MAX_LMAX})
 
     @api
     async def mesh(self, req: Request) -> Response:
@@ -274,8 +282,8 @@ class Handlers:
     @api
     async def hbasis(self, req: Request) -> Response:
         spec = await read_spec(req)
-        png, rms = await to_thread.run_sync(self.session.hbasis, spec)
-        return Response(png, media_type="image/png",
+        data, rms = await to_thread.run_sync(self.session.hbasis, spec)
+        return Response(data, media_type="application/octet-stream",
                         headers={"X-Shprobe-Rel-Rms": json.dumps(rms)})
 
     # -- uploads --------------------------------------------------------------------------
@@ -303,7 +311,8 @@ class Handlers:
             shown = f"cube faces {names[0]} … {names[-1]}" if len(names) > 1 else names[0]
         else:
             p, shown = s.uploads.reserve(req.headers.get("x-filename", ""),
-                                         ("probe",) if kind == "blend" else (kind,))
+                                         {"blend": ("probe",), "hbasis": ("transfer",)}
+                                         .get(kind, (kind,)))
             await receive(req, p, shown)
             path, paths, names = str(p), [str(p)], [shown]
         try:
@@ -321,6 +330,7 @@ class Handlers:
             s.tasks.pop("compare", None)
         return JSONResponse({"source": self._source_info(), "mesh": s.mesh_name,
                              "transfer": self._transfer_info(), "probe_id": pid,
+                             "hbasis": self._hbasis_info(),
                              "probes": s.probe_list()})
 
     def _load(self, kind: str, path: Any, shown: str) -> Any:
@@ -338,6 +348,9 @@ class Handlers:
             return coeffs_source(path, shown)
         if kind == "mesh":
             s.load_mesh(path, shown)
+        elif kind == "hbasis":
+            Uploads.check_npz(Path(path), shown)
+            s.load_hbasis(path, shown)
         else:
             Uploads.check_npz(Path(path), shown)
             s.load_transfer(path, shown)

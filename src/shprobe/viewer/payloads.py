@@ -11,17 +11,54 @@ import numpy as np
 
 from .wire import camera_json, pack_binary
 
-__all__ = ["BACKGROUND_H", "background_payload", "cached_mesh_payload", "mesh_payload"]
+__all__ = ["BACKGROUND_H", "VIEW_AZIMUTH", "VIEW_ELEVATION", "background_payload",
+           "cached_mesh_payload", "ground_count", "mesh_payload", "view_cameras"]
 
 #: lat-long size (H) of the background texture sent to the page
 BACKGROUND_H = 512
+#: where the page's orbit camera starts (degrees, :class:`shprobe.scene.Camera`'s angles):
+#: a three-quarter view from above the horizon, so that a ground plane is seen as a floor
+#: rather than edge-on
+VIEW_AZIMUTH, VIEW_ELEVATION = 30.0, 25.0
+
+
+#: a scene on a ground plane is framed this much wider than its object, so that the ground
+#: (and the object's shadow on it) is seen around the object
+GROUND_FRAMING = 1.6
+
+
+def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, Any]:
+    """The page's two cameras for an object of bounding sphere (``center``, ``radius``):
+    ``camera`` the library's default :class:`~shprobe.scene.Camera` (512×512, elevation 0:
+    what the page's pixel reads compare with :func:`shprobe.scene.render`) and ``view`` the
+    orbit camera the page starts from (:data:`VIEW_AZIMUTH`, :data:`VIEW_ELEVATION`; on a
+    ``ground``, :data:`GROUND_FRAMING` times wider)."""
+    from ..scene import Camera
+
+    wide = GROUND_FRAMING if ground else 1.0
+    return {"camera": camera_json(Camera(512, 512), center, radius),
+            "view": camera_json(Camera(512, 512, azimuth=VIEW_AZIMUTH,
+                                       elevation=VIEW_ELEVATION), center, wide * radius)}
+
+
+def ground_count(vertices: Any, normals: Any, has_ground: bool) -> int:
+    """How many of the last vertices are a PRT scene's ground plane
+    (:func:`shprobe.prt.geometry.ground_plane`: a square grid of (n+1)² vertices, last, in one
+    plane y = const with normals +Y); 0 without one."""
+    if not has_ground:
+        return 0
+    v, n = np.asarray(vertices), np.asarray(normals)
+    flat = (v[:, 1] == v[-1, 1]) & (np.abs(n[:, 1] - 1.0) < 1e-9)
+    k = len(v) if flat.all() else int(np.argmin(flat[::-1]))  # trailing run
+    side = int(np.sqrt(k))
+    return side * side if side * side < len(v) else 0
 
 
 def mesh_payload(mesh: Any, name: str) -> bytes:
     """What the page draws, in one :func:`pack_binary` message: positions, normals, albedo
     (V, 3) as the renderer reads them, faces, and the library camera framing the bounding
     sphere. ``mesh`` None: the renderer's analytic unit sphere (drawn as a fine icosphere)."""
-    from ..scene import Camera, bounding_sphere, mesh_vertex_albedo, sphere_mesh
+    from ..scene import bounding_sphere, mesh_vertex_albedo, sphere_mesh
 
     m = mesh if mesh is not None else sphere_mesh(5)
     alb = mesh_vertex_albedo(m)
@@ -31,7 +68,7 @@ def mesh_payload(mesh: Any, name: str) -> bytes:
     else:
         c, r = bounding_sphere(mesh)
     return pack_binary({"name": name, "center": c.tolist(), "radius": r,
-                        "camera": camera_json(Camera(512, 512), c, r)},
+                        **view_cameras(c, r)},
                        {"position": v, "normal": np.asarray(m.vertex_normals),
                         "albedo": np.ones_like(v) if alb is None else alb,
                         "index": np.asarray(m.faces)})
@@ -83,7 +120,7 @@ def _payload_code_stamp() -> str:
     if spec is not None and spec.origin:
         files.append(Path(spec.origin))
         files.append(Path(spec.origin).with_name("version.py"))
-    stamp = [__version__, "mesh_payload 2"]
+    stamp = [__version__, "mesh_payload 3"]
     for f in files:
         try:
             st = f.stat()

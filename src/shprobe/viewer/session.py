@@ -18,11 +18,11 @@ from ..errors import ShprobeError
 from ..lighting.edits import Blend, EditSpec
 from .design import DESIGN_LMAX, Designed, Designer, design_coeffs
 from .loader import fork_loader, mesh_to_load
-from .payloads import background_payload, mesh_payload
+from .payloads import background_payload, ground_count, mesh_payload, view_cameras
 from .source import Source, env_source, load_probe, preset_source
 from .uploads import Uploads
 from .views import hbasis_panel
-from .wire import camera_json, pack_binary
+from .wire import pack_binary
 
 __all__ = ["Session", "Task"]
 
@@ -55,9 +55,14 @@ class Session:
     def __init__(self, probe: str | None = None, preset: str | None = None,
                  mesh: str | None = None, transfer: str | None = None,
                  layout: str = "auto", load: bool = True,
-                 stamps: dict[str, float] | None = None) -> None:
+                 stamps: dict[str, float] | None = None, hbasis: str | None = None) -> None:
         self.layout = layout
         self._args = (probe, preset, mesh, transfer)
+        self._hbasis_arg = hbasis
+        #: a ``shprobe hbasis bake`` file's per-vertex coefficients (``--hbasis``, an upload)
+        self.hbasis_bake: Any = None
+        self.hbasis_name: str | None = None
+        self._hbasis_made: Any = None  # (bake, its panel)
         self.uploads = Uploads()
         self.lock = threading.Lock()
         self.tasks: dict[str, Task] = {}
@@ -128,6 +133,8 @@ class Session:
                 if mesh_path and not forked:
                     self.load_mesh(mesh_path, os.path.basename(mesh_path))
                     self.stamp("geometry_done")
+                if self._hbasis_arg:  # checked against the mesh below, once it is in
+                    self._read_hbasis(self._hbasis_arg)
             except BaseException as e:  # re-raised below, in the caller's thread
                 errors.append(e)
 
@@ -141,6 +148,10 @@ class Session:
                 self.register_probe(self.source, probe)
             elif preset:
                 self.source = preset_source(preset)
+            elif self._hbasis_arg:  # the lighting the bake was made for
+                th.join()
+                if self.hbasis_bake is not None:
+                    self.source = self._bake_source()
             elif not probe:
                 from ..probes.environments import procedural_env
 
@@ -149,6 +160,11 @@ class Session:
             errors.append(e)
         self.stamp("source_done", first=True)
         th.join()
+        if self.hbasis_bake is not None and not errors:
+            try:
+                self._check_hbasis(self.hbasis_bake, self._hbasis_arg)
+            except BaseException as e:
+                errors.append(e)
         self.stamp("ready")
         if errors:
             e = errors[0]
@@ -256,7 +272,15 @@ class Session:
 
     def hbasis(self, spec: EditSpec) -> tuple[bytes, dict[str, float]]:
         """The H-basis panel (:func:`~shprobe.viewer.views.hbasis_panel`) for ``spec`` at
-        lmax 4."""
+        lmax 4; with an H-basis bake loaded, its per-vertex coefficients under the lighting
+        they were baked for (``spec`` does not apply: a bake holds its lighting)."""
+        bk = self.hbasis_bake
+        if bk is not None:  # the same picture whatever the edits: made once per bake
+            hit = self._hbasis_made
+            if hit is None or hit[0] is not bk:
+                hit = self._hbasis_made = (bk, hbasis_panel(bk.lighting, None, np.eye(3),
+                                                            self.mesh, baked=bk))
+            return hit[1]
         L, _ = self.design_exact(spec.with_lmax(4))
         return hbasis_panel(L, self.source.env, spec.rotation_matrix(), self.mesh)
 
@@ -355,13 +379,69 @@ class Session:
         with self._mesh_lock:
             self._mesh, self._mesh_path, self._mesh_bytes = m, None, None
             self.mesh_name = name or os.path.basename(path)
+        self.hbasis_bake = None  # per vertex of the mesh it was baked for
 
     def load_transfer(self, path: str, name: str | None = None) -> None:
-        """A transfer file (``shprobe prt bake``), read by the library's checked reader."""
+        """A transfer file (``shprobe prt bake``), read by the library's checked reader; an
+        H-basis bake given instead is named as one."""
+        from ..hbasis.bakefile import is_bake
         from ..prt.transfer import load_transfer
 
+        if is_bake(path):
+            raise ShprobeError("is an H-basis bake (`shprobe hbasis bake`), not a PRT "
+                               "transfer: open it with `shprobe view --hbasis FILE` or the "
+                               "page's H-basis loader", name or path)
         self.transfer = load_transfer(path)
         self.transfer_name = name or os.path.basename(path)
+
+    def _read_hbasis(self, path: str, name: str | None = None) -> None:
+        """Read a ``shprobe hbasis bake`` file (:func:`~shprobe.hbasis.bakefile.load_bake`);
+        a PRT transfer given instead is named as one."""
+        from ..hbasis.bakefile import is_bake, load_bake
+
+        shown = name or os.path.basename(path)
+        if not is_bake(path) and str(path).lower().endswith(".npz"):
+            from ..files import npz_headers
+
+            try:
+                heads = npz_headers(path, "bake file")
+            except ShprobeError:
+                heads = {}
+            if "vertices" in heads:
+                raise ShprobeError("is a PRT transfer (`shprobe prt bake`), not an H-basis "
+                                   "bake: open it with `shprobe view --transfer FILE`",
+                                   name or path)
+        self.hbasis_bake = load_bake(path)
+        self.hbasis_name = shown
+
+    def _check_hbasis(self, bake: Any, path: Any) -> None:
+        """Refuse a bake made for another mesh than the one shown (one line)."""
+        from ..scene import mesh_hash
+
+        m = self.mesh
+        if m is None:
+            raise ShprobeError("an H-basis bake is per vertex of its mesh: give that mesh "
+                               "with --mesh", path)
+        if mesh_hash(m.vertices, m.faces) != bake.mesh_hash:
+            raise ShprobeError(f"was baked for another mesh than {self.mesh_name}: give the "
+                               "mesh it was baked for with --mesh", path)
+
+    def load_hbasis(self, path: str, name: str | None = None) -> None:
+        """An H-basis bake (``shprobe hbasis bake``) for the mesh shown, checked against it
+        (the bake shown before is kept when this one is refused)."""
+        keep = (self.hbasis_bake, self.hbasis_name)
+        try:
+            self._read_hbasis(path, name)
+            self._check_hbasis(self.hbasis_bake, name or path)
+        except BaseException:
+            self.hbasis_bake, self.hbasis_name = keep
+            raise
+
+    def _bake_source(self) -> Source:
+        """The lighting an H-basis bake was made for (its radiance SH, to the design's
+        highest degree) as the source."""
+        L = np.asarray(self.hbasis_bake.lighting, np.float64)
+        return Source(f"{self.hbasis_name} (baked lighting)", L[: (DESIGN_LMAX + 1) ** 2])
 
     def mesh_bytes(self) -> bytes:
         """The page's mesh (:func:`mesh_payload`), made once per mesh (under the mesh lock: an
@@ -376,15 +456,17 @@ class Session:
         if t is None:
             raise ShprobeError("no transfer: start `shprobe view --transfer T.npz`")
         T = t.select(mode, bounces)
-        from ..scene.render import Camera
-
         v = np.asarray(t.vertices)
-        c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-        r = float(np.sqrt(((v - c) ** 2).sum(axis=1).max()))
+        # framed on the object; the ground plane (the last vertices) is seen around it
+        ng = ground_count(v, t.normals, bool(t.metadata.get("ground")))
+        obj = v[: len(v) - ng] if ng < len(v) else v
+        c = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+        r = float(np.sqrt(((obj - c) ** 2).sum(axis=1).max()))
         return pack_binary(
             {"name": self.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
              "max_bounces": t.max_bounces, "mode": mode or t.mode, "bounces": bounces,
-             "camera": camera_json(Camera(512, 512), c, r)},
+             "ground_vertices": ng, "center": c.tolist(), "radius": r,
+             **view_cameras(c, r, ground=ng > 0)},
             {"position": v, "normal": t.normals, "index": t.faces,
              "transfer": T.reshape(T.shape[0], -1)})
 

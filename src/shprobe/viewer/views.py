@@ -13,7 +13,7 @@ from ..errors import ShprobeError
 from ..progress import Progress
 from .source import MAX_LMAX, Source
 
-__all__ = ["NORMAL_GRID", "compare_data", "hbasis_panel"]
+__all__ = ["HBASIS_LABELS", "NORMAL_GRID", "compare_data", "hbasis_panel"]
 
 #: lat-long size (H) of the irradiance lookup textures (the normals of ``error_report``)
 NORMAL_GRID = 32
@@ -50,35 +50,63 @@ def compare_data(src: Source, progress: Progress | None = None) -> dict[str, Any
                       "mean_rel": r.mean_rel} for r in rep.rows]}
 
 
+#: the H-basis view's panels, in order, with their captions (the page shows them as given)
+HBASIS_LABELS = {"reference": "reference E(n′)", "H6": "H6: 6 per-vertex coefficients",
+                 "H4": "H4: 4 per-vertex coefficients", "SH9": "SH9: 9 per-vertex coefficients"}
 
 
 def hbasis_panel(L: NDArray[np.float64], env: Any, rotation: NDArray[np.float64], mesh: Any,
-                 size: int = 160) -> tuple[bytes, dict[str, float]]:
+                 size: int = 160, baked: Any = None) -> tuple[bytes, dict[str, float]]:
     """Irradiance normal mapping (Habel & Wimmer 2010) as ``shprobe hbasis render`` draws it,
     for the page's lighting ``L`` (its design at lmax 4, edits and rotation applied): ``mesh``
     (None: a sphere) with a procedural bump, shaded by per-vertex H6, H4 and tangent-space
-    SH9 baked from ``L``, against the reference E(n′) — brute force over the probe ``env``
+    SH9 baked from ``L`` (or the per-vertex coefficients ``baked``, a ``shprobe hbasis bake``
+    file's, under the lighting they were baked for: then ``L`` is its radiance SH and
+    ``env`` None), against the reference E(n′) — brute force over the probe ``env``
     (box-filtered to 64×128 and turned by ``rotation``; the other edits are not applied to
     it) or, without a probe, the lighting's own SH expansion.
-    → (PNG of ``panel_image``, relative RMS per basis)."""
-    import io
 
-    from PIL import Image
-
-    from ..hbasis.rendering import panel_image, render_normal_mapped
+    → (one :func:`~shprobe.viewer.wire.pack_binary` message, relative RMS per basis). The
+    message holds each panel as linear E/π (H, W, 3) float32 (``reference``, ``H6``, ``H4``,
+    ``SH9``), the exposure that shows them (:func:`~shprobe.probes.tonemap.auto_exposure` of
+    the reference), and each basis's error map ``err_<basis>`` (H, W): |E_basis − E_ref| as a
+    fraction of ∫L dω, the largest over R, G, B — the compare view's metric (R&H §3.1, the
+    unit of ``shprobe error``) — with its maximum and the mask of hit pixels."""
+    from ..hbasis.rendering import render_normal_mapped
+    from ..lighting.projection import total_intensity
     from ..probes.env import Env
     from ..probes.layouts import LatLong
-    from ..probes.tonemap import auto_exposure, tonemap
+    from ..probes.tonemap import auto_exposure
     from ..scene import sphere_mesh
+    from .wire import pack_binary
 
     lighting: Any = L
     if env is not None:  # the probe turned by the page's rotation: L'(p) = L(Rᵀp)
         h = 64
         dirs = LatLong().pixel_directions((h, 2 * h))
         lighting = Env(np.asarray(env.sample(dirs @ rotation), np.float32), LatLong())
+        tot = total_intensity(lighting)
+    else:  # ∫ L dω = L_00 ∫ Y_00 dω = √(4π) L_00
+        tot = np.sqrt(4.0 * np.pi) * np.asarray(L, np.float64)[0]
+    tot = np.where(np.abs(tot) > 0, np.abs(tot), 1.0)
     res = render_normal_mapped(mesh if mesh is not None else sphere_mesh(4), lighting,
-                               size=size)
-    stops = auto_exposure(res.irradiance[res.mask], target=1.0)
-    buf = io.BytesIO()
-    Image.fromarray(tonemap(panel_image(res), stops)).save(buf, format="PNG")
-    return buf.getvalue(), res.info["rel_rms"]
+                               size=size, baked=baked)
+    ref = res.irradiance
+    keys = [k for k in ("H6", "H4", "SH9") if k in res.layers]
+    errs = {k: (np.abs(res.layers[k] - ref) / tot).max(axis=-1) for k in keys}
+    rms = res.info["rel_rms"]
+    head = {"size": [int(ref.shape[0]), int(ref.shape[1])], "keys": ["reference", *keys],
+            "labels": {k: HBASIS_LABELS[k] for k in ("reference", *keys)},
+            "reference": "brute force over the probe" if env is not None
+            else "the lighting's SH expansion",
+            "baked": baked is not None,
+            "stops": auto_exposure(ref[res.mask] / np.pi, target=1.0),
+            "total_intensity": tot.tolist(), "rel_rms": rms,
+            "max_frac": {k: float(e.max()) for k, e in errs.items()},
+            "mean_frac": {k: float(e[res.mask].mean()) if res.mask.any() else 0.0
+                          for k, e in errs.items()}}
+    arrays = {"reference": (ref / np.pi).astype(np.float32),
+              **{k: (res.layers[k] / np.pi).astype(np.float32) for k in keys},
+              **{f"err_{k}": e.astype(np.float32) for k, e in errs.items()},
+              "mask": res.mask.astype(np.uint32)}
+    return pack_binary(head, arrays), rms

@@ -3,7 +3,9 @@
 // coefficients as uniforms), lookups of the library's irradiance tables by normal, and PRT
 // relighting (transfer · lighting per vertex, Lisle & Huang §4).
 import * as THREE from 'three';  // the parts of three.js this page uses (tools/js/entry.js)
-import { OrbitControls } from 'three';
+import { View3D, readLibraryView } from './view3d.js';
+import { buildSliders, fillSelect, showForMode } from './controls.js';
+import { HEAT_GLSL, drawHBasis, showCompareLegend } from './legend.js';
 
 const $ = (id) => document.getElementById(id);
 const api = window.__shprobe || {};  // exposed for tests and benchmarks
@@ -179,13 +181,7 @@ vec2 dirToUV(vec3 d) {  // shprobe lat-long: row 0 = +Y, u = 0.5 -> -Z, u = 0.75
 vec3 uvToDir(vec2 uv) { float psi = 2.0 * PI * uv.x, th = PI * uv.y;
   return vec3(-sin(psi) * sin(th), cos(th), cos(psi) * sin(th)); }
 vec3 rgbe(sampler2D t, vec2 uv) { return texture(t, uv).rgb; }
-vec3 heat(float x) {  // the legend's colour map
-  x = clamp(x, 0.0, 1.0);
-  vec3 c0 = vec3(0.05, 0.03, 0.2), c1 = vec3(0.2, 0.2, 0.8), c2 = vec3(0.1, 0.7, 0.5), c3 = vec3(0.95, 0.85, 0.1), c4 = vec3(1.0, 1.0, 1.0);
-  if (x < 0.25) return mix(c0, c1, x * 4.0); if (x < 0.5) return mix(c1, c2, x * 4.0 - 1.0);
-  if (x < 0.75) return mix(c2, c3, x * 4.0 - 2.0); return mix(c3, c4, x * 4.0 - 3.0); }
-`;
-const HEAT_CSS = 'linear-gradient(to right, rgb(13,8,51), rgb(51,51,204), rgb(26,179,128), rgb(242,217,26), rgb(255,255,255))';
+` + HEAT_GLSL;
 let SHPROBE_GLSL = '';   // shprobe's export, constants turned into uniforms
 let SHPROBE_GLSL_SH = '';  // shprobe's generated any-lmax function (lighting.glsl), uniform E_lm
 function shaderFromExport(text) {
@@ -213,7 +209,7 @@ const commonUniforms = (lmaxE = SH_LMAX) => ({
 });
 
 // ------------------------------------------------------------------ three.js scene
-let renderer, scene, camera, controls, meshObj, bgMesh, objUniforms, bgMat;
+let renderer, scene, camera, view3d, meshObj, bgMesh, objUniforms, bgMat;
 let panel, panelScene, panelCam, probeMat, irrMats, irrMesh, panelRenderer2, irrScene, objUniformsD;
 const objMats = {};  // the object's programs, one per view (OBJ_VIEWS), made on first use
 let bgTex = null, cmp = null, prt = null;
@@ -328,13 +324,7 @@ function draw() {
   if (cmp && m === 1) setE(objUniforms, cmp.irradiance, Number(mode.slice(2)));
   if (cmp && m === 3) objUniforms.uA.value = lookTex['sh' + $('errlmax').value];
   if (cmp) { objUniforms.uRef.value = lookTex.reference; }
-  camera.updateMatrixWorld();
-  bgMat.uniforms.uInvVP.value.multiplyMatrices(camera.matrixWorld, camera.projectionMatrixInverse);
-  bgMat.uniforms.uEye.value.setFromMatrixPosition(camera.matrixWorld);
-  // until the probe's texture is here the background is the flat grey the pass would draw
-  // (radiance 0.18, same tone mapping): a clear, not a full-screen pass
-  bgMesh.visible = !!bgTex;
-  if (!bgTex) clearToGrey();
+  cameraUniforms(camera);
   renderer.render(scene, camera);
   const gl = renderer.getContext(); const px = new Uint8Array(4);
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);  // waits for the frame
@@ -346,6 +336,15 @@ function draw() {
   if (moveAt !== null) { (api.moveToFrame = api.moveToFrame || []).push(performance.now() - moveAt); moveAt = null; }
   frameTimes.push(dt); if (frameTimes.length > 200) frameTimes.shift();
   api.frames = (api.frames || 0) + 1;
+}
+function cameraUniforms(cam) {  // the background pass seen from ``cam``
+  cam.updateMatrixWorld();
+  bgMat.uniforms.uInvVP.value.multiplyMatrices(cam.matrixWorld, cam.projectionMatrixInverse);
+  bgMat.uniforms.uEye.value.setFromMatrixPosition(cam.matrixWorld);
+  // until the probe's texture is here the background is the flat grey the pass would draw
+  // (radiance 0.18, same tone mapping): a clear, not a full-screen pass
+  bgMesh.visible = !!bgTex;
+  if (!bgTex) clearToGrey();
 }
 function drawPanels() {  // the probe and the irradiance map (made after the first frame)
   if (!panel) return;
@@ -370,20 +369,22 @@ function makePanels() {  // two more WebGL contexts: after the object's first fr
 }
 api.draw = draw;
 api.frameTimes = () => frameTimes.slice();
-api.readAll = () => {  // the whole 512×512 view, RGBA rows from the top, as the library's images
+// the object seen by the library's camera (shprobe.scene.Camera(512, 512) fitted to the
+// object), 512×512 RGBA rows from the top, as the library's images: what the pixel tests
+// compare with shprobe.scene.render (the view on screen is the orbit camera's)
+function libraryView() {
   draw();
-  const gl = renderer.getContext(); const px = new Uint8Array(512 * 512 * 4);
-  gl.readPixels(0, 0, 512, 512, gl.RGBA, gl.UNSIGNED_BYTE, px);
-  const out = new Uint8Array(512 * 512 * 4);
-  for (let y = 0; y < 512; y++) out.set(px.subarray((511 - y) * 2048, (512 - y) * 2048), y * 2048);
-  return btoa(String.fromCharCode.apply(null, out.subarray(0, 0)) + Array.from({ length: 512 }, (_, y) => String.fromCharCode.apply(null, out.subarray(y * 2048, (y + 1) * 2048))).join(''));
-};
-api.readPixel = (x, y) => {  // (x, y) from the top-left, as the library's images
+  const out = readLibraryView(renderer, scene, view3d.libraryCamera(), cameraUniforms);
   draw();
-  const gl = renderer.getContext(); const px = new Uint8Array(4);
-  gl.readPixels(x, 511 - y, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
-  return Array.from(px);
+  return out;
+}
+api.readAll = () => {  // base64 of libraryView()
+  const out = libraryView();
+  return btoa(Array.from({ length: 512 }, (_, y) => String.fromCharCode.apply(null, out.subarray(y * 2048, (y + 1) * 2048))).join(''));
 };
+api.readPixel = (x, y) => Array.from(libraryView().subarray(4 * (512 * y + x), 4 * (512 * y + x) + 4));
+api.cameraState = () => view3d.state();
+api.resetView = () => view3d.reset();
 
 // ------------------------------------------------------------------ geometry
 function setGeometry(g, cam) {
@@ -398,12 +399,11 @@ function setGeometry(g, cam) {
   meshObj = new THREE.Mesh(geo, objectMaterial('poly'));  // draw() picks the view's program
   meshObj.frustumCulled = false;
   scene.add(meshObj);
-  // the library's camera (shprobe.scene.render.Camera, fitted to the bounding sphere)
-  camera.fov = cam.fov; camera.aspect = cam.width / cam.height;
-  camera.near = cam.near; camera.far = cam.far; camera.updateProjectionMatrix();
-  camera.position.set(...cam.eye); camera.up.set(...cam.up);
-  controls.target.set(...cam.target); camera.lookAt(...cam.target); controls.update();
-  api.camera = cam;
+  // the orbit camera starts from the server's view (the library Camera fitted to the
+  // object's bounding sphere, above the horizon); the library's own camera is kept for reads
+  view3d.frame(g.head.view || cam, cam);
+  api.camera = cam; api.viewCamera = g.head.view || cam;
+  api.objectBounds = { center: g.head.center, radius: g.head.radius, ground: g.head.ground_vertices || 0 };
 }
 
 // ------------------------------------------------------------------ PRT
@@ -415,7 +415,7 @@ async function loadTransfer(mode, bounces) {
   const kfull = (h.lmax + 1) ** 2, per = r.transfer.length / (nv * kfull);
   prt = { T: r.transfer, nv, kfull, coloured: per === 3, lmax: h.lmax, out: new Float32Array(nv * 3), head: h };
   if (!meshObj || meshObj.geometry.attributes.position.count !== nv) setGeometry(r, h.camera);
-  const ls = $('prtlmax'); if (ls.options.length !== h.lmax + 1) { ls.innerHTML = ''; for (let l = 0; l <= h.lmax; l++) ls.add(new Option(l, l)); ls.value = h.lmax; }
+  const ls = $('prtlmax'); if (ls.options.length !== h.lmax + 1) fillSelect(ls, Array.from({ length: h.lmax + 1 }, (_, l) => l), h.lmax);
   $('meshname').textContent = `${h.name} (PRT)`;
   $('prtinfo').textContent = `${h.name}: ${nv} vertices, baked lmax ${h.lmax}, ${h.mode}${h.max_bounces ? `, up to ${h.max_bounces} bounces` : ''}`;
   setStatus('');
@@ -468,38 +468,31 @@ async function loadCompare() {
   $('progress').hidden = true;
   api.compare = cmp;
 }
-function showLegend() {
-  const mode = $('mode').value;
-  $('legend').hidden = !(mode === 'error' || mode.startsWith('sh') || mode === 'exact') || !cmp;
-  if (!cmp) return;
-  const row = cmp.rows.find((r) => r.lmax === Number($('errlmax').value));
-  objUniforms.uErrMax.value = row.max_frac;
-  $('legendbar').style.background = HEAT_CSS;
-  $('legendmax').textContent = row.max_frac.toPrecision(3);
-  $('legendmid').textContent = (row.max_frac / 2).toPrecision(3);
-  $('errtable').tBodies[0].innerHTML = cmp.rows.map((r) => `<tr><td>${r.lmax}</td><td>${(100 * r.mean_frac).toFixed(3)}%</td><td>${(100 * r.max_frac).toFixed(3)}%</td></tr>`).join('');
+function showLegend() {  // legend.js: the heat scale in % of ∫L dω, the table in the same unit
+  const row = showCompareLegend($('mode').value, cmp, Number($('errlmax').value));
+  if (row && $('mode').value === 'error') objUniforms.uErrMax.value = row.max_frac;
 }
 const VIEW_LABELS = {
   design: "Object: radiance = albedo · E(n) / π per pixel, E from shprobe's GLSL (lmax ≤ 2: the export's R&H eq. 13; lmax 3–8: lighting.glsl's generated function; above 4, e.g. a PRT transfer's degree, with a second program to lmax 8)",
-  sh: "Object: E(n) of the probe (edits not applied) truncated at this lmax, per pixel by shprobe's generated GLSL (lighting.glsl) with the library's E_lm = Â_l L_lm",
-  exact: 'Object: brute-force E(n) of the probe (library reference_irradiance), looked up by normal',
-  error: 'Object: error heat map (legend below)',
-  hbasis: 'Object: SH per pixel (the H-basis panel is below)',
+  sh: "Object: radiance = albedo · E(n) / π, E of the probe (edits not applied) truncated at this lmax, per pixel by shprobe's generated GLSL (lighting.glsl) with the library's E_lm = Â_l L_lm",
+  exact: 'Object: radiance = albedo · E(n) / π, E the brute-force irradiance of the probe (library reference_irradiance, edits not applied), looked up by normal',
+  error: 'Object: error of SH irradiance against the exact one per normal, on the heat scale below (% of ∫L dω)',
+  hbasis: 'H-basis normal mapping: the panels below, each labelled',
   prt: 'Object: PRT exit radiance per vertex = transfer · rotated lighting (LH §4), computed in the page',
 };
 async function onMode() {
   const mode = $('mode').value;
   $('viewlabel').textContent = VIEW_LABELS[mode.startsWith('sh') ? 'sh' : mode];
   try {
-    if (mode !== 'design' && mode !== 'prt') await loadCompare();
+    if (mode === 'error' || mode === 'exact' || mode.startsWith('sh')) await loadCompare();
     if (mode === 'prt' && !prt) await loadTransfer($('prtmode').value, $('prtbounces').value);
     clearError();
   } catch (e) { showError(e); $('mode').value = 'design'; }
-  $('hbbox').hidden = mode !== 'hbasis';
+  showForMode(mode, $('prtmode').value);
   if (mode === 'hbasis') updateHBasis();
   showLegend(); draw();
 }
-let hbBusy = false, hbAgain = false;
+let hbBusy = false, hbAgain = false, hbLast = null;
 async function updateHBasis() {  // the library's render (server), after each settled edit
   if ($('mode').value !== 'hbasis') return;
   if (hbBusy) { hbAgain = true; return; }
@@ -509,10 +502,12 @@ async function updateHBasis() {  // the library's render (server), after each se
       hbAgain = false;
       setStatus('H-basis render…');
       const r = await call('/api/hbasis', { method: 'POST', body: JSON.stringify(state) });
-      const rms = JSON.parse(r.headers.get('x-shprobe-rel-rms'));
-      $('hbimg').src = URL.createObjectURL(await r.blob());
-      $('hbtable').innerHTML = '<tr><th>basis</th><th>relative RMS error</th></tr>' + Object.entries(rms).map(([k, v]) => `<tr><td>${k}</td><td>${v.toFixed(4)}</td></tr>`).join('');
-      api.hbasis = rms;
+      hbLast = r;
+      $('hblabel').innerHTML = r.head.baked
+        ? `H-basis bake <code>${api.init.hbasis ? api.init.hbasis.name : ''}</code> (<code>shprobe hbasis bake</code>): its per-vertex coefficients under the lighting they were baked for (edits do not apply: bake again), as <code>shprobe hbasis render MESH FILE.npz</code>; E/π of a white surface with a procedural bump`
+        : 'Irradiance normal mapping (Habel &amp; Wimmer 2010, as <code>shprobe hbasis render</code>): E/π of a white surface with a procedural bump, per-vertex bases baked from the current lighting (lmax 4, edits and rotation applied) against the exact E(n′); recomputed by the library after each edit';
+      api.hbasisErrMax = drawHBasis(r, Number($('exposure').value));
+      api.hbasis = r.head.rel_rms; api.hbasisHead = r.head;
       setStatus('');
     } while (hbAgain);
   } catch (e) { showError(e); }
@@ -520,23 +515,15 @@ async function updateHBasis() {  // the library's render (server), after each se
 }
 
 // ------------------------------------------------------------------ controls
-const LABELS = ['L00', 'L1-1', 'L10', 'L11', 'L2-2', 'L2-1', 'L20', 'L21', 'L22'];
-function slider(label, value, onchange) {
-  const lab = document.createElement('span'); lab.textContent = label;
-  const inp = document.createElement('input'); inp.type = 'range'; inp.min = -2; inp.max = 3; inp.step = 0.05; inp.value = value;
-  const val = document.createElement('span'); val.textContent = Number(value).toFixed(2);
-  inp.oninput = () => { val.textContent = Number(inp.value).toFixed(2); };
-  inp.onchange = () => onchange(Number(inp.value));
-  $('sliders').append(lab, inp, val);
-}
+// the degrees a design may have (0..design.DESIGN_LMAX, from /api/init) and the
+// transfer's baked degree (marked in the menu)
+let designDegrees = 8, bakedLmax = null;
 function refreshControls() {
-  $('sliders').innerHTML = '';
-  $('lmax').value = String(state.lmax);
-  for (let l = 0; l <= state.lmax; l++) slider(`band ${l}`, state.scale_band[l] ?? 1, (v) => { const s = structuredClone(state); s.scale_band[l] = v; commit(s); });
-  for (let k = 0; k < 9 && k < (state.lmax + 1) ** 2; k++) {
-    const l = Math.floor(Math.sqrt(k)), m = k - l * l - l;
-    slider(LABELS[k], state.scale[`${l},${m}`] ?? 1, (v) => { const s = structuredClone(state); s.scale[`${l},${m}`] = v; commit(s); });
-  }
+  const range = (n) => Array.from({ length: n + 1 }, (_, l) => l);
+  fillSelect($('lmax'), range(designDegrees), state.lmax, (l) => (l === bakedLmax ? `${l} (the transfer's)` : String(l)));
+  buildSliders(state,
+    (l, v) => { const s = structuredClone(state); s.scale_band[l] = v; commit(s); },
+    (l, m, v) => { const s = structuredClone(state); s.scale[`${l},${m}`] = v; commit(s); });
   const ul = $('lights'); ul.innerHTML = '';
   const item = (text, drop) => { const li = document.createElement('li'); li.textContent = text + ' '; const b = document.createElement('button'); b.textContent = 'remove'; b.onclick = drop; li.append(b); ul.append(li); };
   state.directional.forEach((d, i) => item(`directional (${d.dir.map((v) => v.toFixed(2))}) rgb ${d.rgb}`, () => { const s = structuredClone(state); s.directional.splice(i, 1); commit(s); }));
@@ -567,8 +554,14 @@ function unrotate(d) { const R = stateRotation(state); return [0, 1, 2].map((i) 
 function wire(init) {
   $('undo').onclick = undo; $('redo').onclick = redo;
   $('reset').onclick = () => commit({ ...structuredClone(EMPTY), lmax: state.lmax });
-  $('exposure').oninput = () => { $('expval').textContent = $('exposure').value; draw(); };
+  $('exposure').oninput = () => {
+    $('expval').textContent = $('exposure').value; draw();
+    if (hbLast && $('mode').value === 'hbasis') drawHBasis(hbLast, Number($('exposure').value));
+  };
   $('mode').onchange = onMode; $('errlmax').onchange = () => { showLegend(); draw(); };
+  $('resetview').onclick = () => view3d.reset();
+  designDegrees = init.design_lmax ?? designDegrees;
+  fillSelect($('errlmax'), Array.from({ length: init.compare_lmax ?? 4 }, (_, i) => i + 1), $('errlmax').value);
   $('lmax').onchange = () => {  // the design's degree (scales above it are dropped)
     const s = structuredClone(state); s.lmax = Number($('lmax').value);
     for (const k of Object.keys(s.scale)) if (Number(k.split(',')[0]) > s.lmax) delete s.scale[k];
@@ -599,6 +592,7 @@ function wire(init) {
   $('upmesh').onchange = () => upload('mesh', $('upmesh'));
   $('upcoeffs').onchange = () => upload('coeffs', $('upcoeffs'));
   $('uptransfer').onchange = () => upload('transfer', $('uptransfer'));
+  $('uphbasis').onchange = () => upload('hbasis', $('uphbasis'));
   $('srcpreset').onchange = async () => {
     if (!$('srcpreset').value) return;
     try { const r = await call('/api/upload/preset?name=' + $('srcpreset').value, { method: 'POST' }); await newSource(r.source); } catch (e) { showError(e); }
@@ -608,11 +602,12 @@ function wire(init) {
 }
 function wirePRT(t) {
   const o = $('mode').querySelector('option[value=prt]'); o.disabled = false;
-  $('prtbox').hidden = false;
   $('prtmode').innerHTML = '';
   for (const m of t.modes) $('prtmode').add(new Option(m, m));
   $('prtmode').value = t.mode; $('prtbounces').value = t.max_bounces || 0;
-  const reload = async () => { try { await loadTransfer($('prtmode').value, $('prtbounces').value); clearError(); draw(); } catch (e) { showError(e); } };
+  $('prtbounces').max = t.max_bounces || 0;
+  bakedLmax = t.lmax; refreshControls();
+  const reload = async () => { showForMode($('mode').value, $('prtmode').value); try { await loadTransfer($('prtmode').value, $('prtbounces').value); clearError(); draw(); } catch (e) { showError(e); } };
   $('prtmode').onchange = reload; $('prtbounces').onchange = reload; $('prtlmax').onchange = () => draw();
 }
 async function exportFormat(fmt) {  // the server's export of the same state: a download
@@ -635,6 +630,7 @@ async function upload(kind, input) {
     }
     if (kind === 'probe' || kind === 'coeffs') await newSource(r.source);
     if (kind === 'transfer') { prt = null; wirePRT(r.transfer); $('mode').value = 'prt'; await onMode(); }
+    if (kind === 'hbasis') { api.init.hbasis = r.hbasis; $('mode').value = 'hbasis'; await onMode(); await updateHBasis(); }
     if (kind === 'mesh') { const g = await call('/api/mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; draw(); }
     clearError();
   } catch (e) { showError(e); }  // the edit state and the current source are kept
@@ -652,8 +648,12 @@ async function uploadCube() {  // six faces +X −X +Y −Y +Z −Z in one reque
   } catch (e) { showError(e); }  // the edit state and the current source are kept
   setStatus('');
 }
+function probeLabel(src) {  // a preset or coefficients have no picture: the panel says so
+  $('probelabel').textContent = src.has_env ? 'Probe (lat-long, +Y up, centre −Z; drag to rotate the lighting)'
+    : `Probe: ${src.name} has no image (grey here); drag to rotate the lighting, which the irradiance map below shows`;
+}
 async function newSource(src) {
-  $('source').textContent = src.name;
+  $('source').textContent = src.name; probeLabel(src);
   cmp = null; bgTex = null;
   if (src.has_env) await loadBackground();
   if ($('mode').value !== 'design' && $('mode').value !== 'prt') $('mode').value = 'design';
@@ -695,16 +695,15 @@ async function main() {
   const boot = window.__boot || {};  // boot.js's context, if it made one
   if (boot.gl) $('view').replaceWith(boot.canvas);
   renderer = new THREE.WebGLRenderer({ canvas: $('view'), context: boot.gl || null, antialias: false, preserveDrawingBuffer: true });
-  renderer.setPixelRatio(1); renderer.setSize(512, 512, false);
+  renderer.setPixelRatio(1);
   renderer.outputColorSpace = THREE.LinearSRGBColorSpace;  // our shaders write sRGB themselves
   const sh = await first('shaders', () => call('/api/shaders'));
   SHPROBE_GLSL = shaderFromExport(sh.glsl);
   SHPROBE_GLSL_SH = sh.glsl_sh; SH_LMAX = sh.max_lmax;
   SHPROBE_GLSL_SH_DESIGN = sh.glsl_sh_design; SH_DESIGN_LMAX = sh.design_lmax;
   scene = new THREE.Scene();
-  camera = new THREE.PerspectiveCamera(40, 1, 0.01, 100);
-  controls = new OrbitControls(camera, $('view'));
-  controls.addEventListener('change', draw);
+  view3d = new View3D(renderer, $('view'), $('viewwrap'), () => draw());
+  camera = view3d.camera;
   bgMat = makeBgMaterial();
   bgMesh = new THREE.Mesh(new THREE.PlaneGeometry(2, 2), bgMat); bgMesh.frustumCulled = false; bgMesh.renderOrder = -1;
   bgMesh.visible = false;  // drawn once the probe's texture is here (draw())
@@ -730,14 +729,16 @@ async function main() {
   const init = await first('init', () => call('/api/init'));
   mark('init');
   api.init = init;
-  $('source').textContent = init.source.name;
+  $('source').textContent = init.source.name; probeLabel(init.source);
   const saved = localStorage.getItem(KEY);   // the edit state survives a reload
   if (saved) { try { state = { ...structuredClone(EMPTY), ...JSON.parse(saved) }; } catch (e) { /* ignore */ } }
   else if (init.transfer) state.lmax = init.transfer.design_lmax;  // the baked degree, at most design.DESIGN_LMAX
   wire(init); refreshControls();
   const jobs = [requestDesign().then(() => mark('design'))];
+  showForMode($('mode').value, $('prtmode').value);
   if (init.transfer) {
     $('mode').value = 'prt'; $('viewlabel').textContent = VIEW_LABELS.prt;
+    showForMode('prt', $('prtmode').value);
     jobs.push(loadTransfer($('prtmode').value, $('prtbounces').value));
   } else {
     jobs.push(first('mesh', () => call('/api/mesh')).then((g) => { mark('mesh'); setGeometry(g, g.head.camera); $('meshname').textContent = g.head.name; }));
@@ -751,6 +752,7 @@ async function main() {
   // the first lit frame needs the lighting and the mesh; the background follows (the server
   // has the loader send the decoded probe now)
   if (init.source.has_env) { await loadBackground(); mark('background'); draw(); }
+  if (init.hbasis) { $('mode').value = 'hbasis'; await onMode(); }  // --hbasis FILE: its view
   api.ready = true;
   setStatus(`ready in ${(performance.now() - t0).toFixed(0)} ms`);
 }
