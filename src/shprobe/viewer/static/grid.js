@@ -9,7 +9,7 @@ const $ = (id) => document.getElementById(id);
 const api = window.__shprobe = { lastError: null };  // exposed for tests
 window.addEventListener('error', (e) => { api.lastError = String(e.message || e); });
 const W = 720, H = 540;
-const DOUBLE_SIDE = 2;  // THREE.DoubleSide
+const DOUBLE_SIDE = 2;  // three.js's DoubleSide (a constant the bundle does not export)
 const ROW = 256;        // probes per row of the coefficient texture
 
 // ------------------------------------------------------------------ server calls
