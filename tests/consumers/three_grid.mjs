@@ -77,7 +77,6 @@ function readAtlas( renderer, grid ) {
 	const { x: nx, y: ny, z: nz } = grid.resolution;
 	const W = nx * ny * nz, H = 7;
 	const material = new THREE.ShaderMaterial( {
-		glslVersion: THREE.GLSL3,
 		uniforms: { atlas: { value: grid.texture }, res: { value: new THREE.Vector3( nx, ny, nz ) } },
 		vertexShader: 'void main() { gl_Position = vec4( position.xy, 0.0, 1.0 ); }',
 		fragmentShader: `
