@@ -107,16 +107,6 @@ def _unity(lmax: int) -> NDArray[np.float64]:
     return M
 
 
-def _unity_l2(lmax: int) -> NDArray[np.float64]:
-    """Unity ``SphericalHarmonicsL2`` (``LightProbes.bakedProbes``, ``RenderSettings.ambientProbe``):
-    the canonical Condon–Shortley L_lm scaled by ``kNormalizationConstants`` = (Â_l/π) × the
-    CS-signed basis constants (HDRP ``SphericalHarmonicMath.UndoCosineRescaling`` divides by
-    them), so the signs cancel: s_k = (Â_l/π) K_k L_lm, what ``ShadeSH9`` sums after the
-    ``unity_SH*`` packing. Index k = l(l+1)+m, ``sh[rgb, k]``. The basis is in Unity's frame;
-    the left-handed frame (z mirrored) is the exporter's."""
-    return _ahat_over_pi(lmax) * basis_constants(lmax)
-
-
 def _godot(lmax: int) -> NDArray[np.float64]:
     """Godot 4 ``LightmapGIData`` probe SH (lightmapper_rd ``MODE_LIGHT_PROBES``: Σ L y_k ·
     4/N over N uniform rays = L_lm/π, R&H basis constants and signs), evaluated by the forward
@@ -152,9 +142,14 @@ CONVENTIONS: dict[str, Convention] = {c.name: c for c in (
     Convention("unity", "Unity shader constants unity_SHA*/SHB*/SHC (ShadeSH9)",
                "pre-multiplied polynomial of E(n)/π: (A.xyzw, B.xyzw, C) per channel",
                lmax=2, matrix=_unity),
+    # Unity's SphericalHarmonicsL2 holds the canonical Condon–Shortley L_lm times
+    # kNormalizationConstants = (Â_l/π) × the CS-signed basis constants (HDRP
+    # SphericalHarmonicMath.UndoCosineRescaling divides by them): the signs cancel, leaving
+    # Filament's pre-scaled base, the terms ShadeSH9 sums after the unity_SH* packing. Unity's
+    # left-handed frame (z mirrored) is the exporter's.
     Convention("unity-l2", "Unity SphericalHarmonicsL2 (LightProbes.bakedProbes, ambientProbe)",
                "s_k = (Â_l/π) K_k L_lm, sh[rgb, k], k = l(l+1)+m (CS signs of the basis and of "
-               "kNormalizationConstants cancel)", lmax=2, diagonal=_unity_l2),
+               "kNormalizationConstants cancel)", lmax=2, diagonal=_filament),
     Convention("godot", "Godot 4 LightmapGIData probe SH (lightmap captures)",
                "L_lm/π, R&H constants and signs, k = l(l+1)+m", lmax=2, diagonal=_godot),
 )}
