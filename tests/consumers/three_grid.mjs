@@ -16,6 +16,15 @@ function makeRenderer() {
 
 }
 
+function rendererInfo( renderer ) {
+
+	const gl = renderer.getContext();
+	const debug = gl.getExtension( 'WEBGL_debug_renderer_info' );
+	return { renderer: debug ? gl.getParameter( debug.UNMASKED_RENDERER_WEBGL ) : gl.getParameter( gl.RENDERER ),
+		version: THREE.REVISION };
+
+}
+
 // One pixel per sample: a small screen triangle over the pixel's centre whose three vertices
 // all carry the sample's world position and normal, so the fragment sees exactly those.
 export function renderSamples( doc, points, normals, options = {} ) {
@@ -62,9 +71,7 @@ export function renderSamples( doc, points, normals, options = {} ) {
 	renderer.setRenderTarget( null );
 	const rgb = [];
 	for ( let i = 0; i < n; i ++ ) rgb.push( buf[ i * 4 ], buf[ i * 4 + 1 ], buf[ i * 4 + 2 ] );
-	const gl = renderer.getContext();
-	const info = { renderer: gl.getParameter( gl.RENDERER ), version: THREE.REVISION,
-		floatLinear: gl.getExtension( 'OES_texture_float_linear' ) !== null };
+	const info = rendererInfo( renderer );
 	renderer.dispose();
 	return { rgb, info };
 
@@ -149,8 +156,7 @@ export function bakeThree( job ) {
 		coefficients = readAtlas( renderer, grid ); // the readback waits for the GPU
 		seconds.push( ( performance.now() - t0 ) / 1000 );
 	}
-	const gl = renderer.getContext();
-	const info = { renderer: gl.getParameter( gl.RENDERER ), version: THREE.REVISION };
+	const info = rendererInfo( renderer );
 	grid.dispose();
 	renderer.dispose();
 	return { seconds, coefficients, info };
