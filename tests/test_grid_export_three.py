@@ -83,3 +83,8 @@ def test_three_renders_the_exported_grid(tmp_path):
     assert rel <= TOL
     flipped = np.reshape(runs[1]["rgb"], (-1, 3))
     assert np.abs(flipped - ref).max() / np.abs(ref).max() > 1e-2, "sign flip went unnoticed"
+
+
+def test_docs_print_the_loader_the_test_runs():
+    loader = (CONSUMERS / "shprobe_grid_loader.mjs").read_text()
+    assert loader in (REPO / "docs" / "grid-exports.md").read_text()
