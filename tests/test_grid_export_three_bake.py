@@ -1,7 +1,7 @@
 """three.js's own ``LightProbeGridWebGL`` bake (r187, Chromium, WebGL2 on SwiftShader) of the
 closed room on the open ground (``grids.scenes.room_on_ground``) under the grace probe, read
 back from its atlas: it leaks — the cavity floor gets a large fraction of the open ground's
-irradiance, where a leak-free grid gives < 1 % (what tests/three_grid_bake.py says three.js's
+irradiance, where a leak-free grid gives < 1 % (what bench/three_grid_bake.py says three.js's
 bake sees). First the page's environment is checked to be shprobe's, in shprobe's frame:
 three.js's bake of an analytic sky alone matches its projection.
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from bench.three_grid_bake import CONSUMERS, bake_job, grid_from_three, room_leak, run_bakes
 
 from shprobe.grids.scenes import room_on_ground
 from shprobe.lighting import project
@@ -17,7 +18,6 @@ from shprobe.probes.env import env_from_function, load_env
 
 from .conftest import data_file
 from .test_grid_export_three import require_three
-from .three_grid_bake import bake_job, grid_from_three, room_leak, run_bakes
 
 
 class _Far:
@@ -36,7 +36,13 @@ def bakes():
     jobs = {"sky": bake_job(_Far, [[-1, -1, -1], [1, 1, 1]], sky, np.zeros((9, 3)),
                             resolution=(2, 2, 2), runs=1),
             "room": bake_job(room.mesh(), room.bounds, grace, project(grace, 2), runs=1)}
-    res = run_bakes(jobs)
+    from .browser import ORIGIN, chromium_page
+
+    with chromium_page(serve={"/": CONSUMERS}) as page:
+        page.goto(ORIGIN + "/grid.html")
+        res = run_bakes(jobs, page)
+        console = list(page.shprobe_console)
+    assert not [m for m in console if m.startswith(("error", "pageerror"))], console
     return {k: (grid_from_three(res[k], jobs[k]), res[k]) for k in jobs}, sky, room
 
 

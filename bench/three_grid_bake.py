@@ -1,6 +1,7 @@
 """three.js's own probe-grid bake (``LightProbeGridWebGL.bake``, r187) of shprobe's reference
 scenes in headless Chromium, read back into a :class:`~shprobe.grids.grid.ProbeGrid`; used by
-tests/test_grid_export_three_bake.py and bench/bench_grid_three.py.
+tests/test_grid_export_three_bake.py and bench/bench_grid_three.py, each opening the page
+``tests/consumers/grid.html`` in its own headless Chromium.
 
 What three.js's bake sees: for each probe a cube map (8² per face, its default) of the scene —
 the environment as ``scene.background`` (the probe image resampled into three.js's
@@ -21,7 +22,7 @@ import numpy as np
 from shprobe.grids.grid import ProbeGrid
 from shprobe.grids.scenes import RoomScene
 
-CONSUMERS = Path(__file__).resolve().parent / "consumers"
+CONSUMERS = Path(__file__).resolve().parents[1] / "tests" / "consumers"
 RESOLUTION = (7, 4, 7)
 ALBEDO = 0.5
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -69,20 +70,12 @@ def bake_job(mesh, bounds, env, sh, resolution=RESOLUTION, albedo=ALBEDO, runs=2
             "sh": np.asarray(sh, np.float64).reshape(9, 3).ravel().tolist()}
 
 
-def run_bakes(jobs: dict[str, dict]) -> dict[str, dict]:
-    """Each job baked by three.js in one Chromium: {name: {seconds, coefficients, info}}."""
-    from .browser import ORIGIN, chromium_page
-
-    out = {}
-    with chromium_page(serve={"/": CONSUMERS}) as page:
-        page.goto(ORIGIN + "/grid.html")
-        page.wait_for_function("window.gridsReady === true", timeout=60_000)
-        for name, job in jobs.items():
-            out[name] = page.evaluate("(j) => window.grids.bakeThree(j)", job)
-        errors = [m for m in page.shprobe_console if m.startswith(("error", "pageerror"))]
-    if errors:
-        raise RuntimeError("; ".join(errors))
-    return out
+def run_bakes(jobs: dict[str, dict], page) -> dict[str, dict]:
+    """Each job baked by three.js on ``page`` (a Playwright page showing
+    tests/consumers/grid.html): {name: {seconds, coefficients, info}}."""
+    page.wait_for_function("window.gridsReady === true", timeout=60_000)
+    return {name: page.evaluate("(j) => window.grids.bakeThree(j)", job)
+            for name, job in jobs.items()}
 
 
 def grid_from_three(result: dict, job: dict) -> ProbeGrid:
