@@ -166,6 +166,10 @@ def test_three_export_layout():
     c = np.reshape(doc["coefficients"], (5, 3, 4, 9, 3))  # (nz, ny, nx, k, rgb)
     np.testing.assert_allclose(c[4, 2, 1], grid.coeffs[1, 2, 4], rtol=1e-7)
     assert doc["bounds"] == [-3.0, 0.0, -2.0, 1.0, 2.5, 3.0] and doc["resolution"] == [4, 3, 5]
+    l1 = random_grid(lmax=1)  # padded: three.js's shader reads 9 coefficients
+    c = np.reshape(json.loads(export_text(l1, "three"))["coefficients"], (5, 3, 4, 9, 3))
+    np.testing.assert_allclose(c[..., :4, :], np.transpose(l1.coeffs, (2, 1, 0, 3, 4)))
+    assert not c[..., 4:, :].any()
 
 
 def test_non_finite_grid_is_refused(tmp_path):
@@ -195,6 +199,12 @@ def test_cli_grid_export(tmp_path, capsys):
         assert "already exists" in capsys.readouterr().err
         assert main(["grid", "export", str(src), "--format", fmt, "-o", str(out), "-f"]) == 0
         assert capsys.readouterr().err.startswith(f"wrote {out} (")
+    # over the memory limit: one line before any work, nothing written
+    assert main(["--max-memory", "1K", "grid", "export", str(src), "--format", "godot", "-o",
+                 str(tmp_path / "big.tres")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "would need about" in err
+    assert not (tmp_path / "big.tres").exists()
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip")
     for args in ([str(bad)], [str(tmp_path / "none.npz")]):

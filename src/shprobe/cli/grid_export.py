@@ -8,7 +8,7 @@ import os
 import click
 
 from .common import force_option
-from .output import wrote
+from .output import detail, wrote
 
 # listed here so `--help` imports no numpy; equal to shprobe.grids.exports' (tested)
 FORMATS = ("three", "unity", "godot")
@@ -37,4 +37,7 @@ def export(grid_file: str, fmt: str, output: str, force: bool) -> None:
     grid = load_grid(grid_file)
     export_grid(grid, fmt, output, overwrite=force, source=os.path.basename(grid_file))
     nx, ny, nz = grid.resolution
+    if grid.depth is not None:
+        detail("engines blend the probes trilinearly: the grid's visibility weights stay in "
+               "shprobe; its leak control reaches them through the probe values")
     wrote(output, f"{_WHAT[fmt]}, {nx}x{ny}x{nz} probes")

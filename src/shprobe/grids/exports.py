@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,7 @@ from numpy.typing import NDArray
 from .._version import __version__
 from ..errors import ShprobeError
 from ..files import write_text
+from ..limits import check_memory
 from ..sh.indexing import sh_lm
 from ..sh.registry import convert
 from .grid import ProbeGrid
@@ -140,7 +142,7 @@ def _godot(grid: ProbeGrid, source: str | None) -> str:
     rgba = np.concatenate([sh, np.ones((*sh.shape[:2], 1))], axis=-1)
     lo, hi = grid.bounds
     nx, ny, nz = grid.resolution
-    src = (source or "").replace("\\", "/").replace('"', "'")
+    src = re.sub(r'[\x00-\x1f"\\]', "_", source or "")  # one line, no escapes
     lines = [
         '[gd_resource type="Resource" format=3]',
         "",
@@ -171,11 +173,18 @@ FORMATS = tuple(_WRITERS)
 SUFFIX = {"three": ".three.json", "unity": ".unity.json", "godot": ".tres"}
 
 
+#: Bytes of memory an export needs per probe: its text (27 + 3 numbers of up to 16
+#: characters) and the float64 copies made on the way, with room to spare.
+BYTES_PER_PROBE = 2048
+
+
 def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
-    """The text of ``grid`` in format ``fmt`` (one of :data:`FORMATS`)."""
+    """The text of ``grid`` in format ``fmt`` (one of :data:`FORMATS`); refused first when
+    it would not fit in memory."""
     if fmt not in _WRITERS:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "
                            f"{', '.join(FORMATS)}")
+    check_memory(float(np.prod(grid.resolution)) * BYTES_PER_PROBE, f"the {fmt} export")
     return _WRITERS[fmt](grid, source)
 
 
