@@ -159,6 +159,18 @@ def test_godot_capture_of_the_export(tmp_path, lmax):
                              n * [1, 1, -1]), ref) > 1e-2
 
 
+def test_relocated_probes_export_at_their_cell_centres():
+    """A probe baked at a moved point is still looked up at its cell centre (the plain
+    interpolation's lattice): that is where the exports place it."""
+    grid = random_grid()
+    moved = grid.centres() + 0.1
+    g = ProbeGrid(grid.coeffs, grid.bounds, positions=moved)
+    pos = np.reshape(json.loads(export_text(g, "unity"))["positions"], (-1, 3))
+    np.testing.assert_allclose(pos, (grid.centres() * [1, 1, -1]).reshape(-1, 3), atol=1e-6)
+    pts = parse_tres(export_text(g, "godot"))["points"].reshape(-1, 3)
+    np.testing.assert_allclose(pts, grid.centres().reshape(-1, 3), atol=1e-6)
+
+
 def test_three_export_layout():
     """The three document: texture order (X fastest), R&H L_lm unchanged, bounds as given."""
     grid = random_grid()

@@ -111,7 +111,7 @@ def unity_frame(points: NDArray) -> NDArray[np.float64]:
 def _unity(grid: ProbeGrid, source: str | None) -> str:
     sh = convert(grid_coeffs9(grid), to="unity-l2") * _z_mirror_signs()[:, None]
     sh = np.swapaxes(sh, -1, -2)  # (..., rgb, k): SphericalHarmonicsL2's sh[rgb, k]
-    pos = unity_frame(grid.probe_positions())
+    pos = unity_frame(grid.centres())  # where the lookup places each probe's SH
     lo, hi = unity_frame(grid.bounds)
     doc = {"format": UNITY_FORMAT, "version": EXPORT_VERSION, **_common(grid),
            "target": "UnityEngine.Rendering.SphericalHarmonicsL2 per probe "
@@ -123,8 +123,9 @@ def _unity(grid: ProbeGrid, source: str | None) -> str:
                          "cancel). ShadeSH9 / Evaluate give E/pi: the outgoing radiance of a "
                          "white Lambertian surface",
            "layout": "probes in grid order ix, iy, iz with iz fastest (shprobe's index "
-                     "(ix*ny + iy)*nz + iz); positions[i] (3 floats), coefficients[i] "
-                     "(27 floats, index rgb*9 + k)",
+                     "(ix*ny + iy)*nz + iz); positions[i] (3 floats: the cell centre, "
+                     "where the interpolation places the probe, even if it was baked at a "
+                     "relocated point), coefficients[i] (27 floats, index rgb*9 + k)",
            "bounds": _floats(np.stack([np.minimum(lo, hi), np.maximum(lo, hi)])),
            "positions": _floats(pos.reshape(-1, 3)),
            "coefficients": _floats(sh.reshape(-1, 27))}
@@ -158,7 +159,7 @@ def _godot(grid: ProbeGrid, source: str | None) -> str:
         'cell of bounds; sh[index*9 + k]"',
         f"metadata/bounds = AABB({_godot_floats(np.concatenate([lo, hi - lo]))})",
         f"metadata/resolution = Vector3i({nx}, {ny}, {nz})",
-        f"metadata/points = PackedVector3Array({_godot_floats(grid.probe_positions())})",
+        f"metadata/points = PackedVector3Array({_godot_floats(grid.centres())})",
         f"metadata/sh = PackedColorArray({_godot_floats(rgba)})",
         "",
     ]
