@@ -18,7 +18,7 @@ DOCS = REPO / "docs"
 def nav_pages() -> set[str]:
     text = (REPO / "mkdocs.yml").read_text(encoding="utf-8")
     nav = text[text.index("\nnav:"):]
-    return set(re.findall(r":\s*([\w/]+\.md)\s*$", nav, re.M))
+    return set(re.findall(r":\s*([\w/-]+\.md)\s*$", nav, re.M))
 
 
 def test_every_page_is_in_the_manual_and_every_nav_entry_exists():

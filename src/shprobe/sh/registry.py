@@ -107,6 +107,13 @@ def _unity(lmax: int) -> NDArray[np.float64]:
     return M
 
 
+def _godot(lmax: int) -> NDArray[np.float64]:
+    """Godot 4 ``LightmapGIData`` probe SH (lightmapper_rd ``MODE_LIGHT_PROBES``: Σ L y_k ·
+    4/N over N uniform rays = L_lm/π, R&H basis constants and signs), evaluated by the forward
+    shaders' R&H eq. 13 polynomial, which then gives E(n)/π."""
+    return np.full(num_coeffs(lmax), 1.0 / math.pi)
+
+
 _CS_DOC = "real orthonormal SH with the Condon–Shortley phase: a_lm (−1)^m"
 
 CONVENTIONS: dict[str, Convention] = {c.name: c for c in (
@@ -135,6 +142,16 @@ CONVENTIONS: dict[str, Convention] = {c.name: c for c in (
     Convention("unity", "Unity shader constants unity_SHA*/SHB*/SHC (ShadeSH9)",
                "pre-multiplied polynomial of E(n)/π: (A.xyzw, B.xyzw, C) per channel",
                lmax=2, matrix=_unity),
+    # Unity's SphericalHarmonicsL2 holds the canonical Condon–Shortley L_lm times
+    # kNormalizationConstants = (Â_l/π) × the CS-signed basis constants (HDRP
+    # SphericalHarmonicMath.UndoCosineRescaling divides by them): the signs cancel, leaving
+    # Filament's pre-scaled base, the terms ShadeSH9 sums after the unity_SH* packing. Unity's
+    # left-handed frame (z mirrored) is the exporter's.
+    Convention("unity-l2", "Unity SphericalHarmonicsL2 (LightProbes.bakedProbes, ambientProbe)",
+               "s_k = (Â_l/π) K_k L_lm, sh[rgb, k], k = l(l+1)+m (CS signs of the basis and of "
+               "kNormalizationConstants cancel)", lmax=2, diagonal=_filament),
+    Convention("godot", "Godot 4 LightmapGIData probe SH (lightmap captures)",
+               "L_lm/π, R&H constants and signs, k = l(l+1)+m", lmax=2, diagonal=_godot),
 )}
 
 
