@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "hbasis": "hbasis", "prt": "prt", "fit": "fit", "report": "report", "batch": "batch",
     "view": "view",
     "splat": "splat",
+    "grid": "grid",
 }
 
 

@@ -110,7 +110,9 @@ class ProbeGrid:
         else:
             idx, w = plain_weights(self.bounds, self.resolution, p, n)
         c = np.asarray(self.coeffs, dtype=np.float64).reshape(-1, *self.coeffs.shape[-2:])
-        out = np.einsum("...j,...jkc->...kc", w, c[idx])
+        out = np.zeros((*w.shape[:-1], *c.shape[1:]))
+        for j in range(w.shape[-1]):  # corner by corner: no (..., 8, K, 3) temporary
+            out += w[..., j, None, None] * c[idx[..., j]]
         return out
 
     def irradiance(self, points: ArrayLike, normals: ArrayLike,
