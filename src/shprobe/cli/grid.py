@@ -89,6 +89,11 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     settings = GridSettings(resolution=parse_resolution(resolution),
                             bounds=None if bounds is None else parse_bounds(bounds),
                             lmax=int(lmax), bounces=bounces, samples=samples)
+    given = [n for n, v in (("--lighting", probe), ("--preset", preset),
+                            ("--coeffs", coeffs_file)) if v]
+    if len(given) != 1:
+        raise ShprobeError("give exactly one lighting source: --lighting PROBE, --preset NAME "
+                           f"or --coeffs FILE (got {', '.join(given) or 'none'})")
     light = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
                            lmax=8 if probe else None, need_env=False)
     where = scene[0] if len(scene) == 1 else None

@@ -2,14 +2,15 @@
 diffuse light of the scene's surfaces, to N bounces, with the depth moments of leak control.
 
 Per probe (at its cell centre, or moved out of geometry: :mod:`.placement`), ``samples``
-spherical-Fibonacci directions are traced once. A ray that leaves the scene sees the
-environment: the mean radiance of the probe image over the direction's own cell of the
-sphere (each image pixel goes to its nearest direction, so the set's cells tile the image and
-the occlusion is projected without aliasing the image's bright spots), or the lighting's SH
-where there is no image. A ray that meets the front of a surface sees ρ/π·E, E the surface's
-irradiance from the previous bounce's grid through the leak-controlled interpolation (DDGI's
-recursive bounce, Majercik et al. 2019 §5), ρ the albedo there; a back face is black. The
-radiance is projected on the SH with weights 4π/D (R&H 2001 eq. 6 by quadrature).
+spherical-Fibonacci directions are traced once. A ray that leaves the scene brings the SH
+moments of the probe image over the direction's own cell of the sphere (each image pixel goes
+to its nearest direction, so the cells tile the image: an unoccluded probe holds the image's
+projection pixel for pixel, and occlusion is resolved per cell without aliasing the image's
+bright spots), or 4π/D · L(ω) y(ω) from the lighting's SH where there is no image. A ray that
+meets the front of a surface sees ρ/π·E, E the surface's irradiance from the previous
+bounce's grid through the leak-controlled interpolation (DDGI's recursive bounce, Majercik
+et al. 2019 §5), ρ the albedo there, projected with weight 4π/D (R&H 2001 eq. 6 by
+quadrature); a back face is black.
 
 Each probe's octahedral depth map (mean and mean-square distance to the first hit over
 ``depth_samples``² rays per texel, distances capped at twice the cell diagonal) feeds the
@@ -49,7 +50,7 @@ _BYTES_PER_RAY = 24
 
 def grid_bounds(scene: BakeScene, settings: GridSettings) -> NDArray[np.float64]:
     """The bake volume: ``settings.bounds``, or the scene's bounding box (a flat box grown to
-    a tenth of its largest side); refused when no triangle of the scene reaches into it."""
+    a tenth of its largest side); refused when it lies wholly outside the scene's triangles' bounding box."""
     v = scene.vertices
     if settings.bounds is None:
         lo, hi = v.min(axis=0), v.max(axis=0)
@@ -57,10 +58,8 @@ def grid_bounds(scene: BakeScene, settings: GridSettings) -> NDArray[np.float64]
         b = check_bounds([lo - pad, hi + pad])
     else:
         b = check_bounds(settings.bounds)
-    fv = v[scene.faces]
-    touch = np.all((fv.min(axis=1) <= b[1]) & (fv.max(axis=1) >= b[0]), axis=1)
-    if not touch.any():
-        lo, hi = v.min(axis=0), v.max(axis=0)
+    lo, hi = v[scene.faces].reshape(-1, 3).min(axis=0), v[scene.faces].reshape(-1, 3).max(axis=0)
+    if np.any(lo > b[1]) or np.any(hi < b[0]):  # a grid inside an enclosing room is fine
         raise ShprobeError(f"grid bounds {_fmt(b[0])}..{_fmt(b[1])} contain no geometry of the "
                            f"scene (it spans {_fmt(lo)}..{_fmt(hi)})")
     return b
@@ -116,8 +115,9 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
         depth = _depth_moments(tracer, pos, settings, float(np.linalg.norm(spacing)),
                                bar.advance)
         step("environment seen by the probes")
-        sky = _miss_radiance(coeffs, env, dirs)  # (D, 3)
-        radiance = np.where((hits.face < 0)[..., None], sky[None], 0.0).astype(np.float32)
+        sky = _miss_moments(coeffs, env, dirs, y)  # (D, K, 3)
+        miss = (hits.face < 0).astype(np.float32)
+        radiance = np.zeros((*miss.shape, 3), np.float32)  # of the surfaces hit
         front = np.flatnonzero((hits.face >= 0).ravel() & ~hits.back.ravel())
         where = _hit_geometry(tracer, sc, hits, front)
         meta = {"lmax": lmax, "bounces": settings.bounces, "samples": settings.samples,
@@ -126,12 +126,12 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
                 "scene": sc.mesh_hash, "moved": int(moved.sum()),
                 "invalid": int((valid == 0).sum())}
         shape = (*res, num_coeffs(lmax), 3)
-        grid = _grid(_project(radiance, y, valid, shape), bounds, pos, valid, depth, meta)
+        grid = _grid(_project(miss, sky, radiance, y, valid, shape), bounds, pos, valid, depth, meta)
         for k in range(settings.bounces):
             bar = step(f"bounce {k + 1} of {settings.bounces}", total=len(front))
             r = radiance.reshape(-1, 3)
             r[front] = _bounce_radiance(grid, where, bar.advance)
-            grid = _grid(_project(radiance, y, valid, shape), bounds, pos, valid, depth, meta)
+            grid = _grid(_project(miss, sky, radiance, y, valid, shape), bounds, pos, valid, depth, meta)
     meta["seconds"] = round(time.monotonic() - t0, 3)
     return grid
 
@@ -143,12 +143,15 @@ def _grid(coeffs, bounds, pos, valid, depth, meta) -> ProbeGrid:
                      depth=depth.reshape(*res, *depth.shape[1:]), meta=meta)
 
 
-def _project(radiance: NDArray, y: NDArray, valid: NDArray, shape: tuple) -> NDArray:
-    """L_lm = 4π/D Σ_d L(ω_d) y_lm(ω_d) per probe (R&H eq. 6 by quadrature), invalid probes
-    filled from their neighbours."""
+def _project(miss: NDArray, sky: NDArray, radiance: NDArray, y: NDArray, valid: NDArray,
+             shape: tuple) -> NDArray:
+    """L_lm per probe: the environment's moments over the directions that leave the scene
+    plus 4π/D Σ_d L(ω_d) y_lm(ω_d) over the surfaces hit (R&H eq. 6 by quadrature); invalid
+    probes filled from their neighbours."""
     d = y.shape[0]
-    c = np.einsum("pdc,dk->pkc", radiance, y.astype(np.float32), optimize=True)
-    c = c.astype(np.float64) * (4.0 * np.pi / d)
+    c = np.einsum("pd,dkc->pkc", miss, sky.astype(np.float32), optimize=True)
+    c = c.astype(np.float64) + (4.0 * np.pi / d) * np.einsum(
+        "pdc,dk->pkc", radiance, y.astype(np.float32), optimize=True)
     return dilate(c.reshape(shape), valid.reshape(shape[:3]))
 
 
@@ -203,20 +206,24 @@ def _lighting_parts(lighting: Any) -> tuple[NDArray[np.float64], Any, str]:
     return c, env, source
 
 
-def _miss_radiance(coeffs: NDArray, env: Any, dirs: NDArray) -> NDArray[np.float64]:
-    """Radiance (D, 3) a ray leaving the scene in each direction sees: the probe image's mean
-    over the direction's cell (its pixels nearest to it), else the SH of the lighting."""
+def _miss_moments(coeffs: NDArray, env: Any, dirs: NDArray, y: NDArray
+                  ) -> NDArray[np.float64]:
+    """SH moments (D, K, 3) of the light a ray leaving the scene in each direction stands
+    for: Σ L y_lm dω over the probe image's pixels nearest to that direction (its cell), so
+    that the unoccluded sum is the image's own projection pixel for pixel; without an image,
+    4π/D · L(ω) y_lm(ω) with L the lighting's SH."""
     if env is None:
-        return sh_basis(dirs, lmax_of(coeffs.shape[0])) @ coeffs
+        sky = sh_basis(dirs, lmax_of(coeffs.shape[0])) @ coeffs  # (D, 3)
+        return (4.0 * np.pi / len(dirs)) * y[:, :, None] * sky[:, None, :]
     from scipy.spatial import cKDTree
 
     pd, rad, dw = env.samples()
     _, near = cKDTree(dirs).query(pd, workers=-1)
-    w = np.bincount(near, weights=dw, minlength=len(dirs))
-    out = np.stack([np.bincount(near, weights=dw * rad[:, c].astype(np.float64),
-                                minlength=len(dirs)) for c in range(3)], axis=-1)
-    empty = w <= 0
-    out[~empty] /= w[~empty, None]
-    if empty.any():
-        out[empty] = env.sample(dirs[empty])
+    k = y.shape[1]
+    yp = sh_basis(pd, lmax_of(k)) * dw[:, None]  # (S, K)
+    out = np.zeros((len(dirs), k, 3))
+    for c in range(3):
+        w = yp * rad[:, c, None].astype(np.float64)
+        for j in range(k):
+            out[:, j, c] = np.bincount(near, weights=w[:, j], minlength=len(dirs))
     return out
