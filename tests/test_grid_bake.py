@@ -17,8 +17,8 @@ from shprobe.grids.octahedral import (
     texel_directions,
 )
 from shprobe.grids.placement import dilate
-from shprobe.prt.geometry import load_scene
 from shprobe.progress import Recorder
+from shprobe.prt.geometry import load_scene
 
 Y00 = 0.5 / np.sqrt(np.pi)
 Y1 = np.sqrt(3 / (4 * np.pi))

@@ -37,7 +37,7 @@ def test_plain_interpolation_leaks(baked):
     in: several times the leak-controlled figure."""
     room, grid = baked
     floor, volume, _ = _ratios(grid, room, False)
-    lc_floor, lc_volume, _ = _ratios(grid, room, True)
+    _lc_floor, lc_volume, _ = _ratios(grid, room, True)
     print(f"\nplain trilinear: cavity floor {floor:.3%}, cavity volume {volume:.3%}")
     assert volume > 5 * lc_volume and volume > 0.01
 

@@ -27,7 +27,7 @@ def baked():
 
 
 def test_ground_near_the_room_within_ten_percent_of_the_path_tracer(baked):
-    room, grid, tracer = baked
+    _room, grid, tracer = baked
     up = np.tile([0.0, 1.0, 0.0], (len(GROUND), 1))
     ref = tracer.irradiance(GROUND, up, BOUNCES, paths=40000, seed=3)
     got = grid.irradiance(GROUND, up)

@@ -50,7 +50,8 @@ _BYTES_PER_RAY = 24
 
 def grid_bounds(scene: BakeScene, settings: GridSettings) -> NDArray[np.float64]:
     """The bake volume: ``settings.bounds``, or the scene's bounding box (a flat box grown to
-    a tenth of its largest side); refused when it lies wholly outside the scene's triangles' bounding box."""
+    a tenth of its largest side); refused when it lies wholly outside the bounding box of the
+    scene's triangles."""
     v = scene.vertices
     if settings.bounds is None:
         lo, hi = v.min(axis=0), v.max(axis=0)
@@ -126,12 +127,16 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
                 "scene": sc.mesh_hash, "moved": int(moved.sum()),
                 "invalid": int((valid == 0).sum())}
         shape = (*res, num_coeffs(lmax), 3)
-        grid = _grid(_project(miss, sky, radiance, y, valid, shape), bounds, pos, valid, depth, meta)
+
+        def project() -> ProbeGrid:
+            c = _project(miss, sky, radiance, y, valid, shape)
+            return _grid(c, bounds, pos, valid, depth, meta)
+
+        grid = project()
         for k in range(settings.bounces):
             bar = step(f"bounce {k + 1} of {settings.bounces}", total=len(front))
-            r = radiance.reshape(-1, 3)
-            r[front] = _bounce_radiance(grid, where, bar.advance)
-            grid = _grid(_project(miss, sky, radiance, y, valid, shape), bounds, pos, valid, depth, meta)
+            radiance.reshape(-1, 3)[front] = _bounce_radiance(grid, where, bar.advance)
+            grid = project()
     meta["seconds"] = round(time.monotonic() - t0, 3)
     return grid
 
