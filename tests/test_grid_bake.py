@@ -161,3 +161,23 @@ def test_progress_estimate_and_meta():
     big = estimate_grid_bake(1, GridSettings((64, 64, 64), samples=4096))
     assert 0 < cost.seconds < big.seconds and cost.nbytes < big.nbytes
     assert big.nbytes > 1e10  # a 64³ grid at 4096 rays keeps ~10⁹ rays' hits: refused early
+
+
+def test_the_weights_kernel_is_the_numpy_rule(rng):
+    """The numba kernel of the leak-controlled weights gives the numpy reference's weights
+    (points inside and outside the grid, random normals, a grid with a moved probe)."""
+    from shprobe.grids.visibility import visibility_weights, visibility_weights_reference
+
+    cube = trimesh.creation.box(bounds=[[-0.3, -0.3, -0.3], [0.3, 0.3, 0.3]])
+    sky = np.zeros((9, 3))
+    sky[0] = 1.0
+    g = bake_grid(cube, sky, GridSettings((3, 3, 3), bounds=[[-1.5] * 3, [1.5] * 3],
+                                          bounces=0, samples=256))
+    assert g.meta["moved"] == 1
+    p = rng.uniform(-2, 2, (4000, 3))
+    n = rng.normal(size=(4000, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    i1, w1 = visibility_weights(g, p, n)
+    i2, w2 = visibility_weights_reference(g, p, n)
+    assert np.array_equal(i1, i2) and np.allclose(w1, w2, atol=1e-12)
+    assert np.allclose(w1.sum(axis=1), 1.0)

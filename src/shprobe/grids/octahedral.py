@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["octahedral_decode", "octahedral_encode", "octahedral_lookup", "texel_directions"]
+__all__ = ["octahedral_decode", "octahedral_encode", "octahedral_lookup", "pad_maps",
+           "texel_directions"]
 
 
 def _sign(a: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -47,7 +48,7 @@ def texel_directions(n: int, sub: int) -> NDArray[np.float64]:
     return octahedral_decode(uv)
 
 
-def _pad(maps: NDArray) -> NDArray:
+def pad_maps(maps: NDArray) -> NDArray:
     """Maps (..., n, n, C) with a one-texel border copied across the folded edges (the rule
     of DDGI's probe textures): a border texel holds the texel mirrored along its edge, a
     corner the diagonally opposite corner."""
@@ -71,7 +72,7 @@ def octahedral_lookup(maps: NDArray, which: NDArray[np.int64],
     (..., 3) — → (..., C), filtering across the folded edges as a GPU does on a bordered
     octahedral texture."""
     n = maps.shape[1]
-    padded = _pad(np.asarray(maps, dtype=np.float64))
+    padded = pad_maps(np.asarray(maps, dtype=np.float64))
     t = octahedral_encode(dirs) * n + 0.5  # padded texel coordinate, texel i centred at i + 1
     i0 = np.clip(np.floor(t).astype(np.int64), 0, n)
     f = np.clip(t - i0, 0.0, 1.0)

@@ -13,8 +13,9 @@ normal bias, a fraction of the smallest cell side); each of the 8 probes of q's 
 - the crush of weights below 0.2 (w ← w³/0.04), then the trilinear weight and the probe's
   validity (0 for a probe left inside geometry).
 
-The weights are normalised to sum to 1; a point whose every probe is hidden (weights all 0)
-falls back on the plain trilinear weights.
+The weights are normalised to sum to 1; a point whose every probe is hidden or invalid falls
+back on the trilinear weights (of the valid probes, else of all). The lookups run in a numba
+kernel (:mod:`._kernels`); :func:`visibility_weights_reference` is the same rule in numpy.
 """
 
 from __future__ import annotations
@@ -22,9 +23,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .octahedral import octahedral_lookup
+from .octahedral import octahedral_lookup, pad_maps
 
-__all__ = ["DEFAULT_NORMAL_BIAS", "cell_probes", "visibility_weights"]
+__all__ = ["DEFAULT_NORMAL_BIAS", "cell_probes", "visibility_weights",
+           "visibility_weights_reference"]
 
 #: Offset of the lookup point along the normal, as a fraction of the smallest cell side (the
 #: meta key ``normal_bias`` of a grid overrides it).
@@ -62,22 +64,45 @@ def visibility_weights(grid, points: NDArray[np.float64], normals: NDArray[np.fl
                        ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Flat probe indices (..., 8) and leak-controlled weights (..., 8) summing to 1 for
     points (..., 3) on surfaces facing unit ``normals`` (..., 3) (module doc)."""
-    p = np.asarray(points, dtype=np.float64)
-    n = np.asarray(normals, dtype=np.float64)
-    shape = p.shape[:-1]
-    p, n = p.reshape(-1, 3), n.reshape(-1, 3)
+    from . import _kernels
+
+    p, n, shape, depth, pos, valid, bias = _inputs(grid, points, normals)
+    padded = pad_maps(depth)
     idx = np.empty((len(p), 8), dtype=np.int64)
     w = np.empty((len(p), 8))
-    depth = np.asarray(grid.depth, dtype=np.float64)
-    depth = depth.reshape(-1, *depth.shape[3:])
-    pos = grid.probe_positions().reshape(-1, 3)
-    valid = (np.ones(len(pos)) if grid.validity is None
-             else np.asarray(grid.validity, dtype=np.float64).reshape(-1))
-    bias = float(grid.meta.get("normal_bias", DEFAULT_NORMAL_BIAS)) * float(grid.spacing.min())
+    for a in range(0, len(p), _BLOCK):
+        s = slice(a, a + _BLOCK)
+        q = np.ascontiguousarray(p[s] + bias * n[s])
+        idx[s], tri = cell_probes(grid, q)
+        _kernels.visibility_weights(q, np.ascontiguousarray(n[s]), idx[s], tri, pos, padded,
+                                    valid, w[s])
+    return idx.reshape(*shape, 8), w.reshape(*shape, 8)
+
+
+def visibility_weights_reference(grid, points: NDArray[np.float64],
+                                 normals: NDArray[np.float64]
+                                 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`visibility_weights` in numpy, array by array (the reference of the kernel)."""
+    p, n, shape, depth, pos, valid, bias = _inputs(grid, points, normals)
+    idx = np.empty((len(p), 8), dtype=np.int64)
+    w = np.empty((len(p), 8))
     for a in range(0, len(p), _BLOCK):
         s = slice(a, a + _BLOCK)
         idx[s], w[s] = _block(grid, depth, pos, valid, p[s] + bias * n[s], n[s])
     return idx.reshape(*shape, 8), w.reshape(*shape, 8)
+
+
+def _inputs(grid, points, normals):
+    p = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normals, dtype=np.float64)
+    shape = p.shape[:-1]
+    depth = np.asarray(grid.depth, dtype=np.float64)
+    depth = depth.reshape(-1, *depth.shape[3:])
+    pos = np.ascontiguousarray(grid.probe_positions().reshape(-1, 3))
+    valid = (np.ones(len(pos)) if grid.validity is None
+             else np.asarray(grid.validity, dtype=np.float64).reshape(-1))
+    bias = float(grid.meta.get("normal_bias", DEFAULT_NORMAL_BIAS)) * float(grid.spacing.min())
+    return p.reshape(-1, 3), n.reshape(-1, 3), shape, depth, pos, valid, bias
 
 
 def _block(grid, depth, pos, valid, q, n):
