@@ -111,7 +111,7 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
                                          settings.inside_fraction, settings.seed)
         bar = step(f"tracing {settings.samples} rays from each of {len(pos)} probes",
                    total=len(pos))
-        hits = tracer.trace(pos, dirs, on_block=bar.advance)
+        hits = tracer.trace(pos, dirs, on_block=bar.advance, distances=False)
         bar = step("depth maps (leak control)", total=len(pos))
         depth = _depth_moments(tracer, pos, settings, float(np.linalg.norm(spacing)),
                                bar.advance)
@@ -153,10 +153,12 @@ def _project(miss: NDArray, sky: NDArray, radiance: NDArray, y: NDArray, valid: 
     """L_lm per probe: the environment's moments over the directions that leave the scene
     plus 4π/D Σ_d L(ω_d) y_lm(ω_d) over the surfaces hit (R&H eq. 6 by quadrature); invalid
     probes filled from their neighbours."""
-    d = y.shape[0]
-    c = np.einsum("pd,dkc->pkc", miss, sky.astype(np.float32), optimize=True)
-    c = c.astype(np.float64) + (4.0 * np.pi / d) * np.einsum(
-        "pdc,dk->pkc", radiance, y.astype(np.float32), optimize=True)
+    p, d = miss.shape
+    k = y.shape[1]
+    # two GEMMs: (P, D)·(D, K·3) and (P·3, D)·(D, K)
+    c = (miss @ sky.reshape(d, k * 3).astype(np.float32)).reshape(p, k, 3).astype(np.float64)
+    r = np.ascontiguousarray(radiance.transpose(0, 2, 1)).reshape(p * 3, d)
+    c += (4.0 * np.pi / d) * (r @ y.astype(np.float32)).reshape(p, 3, k).transpose(0, 2, 1)
     return dilate(c.reshape(shape), valid.reshape(shape[:3]))
 
 

@@ -42,9 +42,10 @@ class ProbeTracer:
         self.face_normals = n / np.where(ln > 0, ln, 1.0)
 
     def trace(self, origins: NDArray[np.float64], dirs: NDArray[np.float64],
-              on_block=None) -> ProbeHits:
+              on_block=None, distances: bool = True) -> ProbeHits:
         """First hits of every direction of ``dirs`` (D, 3) — or of each origin's own
-        directions (P, D, 3) — from each origin (P, 3)."""
+        directions (P, D, 3) — from each origin (P, 3); ``distances=False`` leaves ``dist``
+        at inf where there is a hit too (it is the costly part)."""
         o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
         d = np.asarray(dirs, dtype=np.float64)
         per = d.shape[-2]
@@ -66,8 +67,10 @@ class ProbeTracer:
                 on_block(b - a)
         hit = face >= 0
         fi = np.maximum(face, 0)
-        x = self.points(fi, u, v)
-        dist = np.where(hit, np.linalg.norm(x - o[:, None, :], axis=-1), np.inf)
+        dist = np.full(face.shape, np.inf)
+        if distances:
+            x = self.points(fi, u, v)
+            dist = np.where(hit, np.linalg.norm(x - o[:, None, :], axis=-1), np.inf)
         dfull = np.broadcast_to(d, (len(o), per, 3))
         back = hit & (np.einsum("pdc,pdc->pd", dfull, self.face_normals[fi]) > 0)
         return ProbeHits(face, u, v, dist.astype(np.float32), back)
