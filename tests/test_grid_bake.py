@@ -55,8 +55,9 @@ def test_unoccluded_probes_equal_the_probe_images_projection(grace_path):
     assert err < 1e-4 * light.coeffs[0].max(), err
 
 
+@pytest.mark.parametrize("gather", [0, 2])
 @pytest.mark.parametrize("bounces", [0, 1, 2])
-def test_ground_under_a_uniform_sky(bounces):
+def test_ground_under_a_uniform_sky(bounces, gather):
     """A wide ground of albedo ρ under a uniform sky L: a probe sees L above and, from one
     bounce on, ρL below (the ground sees only sky: E = πL). Projection: L00 = 2π·Y00·(L +
     ρ'L), L1,-1 = π·Y1·(L − ρ'L) (the y band), every other coefficient 0."""
@@ -67,7 +68,7 @@ def test_ground_under_a_uniform_sky(bounces):
     sky[0] = L / Y00
     g = bake_grid(load_scene(ground, albedo=rho), sky,
                   GridSettings((2, 2, 2), bounds=[[-1, 0, -1], [1, 2, 1]], bounces=bounces,
-                               samples=4096))
+                               samples=4096, gather=gather))
     below = rho * L if bounces else 0.0
     want = np.zeros((9, 3))
     want[0] = 2 * np.pi * Y00 * (L + below)
@@ -181,3 +182,15 @@ def test_the_weights_kernel_is_the_numpy_rule(rng):
     i2, w2 = visibility_weights_reference(g, p, n)
     assert np.array_equal(i1, i2) and np.allclose(w1, w2, atol=1e-12)
     assert np.allclose(w1.sum(axis=1), 1.0)
+
+
+def test_gather_directions_are_cosine_distributed(rng):
+    """E[cos θ] = 2/3 and E[cos² θ] = 1/2 under the cosine density, all in the hemisphere."""
+    from shprobe.grids.gather import cosine_directions
+
+    n = rng.normal(size=(50, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    d = cosine_directions(n, 4000, rng)
+    c = np.einsum("nkc,nc->nk", d, n)
+    assert np.allclose(np.linalg.norm(d, axis=-1), 1.0) and c.min() >= 0
+    assert abs(c.mean() - 2 / 3) < 3e-3 and abs((c * c).mean() - 0.5) < 3e-3

@@ -37,9 +37,8 @@ def test_ground_near_the_room_within_ten_percent_of_the_path_tracer(baked):
     assert np.abs(rel).max() < 0.10
 
 
-@pytest.mark.parametrize(("normal", "worst"), [([0, 1, 0], 0.05), ([1, 0, 0], 0.15),
-                                               ([0, 0, -1], 0.15), ([0, -1, 0], 0.15)])
-def test_probes_own_irradiance_against_the_path_tracer(baked, normal, worst):
+@pytest.mark.parametrize("normal", [[0, 1, 0], [1, 0, 0], [0, 0, -1], [0, -1, 0]])
+def test_probes_own_irradiance_against_the_path_tracer(baked, normal):
     """Each probe of the lowest outside layer (0.5 m over the ground) lit by its own SH,
     against the path tracer at the probe's position: the typical probe within 3 %; the worst,
     beside the room looking at its wall or at the ground at the wall's foot, within ``worst``
@@ -53,4 +52,4 @@ def test_probes_own_irradiance_against_the_path_tracer(baked, normal, worst):
     ref = tracer.irradiance(pos[sel], n, BOUNCES, paths=20000, seed=4)
     own = np.stack([irradiance(c[i], n[0]) for i in sel])
     rel = np.abs(own / ref - 1)
-    assert np.median(rel) < 0.03 and rel.max() < worst, np.round(rel, 3)
+    assert np.median(rel) < 0.02 and rel.max() < 0.06, np.round(rel, 3)

@@ -67,11 +67,14 @@ def parse_bounds(text: str):
 @click.option("--samples", type=int, default=4096, show_default=True,
               help="Rays per probe: the accuracy option (docs/grids.md gives its cost and "
                    "gain).")
+@click.option("--gather", type=int, default=2, show_default=True,
+              help="Rays from each surface a probe ray meets, gathering that surface's own "
+                   "light (0: read it from the grid, faster, up to 13 % high beside walls).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Grid file (.npz), read by shprobe.load_grid.")
 @force_option
 def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bounds, albedo,
-             bounces, lmax, samples, output, force):
+             bounces, lmax, samples, gather, output, force):
     """Bake an irradiance volume of SCENE (one or more OBJ/PLY/glTF meshes) under a probe or
     preset: per probe, the environment seen past the scene plus the scene's diffuse light
     to --bounces bounces, probes inside geometry moved out, and depth maps that keep the
@@ -88,7 +91,8 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     check_output_path(output, force)
     settings = GridSettings(resolution=parse_resolution(resolution),
                             bounds=None if bounds is None else parse_bounds(bounds),
-                            lmax=int(lmax), bounces=bounces, samples=samples)
+                            lmax=int(lmax), bounces=bounces, samples=samples,
+                            gather=gather)
     given = [n for n, v in (("--lighting", probe), ("--preset", preset),
                             ("--coeffs", coeffs_file)) if v]
     if len(given) != 1:

@@ -9,8 +9,9 @@ projection pixel for pixel, and occlusion is resolved per cell without aliasing 
 bright spots), or 4π/D · L(ω) y(ω) from the lighting's SH where there is no image. A ray that
 meets the front of a surface sees ρ/π·E, E the surface's irradiance from the previous
 bounce's grid through the leak-controlled interpolation (DDGI's recursive bounce, Majercik
-et al. 2019 §5), ρ the albedo there, projected with weight 4π/D (R&H 2001 eq. 6 by
-quadrature); a back face is black.
+et al. 2019 §5) or, with ``gather`` > 0, gathered from the surface itself (:mod:`.gather`), ρ
+the albedo there, projected with weight 4π/D (R&H 2001 eq. 6 by quadrature); a back face is
+black.
 
 Each probe's octahedral depth map (mean and mean-square distance to the first hit over
 ``depth_samples``² rays per texel, distances capped at twice the cell diagonal) feeds the
@@ -74,7 +75,9 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
     """Seconds and peak bytes of :func:`bake_grid` on this machine, from the arguments."""
     p, d = settings.n_probes, settings.samples
     rays = p * (TEST_RAYS + d + settings.depth_rays)
-    lookups = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
+    hits = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
+    rays += hits * settings.gather
+    lookups = hits * max(1.0, 0.6 * settings.gather)
     seconds = (rays / RAYS_PER_CORE_SECOND + lookups / LOOKUPS_PER_CORE_SECOND) / cores()
     seconds *= 1.0 + 0.05 * np.log2(max(n_faces, 2)) / 10  # deeper BVH
     nbytes = (p * d * (_BYTES_PER_RAY + 3 * 4 + 3 * 8)  # hits, radiance, hit irradiance
@@ -123,7 +126,8 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
         where = _hit_geometry(tracer, sc, hits, front)
         meta = {"lmax": lmax, "bounces": settings.bounces, "samples": settings.samples,
                 "depth_resolution": settings.depth_resolution,
-                "normal_bias": settings.normal_bias, "lighting": source,
+                "normal_bias": settings.normal_bias, "gather": settings.gather,
+                "lighting": source,
                 "scene": sc.mesh_hash, "moved": int(moved.sum()),
                 "invalid": int((valid == 0).sum())}
         shape = (*res, num_coeffs(lmax), 3)
@@ -132,11 +136,19 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
             c = _project(miss, sky, radiance, y, valid, shape)
             return _grid(c, bounds, pos, valid, depth, meta)
 
-        grid = project()
-        for k in range(settings.bounces):
-            bar = step(f"bounce {k + 1} of {settings.bounces}", total=len(front))
-            radiance.reshape(-1, 3)[front] = _bounce_radiance(grid, where, bar.advance)
-            grid = project()
+        grids = [project()]  # grids[k]: light reflected up to k times
+        rng = np.random.default_rng([settings.seed, 37])
+        sky_fn = _sky_function(coeffs, env)
+        for k in range(1, settings.bounces + 1):
+            bar = step(f"bounce {k} of {settings.bounces}", total=len(front))
+            if settings.gather:
+                e = _gathered(tracer, sc, where, sky_fn, grids[k - 2] if k >= 2 else None,
+                              settings, rng, lambda n: None)
+            else:
+                e = _from_grid(grids[k - 1], where)
+            radiance.reshape(-1, 3)[front] = _bounce_radiance(e, where, bar.advance)
+            grids.append(project())
+        grid = grids[-1]
     meta["seconds"] = round(time.monotonic() - t0, 3)
     return grid
 
@@ -163,26 +175,55 @@ def _project(miss: NDArray, sky: NDArray, radiance: NDArray, y: NDArray, valid: 
 
 
 def _hit_geometry(tracer: ProbeTracer, sc: BakeScene, hits, rays: NDArray[np.int64]):
-    """Points, face normals and albedo (RGB) of the front hits ``rays`` (flat ray indices)."""
+    """Points, face normals, albedo (RGB) and faces of the front hits ``rays`` (flat ray
+    indices)."""
     f = hits.face.ravel()[rays]
     u, v = hits.u.ravel()[rays], hits.v.ravel()[rays]
     fi = sc.faces[f]
     uu, vv = u[:, None].astype(np.float64), v[:, None].astype(np.float64)
     albedo = (1 - uu - vv) * sc.albedo[fi[:, 0]] + uu * sc.albedo[fi[:, 1]] \
         + vv * sc.albedo[fi[:, 2]]
-    return tracer.points(f, u, v), tracer.face_normals[f], albedo
+    return tracer.points(f, u, v), tracer.face_normals[f], albedo, f
 
 
-def _bounce_radiance(grid: ProbeGrid, where, advance, block: int = 1 << 17) -> NDArray:
-    """ρ/π·E at the front hits, E from ``grid`` with leak control (0 where albedo is 0)."""
-    pts, nrm, albedo = where
-    out = np.zeros((len(pts), 3), np.float32)
+def _bounce_radiance(irradiance, where, advance, block: int = 1 << 17) -> NDArray:
+    """ρ/π·E at the front hits, E = ``irradiance(index array)`` (0 where albedo is 0)."""
+    albedo = where[2]
+    out = np.zeros((len(albedo), 3), np.float32)
     lit = np.flatnonzero(albedo.max(axis=1) > 0)
     for a in range(0, len(lit), block):
         i = lit[a:a + block]
-        out[i] = albedo[i] / np.pi * grid.irradiance(pts[i], nrm[i], leak_control=True)
+        out[i] = albedo[i] / np.pi * irradiance(i)
         advance(len(i))
     return out
+
+
+def _from_grid(grid: ProbeGrid, where):
+    """E at the hits ``i`` read from ``grid`` with leak control (DDGI's recursion)."""
+    return lambda i: grid.irradiance(where[0][i], where[1][i], leak_control=True)
+
+
+def _gathered(tracer, sc, where, sky, previous, settings, rng, advance):
+    """E at the hits ``i`` by the final gather of :mod:`.gather`."""
+    from .gather import gather_irradiance
+
+    def albedo_at(h, rays):
+        return _hit_geometry(tracer, sc, h, rays)
+
+    def irradiance(i):
+        sub = tuple(x[i] for x in where)
+        return gather_irradiance(tracer, sub, sky, previous, albedo_at, settings.gather, rng,
+                                 advance)
+
+    return irradiance
+
+
+def _sky_function(coeffs: NDArray, env: Any):
+    """Radiance in directions (..., 3): the probe image (bilinear), else the lighting's SH."""
+    if env is not None:
+        return lambda d: np.asarray(env.sample(d), dtype=np.float64)
+    lmax = lmax_of(coeffs.shape[0])
+    return lambda d: sh_basis(np.asarray(d, dtype=np.float64), lmax) @ coeffs
 
 
 def _depth_moments(tracer: ProbeTracer, pos: NDArray, settings: GridSettings, cap: float,

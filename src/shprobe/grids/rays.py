@@ -57,7 +57,7 @@ class ProbeTracer:
         local = self.caster.local(o)
         for a in range(0, len(o), step):
             b = min(len(o), a + step)
-            dd = d if shared else d[a:b].reshape(-1, 3)
+            dd = d if shared else d[a:b]
             oo = np.repeat(local[a:b], per, axis=0)
             rd = np.ascontiguousarray(np.broadcast_to(dd, (b - a, per, 3)).reshape(-1, 3),
                                       dtype=np.float32)

@@ -29,7 +29,10 @@ class GridSettings:
     control); normal_bias: the lookup offset along the normal, a fraction of the smallest cell
     side; inside_fraction: a probe whose rays hit back faces more often than this is inside
     geometry (moved within its cell to free space, else marked invalid and filled from its
-    neighbours); seed: the random turn of the direction set.
+    neighbours); seed: the random turn of the direction set (and of the gather's rays);
+    gather: rays per surface a probe ray meets, gathering that surface's irradiance from the
+    surface itself (0: read it from the grid of the bounce before, DDGI's recursion, which
+    lights the foot of a wall as the nearest probe sees it; docs/grids.md gives both).
     """
 
     resolution: tuple[int, int, int]
@@ -42,6 +45,7 @@ class GridSettings:
     normal_bias: float = 0.1
     inside_fraction: float = 0.25
     seed: int = 0
+    gather: int = 2
 
     def __post_init__(self) -> None:
         res = tuple(self.resolution) if not isinstance(self.resolution, str) else ()
@@ -56,7 +60,7 @@ class GridSettings:
             object.__setattr__(self, "bounds", check_bounds(self.bounds))
         for name, lo, hi in (("lmax", 1, 2), ("bounces", 0, 16), ("samples", 64, 1 << 20),
                              ("depth_resolution", 4, 64), ("depth_samples", 1, 8),
-                             ("seed", 0, 2**32 - 1)):
+                             ("seed", 0, 2**32 - 1), ("gather", 0, 256)):
             v = getattr(self, name)
             if not _is_int(v) or not lo <= int(v) <= hi:
                 raise ShprobeError(f"grid {name} must be an integer in {lo}..{hi}, got {v!r}")
