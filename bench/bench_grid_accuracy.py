@@ -1,5 +1,5 @@
-"""What the accuracy option (rays per probe) buys: the room baked 7×4×7 under the grace
-preset at several ``samples``, against the independent path tracer of the tests
+"""What the accuracy options buy: the room baked 7×4×7 under the grace preset at several
+``samples`` and ``gather`` (and finer grids), against the independent path tracer of the tests
 (tests/grid_pathtracer.py, 160,000 paths a point): the probes' own irradiance (lowest outside
 layer, 4 normals) and the interpolated irradiance on the ground near the room; and the leak
 (inside / outside) with and without leak control under grace.hdr.
@@ -47,10 +47,10 @@ def main() -> None:
     ref_wall = tracer.irradiance(NEAR_WALL, up[:3], 2, paths=160000, seed=12)
     out = {}
     refs = None
-    for s in (1024, 4096, 16384):
+    for s, gather in ((1024, 2), (4096, 0), (4096, 2), (4096, 8), (16384, 2)):
         t = time.process_time()
         g = bake_grid(scene, get_preset("grace"), GridSettings((7, 4, 7), bounds=room.bounds,
-                                                               samples=s))
+                                                               samples=s, gather=gather))
         cpu = time.process_time() - t
         pos = g.probe_positions().reshape(-1, 3)
         c = np.asarray(g.coeffs, dtype=np.float64).reshape(-1, 9, 3)
@@ -65,7 +65,7 @@ def main() -> None:
         own = np.concatenate(own)
         ground = np.abs(g.irradiance(GROUND, up) / ref_ground - 1).mean(axis=1)
         wall = g.irradiance(NEAR_WALL, up[:3]) / ref_wall - 1
-        out[f"{s} rays/probe"] = {
+        out[f"{s} rays/probe, gather {gather}"] = {
             "bake CPU s": round(cpu, 2),
             "probes' own |error| median / max": [round(float(np.median(own)), 4),
                                                 round(float(own.max()), 4)],
