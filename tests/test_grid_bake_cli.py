@@ -77,11 +77,12 @@ def _obj(path, text):
     (["--resolution", "4,4,4", "--bounces", "-1"], ["bounces"]),
     (["--resolution", "4,4,4", "--samples", "3"], ["samples"]),
     (["--resolution", "512,512,512"], ["would need about"]),
+    (["--resolution", "4,4,4", "-o", "g.bin"], ["g.bin", "*.npz"]),
 ])
 def test_bad_arguments_are_one_line_before_work(tmp_path, room_obj, capsys, extra, needles):
     out = tmp_path / "g.npz"
     took = fails_with_one_line(capsys, ["grid", "bake", str(room_obj), "--preset", "grace",
-                                        *extra, "-o", str(out)], *needles)
+                                        "-o", str(out), *extra], *needles)
     assert not out.exists() and took < 5
 
 

@@ -4,6 +4,8 @@ modules (see :func:`register`)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from ..errors import ShprobeError
@@ -89,6 +91,8 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     from .sources import resolve_coeffs
 
     check_output_path(output, force)
+    if Path(output).suffix.lower() != ".npz":  # save_grid's rule, said before the bake
+        raise ShprobeError("an .npz output must be named *.npz", output)
     settings = GridSettings(resolution=parse_resolution(resolution),
                             bounds=None if bounds is None else parse_bounds(bounds),
                             lmax=int(lmax), bounces=bounces, samples=samples,
