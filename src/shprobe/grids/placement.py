@@ -5,7 +5,8 @@ volumes and DDGI's probe relocation, done once at bake time).
 A probe is inside geometry when more than ``inside_fraction`` of its test rays meet the back
 of a face (from inside a closed solid, every ray does). It is moved to the nearest point of a
 lattice in its cell (offsets up to ±0.4 of the cell per axis) that sees no back face within
-its test rays and no surface closer than a twentieth of the smallest cell side; where no
+its test rays and no surface closer than a twentieth of the smallest cell side (a probe whose
+nearest surface lies beyond every lattice point is buried and not searched); where no
 lattice point is free, its validity is 0 and its coefficients are the mean of its valid
 neighbours', grown outwards until every invalid probe has a value (dilation).
 """
@@ -24,6 +25,8 @@ __all__ = ["TEST_RAYS", "dilate", "place_probes"]
 TEST_RAYS = 256
 #: Offsets tried within the cell, as fractions of the cell side per axis.
 _OFFSETS = np.array([-0.4, -0.2, 0.0, 0.2, 0.4])
+#: Candidate positions tested per probe in one round (nearest first).
+_ROUND = 8
 
 
 def place_probes(tracer: ProbeTracer, centres: NDArray[np.float64],
@@ -35,21 +38,29 @@ def place_probes(tracer: ProbeTracer, centres: NDArray[np.float64],
     pos = np.array(centres, dtype=np.float64).reshape(-1, 3)
     valid = np.ones(len(pos), np.float32)
     moved = np.zeros(len(pos), bool)
-    inside = _back_fraction(tracer, pos, dirs)[0] > inside_fraction
-    if not inside.any():
-        return pos, valid, moved
+    back, near = _back_fraction(tracer, pos, dirs)
+    inside = back > inside_fraction
     g = np.stack(np.meshgrid(_OFFSETS, _OFFSETS, _OFFSETS, indexing="ij"), -1).reshape(-1, 3)
     offsets = g * spacing
     offsets = offsets[np.argsort(np.linalg.norm(offsets, axis=1), kind="stable")][1:]
+    reach = float(np.linalg.norm(offsets, axis=1).max())
+    # a probe whose nearest surface is beyond every lattice point is buried: invalid at once
+    buried = inside & (near > reach)
+    valid[buried] = 0.0
+    todo = np.flatnonzero(inside & ~buried)
     clearance = 0.05 * float(spacing.min())
-    for i in np.flatnonzero(inside):
-        cand = pos[i] + offsets
-        back, near = _back_fraction(tracer, cand, dirs)
-        ok = np.flatnonzero((back == 0) & (near >= clearance))
-        if len(ok):
-            pos[i], moved[i] = cand[ok[0]], True
-        else:
-            valid[i] = 0.0
+    for a in range(0, len(offsets), _ROUND):  # nearest offsets first, all probes at once
+        if not len(todo):
+            break
+        cand = pos[todo, None, :] + offsets[None, a:a + _ROUND]  # (T, R, 3)
+        b, n = _back_fraction(tracer, cand.reshape(-1, 3), dirs)
+        ok = ((b == 0) & (n >= clearance)).reshape(len(todo), -1)
+        found = ok.any(axis=1)
+        first = ok.argmax(axis=1)
+        pos[todo[found]] = cand[found, first[found]]
+        moved[todo[found]] = True
+        todo = todo[~found]
+    valid[todo] = 0.0
     return pos, valid, moved
 
 
