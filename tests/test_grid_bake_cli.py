@@ -115,3 +115,43 @@ def test_lighting_is_required_once(tmp_path, capsys):
                         "--lighting PROBE", "got none")
     fails_with_one_line(capsys, ["grid", "bake", str(tri), "--preset", "grace", "--lighting",
                                  str(tri), "--resolution", "2,2,2", "-o", out], "exactly one")
+
+
+def test_bake_under_a_probe_image(tmp_path, room_obj, grace_path, capsys):
+    out = tmp_path / "g.npz"
+    assert main(["-q", "grid", "bake", str(room_obj), "--lighting", str(grace_path),
+                 "--resolution", "3,2,3", "--bounds=-6,0,-6,6,4,6", "--samples", "256",
+                 "--bounces", "0", "-o", str(out)]) == 0
+    g = shprobe.load_grid(out)
+    assert g.meta["lighting"] == str(grace_path) and g.meta["bounces"] == 0
+    assert np.all(np.isfinite(g.coeffs)) and g.coeffs[..., 0, :].max() > 0
+
+
+def test_grid_subcommands_register_from_their_modules(monkeypatch):
+    """A module named in SUBCOMMAND_MODULES adds its command to the ``grid`` group, by
+    ``register_grid(grid)`` (grid export's module)."""
+    import sys
+    import types
+
+    import click
+
+    from shprobe.cli import grid as grid_cli
+
+    fake = types.ModuleType("shprobe.cli.grid_export")
+
+    def register_grid(group):
+        @group.command("export")
+        def export_cmd():
+            """(stand-in)"""
+
+    fake.register_grid = register_grid
+    monkeypatch.setitem(sys.modules, "shprobe.cli.grid_export", fake)
+    top = click.Group("top")
+    before = dict(grid_cli.grid.commands)  # the real grid export's command, if loaded
+    try:
+        grid_cli.register(top)
+        assert set(top.commands["grid"].commands) >= {"bake", "export"}
+        assert top.commands["grid"].commands["export"].help == "(stand-in)"
+    finally:
+        grid_cli.grid.commands.clear()
+        grid_cli.grid.commands.update(before)
