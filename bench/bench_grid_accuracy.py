@@ -98,6 +98,16 @@ def main() -> None:
             "cavity floor / ground outside": round(float(fl), 5),
             "cavity volume (random normals) / ground outside":
                 round(float(g.irradiance(vol, vn, lc).mean() / o), 5)}
+    for wall in (0.05, 0.02):  # thinner walls than the bias (a tenth of the 1 m cell side)
+        thin = room_on_ground(wall=wall)
+        g = bake_grid(load_scene(thin.mesh(), albedo=0.5), light,
+                      GridSettings((7, 4, 7), bounds=thin.bounds))
+        vol = rng.uniform(thin.cavity[0], thin.cavity[1], (4000, 3))
+        for lc in (True, False):
+            o = g.irradiance(gp, upn[: len(gp)], lc).mean()
+            out[f"grace.hdr, walls {wall} m, leak control {'on' if lc else 'off'}"] = {
+                "cavity volume (random normals) / ground outside":
+                    round(float(g.irradiance(vol, vn, lc).mean() / o), 5)}
     print(json.dumps(out, indent=1))
 
 
