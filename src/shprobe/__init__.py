@@ -84,6 +84,8 @@ _EXPORTS: dict[str, str] = {
     # probe grids (irradiance volumes)
     "load_grid": "grids",
     "ProbeGrid": "grids",
+    "bake_grid": "grids",
+    "GridSettings": "grids",
 }
 
 __all__ = ["__version__", *_EXPORTS]

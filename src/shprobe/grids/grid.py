@@ -109,9 +109,13 @@ class ProbeGrid:
             idx, w = visibility_weights(self, p, n)
         else:
             idx, w = plain_weights(self.bounds, self.resolution, p, n)
+        from ._kernels import blend
+
         c = np.asarray(self.coeffs, dtype=np.float64).reshape(-1, *self.coeffs.shape[-2:])
-        out = np.einsum("...j,...jkc->...kc", w, c[idx])
-        return out
+        out = np.zeros((int(np.prod(w.shape[:-1])), *c.shape[1:]))
+        blend(np.ascontiguousarray(idx.reshape(-1, idx.shape[-1]), dtype=np.int64),
+              np.ascontiguousarray(w.reshape(-1, w.shape[-1]), dtype=np.float64), c, out)
+        return out.reshape(*w.shape[:-1], *c.shape[1:])
 
     def irradiance(self, points: ArrayLike, normals: ArrayLike,
                    leak_control: bool = True) -> NDArray[np.float64]:

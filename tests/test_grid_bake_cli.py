@@ -1,0 +1,157 @@
+"""``shprobe grid bake`` end to end (the file it writes is the library's bake, read back by
+``shprobe.load_grid``) and its bad input: one line each, before any work."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+import shprobe
+from shprobe.cli.main import main
+from shprobe.grids import GridSettings, bake_grid
+from shprobe.grids.scenes import room_on_ground
+from shprobe.prt.geometry import load_scene
+
+
+def fails_with_one_line(capsys, args, *needles):
+    capsys.readouterr()
+    t = time.monotonic()
+    assert main(args) != 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("shprobe: error:") and "\n" not in err, err
+    for n in needles:
+        assert n in err, err
+    return time.monotonic() - t
+
+
+@pytest.fixture(scope="module")
+def room_obj(tmp_path_factory):
+    path = tmp_path_factory.mktemp("grid_cli") / "room.obj"
+    room_on_ground().mesh().export(path)
+    return path
+
+
+def test_bake_writes_the_librarys_grid(tmp_path, room_obj, capsys):
+    out = tmp_path / "g.npz"
+    args = ["grid", "bake", str(room_obj), "--preset", "grace", "--resolution", "5,3,5",
+            "--bounds=-6,0,-6,6,4,6", "--albedo", "0.5", "--bounces", "1", "--lmax", "1",
+            "--samples", "512", "-o", str(out)]
+    assert main(args) == 0
+    assert "wrote" in capsys.readouterr().err
+    g = shprobe.load_grid(out)
+    assert g.resolution == (5, 3, 5) and g.lmax == 1 and g.depth is not None
+    assert g.meta["bounces"] == 1 and g.meta["lighting"] == "preset:grace"
+    ref = bake_grid(load_scene(room_on_ground().mesh(), albedo=0.5), _preset("grace"),
+                    GridSettings((5, 3, 5), bounds=[[-6, 0, -6], [6, 4, 6]], lmax=1,
+                                 bounces=1, samples=512))
+    assert np.allclose(g.coeffs, ref.coeffs, atol=1e-6)
+    p, n = np.array([[3.5, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1.0, 0], [0, 1.0, 0]])
+    assert np.allclose(g.irradiance(p, n), ref.irradiance(p, n))
+    # the file exists now: refused without --force, replaced with it
+    fails_with_one_line(capsys, args, "already exists")
+    assert main([*args, "--force", "--samples", "256"]) == 0
+
+
+def _preset(name):
+    from shprobe.lighting.source import resolve_lighting
+
+    return resolve_lighting(preset=name)
+
+
+def _obj(path, text):
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(("extra", "needles"), [
+    (["--resolution", "0,4,4"], ["1 to 512"]),
+    (["--resolution", "1000000,4,4"], ["1 to 512"]),
+    (["--resolution", "4,4"], ["three integers"]),
+    (["--resolution", "a,b,c"], ["three integers"]),
+    (["--resolution", "4,4,4", "--bounds=100,100,100,101,101,101"], ["contain no geometry"]),
+    (["--resolution", "4,4,4", "--bounds=0,0,0,1,nan,1"], ["finite"]),
+    (["--resolution", "4,4,4", "--bounds=1,1,1,0,0,0"], ["max > min"]),
+    (["--resolution", "4,4,4", "--bounces", "-1"], ["bounces"]),
+    (["--resolution", "4,4,4", "--samples", "3"], ["samples"]),
+    (["--resolution", "512,512,512"], ["would need about"]),
+    (["--resolution", "4,4,4", "-o", "g.bin"], ["g.bin", "*.npz"]),
+])
+def test_bad_arguments_are_one_line_before_work(tmp_path, room_obj, capsys, extra, needles):
+    out = tmp_path / "g.npz"
+    took = fails_with_one_line(capsys, ["grid", "bake", str(room_obj), "--preset", "grace",
+                                        "-o", str(out), *extra], *needles)
+    assert not out.exists() and took < 5
+
+
+def test_bad_scenes_are_one_line_naming_the_file(tmp_path, capsys):
+    out = tmp_path / "g.npz"
+    nan = _obj(tmp_path / "nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 0 1\nf 1 3 2\n")
+    empty = _obj(tmp_path / "empty.obj", "v 0 0 0\nv 1 0 0\nv 0 0 1\n")
+    for path in (nan, empty):  # trimesh drops the face with a NaN corner: no triangles left
+        fails_with_one_line(capsys, ["grid", "bake", str(path), "--preset", "grace",
+                                     "--resolution", "2,2,2", "-o", str(out)], path.name,
+                            "triangles")
+    fails_with_one_line(capsys, ["grid", "bake", str(tmp_path / "missing.obj"), "--preset",
+                                 "grace", "--resolution", "2,2,2", "-o", str(out)], "missing.obj")
+    assert not out.exists()
+
+
+def test_nan_vertices_in_a_mesh_object_are_refused():
+    from shprobe.errors import ShprobeError
+
+    mesh = trimesh.Trimesh([[0, 0, 0], [1, 0, np.nan], [0, 0, 1]], [[0, 2, 1]], process=False)
+    with pytest.raises(ShprobeError, match="non-finite"):
+        bake_grid(mesh, _preset("grace"), GridSettings((2, 2, 2)))
+
+
+def test_lighting_is_required_once(tmp_path, capsys):
+    tri = tmp_path / "t.obj"
+    trimesh.creation.box().export(tri)
+    out = str(tmp_path / "g.npz")
+    fails_with_one_line(capsys, ["grid", "bake", str(tri), "--resolution", "2,2,2", "-o", out],
+                        "--lighting PROBE", "got none")
+    fails_with_one_line(capsys, ["grid", "bake", str(tri), "--preset", "grace", "--lighting",
+                                 str(tri), "--resolution", "2,2,2", "-o", out], "exactly one")
+
+
+def test_bake_under_a_probe_image(tmp_path, room_obj, grace_path, capsys):
+    out = tmp_path / "g.npz"
+    assert main(["-q", "grid", "bake", str(room_obj), "--lighting", str(grace_path),
+                 "--resolution", "3,2,3", "--bounds=-6,0,-6,6,4,6", "--samples", "256",
+                 "--bounces", "0", "-o", str(out)]) == 0
+    g = shprobe.load_grid(out)
+    assert g.meta["lighting"] == str(grace_path) and g.meta["bounces"] == 0
+    assert np.all(np.isfinite(g.coeffs)) and g.coeffs[..., 0, :].max() > 0
+
+
+def test_grid_subcommands_register_from_their_modules(monkeypatch):
+    """A module named in SUBCOMMAND_MODULES adds its command to the ``grid`` group, by
+    ``register_grid(grid)`` (grid export's module)."""
+    import sys
+    import types
+
+    import click
+
+    from shprobe.cli import grid as grid_cli
+
+    fake = types.ModuleType("shprobe.cli.grid_export")
+
+    def register_grid(group):
+        @group.command("export")
+        def export_cmd():
+            """(stand-in)"""
+
+    fake.register_grid = register_grid
+    monkeypatch.setitem(sys.modules, "shprobe.cli.grid_export", fake)
+    top = click.Group("top")
+    before = dict(grid_cli.grid.commands)  # the real grid export's command, if loaded
+    try:
+        grid_cli.register(top)
+        assert set(top.commands["grid"].commands) >= {"bake", "export"}
+        assert top.commands["grid"].commands["export"].help == "(stand-in)"
+    finally:
+        grid_cli.grid.commands.clear()
+        grid_cli.grid.commands.update(before)
