@@ -195,8 +195,6 @@ def _placement(grid, pos, size, leak=False):
 def test_leak_control_on_and_off_differ():
     """With depth data the toggle changes the interpolation (visibility-aware weights) and the
     answer is ProbeGrid.irradiance(leak_control=True) either way."""
-    pytest.importorskip("shprobe.grids.visibility",
-                        reason="grids/visibility.py (the grid-bake branch) not merged yet")
     g = make_grid(depth=True)
     view = GridView(g, "depth.npz")
     pl = _placement(g, [0.3, 1.4, -0.2], 1.5)
