@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from .conftest import data_file
-from .grid_bakes import leak_points, room_grid
+from .grid_bakes import room_grid
 
 
 @pytest.fixture(scope="module")
@@ -17,10 +17,8 @@ def baked():
 
 
 def _ratios(grid, room, leak_control):
-    (fp, fn), (vp, vn), (gp, gn) = leak_points(room)
-    outside = grid.irradiance(gp, gn, leak_control).mean()
-    return (grid.irradiance(fp, fn, leak_control).mean() / outside,
-            grid.irradiance(vp, vn, leak_control).mean() / outside, outside)
+    lk = room.leak(grid, leak_control)
+    return lk.floor_ratio, lk.volume_ratio, lk.outside
 
 
 def test_inside_is_under_one_percent_of_outside_with_leak_control(baked):

@@ -7,7 +7,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RoomScene", "room_on_ground"]
+__all__ = ["RoomLeak", "RoomScene", "room_on_ground"]
+
+
+@dataclass(frozen=True)
+class RoomLeak:
+    """Mean irradiance E (mean of R, G, B) inside the room and on the open ground around it, as
+    a grid interpolates it: ``floor`` on the cavity floor (normal +Y), ``volume`` through the
+    cavity (random normals), ``outside`` on the ground ≥ 0.5 from the walls (normal +Y)."""
+
+    floor: float
+    volume: float
+    outside: float
+
+    @property
+    def floor_ratio(self) -> float:
+        """Cavity floor / open ground (a grid that does not leak: ≪ 1 %)."""
+        return self.floor / self.outside
+
+    @property
+    def volume_ratio(self) -> float:
+        """Cavity volume / open ground."""
+        return self.volume / self.outside
+
+    def __repr__(self) -> str:
+        return (f"RoomLeak(floor {self.floor_ratio:.3%}, volume {self.volume_ratio:.3%} of the "
+                f"ground outside, E {self.outside:.4g})")
 
 
 @dataclass(frozen=True)
@@ -34,6 +59,36 @@ class RoomScene:
         cavity = trimesh.creation.box(bounds=self.cavity)
         cavity.invert()
         return trimesh.util.concatenate([ground, outer, cavity])
+
+    def leak_points(self, n: int = 2000, seed: int = 1
+                    ) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """(points, normals) on the cavity floor (1 cm up, facing up), through the cavity
+        (random normals) and on the ground inside the grid bounds ≥ 0.5 from the walls (1 cm
+        up, facing up); seeded, so every measure of a leak uses the same points."""
+        rng = np.random.default_rng(seed)
+        cav, b = self.cavity, self.bounds
+        floor = np.column_stack([rng.uniform(cav[0, 0], cav[1, 0], n),
+                                 np.full(n, cav[0, 1] + 0.01),
+                                 rng.uniform(cav[0, 2], cav[1, 2], n)])
+        volume = rng.uniform(cav[0], cav[1], (n, 3))
+        normals = rng.normal(size=(n, 3))
+        ground = np.column_stack([rng.uniform(b[0, 0], b[1, 0], 4 * n), np.full(4 * n, 0.01),
+                                  rng.uniform(b[0, 2], b[1, 2], 4 * n)])
+        near = np.all((ground[:, [0, 2]] > self.outer[0, [0, 2]] - 0.5)
+                      & (ground[:, [0, 2]] < self.outer[1, [0, 2]] + 0.5), axis=1)
+        ground = ground[~near][:n]
+        up = np.tile([0.0, 1.0, 0.0], (n, 1))
+        return (floor, up), (volume, normals), (ground, up[: len(ground)])
+
+    def leak(self, grid, leak_control: bool = True) -> RoomLeak:
+        """How much of the outside light ``grid`` (a :class:`~shprobe.grids.ProbeGrid` of this
+        scene) lets into the room through its interpolation."""
+        (fp, fn), (vp, vn), (gp, gn) = self.leak_points()
+
+        def mean(p, n):
+            return float(np.mean(grid.irradiance(p, n, leak_control=leak_control)))
+
+        return RoomLeak(mean(fp, fn), mean(vp, vn), mean(gp, gn))
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """True for points inside the cavity."""
