@@ -6,29 +6,32 @@ name the address the server was started on and an Origin, when sent, must be tha
 (no DNS rebinding, no cross-site requests). The server opens only the files named on the
 command line and the uploads it stored itself; no path from the page is ever opened.
 
-The handlers are :class:`.handlers.Handlers`; heavy work (decoding, projection, the brute-force
+The handlers are :class:`.handlers.Handlers` (and ``/api/snippet`` here: the page's "Copy as
+Python", :func:`python_text`); heavy work (decoding, projection, the brute-force
 reference) runs in worker threads off the event loop.
 """
 
 from __future__ import annotations
 
 import secrets
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
 from starlette.requests import Request
-from starlette.responses import PlainTextResponse
-from starlette.routing import Mount
+from starlette.responses import PlainTextResponse, Response
+from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ..errors import ShprobeError
-from .handlers import Handlers
+from ..lighting.edits import EditSpec
+from .handlers import Handlers, api, read_spec
 from .session import Session
 
-__all__ = ["create_app", "make_server", "static_dir"]
+__all__ = ["create_app", "make_server", "python_text", "static_dir"]
 
 #: longest query string accepted (the token and a few short parameters)
 MAX_QUERY = 4096
@@ -108,7 +111,9 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
     static = static_dir()
     index = (static / "index.html").read_text()
     h = Handlers(session, index, _csp(index), token, COOKIE.format(port=port))
-    routes = [*h.routes(), Mount("/static", StaticFiles(directory=str(static)), name="static")]
+    routes = [*h.routes(), Route("/api/snippet", h.ready(partial(api(_snippet), h)),
+                                 methods=["POST"]),
+              Mount("/static", StaticFiles(directory=str(static)), name="static")]
     app = Starlette(routes=routes)
     hosts = None
     if check_host:
@@ -118,6 +123,27 @@ def create_app(session: Session, token: str, host: str = "127.0.0.1", port: int 
     app.add_middleware(Guard, token=token, hosts=hosts, cookie=COOKIE.format(port=port))
     app.state.session = session
     return app
+
+
+#: the base coefficients of the session's procedural sky (no probe given) in a snippet
+PROCEDURAL = ("procedural sky", "shprobe.project(shprobe.procedural_env(256, 128), {lmax})")
+
+
+def python_text(session: Session, spec: EditSpec) -> str:
+    """The page's "Copy as Python": ``spec`` applied to the session's source, as library code
+    (:func:`shprobe.lighting.snippet.python_snippet`)."""
+    from ..lighting.snippet import SnippetSource, python_snippet
+
+    src = session.source
+    code = PROCEDURAL[1] if src.name == PROCEDURAL[0] else None
+    return python_snippet(spec, SnippetSource(src.name, src.has_env, session.layout, code),
+                          session.probe_names())
+
+
+async def _snippet(h: Handlers, req: Request) -> Response:
+    """POST /api/snippet: the edit state in, its Python (text) out."""
+    spec = await read_spec(req)
+    return Response(python_text(h.session, spec), media_type="text/plain; charset=utf-8")
 
 
 def make_server(app: ASGIApp) -> Any:
