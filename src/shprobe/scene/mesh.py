@@ -7,7 +7,7 @@ normals apart), so smooth vertex normals are shared across what the file stored 
 copies; a multi-part file (glTF scene) is flattened with its graph transforms and concatenated.
 Meshes given as objects are used as they are (only flattened when they are a scene).
 
-The packaged bunny (:func:`bunny_path`, :func:`packaged_bunny`): a 2,999-face copy of the
+The packaged bunny (:func:`bunny_path`, :func:`packaged_bunny`): a 4,968-face copy of the
 Stanford bunny in the package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its
 terms in ``bunny-LICENSE.txt`` beside it). The name :data:`BUNNY` (``"bunny"``) stands for it
 wherever a mesh path is taken (:func:`load_mesh`, hence ``--mesh bunny``) unless a file of that
@@ -60,7 +60,7 @@ BUNNY = "bunny"
 
 
 def bunny_path() -> Path:
-    """The packaged Stanford bunny (OBJ, 1,514 vertices, 2,999 faces, +Y up, metres; terms in
+    """The packaged Stanford bunny (OBJ, 2,503 vertices, 4,968 faces, +Y up, metres; terms in
     ``bunny-LICENSE.txt`` beside it)."""
     return Path(str(resources.files("shprobe.scene") / "data" / "bunny.obj"))
 
