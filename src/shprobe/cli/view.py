@@ -54,13 +54,11 @@ def register(group: click.Group) -> None:
         stamps = {"cli": t_cli} if os.environ.get("SHPROBE_VIEW_STAMPS") else None
         session = Session(probe, preset, mesh_file(mesh) if mesh else None, transfer, layout,
                           load=False, stamps=stamps)
-        session.fork_loader()  # before any thread starts
-        sock = None
+        sock = _listen(host, port)  # a port in use fails here, before any process starts
         try:
-            # ... then the socket is bound (a port in use fails here) and the server is
-            # imported and built while the files load; the URL is printed only once they
-            # are read: a start-up failure is one line and no URL
-            sock = _listen(host, port)
+            session.fork_loader()  # before any thread starts
+            # ... then the server is imported and built while the files load; the URL is
+            # printed only once they are read: a start-up failure is one line and no URL
             threading.Thread(target=_load, args=(session,), daemon=True).start()
             from ..viewer import new_token
             from ..viewer.app import create_app, make_server
@@ -73,8 +71,7 @@ def register(group: click.Group) -> None:
             if session.error is not None:
                 raise session.error
         except BaseException:
-            if sock is not None:
-                sock.close()
+            sock.close()
             session.close()
             raise
         if not local:
