@@ -154,3 +154,21 @@ def test_snippet_builder_sources(tmp_path, grace_path):
     assert (tmp_path / name).read_text() == (out / name).read_text()
     with pytest.raises(ShprobeError, match="cube faces"):
         python_snippet(spec, SnippetSource("a.hdr … f.hdr (cube faces)"))
+
+
+def test_snippet_of_the_procedural_sky_equals_the_sessions_design(tmp_path):
+    """No probe: the session's procedural sky, which has no file: the snippet makes it."""
+    from shprobe.viewer.app import python_text
+    from shprobe.viewer.design import read_state
+    from shprobe.viewer.session import Session
+
+    s = Session()
+    try:
+        for state in ({}, {"lmax": 5, "rotation": {"axis": [0, 0, 1], "degrees": 80.0}}):
+            spec = read_state(state)
+            code = python_text(s, spec)
+            assert "procedural_env" in code
+            np.testing.assert_allclose(run_snippet(code, tmp_path), s.design_exact(spec)[0],
+                                       rtol=1e-12, atol=1e-13)
+    finally:
+        s.close()
