@@ -87,13 +87,11 @@ def python_snippet(spec: EditSpec, source: SnippetSource,
     docstring); ``probe_names`` the files of the viewer's blended probe ids; ``fmt`` an export
     format: the code also writes that export under the viewer's download name."""
     names = probe_names or {}
-    blends = tuple(Blend("file", names[b.name] if b.name in names else b.name, b.weight)
-                   if b.kind == "probe" else b for b in spec.blends)
-    if any(b.kind == "probe" for b in spec.blends) and not all(b.name in names
-                                                               for b in spec.blends
-                                                               if b.kind == "probe"):
+    if any(b.kind == "probe" and b.name not in names for b in spec.blends):
         raise ShprobeError("a blended probe is not loaded (load it again)")
-    spec = replace(spec, blends=blends)
+    spec = replace(spec, blends=tuple(Blend("file", names[b.name], b.weight)
+                                      if b.kind == "probe" else b for b in spec.blends))
+    blends = spec.blends
     base, why = _base(source, spec.lmax)
     layout = source.layout not in (None, "auto") and any(b.kind == "file" for b in blends)
     resolver = (f", lambda b, lmax: blend_lighting(b, lmax, {source.layout!r})"
@@ -114,15 +112,15 @@ def python_snippet(spec: EditSpec, source: SnippetSource,
                  f"    f.write(shprobe.export_coeffs(L, {fmt!r}, "
                  f"source={(source.name or 'shprobe edit')!r}))"]
     text = "\n".join(body)
-    wanted = [("import shprobe", "shprobe."),
-              ("from shprobe.lighting.design import edit_lighting", ""),
-              ("from shprobe.lighting.edits import "
-               + ", ".join(n for n in ("Blend", "EditSpec", "Rotation")
-                           if n == "EditSpec" or f"{n}(" in text), ""),
-              ("from shprobe.lighting.source import "
-               + ", ".join(n for n in ("blend_lighting", "resolve_lighting")
-                           if f"{n}(" in text), "resolve_lighting(")]
-    imports = [line for line, need in wanted if need in text and not line.endswith("import ")]
+
+    def used(module: str, *names: str) -> list[str]:  # the import line of what the code calls
+        got = [n for n in names if f"{n}(" in text]
+        return [f"from {module} import {', '.join(got)}"] if got else []
+
+    imports = [*(["import shprobe"] if "shprobe." in text else []),
+               *used("shprobe.lighting.design", "edit_lighting"),
+               *used("shprobe.lighting.edits", "Blend", "EditSpec", "Rotation"),
+               *used("shprobe.lighting.source", "blend_lighting", "resolve_lighting")]
     head = [f"# {_command(source, spec)}: the same lighting with shprobe's library", *imports,
             ""]
     return "\n".join([*head, *body]) + "\n"
