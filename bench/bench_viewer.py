@@ -5,7 +5,9 @@ Run: ``PYTHONPATH=src SHPROBE_TEST_DATA=../shared python bench/bench_viewer.py``
 markdown tables.
 
 1. Command to first lit frame: ``shprobe view PROBE --no-browser`` started as a subprocess with a
-   2048×1024 .hdr probe (grace resampled), the browser already running with its tab open and
+   2048×1024 .hdr probe (grace resampled) and the default object (the packaged bunny; ``--before``
+   trees of older checkouts use theirs: the test data's bunny through $SHPROBE_TEST_DATA), the
+   URL printed once the files are read, the browser already running with its tab open and
    idle (as a user's is: :func:`browser_settled` waits out the new window's own start-up); the
    clock runs from just before the process starts until the page has drawn the lit bunny
    (``window.__shprobe.firstFrameAt``). Numba's cache and the mesh payload cache are
@@ -78,7 +80,7 @@ def start(args: list[str], src: Path | None = None, cache: Path | None = None
 
 STAGES = [  # (label, start event, end event): the stages of the first lit frame
     ("python start + imports → `view` command", "t0", "cli"),
-    ("command → URL printed (loader forked, socket bound; server built after)", "cli",
+    ("command → URL printed (loader forked, socket bound, server built, files read)", "cli",
      "url"),
     ("probe read + projected to lmax 2 (resolve_lighting; loader process)", "load_start",
      "decoded"),

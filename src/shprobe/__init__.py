@@ -70,6 +70,7 @@ _EXPORTS: dict[str, str] = {
     "Camera": "scene.camera",
     "render_vertex_colors": "scene.render",
     "load_mesh": "scene.mesh",
+    "packaged_bunny": "scene.mesh",
     "min_irradiance": "lighting.windows",
     "auto_window": "lighting.windows",
     "window_factors": "lighting.windows",
@@ -126,7 +127,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .probes.presets import PRESETS, get_preset
     from .prt import bake, load_transfer, relight
     from .scene.camera import Camera
-    from .scene.mesh import load_mesh
+    from .scene.mesh import load_mesh, packaged_bunny
     from .scene.render import render_vertex_colors
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d

@@ -56,6 +56,19 @@ def edit(coeffs, options: dict[str, Any], layout: str = "auto", clamp: bool = Fa
     return res.coeffs, res.window
 
 
+def export_path(output: str | None, source: str, options: dict[str, Any], fmt: str) -> str:
+    """Where an export goes: ``-o FILE`` as given; ``-o FOLDER``, or no ``-o``, the export's
+    name in that folder or here (:func:`shprobe.lighting.filenames.export_name`: the name the
+    viewer gives the same export's download)."""
+    from ..lighting.edits import EditSpec
+    from ..lighting.filenames import export_name
+
+    if output and not os.path.isdir(output):
+        return output
+    name = export_name(source, EditSpec.from_options(options), fmt)
+    return os.path.join(output, name) if output else name
+
+
 def camera_options(fn):
     opts = [
         click.option("--size", default="512x512", show_default=True, help="Image size WxH."),
@@ -274,7 +287,9 @@ def register(group: click.Group) -> None:
     @click.option("--window", "window", default=None, help=WINDOW_HELP)
     @click.option("--format", "fmt", type=click.Choice(FORMATS), default="json",
                   show_default=True, help="Output format (see `shprobe export`).")
-    @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False))
+    @click.option("-o", "--output", type=click.Path(),
+                  help="Output file, or a folder for the default name (default: "
+                       "<source>-<edit>-lmax<N>.<ext> here, the viewer's download name).")
     @force_option
     def edit_cmd(probe, layout, clamp, preset, coeffs_file, lmax, blends, weight, directional,
                  cone, sky, sets, scales, negates, set_band, scale_band, negate_band,
@@ -287,16 +302,20 @@ def register(group: click.Group) -> None:
         from ..lighting.export import export_coeffs
         from ..sh import lmax_of
 
-        check_output_path(output, force)
+        if output and not os.path.isdir(output):
+            check_output_path(output, force)
         # a probe is projected to the result's degree (as a blended probe is), at least 2;
         # presets and coefficient files keep theirs (cut or zero-padded below)
         base, name, _ = load_source(probe, preset, coeffs_file, layout, clamp,
                                     max(lmax, 2) if probe else None, required=False)
-        L, wdesc = edit(base, {
+        options = {
             "lmax": lmax, "weight": weight, "blend": blends, "directional": directional,
             "cone": cone, "sky": sky, "set": sets, "scale": scales, "negate": negates,
             "set_band": set_band, "scale_band": scale_band, "negate_band": negate_band,
-            "rotate": rotations, "window": window}, layout, clamp)
+            "rotate": rotations, "window": window}
+        output = export_path(output, name, options, fmt)
+        check_output_path(output, force)
+        L, wdesc = edit(base, options, layout, clamp)
         write_text(output, export_coeffs(L, fmt, source=name or "shprobe edit"),
                    overwrite=force)
         wrote(output, f"{fmt}, lmax {lmax_of(L.shape[0])}, from {name or 'darkness'}"
@@ -366,8 +385,9 @@ def register(group: click.Group) -> None:
                   help="glsl/hlsl/wgsl (E(n), eq. 11 and 13), json, three, gltf, cmgen, "
                        "cs-phase; each states its convention.")
     @click.option("--window", "window", default=None, help=WINDOW_HELP)
-    @click.option("-o", "--output", type=click.Path(dir_okay=False),
-                  help="Output file (default: print).")
+    @click.option("-o", "--output", type=click.Path(),
+                  help="Output file, or a folder for the name <source>-<edit>-lmax<N>.<ext> "
+                       "(the viewer's download name; default: print).")
     @force_option
     def export_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, window, output, force):
         """Export lighting coefficients for shaders and engines (`--coeffs` reads every
@@ -379,6 +399,7 @@ def register(group: click.Group) -> None:
         coeffs, wdesc = edit(coeffs, {"lmax": lmax, "window": window})
         text = export_coeffs(coeffs, fmt, source=name)
         if output:
+            output = export_path(output, name, {"lmax": lmax, "window": window}, fmt)
             write_text(output, text, overwrite=force)
             wrote(output, fmt + (f"; {wdesc}" if wdesc else ""))
         else:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from ..errors import ShprobeError
@@ -16,8 +18,8 @@ def register(group: click.Group) -> None:
                   help="Layout of PROBE (latlong, angular, mirrorball, cube, auto).")
     @click.option("--preset", default=None, help="Start from an R&H preset instead of a probe.")
     @click.option("--mesh", type=click.Path(dir_okay=False),
-                  help="Mesh (OBJ/PLY/glTF); default the bunny of $SHPROBE_TEST_DATA, else a "
-                       "sphere.")
+                  help="Mesh (OBJ/PLY/glTF); default the Stanford bunny shipped with shprobe "
+                       "('bunny').")
     @click.option("--transfer", type=click.Path(dir_okay=False),
                   help="A `shprobe prt bake` output: relight it per vertex in the page.")
     @click.option("--grid", "grid", type=click.Path(dir_okay=False),
@@ -37,9 +39,9 @@ def register(group: click.Group) -> None:
         """Interactive lighting design in the browser (R&H 2001 §3.3, LH 2007 §4): the probe,
         a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
         edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
-        the URL with its access token; Ctrl-C stops it."""
+        the URL with its access token once the files are read (a bad file, port or preset:
+        one line, no URL); Ctrl-C stops it."""
         import os
-        import socket
         import threading
         import time
         import webbrowser
@@ -50,11 +52,13 @@ def register(group: click.Group) -> None:
         require("viewer", "view")
         if probe and preset:
             raise ShprobeError("give either PROBE or --preset, not both")
+        from ..scene.mesh import mesh_file
+
         if grid or scene:  # the grid page (viewer.grid): cli.view_grid
             from .view_grid import view_grid
 
-            return view_grid(grid, mesh, scene, (probe, preset, transfer, hbasis), host, port,
-                             no_browser)
+            return view_grid(grid, mesh_file(mesh) if mesh else None, scene,
+                             (probe, preset, transfer, hbasis), host, port, no_browser)
         # the files start loading first (viewer.loader), in a fork that shares what both
         # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
         from .. import lighting  # noqa: F401
@@ -62,53 +66,48 @@ def register(group: click.Group) -> None:
 
         # the loading stages' times, for bench/bench_viewer.py (served by /api/init)
         stamps = {"cli": t_cli} if os.environ.get("SHPROBE_VIEW_STAMPS") else None
-        session = Session(probe, preset, mesh, transfer, layout, load=False, stamps=stamps,
-                          hbasis=hbasis)
-        session.fork_loader()  # before any thread starts
-        if host not in ("127.0.0.1", "localhost", "::1"):
+        session = Session(probe, preset, mesh_file(mesh) if mesh else None, transfer, layout,
+                          load=False, stamps=stamps, hbasis=hbasis)
+        from ..viewer.app import listen
+
+        sock = listen(host, port)  # a port in use fails here, before any process starts
+        try:
+            session.fork_loader()  # before any thread starts
+            # ... then the server is imported and built while the files load; the URL is
+            # printed only once they are read: a start-up failure is one line and no URL
+            threading.Thread(target=_load, args=(session,), daemon=True).start()
+            from ..viewer import new_token
+            from ..viewer.app import create_app, make_server
+
+            port = sock.getsockname()[1]
+            token = new_token()
+            local = host in ("127.0.0.1", "localhost", "::1")
+            server = make_server(create_app(session, token, host, port, check_host=local))
+            session.ready.wait()
+            if session.error is not None:
+                raise session.error
+        except BaseException:
+            sock.close()
+            session.close()
+            raise
+        if not local:
             click.echo(f"warning: --host {host} makes the viewer reachable from other "
                        "machines; anyone with the URL's token can read what it serves", err=True)
-        # ... then the socket listens and the URL is out: the browser's connection waits in
-        # the backlog while the server below is imported and built
-        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            sock.bind((host, port))
-        except OSError as e:
-            raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
-        sock.listen(128)
-        port = sock.getsockname()[1]
-        from ..viewer import new_token
-
-        token = new_token()
         shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
         url = f"http://{shown}:{port}/?token={token}"
         click.echo(f"shprobe view: {url}", nl=True)
         session.stamp("url")
-        stop: list = []  # the server, once it exists
-
-        def load() -> None:  # the files load while the server starts and the page opens
-            try:
-                session.load()
-            except BaseException:  # a bad file named on the command line: stop, one line
-                if stop:
-                    stop[0].should_exit = True
-
-        threading.Thread(target=load, daemon=True).start()
-
-        from ..viewer.app import create_app, make_server
-
-        local = host in ("127.0.0.1", "localhost", "::1")
-        app = create_app(session, token, host, port, check_host=local)
-        server = make_server(app)
-        stop.append(server)
-        if session.ready.is_set() and session.error is not None:
-            server.should_exit = True
         if not no_browser:
             threading.Timer(0.3, lambda: webbrowser.open(url)).start()
         try:
             server.run(sockets=[sock])
         finally:
             session.close()
-        if session.error is not None:
-            raise session.error
+
+
+def _load(session: Any) -> None:
+    """Read the files named on the command line (the session keeps the error, one line)."""
+    try:
+        session.load()
+    except BaseException:  # session.error holds it; the command raises it
+        pass

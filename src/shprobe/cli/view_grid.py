@@ -4,7 +4,6 @@ one is one line and a non-zero exit, with no server started."""
 
 from __future__ import annotations
 
-import socket
 import threading
 import webbrowser
 
@@ -29,15 +28,10 @@ def view_grid(grid: str | None, mesh: str | None, scene: str | None,
     if host not in ("127.0.0.1", "localhost", "::1"):
         click.echo(f"warning: --host {host} makes the viewer reachable from other machines; "
                    "anyone with the URL's token can read what it serves", err=True)
-    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-    except OSError as e:
-        raise ShprobeError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
-    sock.listen(128)
+    from ..viewer.app import create_app, listen, make_server
+
+    sock = listen(host, port)
     port = sock.getsockname()[1]
-    from ..viewer.app import create_app, make_server
 
     token = new_token()
     shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host

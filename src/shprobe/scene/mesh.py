@@ -1,10 +1,17 @@
-"""Triangle meshes: the one loader, materials and albedo, textures, the test sphere, the hash.
+"""Triangle meshes: the one loader, materials and albedo, textures, the test sphere, the hash,
+the packaged bunny.
 
 Loading policy (one for every caller: render, PRT, H-basis): ``trimesh.load(path,
 process=True)`` — duplicate vertices are merged (trimesh keeps vertices with different UVs or
 normals apart), so smooth vertex normals are shared across what the file stored as separate
 copies; a multi-part file (glTF scene) is flattened with its graph transforms and concatenated.
 Meshes given as objects are used as they are (only flattened when they are a scene).
+
+The packaged bunny (:func:`bunny_path`, :func:`packaged_bunny`): a 4,968-face copy of the
+Stanford bunny in the package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its
+terms in ``bunny-LICENSE.txt`` beside it). The name :data:`BUNNY` (``"bunny"``) stands for it
+wherever a mesh path is taken (:func:`load_mesh`, hence ``--mesh bunny``) unless a file of that
+name exists: a mesh file always has an extension, which names its format.
 
 Colours: 8-bit vertex / face colours and texture images are sRGB and are decoded to linear
 reflectance; material colours (glTF ``baseColorFactor``, OBJ ``Kd``) are already linear.
@@ -15,6 +22,8 @@ from __future__ import annotations
 import hashlib
 import os
 import warnings
+from importlib import resources
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -28,30 +37,59 @@ if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
 __all__ = [
+    "BUNNY",
     "as_mesh",
     "bounding_sphere",
+    "bunny_path",
     "load_mesh",
+    "mesh_file",
     "mesh_hash",
     "mesh_texture",
     "mesh_uvs",
     "mesh_vertex_albedo",
+    "packaged_bunny",
     "sample_texture",
     "sphere_mesh",
 ]
+
+
+# ----------------------------------------------------------------------------- the bunny
+
+#: The name that stands for the packaged bunny wherever a mesh path is taken.
+BUNNY = "bunny"
+
+
+def bunny_path() -> Path:
+    """The packaged Stanford bunny (OBJ, 2,503 vertices, 4,968 faces, +Y up, metres; terms in
+    ``bunny-LICENSE.txt`` beside it)."""
+    return Path(str(resources.files("shprobe.scene") / "data" / "bunny.obj"))
+
+
+def packaged_bunny() -> trimesh.Trimesh:
+    """The packaged Stanford bunny, loaded by :func:`load_mesh`."""
+    return load_mesh(bunny_path())
+
+
+def mesh_file(path: str | os.PathLike[str]) -> str:
+    """The file a mesh argument names: :func:`bunny_path` for :data:`BUNNY` (when no file of
+    that name exists), else the path itself."""
+    p = os.fspath(path)
+    return str(bunny_path()) if p == BUNNY and not os.path.exists(p) else p
 
 
 # ----------------------------------------------------------------------------- loading
 
 
 def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
-    """Load OBJ / PLY / glTF / GLB (anything trimesh reads) as one triangle mesh.
+    """Load OBJ / PLY / glTF / GLB (anything trimesh reads) as one triangle mesh; ``"bunny"``
+    is the packaged bunny (:func:`mesh_file`).
 
     A scene is flattened (its graph transforms applied) and concatenated. Bad or empty files
     raise a one-line :class:`ShprobeError` naming the file.
     """
     import trimesh
 
-    p = os.fspath(path)
+    p = mesh_file(path)
     if not os.path.isfile(p):
         raise ShprobeError("no such mesh file", p)
     try:

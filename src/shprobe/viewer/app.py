@@ -6,29 +6,33 @@ name the address the server was started on and an Origin, when sent, must be tha
 (no DNS rebinding, no cross-site requests). The server opens only the files named on the
 command line and the uploads it stored itself; no path from the page is ever opened.
 
-The handlers are :class:`.handlers.Handlers`; heavy work (decoding, projection, the brute-force
+The handlers are :class:`.handlers.Handlers` (and ``/api/snippet`` here: the page's "Copy as
+Python", :func:`python_text`); heavy work (decoding, projection, the brute-force
 reference) runs in worker threads off the event loop.
 """
 
 from __future__ import annotations
 
 import secrets
+import socket
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
 from starlette.requests import Request
-from starlette.responses import PlainTextResponse
-from starlette.routing import Mount
+from starlette.responses import PlainTextResponse, Response
+from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ..errors import ShprobeError
-from .handlers import Handlers
+from ..lighting.edits import EditSpec
+from .handlers import Handlers, api, read_spec
 from .session import Session
 
-__all__ = ["create_app", "make_server", "static_dir"]
+__all__ = ["create_app", "make_server", "python_text", "static_dir"]
 
 #: longest query string accepted (the token and a few short parameters)
 MAX_QUERY = 4096
@@ -109,7 +113,9 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
     static = static_dir()
     index = (static / "index.html").read_text()
     h = Handlers(session, index, _csp(index), token, COOKIE.format(port=port))
-    routes = [*h.routes(), Mount("/static", StaticFiles(directory=str(static)), name="static")]
+    routes = [*h.routes(), Route("/api/snippet", h.ready(partial(api(_snippet), h)),
+                                 methods=["POST"]),
+              Mount("/static", StaticFiles(directory=str(static)), name="static")]
     if grid is not None:  # `shprobe view --grid`: the grid page and its API, not the viewer's
         routes = [*grid.routes(_csp, token, COOKIE.format(port=port)), routes[-1]]
     app = Starlette(routes=routes)
@@ -123,6 +129,27 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
     return app
 
 
+#: the base coefficients of the session's procedural sky (no probe given) in a snippet
+PROCEDURAL = ("procedural sky", "shprobe.project(shprobe.procedural_env(256, 128), {lmax})")
+
+
+def python_text(session: Session, spec: EditSpec) -> str:
+    """The page's "Copy as Python": ``spec`` applied to the session's source, as library code
+    (:func:`shprobe.lighting.snippet.python_snippet`)."""
+    from ..lighting.snippet import SnippetSource, python_snippet
+
+    src = session.source
+    code = PROCEDURAL[1] if src.name == PROCEDURAL[0] else None
+    return python_snippet(spec, SnippetSource(src.name, src.has_env, session.layout, code),
+                          session.probe_names())
+
+
+async def _snippet(h: Handlers, req: Request) -> Response:
+    """POST /api/snippet: the edit state in, its Python (text) out."""
+    spec = await read_spec(req)
+    return Response(python_text(h.session, spec), media_type="text/plain; charset=utf-8")
+
+
 def make_server(app: ASGIApp) -> Any:
     """The uvicorn server of the viewer: h11 reading request heads of up to
     :data:`MAX_HEAD` bytes (so that a long one is answered, 414, not reset)."""
@@ -130,3 +157,19 @@ def make_server(app: ASGIApp) -> Any:
 
     return uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,
                                          http="h11", h11_max_incomplete_event_size=MAX_HEAD))
+
+
+def listen(host: str, port: int) -> socket.socket:
+    """A listening socket on ``host``:``port`` (0: a free port); one line when it cannot be
+    had (a port in use, an address not of this machine). The page's first connection waits in
+    its backlog until the server runs."""
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except (OSError, OverflowError) as e:
+        sock.close()
+        reason = getattr(e, "strerror", None) or str(e)
+        raise ShprobeError(f"cannot listen on {host}:{port}: {reason}") from None
+    sock.listen(128)
+    return sock

@@ -256,7 +256,8 @@ class Handlers:
 
     @api
     async def export(self, req: Request) -> Response:
-        from ..lighting.export import FORMATS, SUFFIX, export_coeffs
+        from ..lighting.export import FORMATS, export_coeffs
+        from ..lighting.filenames import export_name
 
         fmt = req.path_params["fmt"]
         if fmt not in FORMATS:
@@ -265,8 +266,9 @@ class Handlers:
         s = self.session
         text = await to_thread.run_sync(lambda: export_coeffs(
             s.design_exact(spec)[0], fmt, source=s.source.name))
+        name = export_name(s.source.name, spec, fmt, s.probe_names())  # the CLI's name
         return Response(text, media_type="text/plain; charset=utf-8", headers={
-            "Content-Disposition": f'attachment; filename="shprobe{SUFFIX[fmt]}"'})
+            "Content-Disposition": f'attachment; filename="{name}"'})
 
     @api
     async def irradiance(self, req: Request) -> Response:

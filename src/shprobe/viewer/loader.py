@@ -25,13 +25,10 @@ __all__ = ["ENV_WAIT", "Go", "Loader", "default_mesh_path", "fork_loader", "mesh
 
 
 def default_mesh_path() -> Path | None:
-    """The bunny of the test data (``$SHPROBE_TEST_DATA/meshes/bunny.obj``) when present; the
-    viewer falls back to a built-in sphere otherwise (no mesh data ships with shprobe)."""
-    root = os.environ.get("SHPROBE_TEST_DATA")
-    if not root:
-        return None
-    p = Path(root) / "meshes" / "bunny.obj"
-    return p if p.is_file() else None
+    """The packaged Stanford bunny (:func:`shprobe.scene.mesh.bunny_path`)."""
+    from ..scene.mesh import bunny_path
+
+    return bunny_path()
 
 
 def mesh_to_load(mesh: str | None, transfer: str | None) -> str | None:
