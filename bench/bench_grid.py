@@ -1,6 +1,7 @@
 """Grid bake speed: a 7×4×7 grid of the closed room on its ground (grace.hdr) and of the bunny
-on a ground plane (bounds: the scene's box), defaults (4096 rays per probe, 2 bounces, lmax 2),
-and the accuracy option (--samples) on the room. Wall and process CPU seconds, the bake's own
+on a ground plane (``grids.scenes``: the scenes bench_grid_three.py gives three.js, albedo
+0.5), defaults (4096 rays per probe, 2 bounces, lmax 2), and the accuracy option (--samples)
+on the room, with the room's leak. Wall and process CPU seconds, the bake's own
 stages, best of ``--repeat``.
 
     SHPROBE_TEST_DATA=../shared PYTHONPATH=src python bench/bench_grid.py
@@ -17,7 +18,7 @@ from pathlib import Path
 
 from _machine import machine
 from shprobe.grids import GridSettings, bake_grid
-from shprobe.grids.scenes import room_on_ground
+from shprobe.grids.scenes import bunny_on_ground, room_on_ground
 from shprobe.lighting.source import resolve_lighting
 from shprobe.prt.geometry import load_scene
 
@@ -62,14 +63,19 @@ def main() -> None:
     light = resolve_lighting(str(DATA / "probes" / "grace.hdr"), lmax=2)
     room = room_on_ground()
     room_scene = load_scene(room.mesh(), albedo=0.5)
-    bunny = load_scene(str(DATA / "meshes" / "bunny.obj"), ground=True, albedo=0.8)
+    bunny_mesh, bunny_bounds = bunny_on_ground()  # the scene bench_grid_three.py bakes
+    bunny = load_scene(bunny_mesh, albedo=0.5)
     out = {}
     for s in (int(x) for x in a.samples.split(",")):
-        (w, c, stages), _ = timed(room_scene, light,
+        (w, c, stages), g = timed(room_scene, light,
                                   GridSettings((7, 4, 7), bounds=room.bounds, samples=s),
                                   a.repeat)
-        out[f"room 7x4x7, {s} rays/probe"] = {"wall s": w, "CPU s": c, "stages": stages}
-    (w, c, stages), g = timed(bunny, light, GridSettings((7, 4, 7)), a.repeat)
+        out[f"room 7x4x7, {s} rays/probe"] = {
+            "wall s": w, "CPU s": c, "stages": stages,
+            "leak (floor / ground), leak control": f"{room.leak(g).floor_ratio:.4%}",
+            "leak, plain trilinear": f"{room.leak(g, leak_control=False).floor_ratio:.4%}"}
+    (w, c, stages), g = timed(bunny, light, GridSettings((7, 4, 7), bounds=bunny_bounds),
+                              a.repeat)
     out[f"bunny on a ground 7x4x7 ({len(bunny.faces)} triangles), 4096 rays/probe"] = {
         "wall s": w, "CPU s": c, "stages": stages, "moved": g.meta["moved"],
         "invalid": g.meta["invalid"]}

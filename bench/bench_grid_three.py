@@ -24,15 +24,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "src"))
 from _machine import machine  # noqa: E402
-from shprobe.grids.scenes import room_on_ground  # noqa: E402
+from shprobe.grids.scenes import bunny_on_ground, room_on_ground  # noqa: E402
 from shprobe.lighting import project  # noqa: E402
 from shprobe.probes.env import load_env  # noqa: E402
 from three_grid_bake import (  # noqa: E402
     CONSUMERS,
     bake_job,
-    bunny_on_ground,
     grid_from_three,
-    room_leak,
     run_bakes,
 )
 
@@ -88,7 +86,7 @@ def main() -> None:
     env = load_env(DATA / "probes" / "grace.hdr")
     L = project(env, 2)
     room = room_on_ground()
-    bunny, bunny_bounds = bunny_on_ground(DATA / "meshes" / "bunny.obj")
+    bunny, bunny_bounds = bunny_on_ground()
     jobs = {}
     for size in args.cubemap:
         for name, mesh, bounds in (("room", room.mesh(), room.bounds),
@@ -108,8 +106,8 @@ def main() -> None:
         later = statistics.median(s[1:]) if len(s) > 1 else float("nan")
         leak = ""
         if key.startswith("room"):
-            lk = room_leak(grid_from_three(res, jobs[key]), room)
-            leak = f"{lk.ratio:.3f}"
+            lk = room.leak(grid_from_three(res, jobs[key]), leak_control=False)
+            leak = f"{lk.floor_ratio:.3f}"
         print(f"{key:<18}{len(jobs[key]['faces']) // 3:>7}{s[0]:>14.2f}{later:>24.2f}"
               f"{leak:>13}")
 

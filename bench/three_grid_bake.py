@@ -14,13 +14,11 @@ plain interpolation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from shprobe.grids.grid import ProbeGrid
-from shprobe.grids.scenes import RoomScene
 
 CONSUMERS = Path(__file__).resolve().parents[1] / "tests" / "consumers"
 RESOLUTION = (7, 4, 7)
@@ -42,22 +40,6 @@ def three_equirect(env) -> tuple[int, int, list[float]]:
     rgb = np.asarray(env.sample(d), dtype=np.float32)
     rgba = np.concatenate([rgb, np.ones((h, w, 1), np.float32)], axis=-1)
     return w, h, rgba.ravel().tolist()
-
-
-def bunny_on_ground(path: Path):
-    """The bunny scaled to 1.5 tall, standing at the origin on a ground plane 8 a side; the grid
-    bounds [−1.5, 0, −1.5]..[1.5, 2, 1.5] hold it. Returns (trimesh, bounds (2, 3))."""
-    import trimesh
-
-    bunny = trimesh.load(path, force="mesh", process=False)
-    lo, hi = bunny.bounds
-    s = 1.5 / (hi[1] - lo[1])
-    v = (np.asarray(bunny.vertices) - [(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2]) * s
-    g = 4.0
-    ground = trimesh.Trimesh(vertices=[[-g, 0, -g], [g, 0, -g], [g, 0, g], [-g, 0, g]],
-                             faces=[[0, 2, 1], [0, 3, 2]], process=False)
-    mesh = trimesh.util.concatenate([ground, trimesh.Trimesh(v, bunny.faces, process=False)])
-    return mesh, np.array([[-1.5, 0.0, -1.5], [1.5, 2.0, 1.5]])
 
 
 def bake_job(mesh, bounds, env, sh, resolution=RESOLUTION, albedo=ALBEDO, runs=2) -> dict:
@@ -84,36 +66,3 @@ def grid_from_three(result: dict, job: dict) -> ProbeGrid:
     c = np.reshape(result["coefficients"], (nz, ny, nx, 9, 3)).transpose(2, 1, 0, 3, 4)
     return ProbeGrid(np.ascontiguousarray(c, dtype=np.float32),
                      np.reshape(job["bounds"], (2, 3)), meta={"baked_by": "three.js"})
-
-
-@dataclass(frozen=True)
-class Leak:
-    """Mean irradiance luminance on the cavity floor (``inside``) and on the open ground
-    around the room (``outside``), normals +Y, and their ratio."""
-
-    inside: float
-    outside: float
-
-    @property
-    def ratio(self) -> float:
-        return self.inside / self.outside
-
-
-def room_leak(grid: ProbeGrid, scene: RoomScene, leak_control: bool = False) -> Leak:
-    """Inside: a 9×9 lattice over the cavity floor, 1 cm above it. Outside: the ground
-    lattice (0.25 apart, 1 cm up) inside the grid bounds and ≥ 0.5 from the room's walls."""
-    cav = scene.cavity
-    xs = np.linspace(cav[0, 0] + 0.05, cav[1, 0] - 0.05, 9)
-    zs = np.linspace(cav[0, 2] + 0.05, cav[1, 2] - 0.05, 9)
-    x, z = np.meshgrid(xs, zs, indexing="ij")
-    inside = np.stack([x, np.full_like(x, cav[0, 1] + 0.01), z], -1).reshape(-1, 3)
-    b = scene.bounds
-    g = np.arange(b[0, 0] + 0.125, b[1, 0], 0.25)
-    x, z = np.meshgrid(g, g, indexing="ij")
-    ground = np.stack([x, np.full_like(x, 0.01), z], -1).reshape(-1, 3)
-    far = np.any((ground[:, [0, 2]] < scene.outer[0, [0, 2]] - 0.5)
-                 | (ground[:, [0, 2]] > scene.outer[1, [0, 2]] + 0.5), axis=1)
-    up = np.array([0.0, 1.0, 0.0])
-    e_in = grid.irradiance(inside, up, leak_control=leak_control) @ LUMA
-    e_out = grid.irradiance(ground[far], up, leak_control=leak_control) @ LUMA
-    return Leak(float(e_in.mean()), float(e_out.mean()))

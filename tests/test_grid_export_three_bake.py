@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bench.three_grid_bake import CONSUMERS, bake_job, grid_from_three, room_leak, run_bakes
+from bench.three_grid_bake import CONSUMERS, bake_job, grid_from_three, run_bakes
 
 from shprobe.grids.scenes import room_on_ground
 from shprobe.lighting import project
@@ -61,8 +61,8 @@ def test_three_bake_leaks_into_the_room(bakes):
     grids, _, room = bakes
     g, res = grids["room"]
     assert np.all(np.isfinite(g.coeffs))
-    leak = room_leak(g, room)
-    print(f"three.js LightProbeGridWebGL bake (7x4x7, cube 8): inside {leak.inside:.4g}, "
-          f"outside {leak.outside:.4g}, ratio {leak.ratio:.3g}; bake {res['seconds'][0]:.2f} s")
+    leak = room.leak(g, leak_control=False)  # three.js samples its grid plainly
+    print(f"three.js LightProbeGridWebGL bake (7x4x7, cube 8): {leak}; bake "
+          f"{res['seconds'][0]:.2f} s")
     assert leak.outside > 0.1
-    assert leak.ratio > 0.05  # far above the 1 % of a leak-free grid
+    assert leak.floor_ratio > 0.05  # far above the 1 % of a leak-free grid

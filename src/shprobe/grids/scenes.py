@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RoomLeak", "RoomScene", "room_on_ground"]
+__all__ = ["RoomLeak", "RoomScene", "bunny_on_ground", "room_on_ground"]
 
 
 @dataclass(frozen=True)
@@ -106,3 +106,24 @@ def room_on_ground(half: float = 2.0, height: float = 2.6, wall: float = 0.2,
     cavity = outer + np.array([[wall, wall, wall], [-wall, -wall, -wall]])
     bounds = np.array([[-ground, 0.0, -ground], [ground, 4.0, ground]])
     return RoomScene(outer=outer, cavity=cavity, ground=float(ground), bounds=bounds)
+
+
+def bunny_on_ground(height: float = 1.5, ground: float = 4.0):
+    """The packaged Stanford bunny scaled to ``height`` tall, standing at the origin on a
+    square ground plane 2·``ground`` a side (normal +Y): the benchmarks' second scene. Returns
+    (trimesh, bounds (2, 3)): the grid bounds [−1.5, 0, −1.5]..[1.5, 2, 1.5] (for the default
+    height) hold the bunny with room around it."""
+    import trimesh
+
+    from ..scene.mesh import packaged_bunny
+
+    bunny = packaged_bunny()
+    lo, hi = bunny.bounds
+    s = height / (hi[1] - lo[1])
+    v = (np.asarray(bunny.vertices) - [(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2]) * s
+    g = float(ground)
+    plane = trimesh.Trimesh(vertices=[[-g, 0, -g], [g, 0, -g], [g, 0, g], [-g, 0, g]],
+                            faces=[[0, 2, 1], [0, 3, 2]], process=False)
+    mesh = trimesh.util.concatenate([plane, trimesh.Trimesh(v, bunny.faces, process=False)])
+    r = height
+    return mesh, np.array([[-r, 0.0, -r], [r, height * 4 / 3, r]])
