@@ -128,3 +128,26 @@ def test_prt_scene_framed_with_its_ground(tmp_path):
         assert gfront.all()
         assert gxy[:, 1].max() - gxy[:, 1].min() > 0.5  # seen from above: not a sliver
         shot(page, "camera_prt")
+
+
+def test_refined_bake_ground_found_wherever_its_vertices_are():
+    """A refined bake splits the ground's triangles and appends their new vertices after the
+    object's: the ground is still found (every vertex of the plane, none of the ball's), so
+    the object is framed on the ball alone (its bounding radius, 1, not the ground's)."""
+    import trimesh
+
+    from shprobe.prt import bake
+    from shprobe.viewer.payloads import ground_mask
+
+    t = bake(trimesh.creation.icosphere(2), "shadowed", lmax=2, samples=64, ground=True,
+             refine="quick")
+    v = np.asarray(t.vertices)
+    flat = ground_mask(v, t.normals, True)
+    assert np.nonzero(~flat)[0].max() > np.nonzero(flat)[0].min()  # interleaved
+    assert flat.sum() >= 65 * 65  # the 64×64-cell plane's own vertices, and its splits
+    foot = np.linalg.norm(v[:, [0, 2]], axis=1) < 0.5  # where the ball touches the plane
+    on_plane = np.isclose(v[:, 1], v[:, 1].min()) & ~foot
+    assert np.all(flat[on_plane])
+    obj = v[~flat]
+    c = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    assert np.sqrt(((obj - c) ** 2).sum(axis=1).max()) == pytest.approx(1.0, abs=1e-6)

@@ -12,7 +12,7 @@ import numpy as np
 from .wire import camera_json, pack_binary
 
 __all__ = ["BACKGROUND_H", "VIEW_AZIMUTH", "VIEW_ELEVATION", "background_payload",
-           "cached_mesh_payload", "ground_count", "mesh_payload", "view_cameras"]
+           "cached_mesh_payload", "ground_mask", "mesh_payload", "view_cameras"]
 
 #: lat-long size (H) of the background texture sent to the page
 BACKGROUND_H = 512
@@ -41,17 +41,18 @@ def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, 
                                        elevation=VIEW_ELEVATION), center, wide * radius)}
 
 
-def ground_count(vertices: Any, normals: Any, has_ground: bool) -> int:
-    """How many of the last vertices are a PRT scene's ground plane
-    (:func:`shprobe.prt.geometry.ground_plane`: a square grid of (n+1)² vertices, last, in one
-    plane y = const with normals +Y); 0 without one."""
-    if not has_ground:
-        return 0
+def ground_mask(vertices: Any, normals: Any, has_ground: bool) -> np.ndarray:
+    """The vertices of a PRT scene's ground plane (:func:`shprobe.prt.geometry.ground_plane`:
+    the plane y = const under the scene, normals exactly +Y), wherever they are in the list
+    (a refined bake splits the plane's triangles and appends their new vertices); all False
+    without one."""
     v, n = np.asarray(vertices), np.asarray(normals)
-    flat = (v[:, 1] == v[-1, 1]) & (np.abs(n[:, 1] - 1.0) < 1e-9)
-    k = len(v) if flat.all() else int(np.argmin(flat[::-1]))  # trailing run
-    side = int(np.sqrt(k))
-    return side * side if side * side < len(v) else 0
+    if not has_ground or len(v) == 0:
+        return np.zeros(len(v), dtype=bool)
+    up = np.abs(n[:, 1] - 1.0) < 1e-9
+    if not up.any():
+        return up
+    return up & (v[:, 1] == v[up, 1].min())
 
 
 def mesh_payload(mesh: Any, name: str) -> bytes:

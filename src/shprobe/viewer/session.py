@@ -18,7 +18,7 @@ from ..errors import ShprobeError
 from ..lighting.edits import Blend, EditSpec
 from .design import DESIGN_LMAX, Designed, Designer, design_coeffs
 from .loader import fork_loader, mesh_to_load
-from .payloads import background_payload, ground_count, mesh_payload, view_cameras
+from .payloads import background_payload, ground_mask, mesh_payload, view_cameras
 from .source import Source, env_source, load_probe, preset_source
 from .uploads import Uploads
 from .views import hbasis_panel
@@ -458,8 +458,9 @@ class Session:
         T = t.select(mode, bounces)
         v = np.asarray(t.vertices)
         # framed on the object; the ground plane (the last vertices) is seen around it
-        ng = ground_count(v, t.normals, bool(t.metadata.get("ground")))
-        obj = v[: len(v) - ng] if ng < len(v) else v
+        flat = ground_mask(v, t.normals, bool(t.metadata.get("ground")))
+        ng = int(flat.sum())
+        obj = v[~flat] if ng < len(v) else v
         c = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
         r = float(np.sqrt(((obj - c) ** 2).sum(axis=1).max()))
         return pack_binary(
