@@ -54,7 +54,10 @@ def browser():
 
 
 class Served:
-    def __init__(self, session: Session):
+    """The app of ``session`` (or, given ``grid``, the grid page's) served by uvicorn on a free
+    port in a thread; ``url`` opens ``page`` with the token."""
+
+    def __init__(self, session: Session | None, grid=None, page: str = "/"):
         from shprobe.viewer import new_token
         from shprobe.viewer.app import create_app, make_server
 
@@ -63,7 +66,7 @@ class Served:
         self.sock.bind(("127.0.0.1", 0))
         self.port = self.sock.getsockname()[1]
         self.token = new_token()
-        self.app = create_app(session, self.token, "127.0.0.1", self.port)
+        self.app = create_app(session, self.token, "127.0.0.1", self.port, grid=grid)
         self.server = make_server(self.app)
         self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
                                        daemon=True)
@@ -71,12 +74,13 @@ class Served:
         while not self.server.started:
             time.sleep(0.02)
         self.base = f"http://127.0.0.1:{self.port}"
-        self.url = f"{self.base}/?token={self.token}"
+        self.url = f"{self.base}{page}?token={self.token}"
 
     def close(self):
         self.server.should_exit = True
         self.thread.join(10)
-        self.session.close()
+        if self.session is not None:
+            self.session.close()
 
 
 @pytest.fixture(scope="module")

@@ -8,11 +8,8 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +20,7 @@ from shprobe.grids.scenes import room_on_ground
 from shprobe.lighting.irradiance import irradiance
 from shprobe.viewer.grid import MAX_SHADE, MAX_VIEW_PROBES, GridView
 
-from .test_viewer import VENDOR
+from .test_viewer import VENDOR, Served
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -66,30 +63,11 @@ def unpack(body: bytes) -> tuple[dict, dict[str, np.ndarray]]:
     return head, out
 
 
-class GridServed:
+class GridServed(Served):
     """The grid app of ``view`` served by uvicorn on a free port in a thread."""
 
     def __init__(self, view: GridView):
-        from shprobe.viewer import new_token
-        from shprobe.viewer.app import create_app, make_server
-
-        self.sock = socket.socket()
-        self.sock.bind(("127.0.0.1", 0))
-        self.port = self.sock.getsockname()[1]
-        self.token = new_token()
-        self.server = make_server(create_app(None, self.token, "127.0.0.1", self.port,
-                                             grid=view))
-        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]},
-                                       daemon=True)
-        self.thread.start()
-        while not self.server.started:
-            time.sleep(0.02)
-        self.base = f"http://127.0.0.1:{self.port}"
-        self.url = f"{self.base}/grid?token={self.token}"
-
-    def close(self):
-        self.server.should_exit = True
-        self.thread.join(10)
+        super().__init__(None, grid=view, page="/grid")
 
 
 @pytest.fixture(scope="module")

@@ -3,6 +3,7 @@
 // library's generated GLSL, R&H 2001 eq. 7) and the object's per-vertex irradiance
 // (ProbeGrid.irradiance, leak control on or off). The page only draws.
 import * as THREE from 'three';  // the parts of three.js the pages use (tools/js/entry.js)
+import { unpack } from './wire.js';
 import { OrbitControls } from 'three';
 
 const $ = (id) => document.getElementById(id);
@@ -22,17 +23,6 @@ async function call(path, opts = {}) {
     throw new Error(msg);
   }
   return unpack(await r.arrayBuffer());
-}
-function unpack(buf) {  // viewer.wire.pack_binary
-  const n = new DataView(buf).getUint32(0, true);
-  const head = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
-  const base = 4 + n, out = { head };
-  for (const [k, m] of Object.entries(head.arrays || {})) {
-    const len = m.shape.reduce((a, b) => a * b, 1);
-    const T = { f2: Uint16Array, f4: Float32Array, u4: Uint32Array }[m.dtype];
-    out[k] = new T(buf, base + m.offset, len);
-  }
-  return out;
 }
 function showError(e) {
   const el = $('error');

@@ -3,6 +3,7 @@
 // coefficients as uniforms), lookups of the library's irradiance tables by normal, and PRT
 // relighting (transfer · lighting per vertex, Lisle & Huang §4).
 import * as THREE from 'three';  // the parts of three.js this page uses (tools/js/entry.js)
+import { unpack } from './wire.js';
 import { View3D, readLibraryView } from './view3d.js';
 import { buildSliders, fillSelect, showForMode } from './controls.js';
 import { HEAT_GLSL, drawHBasis, showCompareLegend } from './legend.js';
@@ -27,17 +28,6 @@ async function handle(r) {
   if (type.includes('json')) return r.json();
   if (type.includes('octet-stream')) return unpack(await r.arrayBuffer());
   return r;
-}
-function unpack(buf) {  // wire.pack_binary
-  const n = new DataView(buf).getUint32(0, true);
-  const head = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
-  const base = 4 + n, out = { head };
-  for (const [k, m] of Object.entries(head.arrays || {})) {
-    const len = m.shape.reduce((a, b) => a * b, 1);
-    const T = { f2: Uint16Array, f4: Float32Array, u4: Uint32Array }[m.dtype];
-    out[k] = new T(buf, base + m.offset, len);
-  }
-  return out;
 }
 function showError(e) {
   const el = $('error');
