@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..prt.directions import OFFSET_FRACTION
+from ..sh.rotation import frame_from_normal
 from .grid import ProbeGrid
 from .rays import ProbeTracer
 
@@ -31,15 +32,10 @@ def cosine_directions(normals: NDArray[np.float64], count: int,
                       rng: np.random.Generator) -> NDArray[np.float64]:
     """(N, count, 3) directions, cosine-distributed about unit ``normals`` (N, 3) (Malley:
     uniform on the disc, lifted to the hemisphere)."""
-    n = normals[:, None, :]
     u1, u2 = rng.random((len(normals), count)), rng.random((len(normals), count))
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-    a = np.where(np.abs(n[..., :1]) > 0.9, [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
-    t = np.cross(n, a)
-    t /= np.linalg.norm(t, axis=-1, keepdims=True)
-    b = np.cross(n, t)
-    return ((r * np.cos(phi))[..., None] * t + (r * np.sin(phi))[..., None] * b
-            + np.sqrt(1.0 - u1)[..., None] * n)
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u1)], axis=-1)
+    return np.einsum("nij,ncj->nci", frame_from_normal(normals), local)
 
 
 def gather_irradiance(tracer: ProbeTracer, where, sky: Callable[[NDArray], NDArray],
