@@ -213,19 +213,11 @@ class GridView:
         from anyio import to_thread
         from starlette.requests import ClientDisconnect
 
-        from ..lighting.document import parse_json
+        from .handlers import read_json
 
         try:
-            text = req.headers.get("content-length", "")
-            if text and (not text.isdigit() or int(text) > MAX_SHADE):
-                raise ShprobeError(f"shading request: over the {MAX_SHADE}-byte limit")
-            body = bytearray()
-            async for chunk in req.stream():
-                body += chunk
-                if len(body) > MAX_SHADE:
-                    raise ShprobeError(f"shading request: over the {MAX_SHADE}-byte limit")
-            spec = parse_placement(parse_json(body.decode("utf-8", "replace") or "{}",
-                                              "shading request"), self.grid)
+            spec = parse_placement(await read_json(req, MAX_SHADE, "shading request"),
+                                   self.grid)
             t = time.perf_counter()
             e, leak = await to_thread.run_sync(self.shade, spec)
         except ClientDisconnect:

@@ -78,17 +78,23 @@ def _size(n: int) -> str:
     return f"{n >> 20} MiB" if n >= 1 << 20 else f"{n >> 10} KiB"
 
 
-async def read_spec(req: Request) -> EditSpec:
-    """The request's edit state: bounded, strict JSON, checked by the schema."""
+async def read_json(req: Request, limit: int, what: str) -> Any:
+    """The request's body as strict JSON, refused (413) past ``limit`` bytes — declared or
+    read — before it is parsed."""
     from ..lighting.document import parse_json
 
-    _declared(req, MAX_STATE, "edit state")
+    _declared(req, limit, what)
     body = bytearray()
     async for chunk in req.stream():
         body += chunk
-        if len(body) > MAX_STATE:
-            raise Refused(f"edit state: over the {_size(MAX_STATE)} limit", 413)
-    return read_state(parse_json(body.decode("utf-8", "replace") or "{}", "edit state"))
+        if len(body) > limit:
+            raise Refused(f"{what}: over the {_size(limit)} limit", 413)
+    return parse_json(body.decode("utf-8", "replace") or "{}", what)
+
+
+async def read_spec(req: Request) -> EditSpec:
+    """The request's edit state: bounded, strict JSON, checked by the schema."""
+    return read_state(await read_json(req, MAX_STATE, "edit state"))
 
 
 async def receive(req: Request, path: Path, name: str) -> None:
