@@ -188,16 +188,13 @@ class GridView:
     def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:
         """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint."""
         from .app import static_dir
+        from .handlers import page_response
 
         html = (static_dir() / "grid.html").read_text()
         csp = csp_of(html)
 
         async def page(req: Request) -> Response:
-            r = Response(html, media_type="text/html", headers={
-                "Content-Security-Policy": csp, "Cache-Control": "no-store",
-                "Referrer-Policy": "no-referrer"})
-            r.set_cookie(cookie, token, httponly=True, samesite="strict")
-            return r
+            return page_response(html, csp, cookie, token)
 
         return [Route("/", page), Route("/grid", page),
                 Route("/api/grid", self._data), Route("/api/grid/shade", self._shade,

@@ -78,6 +78,16 @@ def _size(n: int) -> str:
     return f"{n >> 20} MiB" if n >= 1 << 20 else f"{n >> 10} KiB"
 
 
+def page_response(html: str, csp: str, cookie: str, token: str) -> Response:
+    """A page of the viewer: its CSP, never cached, no referrer, and the token's cookie (the
+    page's API calls carry it)."""
+    r = Response(html, media_type="text/html",
+                 headers={"Content-Security-Policy": csp, "Cache-Control": "no-store",
+                          "Referrer-Policy": "no-referrer"})
+    r.set_cookie(cookie, token, httponly=True, samesite="strict")
+    return r
+
+
 async def read_json(req: Request, limit: int, what: str) -> Any:
     """The request's body as strict JSON, refused (413) past ``limit`` bytes — declared or
     read — before it is parsed."""
@@ -170,11 +180,7 @@ class Handlers:
 
     # -- the page and what it needs first -------------------------------------------------
     async def page(self, req: Request) -> Response:
-        r = Response(self.index, media_type="text/html",
-                     headers={"Content-Security-Policy": self.csp, "Cache-Control": "no-store",
-                              "Referrer-Policy": "no-referrer"})
-        r.set_cookie(self.cookie, self.token, httponly=True, samesite="strict")
-        return r
+        return page_response(self.index, self.csp, self.cookie, self.token)
 
     @staticmethod
     def _shaders() -> bytes:
