@@ -44,7 +44,6 @@ def register(group: click.Group) -> None:
         import os
         import threading
         import time
-        import webbrowser
 
         from .extras import require
 
@@ -69,6 +68,7 @@ def register(group: click.Group) -> None:
         session = Session(probe, preset, mesh_file(mesh) if mesh else None, transfer, layout,
                           load=False, stamps=stamps, hbasis=hbasis)
         from ..viewer.app import listen
+        from .serve import LOCAL_HOSTS, announce
 
         sock = listen(host, port)  # a port in use fails here, before any process starts
         try:
@@ -81,8 +81,8 @@ def register(group: click.Group) -> None:
 
             port = sock.getsockname()[1]
             token = new_token()
-            local = host in ("127.0.0.1", "localhost", "::1")
-            server = make_server(create_app(session, token, host, port, check_host=local))
+            server = make_server(create_app(session, token, host, port,
+                                            check_host=host in LOCAL_HOSTS))
             session.ready.wait()
             if session.error is not None:
                 raise session.error
@@ -90,15 +90,8 @@ def register(group: click.Group) -> None:
             sock.close()
             session.close()
             raise
-        if not local:
-            click.echo(f"warning: --host {host} makes the viewer reachable from other "
-                       "machines; anyone with the URL's token can read what it serves", err=True)
-        shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-        url = f"http://{shown}:{port}/?token={token}"
-        click.echo(f"shprobe view: {url}", nl=True)
+        announce(host, port, token, "/", no_browser)
         session.stamp("url")
-        if not no_browser:
-            threading.Timer(0.3, lambda: webbrowser.open(url)).start()
         try:
             server.run(sockets=[sock])
         finally:

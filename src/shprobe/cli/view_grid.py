@@ -4,11 +4,6 @@ one is one line and a non-zero exit, with no server started."""
 
 from __future__ import annotations
 
-import threading
-import webbrowser
-
-import click
-
 from ..errors import ShprobeError
 
 
@@ -25,20 +20,13 @@ def view_grid(grid: str | None, mesh: str | None, scene: str | None,
     from ..viewer.grid import load_grid_view
 
     view = load_grid_view(grid, mesh, scene)
-    if host not in ("127.0.0.1", "localhost", "::1"):
-        click.echo(f"warning: --host {host} makes the viewer reachable from other machines; "
-                   "anyone with the URL's token can read what it serves", err=True)
     from ..viewer.app import create_app, listen, make_server
+    from .serve import LOCAL_HOSTS, announce
 
     sock = listen(host, port)
     port = sock.getsockname()[1]
-
     token = new_token()
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-    url = f"http://{shown}:{port}/grid?token={token}"
-    local = host in ("127.0.0.1", "localhost", "::1")
-    server = make_server(create_app(None, token, host, port, check_host=local, grid=view))
-    click.echo(f"shprobe view: {url}")
-    if not no_browser:
-        threading.Timer(0.3, lambda: webbrowser.open(url)).start()
+    server = make_server(create_app(None, token, host, port, check_host=host in LOCAL_HOSTS,
+                                    grid=view))
+    announce(host, port, token, "/grid", no_browser)
     server.run(sockets=[sock])
