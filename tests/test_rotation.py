@@ -273,3 +273,16 @@ def test_degree_limit():
         wigner_d(np.eye(3), 257)
     with pytest.raises(ShprobeError):
         rotate(np.zeros((258 ** 2, 1)), np.eye(3))
+
+
+def test_z_mirror_signs_are_the_basis_under_z_to_minus_z():
+    """y_lm(x, y, −z) = s_lm y_lm(x, y, z) with s = z_mirror_signs, at every degree."""
+    from shprobe.sh.basis import sh_basis
+    from shprobe.sh.rotation import z_mirror_signs
+
+    d = np.random.default_rng(3).normal(size=(200, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    flipped = d * [1.0, 1.0, -1.0]
+    for lmax in (0, 2, 7):
+        assert np.allclose(sh_basis(flipped, lmax), sh_basis(d, lmax) * z_mirror_signs(lmax),
+                           atol=1e-12)

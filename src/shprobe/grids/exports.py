@@ -40,8 +40,8 @@ from .._version import __version__
 from ..errors import ShprobeError
 from ..files import write_text
 from ..limits import check_memory
-from ..sh.indexing import sh_lm
 from ..sh.registry import convert
+from ..sh.rotation import z_mirror_signs
 from .grid import ProbeGrid
 
 __all__ = ["FORMATS", "SUFFIX", "export_grid", "export_text", "grid_coeffs9"]
@@ -64,13 +64,6 @@ def grid_coeffs9(grid: ProbeGrid) -> NDArray[np.float64]:
 def _texture_order(a: NDArray) -> NDArray:
     """(NX, NY, NZ, ...) → (NZ, NY, NX, ...): X fastest in memory, as a 3D texture."""
     return np.ascontiguousarray(np.transpose(a, (2, 1, 0, *range(3, a.ndim))))
-
-
-def _z_mirror_signs(lmax: int = 2) -> NDArray[np.float64]:
-    """Coefficients of f(x, y, −z): −1 where y_lm is odd in z, i.e. l + m odd (R&H real SH:
-    y_lm ∝ P_l^|m|(z) × a function of x, y, and P_l^|m| has the parity of l − |m|)."""
-    l, m = sh_lm(np.arange((lmax + 1) ** 2))
-    return np.where((l + np.abs(m)) % 2 == 1, -1.0, 1.0)
 
 
 def _floats(a: NDArray) -> list[float]:
@@ -109,7 +102,7 @@ def unity_frame(points: NDArray) -> NDArray[np.float64]:
 
 
 def _unity(grid: ProbeGrid, source: str | None) -> str:
-    sh = convert(grid_coeffs9(grid), to="unity-l2") * _z_mirror_signs()[:, None]
+    sh = convert(grid_coeffs9(grid), to="unity-l2") * z_mirror_signs(2)[:, None]
     sh = np.swapaxes(sh, -1, -2)  # (..., rgb, k): SphericalHarmonicsL2's sh[rgb, k]
     pos = unity_frame(grid.centres())  # where the lookup places each probe's SH
     lo, hi = unity_frame(grid.bounds)

@@ -257,14 +257,12 @@ def _rgbd8(rgb: NDArray[np.float64]) -> NDArray[np.uint8]:
     return np.round(out * 255.0).astype(np.uint8)
 
 
-#: z → −z on the l ≤ 2 coefficients: −1 where y_lm is odd in z (k = 2, 5, 7)
-_ZFLIP = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
-
-
 def _gltf_factors() -> NDArray[np.float64]:
     """E_lm → ``irradianceCoefficients``: Â_l, Condon–Shortley signs, and the cube-map frame
     (Babylon.js looks its environment up at (x, y, −z) for the glTF direction (x, y, z))."""
-    return _ahat(2) * convert(np.ones(9), to="gltf") * _ZFLIP
+    from ..sh.rotation import z_mirror_signs
+
+    return _ahat(2) * convert(np.ones(9), to="gltf") * z_mirror_signs(2)
 
 
 def _gltf(L9: NDArray[np.float64], source: str | None) -> str:

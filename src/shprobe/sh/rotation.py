@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from . import _xp
-from .indexing import ROTATION_LMAX, check_lmax, lmax_of, num_coeffs, unit_vectors
+from .indexing import ROTATION_LMAX, check_lmax, lmax_of, num_coeffs, sh_lm, unit_vectors
 
 #: Largest deviation from RᵀR = I and det R = 1 accepted for an input rotation matrix.
 ORTHO_TOL = 1e-6
@@ -329,6 +329,14 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
     if one_d:
         out = out[..., 0]
     return out.astype(c.dtype, copy=False)
+
+
+def z_mirror_signs(lmax: int) -> NDArray[np.float64]:
+    """The coefficients of f(x, y, −z) are those of f times these signs ((lmax+1)²,): −1
+    where y_lm is odd in z, i.e. l + |m| odd (y_lm ∝ P_l^|m|(z) × a function of x and y, and
+    P_l^|m| has the parity of l − |m|). The frame change of left-handed engines."""
+    l, m = sh_lm(np.arange(num_coeffs(check_lmax(lmax))))
+    return np.where((l + np.abs(m)) % 2 == 1, -1.0, 1.0)
 
 
 def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
