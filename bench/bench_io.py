@@ -1,13 +1,17 @@
 """File decoding time (issue 3: reported separately from projection), and layout table setup.
 
 Run: PYTHONPATH=src python bench/bench_io.py [--size 4096x2048] [--repeat 5]
-Prints a markdown table. Peers in the same run: OpenImageIO's raw read_image (no checks, no
-conversion) and shprobe's own numba RGBE decoder.
+Prints markdown tables. Peers in the same run: OpenImageIO's raw read_image (no checks, no
+conversion), and shprobe's two RGBE decoders alone: the NumPy one (``probes.rgbe_numpy``, what
+``read_rgbe`` uses up to ``RGBE_NUMPY_MAX_PIXELS``) and the compiled one (numba). Then the first
+decode in a fresh process, where the compiled decoder's start-up counts.
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -33,9 +37,10 @@ def main() -> None:
 
     import OpenImageIO as oiio
 
-    from shprobe.probes.codecs import read_rgbe
+    from shprobe.probes.codecs import read_rgbe, rgbe_header, rgbe_rows, rgbe_scale
     from shprobe.probes.images import read_image, write_image
     from shprobe.probes.layouts import get_layout
+    from shprobe.probes.rgbe_numpy import decode_rgbe_numpy
 
     rng = np.random.default_rng(0)
     # a probe-like image: smooth sky plus noise and a few hot pixels (RLE sees real data)
@@ -67,8 +72,16 @@ def main() -> None:
                 b, m = best(lambda p=p: raw_oiio(p), args.repeat)
                 rows.append((f"peer: OpenImageIO read_image .{name}", mb, b, m, None))
             if name == "hdr":
-                b, m = best(lambda p=p: read_rgbe(p), args.repeat)
-                rows.append(("peer: shprobe numba RGBE decoder .hdr", mb, b, m, None))
+                raw = p.read_bytes()
+                *_, n1, n2, off = rgbe_header(p, raw)
+                body = np.frombuffer(raw, np.uint8, offset=off)
+                out = np.empty((n1, n2, 3), np.float32)
+                b, m = best(lambda body=body, out=out:
+                            decode_rgbe_numpy(body, out, rgbe_scale()), args.repeat)
+                rows.append(("peer: shprobe NumPy RGBE decoder alone .hdr", mb, b, m, None))
+                b, m = best(lambda body=body, out=out: rgbe_rows(body, 0, out), args.repeat)
+                rows.append(("peer: shprobe compiled RGBE decoder alone .hdr", mb, b, m, None))
+        cold = fresh_process(files["hdr"][0], Path(d), args.repeat, write_image, img)
 
     print(f"### Decoding a {w}x{h} RGB float image (best / median of {args.repeat})\n")
     print("| reader | file MiB | best ms | median ms | write ms |")
@@ -76,6 +89,13 @@ def main() -> None:
     for name, mb, b, m, wt in rows:
         wts = f"{wt * 1e3:.0f}" if wt is not None else ""
         print(f"| {name} | {mb:.1f} | {b * 1e3:.1f} | {m * 1e3:.1f} | {wts} |")
+
+    print("\n### First decode in a fresh process (`read_rgbe`, after the imports; "
+          f"best / median of {args.repeat} processes)\n")
+    print("| image | decoder | best ms | median ms |")
+    print("| --- | --- | ---: | ---: |")
+    for size, name, b, m in cold:
+        print(f"| {size} | {name} | {b * 1e3:.0f} | {m * 1e3:.0f} |")
 
     print("\n### Layout tables (first call; later calls are cached or cheap)\n")
     print("| layout | grid | solid angles ms | directions ms |")
@@ -90,6 +110,27 @@ def main() -> None:
         lay.pixel_directions(g)
         td = time.perf_counter() - t
         print(f"| {name} | {'x'.join(map(str, g))} | {ts * 1e3:.0f} | {td * 1e3:.0f} |")
+
+
+def fresh_process(big: Path, folder: Path, repeat: int, write_image, img
+                  ) -> list[tuple[str, str, float, float]]:
+    """``read_rgbe`` timed in new processes: NumPy (the default up to RGBE_NUMPY_MAX_PIXELS)
+    and compiled (forced by a limit of 0), for a 2048×1024 probe and the benchmark's image."""
+    small = folder / "probe-2k.hdr"
+    write_image(small, img[::max(1, img.shape[0] // 1024), ::max(1, img.shape[1] // 2048)])
+    code = ("import sys, time; from shprobe.probes import codecs, rgbe_numpy; "
+            "rgbe_numpy.RGBE_NUMPY_MAX_PIXELS = int(sys.argv[2]); t = time.perf_counter(); "
+            "codecs.read_rgbe(sys.argv[1]); print(time.perf_counter() - t)")
+    res = []
+    for p in (small, big):
+        h, w = (int(v) for v in p.read_bytes().split(b"\n-Y ")[1].split(b"\n")[0]
+                .split(b" +X "))
+        for name, limit in (("NumPy", 1 << 40), ("compiled (numba)", 0)):
+            ts = [float(subprocess.run([sys.executable, "-c", code, str(p), str(limit)],
+                                       capture_output=True, text=True, check=True).stdout)
+                  for _ in range(repeat)]
+            res.append((f"{w}×{h}", name, min(ts), float(np.median(ts))))
+    return res
 
 
 if __name__ == "__main__":

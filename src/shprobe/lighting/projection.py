@@ -34,7 +34,7 @@ from ..probes.layouts import (
     detect_layout,
     get_layout,
 )
-from ..sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis
+from ..sh import check_lmax, lmax_of, num_coeffs, recurrence_tables, sh_basis_numpy
 from ..sh.rotation import ROTATION_LMAX
 
 __all__ = [
@@ -64,8 +64,9 @@ def _frame_blocks(lmax: int) -> tuple[NDArray[np.float64], ...]:
         [s[:, None] * np.cos(phi)[None], s[:, None] * np.sin(phi)[None],
          np.broadcast_to(z[:, None], (n, nphi))], axis=-1).reshape(-1, 3)
     w = np.repeat(wz * (2.0 * np.pi / nphi), nphi)
-    y = sh_basis(dirs, lmax)
-    yq = sh_basis(dirs @ _Q.T, lmax)
+    # a few hundred nodes: the NumPy recurrence (no compiled kernel to start for this)
+    y = sh_basis_numpy(dirs, lmax)
+    yq = sh_basis_numpy(dirs @ _Q.T, lmax)
     blocks = []
     for l in range(lmax + 1):
         sl = slice(l * l, (l + 1) ** 2)
@@ -106,7 +107,9 @@ def latlong_pole_factors(h: int, w: int, lmax: int
                     -np.sin(np.abs(m)[:, None] * psi[None]))
     theta = LatLong.row_theta(h)
     pole = np.stack([np.sin(theta), np.zeros(h), np.cos(theta)], axis=-1)
-    basis = sh_basis(pole, lmax)  # y_l|m| at φ' = 0: √2 P̄_l|m| sin^|m| θ (m > 0), P̄_l0 (m = 0)
+    # y_l|m| at φ' = 0: √2 P̄_l|m| sin^|m| θ (m > 0), P̄_l0 (m = 0); one direction per row, so
+    # the NumPy recurrence (no compiled kernel to start in a process that only projects)
+    basis = sh_basis_numpy(pole, lmax)
     ks = np.arange(num_coeffs(lmax))
     ls = np.floor(np.sqrt(ks)).astype(np.int64)
     ms = ks - ls * (ls + 1)

@@ -292,14 +292,20 @@ def rgbe_row_sums(buf: NDArray[np.uint8], pos: int, sums: NDArray[np.float64],
 
 def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``:
-    (m + 0.5) · 2^(e − 136), as Radiance's colr_color, in one compiled pass per scanline."""
+    (m + 0.5) · 2^(e − 136), as Radiance's colr_color. Images up to
+    :data:`~shprobe.probes.rgbe_numpy.RGBE_NUMPY_MAX_PIXELS` are decoded by NumPy (no compiled
+    kernel to start: :mod:`.rgbe_numpy`), larger ones and what NumPy declines by one compiled
+    pass per scanline; the two agree bit for bit."""
+    from .rgbe_numpy import RGBE_NUMPY_MAX_PIXELS, decode_rgbe_numpy
+
     p = Path(path)
     raw = p.read_bytes()
     s1, a1, s2, n1, n2, offset = rgbe_header(p, raw)
     check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - offset)
     body = np.frombuffer(raw, dtype=np.uint8, offset=offset)
     img = np.empty((n1, n2, 3), dtype=np.float32)
-    if rgbe_rows(body, 0, img)[0] != 0:
+    if not (n1 * n2 <= RGBE_NUMPY_MAX_PIXELS and decode_rgbe_numpy(body, img, rgbe_scale())) \
+            and rgbe_rows(body, 0, img)[0] != 0:
         raise ShprobeError("truncated or corrupt .hdr pixel data", p)
     # scanline order: first axis is the slow one
     if a1 == b"X":

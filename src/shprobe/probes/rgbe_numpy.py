@@ -1,0 +1,152 @@
+"""The NumPy decoder of whole Radiance RGBE images: no compiled kernel, so no start-up cost.
+
+The compiled decoder (:mod:`._kernels_rgbe`) is 3–5× faster per pixel, but its first call in a
+process costs 0.6–0.9 s (numba's import, the scipy.linalg it imports and its typing set-up)
+against 0.1 s for NumPy to decode a whole 2048×1024 probe. :func:`shprobe.probes.codecs.
+read_rgbe` takes this path for images up to ``RGBE_NUMPY_MAX_PIXELS`` and the compiled one above
+(and for whatever this one declines). Both give (m + 0.5) · 2^(e − 136), bit for bit.
+
+New-style RLE (Radiance's ``fwritecolrs``): each scanline is a header ``2 2 W/256 W%256`` and
+four channel planes, each a sequence of packets — a count byte c > 128 then one byte repeated
+c − 128 times, or c ≤ 128 then c literal bytes. Packets must be read in order, but the
+scanlines need not be: every scanline starts with its header, so the candidate starts are
+found by one search, all of them parsed in lockstep (one NumPy step per packet of the longest
+scanline), and the true ones are the chain that runs from the first byte. The bytes are then
+expanded by one ``np.repeat`` per block of rows (count bytes 0 times, literals once, a run's
+byte its length).
+
+Declined (``False``; the compiled decoder reads them, or says what is wrong): old-style repeat
+markers, rows of mixed kinds, truncated or corrupt data, and scanlines of more than
+``MAX_PACKETS`` packets (noise at its least compressible; lockstep is slow there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["MAX_PACKETS", "RGBE_NUMPY_MAX_PIXELS", "decode_rgbe_numpy"]
+
+#: Largest image decoded here by default: above it the compiled kernel's speed (13–20 ms per
+#: Mpx against NumPy's ~60) repays its start-up within the one decode (docs/benchmarks.md).
+RGBE_NUMPY_MAX_PIXELS = 1 << 22
+
+#: Most packets in one scanline before the lockstep parse gives way to the compiled decoder.
+MAX_PACKETS = 2048
+
+#: Rows expanded per ``np.repeat`` (their temporaries stay small and in cache).
+_BLOCK_ROWS = 32
+
+
+def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32],
+                      scale: NDArray[np.float32]) -> bool:
+    """Decode the pixel data ``body`` into ``out`` (rows, W, 3) float32 in file order,
+    ``scale[e]`` = 2^(e − 136) (0 for e = 0). False (``out`` partly written) where the data is
+    not flat or new-style RLE throughout, is truncated or corrupt, or needs more than
+    :data:`MAX_PACKETS` packets in a scanline."""
+    h, w = out.shape[:2]
+    if body.size >= 4 and 8 <= w < 32768 and body[0] == 2 and body[1] == 2 \
+            and body[2] < 128:
+        rows = _rle_rows(body, h, w)
+        if rows is None:
+            return False
+        _expand(body, rows, w, out, scale)
+        return True
+    return _flat(body, h, w, out, scale)
+
+
+def _flat(body: NDArray[np.uint8], h: int, w: int, out: NDArray[np.float32],
+          scale: NDArray[np.float32]) -> bool:
+    """Uncompressed pixels; False for repeat markers (r = g = b = 1), a row that reads as
+    new-style RLE, or too few bytes."""
+    if body.size < 4 * h * w:
+        return False
+    px = body[:4 * h * w].reshape(h, w, 4)
+    if 8 <= w < 32768:  # a row starting 2 2 c (c < 128) is new-style RLE to Radiance
+        first = px[:, 0]
+        if np.any((first[:, 0] == 2) & (first[:, 1] == 2) & (first[:, 2] < 128)):
+            return False
+    if np.any((px[..., 0] == 1) & (px[..., 1] == 1) & (px[..., 2] == 1)):
+        return False
+    _to_float(px, out, scale)
+    return True
+
+
+def _rle_rows(body: NDArray[np.uint8], h: int, w: int
+              ) -> tuple[NDArray[np.int64], NDArray[np.int64]] | None:
+    """(start of each scanline and the end of the last, (packets, h) count-byte positions
+    padded with ``body.size``) of ``h`` new-style RLE scanlines, or None."""
+    n = int(body.size)
+    twos = np.flatnonzero(body[:max(0, n - 3)] == 2)
+    cand = twos[(body[twos + 1] == 2) & (body[twos + 2] == w >> 8)
+                & (body[twos + 3] == (w & 255))]
+    if cand.size == 0 or cand[0] != 0 or cand.size > 4 * h + 64:
+        return None
+    # parse from every candidate at once: p = position, x = pixels done in channel ch
+    c = cand.size
+    pos = cand + 4
+    x = np.zeros(c, np.int64)
+    ch = np.zeros(c, np.int64)
+    live = np.ones(c, bool)
+    steps = []
+    act = np.arange(c)
+    while act.size:
+        if len(steps) == MAX_PACKETS:
+            return None
+        p = np.minimum(pos[act], n - 1)
+        rec = np.full(c, n, np.int32 if n < 1 << 31 else np.int64)
+        rec[act] = p
+        steps.append(rec)
+        v = body[p].astype(np.int64)
+        run = v > 128
+        cnt = np.where(run, v - 128, v)
+        xa = x[act] + cnt
+        nxt = p + np.where(run, 2, 1 + v)
+        bad = (cnt == 0) | (xa > w) | (pos[act] >= n) | (nxt > n)
+        done = xa == w
+        pos[act] = nxt
+        x[act] = np.where(done, 0, xa)
+        ch[act] += done
+        live[act[bad]] = False
+        act = act[~bad & (ch[act] < 4)]
+    end = dict(zip(cand[live].tolist(), pos[live].tolist(), strict=True))
+    index = dict(zip(cand.tolist(), range(c), strict=True))
+    chain = np.empty(h, np.int64)
+    s = 0
+    for y in range(h):
+        e = end.get(s)
+        if e is None:
+            return None
+        chain[y] = index[s]
+        s = e
+    starts = np.append(cand[chain], s)
+    return starts, np.stack(steps)[:, chain]
+
+
+def _expand(body: NDArray[np.uint8], rows: tuple[NDArray[np.int64], NDArray[np.int64]],
+            w: int, out: NDArray[np.float32], scale: NDArray[np.float32]) -> None:
+    starts, packets = rows
+    h = out.shape[0]
+    for y0 in range(0, h, _BLOCK_ROWS):
+        y1 = min(h, y0 + _BLOCK_ROWS)
+        a, b = int(starts[y0]), int(starts[y1])
+        seg = body[a:b]
+        reps = np.ones(b - a, np.intp)
+        pk = packets[:, y0:y1].ravel()
+        pk = pk[pk < b] - a  # drop the padding
+        reps[pk] = 0  # count bytes
+        runs = pk[seg[pk] > 128]
+        reps[runs + 1] = seg[runs].astype(np.intp) - 128
+        for k in range(4):  # scanline headers
+            reps[starts[y0:y1] - a + k] = 0
+        data = np.repeat(seg, reps).reshape(y1 - y0, 4, w)
+        _to_float(data.transpose(0, 2, 1), out[y0:y1], scale)
+
+
+def _to_float(px: NDArray[np.uint8], out: NDArray[np.float32],
+              scale: NDArray[np.float32]) -> None:
+    """(m + 0.5) · scale[e] for (…, 4) bytes, in float32 as the compiled decoder (exact: m +
+    0.5 has 9 significant bits and scale is a power of two)."""
+    f = scale[px[..., 3]]
+    np.add(px[..., :3], np.float32(0.5), out=out, dtype=np.float32)
+    out *= f[..., None]
