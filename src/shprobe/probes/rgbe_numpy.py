@@ -17,7 +17,8 @@ byte its length).
 
 Declined (``False``; the compiled decoder reads them, or says what is wrong): old-style repeat
 markers, rows of mixed kinds, truncated or corrupt data, and scanlines of more than
-``MAX_PACKETS`` packets (noise at its least compressible; lockstep is slow there).
+``MAX_PACKETS`` packets (noise at its least compressible; lockstep is slow there) or more
+packet positions than 64 MB holds.
 """
 
 from __future__ import annotations
@@ -31,11 +32,15 @@ __all__ = ["MAX_PACKETS", "RGBE_NUMPY_MAX_PIXELS", "decode_rgbe_numpy"]
 #: Mpx against NumPy's ~60) repays its start-up within the one decode (docs/benchmarks.md).
 RGBE_NUMPY_MAX_PIXELS = 1 << 22
 
-#: Most packets in one scanline before the lockstep parse gives way to the compiled decoder.
+#: Most packets in one scanline before the lockstep parse gives way to the compiled decoder
+#: (its time is one NumPy step per packet of the longest scanline).
 MAX_PACKETS = 2048
 
-#: Rows expanded per ``np.repeat`` (their temporaries stay small and in cache).
-_BLOCK_ROWS = 32
+#: Most recorded packet positions (4 bytes each: 64 MB) before it gives way, for memory.
+_MAX_RECORDED = 1 << 24
+
+#: Pixels expanded per ``np.repeat`` (its temporaries stay small and in cache).
+_BLOCK_PIXELS = 1 << 16
 
 
 def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32],
@@ -91,7 +96,7 @@ def _rle_rows(body: NDArray[np.uint8], h: int, w: int
     steps = []
     act = np.arange(c)
     while act.size:
-        if len(steps) == MAX_PACKETS:
+        if len(steps) == MAX_PACKETS or len(steps) * c > _MAX_RECORDED:
             return None
         p = np.minimum(pos[act], n - 1)
         rec = np.full(c, n, np.int32 if n < 1 << 31 else np.int64)
@@ -109,17 +114,19 @@ def _rle_rows(body: NDArray[np.uint8], h: int, w: int
         ch[act] += done
         live[act[bad]] = False
         act = act[~bad & (ch[act] < 4)]
-    end = dict(zip(cand[live].tolist(), pos[live].tolist(), strict=True))
-    index = dict(zip(cand.tolist(), range(c), strict=True))
-    chain = np.empty(h, np.int64)
-    s = 0
-    for y in range(h):
-        e = end.get(s)
-        if e is None:
+    # the true scanlines: the chain of live candidates, each ending where the next starts
+    at = np.minimum(np.searchsorted(cand, pos), c - 1)
+    follows = np.where(live & (cand[at] == pos), at, -1).tolist()
+    chain = [0] * h
+    k = 0
+    for y in range(1, h):
+        k = follows[k]
+        if k < 0:
             return None
-        chain[y] = index[s]
-        s = e
-    starts = np.append(cand[chain], s)
+        chain[y] = k
+    if not live[k]:
+        return None
+    starts = np.append(cand[chain], pos[k])
     return starts, np.stack(steps)[:, chain]
 
 
@@ -127,8 +134,9 @@ def _expand(body: NDArray[np.uint8], rows: tuple[NDArray[np.int64], NDArray[np.i
             w: int, out: NDArray[np.float32], scale: NDArray[np.float32]) -> None:
     starts, packets = rows
     h = out.shape[0]
-    for y0 in range(0, h, _BLOCK_ROWS):
-        y1 = min(h, y0 + _BLOCK_ROWS)
+    block = max(1, _BLOCK_PIXELS // w)
+    for y0 in range(0, h, block):
+        y1 = min(h, y0 + block)
         a, b = int(starts[y0]), int(starts[y1])
         seg = body[a:b]
         reps = np.ones(b - a, np.intp)
