@@ -138,3 +138,32 @@ def test_grid_group_holds_bake_and_export():
     grid_cli.register(top)
     assert set(top.commands["grid"].commands) == {"bake", "export"}
     assert "three" in top.commands["grid"].commands["export"].params[1].type.choices
+
+
+def test_reference_scenes_by_name(tmp_path, capsys, monkeypatch):
+    """``room`` and ``bunny-on-ground`` name the reference scenes (with their grid bounds as
+    the default --bounds): the bake is the library's on room_on_ground(); a file of that name
+    in the working folder is read instead (here a bad one: one line naming it)."""
+    from shprobe.grids.scenes import bunny_on_ground, named_scene
+
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "g.npz"
+    assert main(["-q", "grid", "bake", "room", "--preset", "grace", "--resolution", "3,2,3",
+                 "--albedo", "0.5", "--bounces", "1", "--lmax", "1", "--samples", "256",
+                 "-o", str(out)]) == 0
+    g = shprobe.load_grid(out)
+    room = room_on_ground()
+    np.testing.assert_array_equal(g.bounds, room.bounds)
+    ref = bake_grid(load_scene(room.mesh(), albedo=0.5), _preset("grace"),
+                    GridSettings((3, 2, 3), bounds=room.bounds, lmax=1, bounces=1,
+                                 samples=256))
+    assert np.allclose(g.coeffs, ref.coeffs, atol=1e-6)
+    mesh, bounds = named_scene("bunny-on-ground")
+    want_mesh, want_bounds = bunny_on_ground()
+    np.testing.assert_array_equal(bounds, want_bounds)
+    assert len(mesh.faces) == len(want_mesh.faces) > 4968
+    assert named_scene("room.obj") is None and named_scene("bunny") is None
+    (tmp_path / "room").write_text("not a mesh\n")
+    assert named_scene("room") is None
+    fails_with_one_line(capsys, ["grid", "bake", "room", "--preset", "grace", "--resolution",
+                                 "2,2,2", "-o", str(tmp_path / "h.npz")], "room")

@@ -263,3 +263,15 @@ def test_grid_with_a_probe_is_refused(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
     r = _run("--scene", str(tmp_path / "g.npz"))
     assert r.returncode != 0 and "--scene goes with --grid" in r.stderr and "http" not in r.stdout
+
+
+def test_scene_by_name(tmp_path):
+    """``--scene room`` draws the reference room (no file needed)."""
+    from shprobe.viewer.grid import load_grid_view
+
+    p = tmp_path / "g.npz"
+    save_grid(p, make_grid())
+    view = load_grid_view(str(p), None, "room")
+    want = room_on_ground().mesh()
+    assert view.scene_name == "room" and len(view.scene.faces) == len(want.faces)
+    np.testing.assert_array_equal(view.scene.vertices, want.vertices)

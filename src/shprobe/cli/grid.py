@@ -40,7 +40,8 @@ def parse_bounds(text: str):
 
 
 @grid.command("bake")
-@click.argument("scene", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("scene", nargs=-1, required=True, type=click.Path(dir_okay=False),
+                metavar="SCENE...")
 @click.option("--lighting", "probe", default=None, type=click.Path(dir_okay=False),
               metavar="PROBE", help="Probe image lighting the scene (its pixels are looked "
                                     "up directly by the rays that leave the scene).")
@@ -72,14 +73,16 @@ def parse_bounds(text: str):
 @force_option
 def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bounds, albedo,
              bounces, lmax, samples, gather, output, force):
-    """Bake an irradiance volume of SCENE (one or more OBJ/PLY/glTF meshes) under a probe or
-    preset: per probe, the environment seen past the scene plus the scene's diffuse light
-    to --bounces bounces, probes inside geometry moved out, and depth maps that keep the
-    interpolation from leaking through walls."""
+    """Bake an irradiance volume of SCENE (one or more OBJ/PLY/glTF meshes, or a reference
+    scene by name: `room`, a closed room on an open ground, or `bunny-on-ground`, each with
+    its own default --bounds) under a probe or preset: per probe, the environment seen past
+    the scene plus the scene's diffuse light to --bounces bounces, probes inside geometry
+    moved out, and depth maps that keep the interpolation from leaking through walls."""
     from ..files import check_output_path
     from ..grids import GridSettings, bake_grid, estimate_grid_bake
     from ..grids.bake import grid_bounds
     from ..grids.io import save_grid
+    from ..grids.scenes import named_scene
     from ..prt import load_scene
     from .output import detail, estimate, progress, wrote
     from .prt import albedo_arguments
@@ -100,8 +103,12 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     light = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
                            lmax=8 if probe else None, need_env=False)
     where = scene[0] if len(scene) == 1 else None
+    named = [named_scene(s) for s in scene]
+    if settings.bounds is None and len(scene) == 1 and named[0] is not None:
+        settings = GridSettings(**{**settings.__dict__, "bounds": named[0][1]})
     try:
-        sc = load_scene(list(scene), **albedo_arguments(albedo, len(scene)))
+        sc = load_scene([s if n is None else n[0] for s, n in zip(scene, named, strict=True)],
+                        **albedo_arguments(albedo, len(scene)))
     except ShprobeError as e:
         raise ShprobeError(e.message, e.path or where) from None
     if len(sc.faces) == 0:

@@ -26,7 +26,8 @@ def register(group: click.Group) -> None:
                   help="A `shprobe grid bake` output: show its probes and move --mesh through "
                        "the volume, lit by interpolation (leak control on/off).")
     @click.option("--scene", type=click.Path(dir_okay=False),
-                  help="With --grid: the scene the grid was baked from, drawn for context.")
+                  help="With --grid: the scene the grid was baked from, drawn for context "
+                       "(a mesh file, or `room` / `bunny-on-ground`, the reference scenes).")
     @click.option("--hbasis", type=click.Path(dir_okay=False),
                   help="A `shprobe hbasis bake` output for the mesh shown: its H-basis view.")
     @click.option("--host", default="127.0.0.1", show_default=True,

@@ -1,13 +1,21 @@
 """Reference scenes for probe grids: a closed room standing on an open ground, the case where
-an irradiance volume leaks (light inside a room that no light reaches)."""
+an irradiance volume leaks (light inside a room that no light reaches), and the packaged bunny
+on a ground. The command line names them (:data:`SCENE_NAMES`, :func:`named_scene`)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["RoomLeak", "RoomScene", "bunny_on_ground", "room_on_ground"]
+__all__ = ["SCENE_NAMES", "RoomLeak", "RoomScene", "bunny_on_ground", "named_scene",
+           "room_on_ground"]
+
+#: The reference scenes by the names a scene argument takes (``shprobe grid bake room``,
+#: ``shprobe view --grid GRID --scene room``) where no file of that name exists.
+SCENE_NAMES = ("room", "bunny-on-ground")
 
 
 @dataclass(frozen=True)
@@ -127,3 +135,16 @@ def bunny_on_ground(height: float = 1.5, ground: float = 4.0):
     mesh = trimesh.util.concatenate([plane, trimesh.Trimesh(v, bunny.faces, process=False)])
     r = height
     return mesh, np.array([[-r, 0.0, -r], [r, height * 4 / 3, r]])
+
+
+def named_scene(arg: str | os.PathLike[str]) -> tuple[Any, np.ndarray] | None:
+    """(trimesh, grid bounds (2, 3)) of the reference scene ``arg`` names — ``room``
+    (:func:`room_on_ground`) or ``bunny-on-ground`` (:func:`bunny_on_ground`) — unless a file
+    of that name exists; None for anything else (a mesh file)."""
+    name = os.fspath(arg)
+    if name not in SCENE_NAMES or os.path.exists(name):
+        return None
+    if name == "room":
+        room = room_on_ground()
+        return room.mesh(), room.bounds
+    return bunny_on_ground()

@@ -234,15 +234,19 @@ class GridView:
 def load_grid_view(grid_path: str, mesh_path: str | None = None,
                    scene_path: str | None = None) -> GridView:
     """Read what ``shprobe view --grid`` shows: the grid file, the object (``mesh_path``; the
-    viewer's default mesh where none is given) and the scene (``scene_path``, optional). A bad
-    file is one line naming it."""
+    viewer's default mesh where none is given) and the scene (``scene_path``, optional: a mesh
+    file or a reference scene's name, :func:`~shprobe.grids.scenes.named_scene`). A bad file
+    is one line naming it."""
+    from ..grids.scenes import named_scene
     from ..scene import load_mesh
     from .loader import mesh_to_load
 
     grid = load_grid(grid_path)
     obj_path = mesh_to_load(mesh_path, None)
     obj = None if obj_path is None else load_mesh(obj_path)
-    scene = None if scene_path is None else load_mesh(scene_path)
+    named = None if scene_path is None else named_scene(scene_path)
+    scene = named[0] if named is not None else (
+        None if scene_path is None else load_mesh(scene_path))
     return GridView(grid, os.path.basename(grid_path), obj,
                     "sphere" if obj_path is None else os.path.basename(obj_path),
                     scene, None if scene_path is None else os.path.basename(scene_path))
