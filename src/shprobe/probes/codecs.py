@@ -304,8 +304,8 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - offset)
     body = np.frombuffer(raw, dtype=np.uint8, offset=offset)
     img = np.empty((n1, n2, 3), dtype=np.float32)
-    if not (n1 * n2 <= RGBE_NUMPY_MAX_PIXELS and decode_rgbe_numpy(body, img, rgbe_scale())) \
-            and rgbe_rows(body, 0, img)[0] != 0:
+    done = n1 * n2 <= RGBE_NUMPY_MAX_PIXELS and decode_rgbe_numpy(body, img, rgbe_scale())
+    if not done and rgbe_rows(body, 0, img)[0] != 0:
         raise ShprobeError("truncated or corrupt .hdr pixel data", p)
     # scanline order: first axis is the slow one
     if a1 == b"X":

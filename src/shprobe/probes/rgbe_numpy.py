@@ -1,10 +1,11 @@
 """The NumPy decoder of whole Radiance RGBE images: no compiled kernel, so no start-up cost.
 
-The compiled decoder (:mod:`._kernels_rgbe`) is 3–5× faster per pixel, but its first call in a
-process costs 0.6–0.9 s (numba's import, the scipy.linalg it imports and its typing set-up)
-against 0.1 s for NumPy to decode a whole 2048×1024 probe. :func:`shprobe.probes.codecs.
-read_rgbe` takes this path for images up to ``RGBE_NUMPY_MAX_PIXELS`` and the compiled one above
-(and for whatever this one declines). Both give (m + 0.5) · 2^(e − 136), bit for bit.
+The compiled decoder (:mod:`._kernels_rgbe`) is about 5× faster per pixel, but its first call
+in a process costs 0.6–0.9 s (numba's import, the scipy.linalg it imports and its typing
+set-up) against 0.1–0.15 s for NumPy to decode a whole 2048×1024 probe.
+:func:`shprobe.probes.codecs.read_rgbe` takes this path for images up to
+``RGBE_NUMPY_MAX_PIXELS`` and the compiled one above (and for whatever this one declines). Both
+give (m + 0.5) · 2^(e − 136), bit for bit.
 
 New-style RLE (Radiance's ``fwritecolrs``): each scanline is a header ``2 2 W/256 W%256`` and
 four channel planes, each a sequence of packets — a count byte c > 128 then one byte repeated
