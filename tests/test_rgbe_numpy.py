@@ -183,3 +183,18 @@ def test_read_rgbe_both_paths(tmp_path, monkeypatch, grace_path, ennis_path):
     with pytest.raises(ShprobeError, match="truncated or corrupt") as e:
         read_rgbe(tmp_path / "cut.hdr")
     assert "cut.hdr" in str(e.value)
+
+
+def test_trailing_bytes_and_header_floods():
+    """Bytes after the last scanline are never searched (trailing data costs nothing and is
+    ignored, as by the compiled decoder); a body that is all scanline headers (W = 514 is
+    ``2 2 2 2``) is declined at the candidate search."""
+    rng = np.random.default_rng(7)
+    h, w = 3, 40
+    px = image(h, w, rng)
+    ok, out, ref = both(encode(px, rng) + bytes([2, 2, 0, w]) * 100_000, h, w)
+    assert ok
+    np.testing.assert_array_equal(out, expected(px))
+    np.testing.assert_array_equal(out, ref)
+    flood = np.full(1 << 22, 2, np.uint8)
+    assert not decode_rgbe_numpy(flood, np.empty((2, 514, 3), np.float32), rgbe_scale())

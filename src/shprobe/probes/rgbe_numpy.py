@@ -82,11 +82,11 @@ def _rle_rows(body: NDArray[np.uint8], h: int, w: int
               ) -> tuple[NDArray[np.int64], NDArray[np.int64]] | None:
     """(start of each scanline and the end of the last, (packets, h) count-byte positions
     padded with ``body.size``) of ``h`` new-style RLE scanlines, or None."""
-    n = int(body.size)
-    twos = np.flatnonzero(body[:max(0, n - 3)] == 2)
-    cand = twos[(body[twos + 1] == 2) & (body[twos + 2] == w >> 8)
-                & (body[twos + 3] == (w & 255))]
-    if cand.size == 0 or cand[0] != 0 or cand.size > 4 * h + 64:
+    # h scanlines fill at most h · (4 + 8w) bytes (a packet costs at most 2 bytes a pixel):
+    # bytes past that are never read, so trailing data costs neither time nor memory
+    n = min(int(body.size), h * (4 + 8 * w))
+    cand = _candidates(body[:n], w, 4 * h + 1024)
+    if cand is None or cand.size == 0 or cand[0] != 0:
         return None
     # parse from every candidate at once: p = position, x = pixels done in channel ch
     c = cand.size
@@ -129,6 +129,23 @@ def _rle_rows(body: NDArray[np.uint8], h: int, w: int
         return None
     starts = np.append(cand[chain], pos[k])
     return starts, np.stack(steps)[:, chain]
+
+
+def _candidates(body: NDArray[np.uint8], w: int, most: int) -> NDArray[np.int64] | None:
+    """Positions of the scanline header ``2 2 W/256 W%256`` in ``body``, searched a MB at a
+    time; None past ``most`` of them."""
+    hi, lo = w >> 8, w & 255
+    found, total = [], 0
+    last = body.size - 3
+    for a in range(0, max(0, last), 1 << 20):
+        b = min(last, a + (1 << 20))
+        hit = np.flatnonzero((body[a:b] == 2) & (body[a + 1:b + 1] == 2)
+                             & (body[a + 2:b + 2] == hi) & (body[a + 3:b + 3] == lo)) + a
+        total += hit.size
+        if total > most:
+            return None
+        found.append(hit)
+    return np.concatenate(found) if found else None
 
 
 def _expand(body: NDArray[np.uint8], rows: tuple[NDArray[np.int64], NDArray[np.int64]],
