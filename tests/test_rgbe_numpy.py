@@ -6,12 +6,17 @@ which read_rgbe then hands to the compiled decoder."""
 
 from __future__ import annotations
 
+import io
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from shprobe.errors import ShprobeError
+from shprobe.lighting.source import resolve_lighting
 from shprobe.probes import rgbe_numpy
 from shprobe.probes.codecs import read_rgbe, rgbe_rows, rgbe_scale
 from shprobe.probes.rgbe_numpy import MAX_PACKETS, decode_rgbe_numpy
@@ -198,3 +203,22 @@ def test_trailing_bytes_and_header_floods():
     np.testing.assert_array_equal(out, ref)
     flood = np.full(1 << 22, 2, np.uint8)
     assert not decode_rgbe_numpy(flood, np.empty((2, 514, 3), np.float32), rgbe_scale())
+
+
+def test_reading_and_projecting_a_probe_starts_no_numba(grace_path):
+    """What the viewer's first frame rests on: a fresh process decodes a lat-long .hdr and
+    projects it (lmax 2 and 8, the loader's path) without importing numba; the coefficients
+    are the ones this process gets."""
+    code = ("import sys, numpy as np; from shprobe.lighting.source import resolve_lighting; "
+            "a = resolve_lighting(sys.argv[1], lmax=2, need_env=True); "
+            "b = resolve_lighting(sys.argv[1], lmax=8, need_env=True); "
+            "print('numba' in sys.modules); np.save(sys.stdout.buffer, np.concatenate("
+            "[np.ravel(a.coeffs), np.ravel(b.coeffs)]))")
+    r = subprocess.run([sys.executable, "-c", code, str(grace_path)], capture_output=True,
+                       check=True)
+    first, rest = r.stdout.split(b"\n", 1)
+    assert first == b"False", r.stderr
+    got = np.load(io.BytesIO(rest))
+    want = np.concatenate([np.ravel(resolve_lighting(grace_path, lmax=lm).coeffs)
+                           for lm in (2, 8)])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
