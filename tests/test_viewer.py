@@ -76,6 +76,12 @@ class Served:
         self.base = f"http://127.0.0.1:{self.port}"
         self.url = f"{self.base}{page}?token={self.token}"
 
+    def client(self, timeout: float = 60):
+        """An httpx client of this server, the token on every request."""
+        import httpx
+
+        return httpx.Client(base_url=self.base, params={"token": self.token}, timeout=timeout)
+
     def close(self):
         self.server.should_exit = True
         self.thread.join(10)
@@ -627,7 +633,6 @@ def test_hbasis_panel_in_page(page, served):
 
 def test_upload_coefficients_as_source(served):
     """Coefficients in any export format become the source (server side, no browser)."""
-    import httpx
 
     from shprobe.lighting.export import export_coeffs
     from shprobe.probes.presets import get_preset
@@ -635,7 +640,7 @@ def test_upload_coefficients_as_source(served):
     keep = served.session.source
     L = get_preset("eucalyptus") * 1.5
     try:
-        with httpx.Client(base_url=served.base, params={"token": served.token}) as c:
+        with served.client() as c:
             r = c.post("/api/upload/coeffs", content=export_coeffs(L, "cmgen").encode(),
                        headers={"X-Filename": "light_sh.txt"})
             assert r.status_code == 200 and r.json()["source"]["name"] == "light_sh.txt"

@@ -43,9 +43,7 @@ def served():
 
 @pytest.fixture
 def client(served):
-    import httpx
-
-    with httpx.Client(base_url=served.base, params={"token": served.token}, timeout=60) as c:
+    with served.client() as c:
         yield c
 
 
