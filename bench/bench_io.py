@@ -37,7 +37,7 @@ def main() -> None:
 
     import OpenImageIO as oiio
 
-    from shprobe.probes.codecs import read_rgbe, rgbe_header, rgbe_rows, rgbe_scale
+    from shprobe.probes.codecs import read_rgbe, rgbe_header, rgbe_rows
     from shprobe.probes.images import read_image, write_image
     from shprobe.probes.layouts import get_layout
     from shprobe.probes.rgbe_numpy import decode_rgbe_numpy
@@ -77,7 +77,7 @@ def main() -> None:
                 body = np.frombuffer(raw, np.uint8, offset=off)
                 out = np.empty((n1, n2, 3), np.float32)
                 b, m = best(lambda body=body, out=out:
-                            decode_rgbe_numpy(body, out, rgbe_scale()), args.repeat)
+                            decode_rgbe_numpy(body, out), args.repeat)
                 rows.append(("peer: shprobe NumPy RGBE decoder alone .hdr", mb, b, m, None))
                 b, m = best(lambda body=body, out=out: rgbe_rows(body, 0, out), args.repeat)
                 rows.append(("peer: shprobe compiled RGBE decoder alone .hdr", mb, b, m, None))

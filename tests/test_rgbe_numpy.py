@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from shprobe.errors import ShprobeError
 from shprobe.lighting.source import resolve_lighting
 from shprobe.probes import rgbe_numpy
-from shprobe.probes.codecs import read_rgbe, rgbe_rows, rgbe_scale
+from shprobe.probes.codecs import read_rgbe, rgbe_rows
 from shprobe.probes.rgbe_numpy import MAX_PACKETS, decode_rgbe_numpy
 
 HEAD = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n"
@@ -72,7 +72,7 @@ def image(h: int, w: int, rng: np.random.Generator, runs: float = 0.5) -> np.nda
 def both(body: bytes, h: int, w: int) -> tuple[bool, np.ndarray, np.ndarray]:
     buf = np.frombuffer(body, np.uint8)
     out = np.full((h, w, 3), np.nan, np.float32)
-    ok = decode_rgbe_numpy(buf, out, rgbe_scale())
+    ok = decode_rgbe_numpy(buf, out)
     ref = np.full((h, w, 3), np.nan, np.float32)
     status = rgbe_rows(buf, 0, ref)[0]
     return ok, out, ref if status == 0 else None
@@ -202,7 +202,7 @@ def test_trailing_bytes_and_header_floods():
     np.testing.assert_array_equal(out, expected(px))
     np.testing.assert_array_equal(out, ref)
     flood = np.full(1 << 22, 2, np.uint8)
-    assert not decode_rgbe_numpy(flood, np.empty((2, 514, 3), np.float32), rgbe_scale())
+    assert not decode_rgbe_numpy(flood, np.empty((2, 514, 3), np.float32))
 
 
 def test_reading_and_projecting_a_probe_starts_no_numba(grace_path):

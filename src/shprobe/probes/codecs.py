@@ -22,7 +22,6 @@ import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ from numpy.typing import NDArray
 
 from ..errors import ShprobeError
 from ..limits import check_memory
+from .rgbe_numpy import rgbe_scale
 from .tonemap import srgb_to_linear
 
 #: Integer pixel formats: display-referred (sRGB-encoded unless tagged linear).
@@ -296,7 +296,7 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     :data:`~shprobe.probes.rgbe_numpy.RGBE_NUMPY_MAX_PIXELS` are decoded by NumPy (no compiled
     kernel to start: :mod:`.rgbe_numpy`), larger ones and what NumPy declines by one compiled
     pass per scanline; the two agree bit for bit."""
-    from .rgbe_numpy import RGBE_NUMPY_MAX_PIXELS, decode_rgbe_numpy
+    from . import rgbe_numpy
 
     p = Path(path)
     raw = p.read_bytes()
@@ -304,7 +304,7 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     check_declared_size(p, n2, n1, 4, min_bytes=4 * n1, have=len(raw) - offset)
     body = np.frombuffer(raw, dtype=np.uint8, offset=offset)
     img = np.empty((n1, n2, 3), dtype=np.float32)
-    done = n1 * n2 <= RGBE_NUMPY_MAX_PIXELS and decode_rgbe_numpy(body, img, rgbe_scale())
+    done = n1 * n2 <= rgbe_numpy.RGBE_NUMPY_MAX_PIXELS and rgbe_numpy.decode_rgbe_numpy(body, img)
     if not done and rgbe_rows(body, 0, img)[0] != 0:
         raise ShprobeError("truncated or corrupt .hdr pixel data", p)
     # scanline order: first axis is the slow one
@@ -316,14 +316,6 @@ def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     if s2 == b"-":
         img = img[:, ::-1]
     return np.ascontiguousarray(img)
-
-
-def rgbe_to_float(rgbe: NDArray[np.uint8]) -> NDArray[np.float32]:
-    """RGBE bytes (..., 4) → float RGB: (m + 0.5) · 2^(e − 136), as Radiance's colr_color
-    (writers truncate, so the half step makes the round trip unbiased)."""
-    e = rgbe[..., 3].astype(np.int32)
-    f = np.where(e > 0, np.ldexp(np.float32(1.0), e - (128 + 8)), 0.0).astype(np.float32)
-    return ((rgbe[..., :3].astype(np.float32) + 0.5) * f[..., None]).astype(np.float32)
 
 
 def rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -340,13 +332,3 @@ def rgbe_half_step(img: NDArray[np.float32]) -> NDArray[np.float32]:
 
     half_step(flat, flat.view(np.int32), table)
     return img
-
-
-@lru_cache(maxsize=1)
-def rgbe_scale() -> NDArray[np.float32]:
-    """2^(e − 136) for each exponent byte e as float32, 0 for e = 0 (as :func:`rgbe_to_float`)."""
-    t = rgbe_to_float(np.stack([np.zeros(256, np.uint8)] * 3 + [np.arange(256, dtype=np.uint8)],
-                               axis=-1))[:, 0] / np.float32(0.5)
-    t.flags.writeable = False
-    return t
-

@@ -24,10 +24,13 @@ packet positions than 64 MB holds.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MAX_PACKETS", "RGBE_NUMPY_MAX_PIXELS", "decode_rgbe_numpy"]
+__all__ = ["MAX_PACKETS", "RGBE_NUMPY_MAX_PIXELS", "decode_rgbe_numpy", "rgbe_scale",
+           "rgbe_to_float"]
 
 #: Largest image decoded here by default: above it the compiled kernel's speed (13–20 ms per
 #: Mpx against NumPy's ~60) repays its start-up within the one decode (docs/benchmarks.md).
@@ -44,11 +47,33 @@ _MAX_RECORDED = 1 << 24
 _BLOCK_PIXELS = 1 << 16
 
 
-def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32],
-                      scale: NDArray[np.float32]) -> bool:
-    """Decode the pixel data ``body`` into ``out`` (rows, W, 3) float32 in file order,
-    ``scale[e]`` = 2^(e − 136) (0 for e = 0). False (``out`` partly written) where the data is
-    not flat or new-style RLE throughout, is truncated or corrupt, or needs more than
+@lru_cache(maxsize=1)
+def rgbe_scale() -> NDArray[np.float32]:
+    """2^(e − 136) for each exponent byte e as float32, 0 for e = 0 (Radiance's colr_color; the
+    compiled decoder takes it as its table)."""
+    e = np.arange(256)
+    t = np.where(e > 0, np.ldexp(1.0, e - (128 + 8)), 0.0).astype(np.float32)
+    t.flags.writeable = False
+    return t
+
+
+def rgbe_to_float(rgbe: NDArray[np.uint8], out: NDArray[np.float32] | None = None
+                  ) -> NDArray[np.float32]:
+    """RGBE bytes (..., 4) → float RGB: (m + 0.5) · 2^(e − 136), as Radiance's colr_color
+    (writers truncate, so the half step makes the round trip unbiased); in float32 as the
+    compiled decoder, exactly (m + 0.5 has 9 significant bits, the scale is a power of two);
+    into ``out`` when given."""
+    if out is None:
+        out = np.empty((*rgbe.shape[:-1], 3), np.float32)
+    np.add(rgbe[..., :3], np.float32(0.5), out=out, dtype=np.float32)
+    out *= rgbe_scale()[rgbe[..., 3]][..., None]
+    return out
+
+
+def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32]) -> bool:
+    """Decode the pixel data ``body`` into ``out`` (rows, W, 3) float32 in file order
+    (:func:`rgbe_to_float`). False (``out`` partly written) where the data is not flat or
+    new-style RLE throughout, is truncated or corrupt, or needs more than
     :data:`MAX_PACKETS` packets in a scanline."""
     h, w = out.shape[:2]
     if body.size >= 4 and 8 <= w < 32768 and body[0] == 2 and body[1] == 2 \
@@ -56,13 +81,12 @@ def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32],
         rows = _rle_rows(body, h, w)
         if rows is None:
             return False
-        _expand(body, rows, w, out, scale)
+        _expand(body, rows, w, out)
         return True
-    return _flat(body, h, w, out, scale)
+    return _flat(body, h, w, out)
 
 
-def _flat(body: NDArray[np.uint8], h: int, w: int, out: NDArray[np.float32],
-          scale: NDArray[np.float32]) -> bool:
+def _flat(body: NDArray[np.uint8], h: int, w: int, out: NDArray[np.float32]) -> bool:
     """Uncompressed pixels; False for repeat markers (r = g = b = 1), a row that reads as
     new-style RLE, or too few bytes."""
     if body.size < 4 * h * w:
@@ -74,14 +98,14 @@ def _flat(body: NDArray[np.uint8], h: int, w: int, out: NDArray[np.float32],
             return False
     if np.any((px[..., 0] == 1) & (px[..., 1] == 1) & (px[..., 2] == 1)):
         return False
-    _to_float(px, out, scale)
+    rgbe_to_float(px, out)
     return True
 
 
 def _rle_rows(body: NDArray[np.uint8], h: int, w: int
               ) -> tuple[NDArray[np.int64], NDArray[np.int64]] | None:
     """(start of each scanline and the end of the last, (packets, h) count-byte positions
-    padded with ``body.size``) of ``h`` new-style RLE scanlines, or None."""
+    padded with a position past the data) of ``h`` new-style RLE scanlines, or None."""
     # h scanlines fill at most h · (4 + 8w) bytes (a packet costs at most 2 bytes a pixel):
     # bytes past that are never read, so trailing data costs neither time nor memory
     n = min(int(body.size), h * (4 + 8 * w))
@@ -149,7 +173,7 @@ def _candidates(body: NDArray[np.uint8], w: int, most: int) -> NDArray[np.int64]
 
 
 def _expand(body: NDArray[np.uint8], rows: tuple[NDArray[np.int64], NDArray[np.int64]],
-            w: int, out: NDArray[np.float32], scale: NDArray[np.float32]) -> None:
+            w: int, out: NDArray[np.float32]) -> None:
     starts, packets = rows
     h = out.shape[0]
     block = max(1, _BLOCK_PIXELS // w)
@@ -166,13 +190,5 @@ def _expand(body: NDArray[np.uint8], rows: tuple[NDArray[np.int64], NDArray[np.i
         for k in range(4):  # scanline headers
             reps[starts[y0:y1] - a + k] = 0
         data = np.repeat(seg, reps).reshape(y1 - y0, 4, w)
-        _to_float(data.transpose(0, 2, 1), out[y0:y1], scale)
+        rgbe_to_float(data.transpose(0, 2, 1), out[y0:y1])
 
-
-def _to_float(px: NDArray[np.uint8], out: NDArray[np.float32],
-              scale: NDArray[np.float32]) -> None:
-    """(m + 0.5) · scale[e] for (…, 4) bytes, in float32 as the compiled decoder (exact: m +
-    0.5 has 9 significant bits and scale is a power of two)."""
-    f = scale[px[..., 3]]
-    np.add(px[..., :3], np.float32(0.5), out=out, dtype=np.float32)
-    out *= f[..., None]
