@@ -59,10 +59,9 @@ class RoomScene:
         cavity (normals into the cavity), so every face is front-facing from free space."""
         import trimesh
 
-        g = self.ground
-        ground = trimesh.Trimesh(
-            vertices=[[-g, 0, -g], [g, 0, -g], [g, 0, g], [-g, 0, g]],
-            faces=[[0, 2, 1], [0, 3, 2]], process=False)
+        from ..prt.geometry import ground_plane
+
+        ground = ground_plane((0.0, 0.0), 2 * self.ground, 0.0, resolution=1)
         outer = trimesh.creation.box(bounds=self.outer)
         cavity = trimesh.creation.box(bounds=self.cavity)
         cavity.invert()
@@ -123,15 +122,14 @@ def bunny_on_ground(height: float = 1.5, ground: float = 4.0):
     height) hold the bunny with room around it."""
     import trimesh
 
+    from ..prt.geometry import ground_plane
     from ..scene.mesh import packaged_bunny
 
     bunny = packaged_bunny()
     lo, hi = bunny.bounds
     s = height / (hi[1] - lo[1])
     v = (np.asarray(bunny.vertices) - [(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2]) * s
-    g = float(ground)
-    plane = trimesh.Trimesh(vertices=[[-g, 0, -g], [g, 0, -g], [g, 0, g], [-g, 0, g]],
-                            faces=[[0, 2, 1], [0, 3, 2]], process=False)
+    plane = ground_plane((0.0, 0.0), 2 * float(ground), 0.0, resolution=1)
     mesh = trimesh.util.concatenate([plane, trimesh.Trimesh(v, bunny.faces, process=False)])
     r = height
     return mesh, np.array([[-r, 0.0, -r], [r, height * 4 / 3, r]])

@@ -244,9 +244,10 @@ def load_grid_view(grid_path: str, mesh_path: str | None = None,
     grid = load_grid(grid_path)
     obj_path = mesh_to_load(mesh_path, None)
     obj = None if obj_path is None else load_mesh(obj_path)
-    named = None if scene_path is None else named_scene(scene_path)
-    scene = named[0] if named is not None else (
-        None if scene_path is None else load_mesh(scene_path))
+    scene = None
+    if scene_path is not None:
+        named = named_scene(scene_path)
+        scene = load_mesh(scene_path) if named is None else named[0]
     return GridView(grid, os.path.basename(grid_path), obj,
                     "sphere" if obj_path is None else os.path.basename(obj_path),
                     scene, None if scene_path is None else os.path.basename(scene_path))
