@@ -182,11 +182,8 @@ def _hit_geometry(tracer: ProbeTracer, sc: BakeScene, hits, rays: NDArray[np.int
     indices)."""
     f = hits.face.ravel()[rays]
     u, v = hits.u.ravel()[rays], hits.v.ravel()[rays]
-    fi = sc.faces[f]
-    uu, vv = u[:, None].astype(np.float64), v[:, None].astype(np.float64)
-    albedo = (1 - uu - vv) * sc.albedo[fi[:, 0]] + uu * sc.albedo[fi[:, 1]] \
-        + vv * sc.albedo[fi[:, 2]]
-    return tracer.points(f, u, v), tracer.face_normals[f], albedo, f
+    return (tracer.points(f, u, v), tracer.face_normals[f],
+            tracer.interpolate(sc.albedo, f, u, v), f)
 
 
 def _bounce_radiance(irradiance, where, advance, block: int = 1 << 17) -> NDArray:
@@ -264,7 +261,7 @@ def _miss_moments(coeffs: NDArray, env: Any, dirs: NDArray, y: NDArray
     that the unoccluded sum is the image's own projection pixel for pixel; without an image,
     4π/D · L(ω) y_lm(ω) with L the lighting's SH."""
     if env is None:
-        sky = sh_basis(dirs, lmax_of(coeffs.shape[0])) @ coeffs  # (D, 3)
+        sky = _sky_function(coeffs, None)(dirs)  # (D, 3)
         return (4.0 * np.pi / len(dirs)) * y[:, :, None] * sky[:, None, :]
     from scipy.spatial import cKDTree
 

@@ -36,10 +36,7 @@ class ProbeTracer:
         self.caster = RayCaster(vertices, faces)
         self.vertices = np.asarray(vertices, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
-        fv = self.vertices[self.faces]
-        n = np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0])
-        ln = np.linalg.norm(n, axis=1, keepdims=True)
-        self.face_normals = n / np.where(ln > 0, ln, 1.0)
+        self.face_normals = self.caster.face_normals
 
     def trace(self, origins: NDArray[np.float64], dirs: NDArray[np.float64],
               on_block=None, distances: bool = True) -> ProbeHits:
@@ -77,6 +74,11 @@ class ProbeTracer:
 
     def points(self, face: NDArray, u: NDArray, v: NDArray) -> NDArray[np.float64]:
         """Points (..., 3) at barycentrics (u, v) of faces (...)."""
-        fv = self.vertices[self.faces[face]]
+        return self.interpolate(self.vertices, face, u, v)
+
+    def interpolate(self, per_vertex: NDArray, face: NDArray, u: NDArray, v: NDArray
+                    ) -> NDArray[np.float64]:
+        """Per-vertex values (V, C) at barycentrics (u, v) of faces (...): (..., C)."""
+        fv = np.asarray(per_vertex, dtype=np.float64)[self.faces[face]]
         uu, vv = u[..., None].astype(np.float64), v[..., None].astype(np.float64)
         return (1 - uu - vv) * fv[..., 0, :] + uu * fv[..., 1, :] + vv * fv[..., 2, :]

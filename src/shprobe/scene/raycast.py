@@ -122,16 +122,17 @@ class RayCaster:
             i, prim = i[hit], self._other_ids[int(c)][r["primID"][hit]]
             t = r["tfar"][hit].astype(np.float64) / self.scale  # world distance back from o
             x = o[i] - t[:, None] * n[i]
-            fn = self._face_normals[prim]
+            fn = self.face_normals[prim]
             side = np.where(np.einsum("ij,ij->i", -n[i], fn) >= 0, 1.0, -1.0)
             o[i] = x + (0.01 * off * side)[:, None] * fn
             crossed[i] = True
         return o, crossed
 
     @cached_property
-    def _face_normals(self) -> NDArray[np.float64]:
-        """Unit geometric normals (F, 3) of the faces; zero for degenerate faces (only
-        :meth:`offset_points` needs them, where an origin crossed another surface)."""
+    def face_normals(self) -> NDArray[np.float64]:
+        """Unit geometric normals (F, 3) of the faces (counter-clockwise winding = front);
+        zero for degenerate faces (made on first use: :meth:`offset_points`, where an origin
+        crossed another surface, and the grid bake's probe tracer)."""
         fv = self._vertices[self._faces]
         return unit_vectors(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), zero="keep")
 
