@@ -19,6 +19,7 @@ from ..errors import ShprobeError
 from ..lighting.irradiance import irradiance_coeffs, unit_normals
 from ..sh.basis import sh_basis
 from ..sh.indexing import lmax_of
+from .cells import cell_centres, cell_probes
 
 __all__ = ["GRID_FORMAT", "GRID_VERSION", "ProbeGrid", "cell_centres", "plain_weights"]
 
@@ -134,42 +135,14 @@ class ProbeGrid:
                 f"{np.round(lo, 3).tolist()}..{np.round(hi, 3).tolist()}{extra})")
 
 
-def cell_centres(bounds: ArrayLike, resolution: tuple[int, int, int]) -> NDArray[np.float64]:
-    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways."""
-    b = np.asarray(bounds, dtype=np.float64)
-    axes = [b[0, a] + (np.arange(resolution[a]) + 0.5) * (b[1, a] - b[0, a]) / resolution[a]
-            for a in range(3)]
-    g = np.meshgrid(*axes, indexing="ij")
-    return np.stack(g, axis=-1)
-
-
 def plain_weights(bounds: ArrayLike, resolution: tuple[int, int, int], points: NDArray,
                   normals: NDArray) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Flat probe indices (..., 8) and trilinear weights (..., 8) as three.js samples its
     ``LightProbeGrid`` texture: sample point p + n·spacing/2, clamped to the outer probe
     centres, hardware trilinear filtering between cell centres."""
     b = np.asarray(bounds, dtype=np.float64)
-    res = np.asarray(resolution, dtype=np.float64)
-    spacing = (b[1] - b[0]) / res
-    s = points + normals * spacing * 0.5
-    uvw = np.clip((s - b[0]) / (b[1] - b[0]), 0.5 / res, 1.0 - 0.5 / res)
-    g = uvw * res - 0.5  # continuous probe index, probe i at i
-    i0 = np.clip(np.floor(g).astype(np.int64), 0, np.maximum(res.astype(np.int64) - 2, 0))
-    f = np.clip(g - i0, 0.0, 1.0)
-    nx, ny, nz = (int(r) for r in resolution)
-    idx, w = [], []
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                ix = np.minimum(i0[..., 0] + dx, nx - 1)
-                iy = np.minimum(i0[..., 1] + dy, ny - 1)
-                iz = np.minimum(i0[..., 2] + dz, nz - 1)
-                wx = f[..., 0] if dx else 1.0 - f[..., 0]
-                wy = f[..., 1] if dy else 1.0 - f[..., 1]
-                wz = f[..., 2] if dz else 1.0 - f[..., 2]
-                idx.append((ix * ny + iy) * nz + iz)
-                w.append(wx * wy * wz)
-    return np.stack(idx, axis=-1), np.stack(w, axis=-1)
+    spacing = (b[1] - b[0]) / np.asarray(resolution, dtype=np.float64)
+    return cell_probes(b, resolution, points + normals * spacing * 0.5)
 
 
 def _points_normals(points: ArrayLike, normals: ArrayLike

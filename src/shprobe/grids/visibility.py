@@ -23,41 +23,16 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .cells import cell_probes
 from .octahedral import octahedral_lookup, pad_maps
 
-__all__ = ["DEFAULT_NORMAL_BIAS", "cell_probes", "visibility_weights",
-           "visibility_weights_reference"]
+__all__ = ["DEFAULT_NORMAL_BIAS", "visibility_weights", "visibility_weights_reference"]
 
 #: Offset of the lookup point along the normal, as a fraction of the smallest cell side (the
 #: meta key ``normal_bias`` of a grid overrides it).
 DEFAULT_NORMAL_BIAS = 0.1
 #: Points per block: bounds the temporaries (8 probes × ~12 doubles per point).
 _BLOCK = 65536
-
-
-def cell_probes(grid, q: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Flat indices (N, 8) of the probes at the corners of the cell of probe centres holding
-    each point q (N, 3) (clamped to the grid) and their trilinear weights (N, 8)."""
-    res = np.asarray(grid.resolution, dtype=np.int64)
-    spacing = grid.spacing
-    g = (q - (grid.bounds[0] + 0.5 * spacing)) / spacing
-    i0 = np.clip(np.floor(g).astype(np.int64), 0, np.maximum(res - 2, 0))
-    f = np.clip(g - i0, 0.0, 1.0)
-    nx, ny, nz = (int(r) for r in res)
-    idx = np.empty((len(q), 8), dtype=np.int64)
-    w = np.empty((len(q), 8))
-    k = 0
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                ix = np.minimum(i0[:, 0] + dx, nx - 1)
-                iy = np.minimum(i0[:, 1] + dy, ny - 1)
-                iz = np.minimum(i0[:, 2] + dz, nz - 1)
-                idx[:, k] = (ix * ny + iy) * nz + iz
-                w[:, k] = ((f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1])
-                           * (f[:, 2] if dz else 1 - f[:, 2]))
-                k += 1
-    return idx, w
 
 
 def visibility_weights(grid, points: NDArray[np.float64], normals: NDArray[np.float64]
@@ -73,7 +48,7 @@ def visibility_weights(grid, points: NDArray[np.float64], normals: NDArray[np.fl
     for a in range(0, len(p), _BLOCK):
         s = slice(a, a + _BLOCK)
         q = np.ascontiguousarray(p[s] + bias * n[s])
-        idx[s], tri = cell_probes(grid, q)
+        idx[s], tri = cell_probes(grid.bounds, grid.resolution, q)
         _kernels.visibility_weights(q, np.ascontiguousarray(n[s]), idx[s], tri, pos, padded,
                                     valid, w[s])
     return idx.reshape(*shape, 8), w.reshape(*shape, 8)
@@ -106,7 +81,7 @@ def _inputs(grid, points, normals):
 
 
 def _block(grid, depth, pos, valid, q, n):
-    idx, tri = cell_probes(grid, q)
+    idx, tri = cell_probes(grid.bounds, grid.resolution, q)
     to_probe = pos[idx] - q[:, None, :]  # (N, 8, 3)
     d = np.linalg.norm(to_probe, axis=-1)
     near = d < 1e-9
