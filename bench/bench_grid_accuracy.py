@@ -1,6 +1,6 @@
 """What the accuracy options buy: the room baked 7×4×7 under the grace preset at several
 ``samples`` and ``gather`` (and finer grids), against the independent path tracer of the tests
-(tests/grid_pathtracer.py, 160,000 paths a point): the probes' own irradiance (lowest outside
+(tests/grids/grid_pathtracer.py, 160,000 paths a point): the probes' own irradiance (lowest outside
 layer, 4 normals) and the interpolated irradiance on the ground near the room; and the leak
 (inside / outside) with and without leak control under grace.hdr.
 
@@ -26,7 +26,7 @@ from shprobe.probes.presets import get_preset
 from shprobe.prt.geometry import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "grids"))
 from grid_pathtracer import PathTracer, sh_sky  # noqa: E402
 
 DATA = Path(os.environ.get("SHPROBE_TEST_DATA", ROOT.parent / "shared"))

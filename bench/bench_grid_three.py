@@ -34,7 +34,7 @@ from three_grid_bake import (  # noqa: E402
     run_bakes,
 )
 
-#: the flags of the tests' Chromium (tests/browser.py): WebGL2 on SwiftShader
+#: the flags of the tests' Chromium (tests/support/browser.py): WebGL2 on SwiftShader
 FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", "--disable-dev-shm-usage", "--use-angle=swiftshader",
          "--enable-unsafe-swiftshader"]

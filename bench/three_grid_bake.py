@@ -1,6 +1,6 @@
 """three.js's own probe-grid bake (``LightProbeGridWebGL.bake``, r187) of shprobe's reference
 scenes in headless Chromium, read back into a :class:`~shprobe.grids.grid.ProbeGrid`; used by
-tests/test_grid_export_three_bake.py and bench/bench_grid_three.py, each opening the page
+tests/grids/test_grid_export_three_bake.py and bench/bench_grid_three.py, each opening the page
 ``tests/consumers/grid.html`` in its own headless Chromium.
 
 What three.js's bake sees: for each probe a cube map (8² per face, its default) of the scene —

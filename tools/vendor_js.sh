@@ -12,7 +12,7 @@
 #   tools/vendor_js.sh           rebuild into the package data, rewrite tools/js/vendor.sha256
 #   tools/vendor_js.sh --check   rebuild into a temporary folder; fail unless it reproduces the
 #                                committed files byte for byte and they match vendor.sha256
-#                                (tests/test_packaging_vendor.py runs this where npm exists)
+#                                (tests/packaging/test_packaging_vendor.py runs this where npm exists)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 js="$root/tools/js"

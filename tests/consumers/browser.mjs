@@ -1,5 +1,5 @@
 // The consumers that live in a browser, run in headless Chromium by
-// tests/test_export_consumers.py (served under tests/browser.ORIGIN, node_modules at
+// tests/lighting/test_export_consumers.py (served under tests/support/browser.ORIGIN, node_modules at
 // /node_modules/, resolved by the import map of browser.html):
 //   babylon(cases, normals, rightHanded): Babylon.js (WebGL2 Engine) loads each `gltf` export
 //     through its glTF loader (EXT_lights_image_based) and we evaluate the environment's

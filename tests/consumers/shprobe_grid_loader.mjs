@@ -2,7 +2,7 @@
 // (three r187, WebGLRenderer): the 27 coefficients of each probe are packed into the atlas the
 // grid's shader samples — 7 RGBA sub-volumes stacked along Z, each nz + 2 slices deep (one
 // padding slice at each end, a copy of the edge slice), texel t*4 + channel = coefficient j.
-// docs/grid-exports.md prints this file; tests/test_grid_export_three.py runs it in Chromium.
+// docs/grid-exports.md prints this file; tests/grids/test_grid_export_three.py runs it in Chromium.
 import { Data3DTexture, FloatType, LinearFilter, RGBAFormat } from 'three';
 import { LightProbeGridWebGL } from 'three/addons/lighting/LightProbeGridWebGL.js';
 

@@ -1,7 +1,7 @@
 // Probe grids in three.js r187 (WebGLRenderer, headless Chromium): shprobe's exported grid
 // rendered on a white Lambertian surface at given points and normals, and three.js's own
 // LightProbeGridWebGL bake of a scene, read back coefficient by coefficient.
-// Driven by tests/test_grid_export_three*.py and bench/bench_grid_three.py.
+// Driven by tests/grids/test_grid_export_three*.py and bench/bench_grid_three.py.
 import * as THREE from 'three';
 import { LightProbeGridWebGL } from 'three/addons/lighting/LightProbeGridWebGL.js';
 import { loadShprobeGrid } from './shprobe_grid_loader.mjs';
