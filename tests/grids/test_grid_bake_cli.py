@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import trimesh
@@ -14,17 +12,7 @@ from shprobe.cli.main import main
 from shprobe.grids import GridSettings, bake_grid
 from shprobe.grids.scenes import room_on_ground
 from shprobe.prt.geometry import load_scene
-
-
-def fails_with_one_line(capsys, args, *needles):
-    capsys.readouterr()
-    t = time.monotonic()
-    assert main(args) != 0
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("shprobe: error:") and "\n" not in err, err
-    for n in needles:
-        assert n in err, err
-    return time.monotonic() - t
+from tests.conftest import fails_with_one_line
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ from shprobe.hbasis import bakefile as bf
 from shprobe.hbasis import normalmap as nm
 from shprobe.hbasis.basis import sh_to_h_matrix
 from shprobe.scene import mesh_hash, sphere_mesh
+from tests.conftest import one_line_message
 
 
 @pytest.fixture(scope="module")
@@ -28,11 +29,6 @@ def lighting():
     L = rng.normal(size=(25, 3))
     L[0] += 5
     return L
-
-
-def _one_line(e):
-    assert "\n" not in str(e.value)
-    return str(e.value)
 
 
 def test_round_trip_keeps_everything(tmp_path, ball, lighting):
@@ -69,7 +65,7 @@ def test_foreign_mesh_and_missing_arrays(tmp_path, ball, lighting):
     bf.save_bake(path, nm.bake_mesh(ball, lighting))
     with pytest.raises(ShprobeError) as e:
         bf.load_bake(path, sphere_mesh(2))
-    assert "another mesh" in _one_line(e) and "b.npz" in str(e.value)
+    assert "another mesh" in one_line_message(e) and "b.npz" in str(e.value)
     with np.load(path) as z:
         arrays = dict(z)
     del arrays["frames"]
@@ -102,7 +98,7 @@ def test_malformed_arrays_are_refused(tmp_path, ball, lighting, change, msg):
     _rewrite(good, tmp_path / "bad.npz", **change)
     with pytest.raises(ShprobeError, match=msg) as e:
         bf.load_bake(tmp_path / "bad.npz")
-    assert "bad.npz" in _one_line(e)
+    assert "bad.npz" in one_line_message(e)
 
 
 def test_truncated_and_lying_files_are_refused_before_inflating(tmp_path, ball, lighting,
@@ -114,7 +110,7 @@ def test_truncated_and_lying_files_are_refused_before_inflating(tmp_path, ball, 
         (tmp_path / "t.npz").write_bytes(raw[:cut])
         with pytest.raises(ShprobeError) as e:
             bf.load_bake(tmp_path / "t.npz")
-        assert "t.npz" in _one_line(e)
+        assert "t.npz" in one_line_message(e)
     # an h.npy whose header promises 10⁹ vertices over a few bytes of data: refused from the
     # header (stored size ≠ promised size) without allocating anything
     with zipfile.ZipFile(good) as z:
@@ -128,7 +124,7 @@ def test_truncated_and_lying_files_are_refused_before_inflating(tmp_path, ball, 
             z.writestr(n, data)
     with pytest.raises(ShprobeError, match="truncated or malformed") as e:
         bf.load_bake(tmp_path / "lie.npz")
-    assert "lie.npz" in _one_line(e)
+    assert "lie.npz" in one_line_message(e)
     # an honest file larger than the memory limit is refused before reading
     monkeypatch.setattr(bf, "MAX_BAKE_BYTES", 1000)
     with pytest.raises(ShprobeError, match="would take"):

@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from shprobe._version import __version__
-from tests.conftest import REPO, shared_dir
+from tests.conftest import REPO, one_line_error, shared_dir
 
 pytestmark = pytest.mark.slow
 
@@ -155,12 +155,6 @@ def pip_install(venv: Path, spec: str, env: dict[str, str]) -> None:
     run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", spec], env=env)
 
 
-def one_line_error(r: subprocess.CompletedProcess, extra: str) -> None:
-    lines = r.stderr.strip().splitlines()
-    assert r.returncode == 1 and len(lines) == 1, r.stderr
-    assert f"pip install 'shprobe[{extra}]'" in lines[0]
-
-
 SNIPPET = """
 import sys
 import numpy as np
@@ -226,10 +220,11 @@ def test_installed_wheel_core_then_viewer_then_batch_then_the_tour(dists, tmp_pa
     assert (work / "shprobe-demo").is_dir() and any((work / "shprobe-demo").glob("*.png"))
     out = run([py, "-c", SNIPPET], env=env, cwd=work).stdout
     assert str(venv) in out  # the installed package, not the checkout
-    one_line_error(run([shprobe, "view", "--preset", "grace", "--no-browser"], env=env,
-                       cwd=work, ok=False), "viewer")
-    one_line_error(run([shprobe, "batch", "a.hdr", "-o", "t.parquet"], env=env, cwd=work,
-                       ok=False), "batch")
+    for extra, argv in (("viewer", ["view", "--preset", "grace", "--no-browser"]),
+                        ("batch", ["batch", "a.hdr", "-o", "t.parquet"])):
+        r = run([shprobe, *argv], env=env, cwd=work, ok=False)
+        assert r.returncode == 1, r.stderr
+        one_line_error(r.stderr, f"pip install 'shprobe[{extra}]'")
 
     # [viewer] and [batch] added (the viewer's page is opened last)
     pip_install(venv, f"{wheel}[viewer]", env)

@@ -12,6 +12,7 @@ from shprobe.errors import ShprobeError
 from shprobe.probes.codecs import read_rgbe
 from shprobe.probes.images import LDRWarning, read_image, write_image
 from shprobe.probes.tonemap import srgb_to_linear
+from tests.conftest import one_line_message
 
 
 def _img(h=6, w=10, seed=0):
@@ -179,8 +180,8 @@ def test_hdr_orientation_plus_y(tmp_path):
 def _one_line_error(path, match=None, **kw):
     with pytest.raises(ShprobeError, match=match) as e:
         read_image(path, **kw)
-    msg = str(e.value)
-    assert "\n" not in msg and str(path) in msg
+    msg = one_line_message(e)
+    assert str(path) in msg
     return msg
 
 

@@ -14,7 +14,7 @@ import trimesh
 from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.prt import bake, load_transfer, relight
-from tests.prt.test_prt_cli import fails_with_one_line as one_line_error
+from tests.conftest import fails_with_one_line
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_short_albedo_or_normals_is_one_line(tmp_path, capsys, sphere, name):
     bad = rewrite(path, tmp_path / "short.npz", **{name: getattr(t, name)[:-3]})
     with pytest.raises(ShprobeError, match=name):
         load_transfer(bad)
-    one_line_error(capsys, ["prt", "render", str(bad), "--cone", "0,1,0:30", "--mode",
+    fails_with_one_line(capsys, ["prt", "render", str(bad), "--cone", "0,1,0:30", "--mode",
                             "unshadowed", "--size", "16x16", "-o", str(tmp_path / "x.png")],
                    "short.npz", name)
 
@@ -94,7 +94,7 @@ def test_zip_bomb_is_refused_before_inflating(tmp_path, capsys, monkeypatch):
     with pytest.raises(ShprobeError, match="'albedo' has shape"):
         load_transfer(tmp_path / "odd.npz")
     monkeypatch.undo()
-    one_line_error(capsys, ["prt", "render", str(huge), "--cone", "0,1,0:30", "-o",
+    fails_with_one_line(capsys, ["prt", "render", str(huge), "--cone", "0,1,0:30", "-o",
                             str(tmp_path / "x.png")], "huge.npz", "over the limit")
 
 
@@ -125,7 +125,7 @@ def test_relight_refuses_nan_lighting_and_transfers(sphere):
 
 def test_absurd_turntable_is_refused_before_work(tmp_path, capsys, sphere):
     path, _ = sphere
-    one_line_error(capsys, ["prt", "render", str(path), "--cone", "0,1,0:30", "--turntable",
+    fails_with_one_line(capsys, ["prt", "render", str(path), "--cone", "0,1,0:30", "--turntable",
                             "100000", "-o", str(tmp_path / "f.png")], "--turntable", "3600")
     assert not list(tmp_path.glob("f_*"))
 

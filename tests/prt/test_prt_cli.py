@@ -8,22 +8,7 @@ import trimesh
 
 from shprobe.cli.main import main
 from shprobe.prt import bake, load_transfer
-
-
-@pytest.fixture
-def sphere_obj(tmp_path):
-    p = tmp_path / "sphere.obj"
-    trimesh.creation.icosphere(subdivisions=2).export(p)
-    return p
-
-
-def fails_with_one_line(capsys, args, *needles):
-    capsys.readouterr()
-    assert main(args) != 0
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("shprobe: error:") and "\n" not in err, err
-    for n in needles:
-        assert n in err, err
+from tests.conftest import fails_with_one_line
 
 
 def test_bake_cli_matches_library(tmp_path, sphere_obj, capsys):
@@ -102,18 +87,6 @@ def test_render_probe_and_preset_need_no_rebake(tmp_path, sphere_obj, grace_path
     assert out.stat().st_mtime_ns == before
 
 
-def fails_with_one_line_fd(capfd, args, *needles):
-    """Like :func:`fails_with_one_line`, at the file-descriptor level: numpy warnings printed
-    by the warnings machinery count too. stderr must be exactly one line."""
-    capfd.readouterr()
-    assert main(args) != 0
-    err = capfd.readouterr().err
-    lines = err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("shprobe: error:"), err
-    for n in needles:
-        assert n in err, err
-
-
 def test_render_picks_the_model_at_run_time(tmp_path, sphere_obj, capsys):
     """One interreflected bake renders as shadowed, as 1 bounce and as unshadowed, pixel for
     pixel the same as renders of separate bakes (same seed and samples)."""
@@ -153,11 +126,11 @@ def test_render_picks_the_model_at_run_time(tmp_path, sphere_obj, capsys):
 
 def test_bake_cli_refuses_bad_seed_and_threads(tmp_path, sphere_obj, capfd):
     out = tmp_path / "y.npz"
-    fails_with_one_line_fd(capfd, ["prt", "bake", str(sphere_obj), "--seed", "-5", "-o",
+    fails_with_one_line(capfd, ["prt", "bake", str(sphere_obj), "--seed", "-5", "-o",
                                    str(out)], "--seed", "-5")
-    fails_with_one_line_fd(capfd, ["prt", "bake", str(sphere_obj), "--threads", "0", "-o",
+    fails_with_one_line(capfd, ["prt", "bake", str(sphere_obj), "--threads", "0", "-o",
                                    str(out)], "--threads")
-    fails_with_one_line_fd(capfd, ["prt", "bake", str(sphere_obj), "--mode", "interreflected",
+    fails_with_one_line(capfd, ["prt", "bake", str(sphere_obj), "--mode", "interreflected",
                                    "--bounces", "-1", "-o", str(out)], "--bounces")
     assert not out.exists()
 
@@ -202,7 +175,7 @@ def test_render_refuses_non_finite_numbers_in_one_line(tmp_path, sphere_obj, cap
     t = tmp_path / "t.npz"
     assert main(["prt", "bake", str(sphere_obj), "--mode", "unshadowed", "--lmax", "2", "-o",
                  str(t)]) == 0
-    fails_with_one_line_fd(capfd, ["prt", "render", str(t), *args, "-o",
+    fails_with_one_line(capfd, ["prt", "render", str(t), *args, "-o",
                                    str(tmp_path / "x.png")], "finite")
     assert not (tmp_path / "x.png").exists()
 

@@ -9,18 +9,10 @@ import subprocess
 import sys
 
 import pytest
-import trimesh
 
 from shprobe.cli.main import main
 from shprobe.prt import QUICK, estimate_bake, load_scene
 from shprobe.prt.trace import bake_bytes
-
-
-@pytest.fixture
-def sphere_obj(tmp_path):
-    p = tmp_path / "s.obj"
-    trimesh.creation.icosphere(subdivisions=1, radius=0.5).export(p)
-    return p
 
 
 def test_estimate_grows_with_the_work_and_uses_the_memory_model(sphere_obj):

@@ -12,15 +12,7 @@ from shprobe.errors import ShprobeError
 from shprobe.probes.images import read_image, write_image
 from shprobe.prt import bake, load_transfer
 from shprobe.sh import sh_basis
-from tests.conftest import write_raw_pfm
-from tests.prt.test_prt_cli import fails_with_one_line as one_line_error
-
-
-@pytest.fixture
-def sphere_obj(tmp_path):
-    p = tmp_path / "sphere.obj"
-    trimesh.creation.icosphere(subdivisions=3).export(p)
-    return p
+from tests.conftest import fails_with_one_line, write_raw_pfm
 
 
 @pytest.fixture
@@ -95,7 +87,7 @@ def test_auto_exposure_neither_blown_out_nor_dark(tmp_path, sphere_transfer, cap
     lit = img[img > 0]
     assert 180 <= lit.max() <= 255
     assert (lit == 255).mean() < 0.02
-    one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
+    fails_with_one_line(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
                             "--exposure", "nan", "-o", str(tmp_path / "n.png")], "exposure")
 
 
@@ -104,7 +96,7 @@ def test_auto_exposure_neither_blown_out_nor_dark(tmp_path, sphere_transfer, cap
 
 def test_render_checks_output_format_first(tmp_path, sphere_transfer, capsys):
     for args in ([], ["--turntable", "2"]):
-        one_line_error(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
+        fails_with_one_line(capsys, ["prt", "render", str(sphere_transfer), "--cone", "0,1,0:30",
                                 *args, "-o", str(tmp_path / "x.bmp")], "x.bmp", ".bmp")
     assert list(tmp_path.glob("x*")) == []
 
@@ -112,12 +104,12 @@ def test_render_checks_output_format_first(tmp_path, sphere_transfer, capsys):
 def test_render_layout_option_reaches_the_probe(tmp_path, sphere_transfer, capsys):
     probe = tmp_path / "probe.exr"
     write_image(probe, np.ones((32, 48, 3), np.float32))  # 3:2: no layout fits
-    one_line_error(capsys, ["prt", "render", str(sphere_transfer), str(probe), "--layout",
+    fails_with_one_line(capsys, ["prt", "render", str(sphere_transfer), str(probe), "--layout",
                             "latlong", "-o", str(tmp_path / "x.png")], "probe.exr", "2:1")
     a = np.ones((16, 32, 3), np.float32)
     a[2, 3, 0] = np.nan
     nan = write_raw_pfm(tmp_path / "nan.pfm", a)
-    one_line_error(capsys, ["prt", "render", str(sphere_transfer), str(nan), "-o",
+    fails_with_one_line(capsys, ["prt", "render", str(sphere_transfer), str(nan), "-o",
                             str(tmp_path / "x.png")], "nan.pfm", "NaN", "--clamp")
     assert not (tmp_path / "x.png").exists()
 
@@ -126,7 +118,7 @@ def test_render_layout_option_reaches_the_probe(tmp_path, sphere_transfer, capsy
 def test_bad_transfer_files_are_one_line(tmp_path, capsys, content):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(content)
-    one_line_error(capsys, ["prt", "render", str(bad), "--cone", "0,1,0:30", "-o",
+    fails_with_one_line(capsys, ["prt", "render", str(bad), "--cone", "0,1,0:30", "-o",
                             str(tmp_path / "x.png")], "bad.npz", "not a transfer file")
     other = tmp_path / "other.npz"
     np.savez(other, a=np.zeros(3))
@@ -138,7 +130,7 @@ def test_truncated_transfer_file(tmp_path, sphere_transfer, capsys):
     data = sphere_transfer.read_bytes()
     cut = tmp_path / "cut.npz"
     cut.write_bytes(data[: len(data) // 2])
-    one_line_error(capsys, ["prt", "render", str(cut), "--cone", "0,1,0:30", "-o",
+    fails_with_one_line(capsys, ["prt", "render", str(cut), "--cone", "0,1,0:30", "-o",
                             str(tmp_path / "x.png")], "cut.npz")
 
 
@@ -156,7 +148,7 @@ def test_hash_check_with_ground_and_several_meshes(tmp_path, capsys):
         load_transfer(out, scene=[a])
     with pytest.raises(ShprobeError, match="baked for mesh"):
         load_transfer(out, scene=[b, a])
-    one_line_error(capsys, ["prt", "render", str(out), "--cone", "0,1,0:30", "--scene",
+    fails_with_one_line(capsys, ["prt", "render", str(out), "--cone", "0,1,0:30", "--scene",
                             str(a), "-o", str(tmp_path / "x.png")], "baked for mesh")
 
 
@@ -165,7 +157,7 @@ def test_zero_normals_are_refused(tmp_path, capsys):
     bad.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")  # a triangle of zero area
     with pytest.raises(ShprobeError, match=r"flat\.obj.*(zero or non-finite normal|no normals)"):
         bake(bad, mode="unshadowed", lmax=2)
-    one_line_error(capsys, ["prt", "bake", str(bad), "-o", str(tmp_path / "x.npz")],
+    fails_with_one_line(capsys, ["prt", "bake", str(bad), "-o", str(tmp_path / "x.npz")],
                    "flat.obj", "normal")
     assert not (tmp_path / "x.npz").exists()
 

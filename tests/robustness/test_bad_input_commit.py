@@ -18,22 +18,11 @@ from shprobe.cli.main import main
 from shprobe.errors import ShprobeError
 from shprobe.files import atomic_output, remove_stale_temporaries, transaction, write_text
 from shprobe.lighting.export import export_coeffs
-from shprobe.probes.images import read_image, write_image
-from shprobe.probes.presets import get_preset
-from shprobe.scene import Camera, render
+from shprobe.probes.images import read_image
 
 
 def _leftovers(folder) -> list[str]:
     return sorted(p.name for p in folder.rglob("*") if ".shprobe-" in p.name)
-
-
-@pytest.fixture
-def grey(tmp_path):
-    r = render(None, get_preset("grace"), Camera(120, 100, "orthographic", margin=1.3),
-               albedo=0.5, background=[0.03, 0.03, 0.03])
-    path = tmp_path / "grey.exr"
-    write_image(path, r.image)
-    return path
 
 
 def test_fit_outputs_all_or_none(tmp_path, grey, capsys, monkeypatch):

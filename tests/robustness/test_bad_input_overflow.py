@@ -17,85 +17,77 @@ from shprobe.lighting.reference import reference_irradiance
 from shprobe.limits import MAX_PAIRS, check_pairs
 from shprobe.probes.env import Env, env_from_function
 from shprobe.probes.images import read_image, write_image
-from shprobe.probes.presets import get_preset
-from shprobe.scene import Camera, render
+from tests.conftest import one_line_error
 
 
-def _run(args, capsys) -> tuple[int, list[str]]:
+def _run(args, capsys) -> tuple[int, str]:
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         rc = main([str(a) for a in args])
-    err = capsys.readouterr().err
-    return rc, [x for x in err.splitlines() if x.strip()]
-
-
-def _one_line(rc, lines, *words):
-    assert rc == 1 and len(lines) == 1 and lines[0].startswith("shprobe: error:"), lines
-    for w in words:
-        assert w in lines[0], lines
-
-
-@pytest.fixture
-def grey(tmp_path):
-    r = render(None, get_preset("grace"), Camera(80, 64, "orthographic", margin=1.3),
-               albedo=0.5, background=[0.03, 0.03, 0.03])
-    path = tmp_path / "grey.exr"
-    write_image(path, r.image)
-    return path
+    return rc, capsys.readouterr().err
 
 
 def test_fit_arguments_that_overflowed(tmp_path, grey, bunny_path, capsys):
     out = tmp_path / "c.json"
-    rc, lines = _run(["fit", "grey-ball", grey, "--camera", "perspective:1e-300"], capsys)
-    _one_line(rc, lines, "field of view", "1e-300")
-    rc, lines = _run(["fit", "grey-ball", grey, "--albedo", "1e-320", "-o", out], capsys)
-    _one_line(rc, lines, "albedo", "1e-320")  # was: infinite coefficients printed
+    rc, err = _run(["fit", "grey-ball", grey, "--camera", "perspective:1e-300"], capsys)
+    assert rc == 1
+    one_line_error(err, "field of view", "1e-300")
+    rc, err = _run(["fit", "grey-ball", grey, "--albedo", "1e-320", "-o", out], capsys)
+    assert rc == 1
+    one_line_error(err, "albedo", "1e-320")  # was: infinite coefficients printed
     assert not out.exists()
-    rc, lines = _run(["fit", "mesh", grey, bunny_path, "--distance", "1e308"], capsys)
-    _one_line(rc, lines, "distance", "1e+308")
-    rc, lines = _run(["fit", "grey-ball", grey, "--camera", "perspective:20", "-o", out],
-                     capsys)
+    rc, err = _run(["fit", "mesh", grey, bunny_path, "--distance", "1e308"], capsys)
+    assert rc == 1
+    one_line_error(err, "distance", "1e+308")
+    rc, err = _run(["fit", "grey-ball", grey, "--camera", "perspective:20", "-o", out],
+                   capsys)
     assert rc == 0 and out.exists()  # an ordinary field of view is fine
 
 
 def test_render_arguments_that_overflowed(tmp_path, capsys):
     out = tmp_path / "r.exr"
-    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
-                      "1e308,1e308,1e308", "-o", out], capsys)
-    _one_line(rc, lines, "albedo must be in [0, 1e+30]")  # was: a float32 cast overflow
-    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--fov", "1e-300",
-                      "-o", out], capsys)
-    _one_line(rc, lines, "field of view", "1e-300")
+    rc, err = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
+                    "1e308,1e308,1e308", "-o", out], capsys)
+    assert rc == 1
+    one_line_error(err, "albedo must be in [0, 1e+30]")  # was: a float32 cast overflow
+    rc, err = _run(["render", "--preset", "grace", "--size", "16x16", "--fov", "1e-300",
+                    "-o", out], capsys)
+    assert rc == 1
+    one_line_error(err, "field of view", "1e-300")
     assert not out.exists()
-    rc, lines = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
-                      "1e-320,1e-320,1e-320", "-o", out], capsys)
+    rc, err = _run(["render", "--preset", "grace", "--size", "16x16", "--albedo",
+                    "1e-320,1e-320,1e-320", "-o", out], capsys)
     assert rc == 0 and read_image(out).max() == 0.0  # a subnormal albedo is black
 
 
 def test_edits_that_overflowed(tmp_path, capsys):
     out = tmp_path / "e.json"
     # a number beyond the edit language's range is refused as it is read
-    rc, lines = _run(["edit", "--preset", "grace", "--scale", "0,0=1e308", "--scale",
-                      "0,0=1e308", "-o", out], capsys)
-    _one_line(rc, lines, "at most 1e+09", "1e308")
-    rc, lines = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e308", "-o", out],
-                     capsys)
-    _one_line(rc, lines, "at most 1e+09", "1e308")  # was written as 7.9e307
+    rc, err = _run(["edit", "--preset", "grace", "--scale", "0,0=1e308", "--scale",
+                    "0,0=1e308", "-o", out], capsys)
+    assert rc == 1
+    one_line_error(err, "at most 1e+09", "1e308")
+    rc, err = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e308", "-o", out],
+                   capsys)
+    assert rc == 1
+    one_line_error(err, "at most 1e+09", "1e308")  # was written as 7.9e307
     # numbers in range whose product leaves the edited range: refused once applied
-    rc, lines = _run(["edit", "--preset", "grace", *["--scale", "0,0=1e9"] * 4, "-o", out],
-                     capsys)
-    _one_line(rc, lines, "magnitude", "too large")
+    rc, err = _run(["edit", "--preset", "grace", *["--scale", "0,0=1e9"] * 4, "-o", out],
+                   capsys)
+    assert rc == 1
+    one_line_error(err, "magnitude", "too large")
     assert not out.exists()
-    rc, lines = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e8", "-o", out],
-                     capsys)
+    rc, err = _run(["edit", "--preset", "grace", "--blend", "preset:grace:1e8", "-o", out],
+                   capsys)
     assert rc == 0 and out.exists()
 
 
 def test_report_refuses_radiance_it_cannot_expose(tmp_path, capsys):
     tiny = tmp_path / "tiny.exr"
     write_image(tiny, np.full((32, 64, 3), 1e-38, np.float32))
-    rc, lines = _run(["report", tiny, "-o", tmp_path / "r.html"], capsys)
-    _one_line(rc, lines, str(tiny), "1.26e-37")
+    rc, err = _run(["report", tiny, "-o", tmp_path / "r.html"], capsys)
+    assert rc == 1
+    one_line_error(err, str(tiny), "1.26e-37")
     assert not (tmp_path / "r.html").exists()
 
 
@@ -103,8 +95,9 @@ def test_report_map_size_is_estimated_before_the_work(tmp_path, capsys):
     big = tmp_path / "big.exr"  # 4096 x 2048: > 300 s at --map-size 256
     write_image(big, np.ones((2048, 4096, 3), np.float32))
     t0 = time.monotonic()
-    rc, lines = _run(["report", big, "--map-size", "256", "-o", tmp_path / "r.html"], capsys)
-    _one_line(rc, lines, str(big), "--map-size 256", "1.1e+12", "SHPROBE_MAX_PAIRS")
+    rc, err = _run(["report", big, "--map-size", "256", "-o", tmp_path / "r.html"], capsys)
+    assert rc == 1
+    one_line_error(err, str(big), "--map-size 256", "1.1e+12", "SHPROBE_MAX_PAIRS")
     assert time.monotonic() - t0 < 60
 
 
