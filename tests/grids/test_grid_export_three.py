@@ -54,6 +54,8 @@ def samples(grid: ProbeGrid, n: int = 512, seed: int = 2) -> tuple[np.ndarray, n
     return q - nrm * sp * 0.5, nrm
 
 
+@pytest.mark.browser
+@pytest.mark.node
 def test_three_renders_the_exported_grid(tmp_path):
     from tests.support.browser import ORIGIN, chromium_page
 

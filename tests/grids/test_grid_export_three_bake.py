@@ -18,6 +18,8 @@ from shprobe.probes.env import env_from_function, load_env
 from tests.conftest import data_file
 from tests.grids.test_grid_export_three import require_three
 
+pytestmark = [pytest.mark.browser, pytest.mark.node]
+
 
 class _Far:
     """A scene with nothing near the probes: one tiny triangle far below."""

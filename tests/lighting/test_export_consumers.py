@@ -37,6 +37,8 @@ from shprobe.sh.rotation import from_axis_angle
 from tests.conftest import REPO, shared_dir
 from tests.support.npm_packages import ensure_npm_packages
 
+pytestmark = pytest.mark.node
+
 CONSUMERS = REPO / "tests" / "consumers"
 TOL = 1e-5
 FLIPPED = "grace_flipped"
@@ -224,6 +226,7 @@ def browser_results():
     return res
 
 
+@pytest.mark.browser
 def test_babylon_right_handed(browser_results):
     """Babylon.js, scene.useRightHandedSystem = true (glTF's own frame, no root transform):
     the environment's harmonics, evaluated as its PBR shader does, are E(n), with π (Babylon
@@ -233,6 +236,7 @@ def test_babylon_right_handed(browser_results):
     check("Babylon.js (RH scene) harmonics", r["cases"], "harmonics", E)
 
 
+@pytest.mark.browser
 def test_babylon_left_handed(browser_results):
     """Default left-handed scene: the glTF loader turns the asset 180° about +Y (root node),
     the environment stays in the world: a normal n of the asset sees E(−x, y, −z)."""
@@ -242,6 +246,7 @@ def test_babylon_left_handed(browser_results):
           lambda k: irradiance(lightings()[k], turned))
 
 
+@pytest.mark.browser
 def test_babylon_polynomial_path(browser_results):
     """Babylon's other shader path (useSphericalHarmonics = false) evaluates its
     SphericalPolynomial, which applies Â_l/π once more (updateFromHarmonics' constants):
@@ -292,6 +297,7 @@ def hlsl_as_glsl_es(hlsl_cases: list[dict[str, str]]) -> list[dict[str, str]] | 
 
 
 @pytest.mark.parametrize("fn", ["webgl2", "webgpu", "hlsl-webgl2"])
+@pytest.mark.browser
 def test_shaders_on_the_gpu(browser_results, fn):
     """GLSL export compiled by WebGL2 (GLSL ES 3.00, ANGLE on SwiftShader), WGSL by Chromium's
     WebGPU (Tint, SwiftShader adapter), HLSL by glslang's HLSL front end → SPIR-V →
@@ -315,6 +321,7 @@ def test_shaders_on_the_gpu(browser_results, fn):
             assert res[name]["messages"] == [], res[name]["messages"]
 
 
+@pytest.mark.browser
 def test_babylon_specular_cube(browser_results):
     """The specular cube maps (RGBD PNGs, every mip, faces +X ... -Z) as Babylon.js decoded them
     into its float cube texture hold E/π (clamped at 0) of the glTF direction

@@ -202,6 +202,7 @@ def tour_lines() -> list[str]:
     return lines()
 
 
+@pytest.mark.browser
 def test_installed_wheel_core_then_viewer_then_batch_then_the_tour(dists, tmp_path):
     venv = tmp_path / "venv"
     run([sys.executable, "-m", "venv", str(venv)])  # fresh: no system site-packages

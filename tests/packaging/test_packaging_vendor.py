@@ -46,6 +46,7 @@ def test_the_bundle_carries_its_licence_and_versions():
 @pytest.mark.skipif(shutil.which("npm") is None or shutil.which("node") is None,
                     reason="npm/node not installed (apt install nodejs npm): the rebuild check "
                            "needs them")
+@pytest.mark.node
 def test_rebuilding_the_bundle_from_the_lock_reproduces_it_byte_for_byte():
     r = subprocess.run([str(REPO / "tools" / "vendor_js.sh"), "--check"], capture_output=True,
                        text=True, timeout=600)

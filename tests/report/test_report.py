@@ -100,6 +100,7 @@ def test_report_refuses_bad_outputs_and_sources(tmp_path, page, capsys):
 
 @pytest.mark.skipif(not CHROMIUM.is_file(), reason="Debian chromium not installed "
                     "(apt-get install -y chromium)")
+@pytest.mark.browser
 def test_report_loads_in_chromium(page, tmp_path):
     pytest.importorskip("playwright.sync_api", reason="playwright not installed")
     from playwright.sync_api import sync_playwright

@@ -26,6 +26,8 @@ from shprobe.cli.main import main
 from shprobe.splats import gltf
 from tests.splats import splat_reference as ref
 
+pytestmark = pytest.mark.node
+
 CONSUMERS = Path(__file__).resolve().parents[1] / "consumers"
 CLI = CONSUMERS / "node_modules" / "@playcanvas" / "splat-transform" / "bin" / "cli.mjs"
 

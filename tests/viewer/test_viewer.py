@@ -134,6 +134,7 @@ def _state(page, state):
 # ----------------------------------------------------------------------------- the page
 
 
+@pytest.mark.browser
 def test_page_loads_without_console_errors(page):
     assert page.evaluate("() => window.__shprobe.lastError") is None
     assert page.errors == []
@@ -169,6 +170,7 @@ def _pixels_match_render(page, served, L):
     return img, ref, inner
 
 
+@pytest.mark.browser
 def test_webgl_pixels_equal_library_render(page, served):
     """lmax 2: the page's per-pixel shading (shprobe's GLSL export, R&H eq. 13) equals the
     library's render of the page's coefficients."""
@@ -178,6 +180,7 @@ def test_webgl_pixels_equal_library_render(page, served):
     _pixels_match_render(page, served, L)
 
 
+@pytest.mark.browser
 def test_webgl_pixels_at_lmax_4_equal_library_render(page, served):
     """Above l = 2 (no quadratic form) the page shades per pixel with the library's generated
     GLSL (lighting.glsl): design at lmax 4, and the compare view's 'SH lmax 3' (the probe's
@@ -197,6 +200,7 @@ def test_webgl_pixels_at_lmax_4_equal_library_render(page, served):
     _state(page, {})
 
 
+@pytest.mark.browser
 def test_webgl_pixels_above_lmax_4_equal_library_render(page, served):
     """A design above the compare view's degree (lmax 6, as a PRT transfer's degree sets it)
     is drawn in full by the second generated function: equal to the library's render, and
@@ -212,6 +216,7 @@ def test_webgl_pixels_above_lmax_4_equal_library_render(page, served):
     _state(page, {})
 
 
+@pytest.mark.browser
 def test_drag_on_probe_rotates_lighting_by_wigner(page):
     """A horizontal drag of dx px on the probe panel (W px wide on the page) turns the
     lighting by −360°·dx/W about +Y (features follow the cursor); the page's coefficients are
@@ -272,6 +277,7 @@ EDITS = {"directional": [{"dir": [0.3, 0.8, -0.5], "rgb": [2.0, 1.5, 1.0]}],
 
 
 @pytest.mark.parametrize("fmt", ["json", "glsl", "gltf", "cmgen"])
+@pytest.mark.browser
 def test_export_download_equals_cli(page, served, probe_path, tmp_path, fmt):
     """The file downloaded from the page equals `shprobe edit` with the page's edits."""
     from shprobe.cli.main import main
@@ -291,6 +297,7 @@ def test_export_download_equals_cli(page, served, probe_path, tmp_path, fmt):
         np.testing.assert_array_equal(shown, json.loads(got)["coefficients"])
 
 
+@pytest.mark.browser
 def test_blend_probes_command_line_and_uploaded(page, served, probe_path, tmp_path):
     """Blends take probes: the command-line probe (listed by the page) and a probe uploaded
     through the page, each projected by the library to the edit's degree and blended by its
@@ -329,6 +336,7 @@ def test_blend_probes_command_line_and_uploaded(page, served, probe_path, tmp_pa
     _state(page, {})
 
 
+@pytest.mark.browser
 def test_three_lightprobe_driven_by_three_export(page):
     """three.js's LightProbe (SphericalHarmonics3.fromArray of the `three` export) gives the
     library's irradiance E(n)."""
@@ -338,6 +346,7 @@ def test_three_lightprobe_driven_by_three_export(page):
                                atol=1e-6)
 
 
+@pytest.mark.browser
 def test_compare_view_shows_library_numbers(page, probe_path):
     from shprobe.lighting.reference import error_report
     from shprobe.probes.env import load_env
@@ -360,6 +369,7 @@ def test_compare_view_shows_library_numbers(page, probe_path):
 # ----------------------------------------------------------------------------- bad input
 
 
+@pytest.mark.browser
 def test_bad_uploads_show_one_line_and_keep_state(browser, served, tmp_path):
     ctx, page = _open(browser, served)
     try:
@@ -393,6 +403,7 @@ def test_bad_uploads_show_one_line_and_keep_state(browser, served, tmp_path):
         ctx.close()
 
 
+@pytest.mark.browser
 def test_cube_faces_upload(browser, served, probe_path, tmp_path):
     """Six cube faces (+X −X +Y −Y +Z −Z) uploaded through the page become the source, read by
     the library's resolver (the page's coefficients equal resolve_lighting of the same six
@@ -518,6 +529,7 @@ def test_state_validation():
 # ----------------------------------------------------------------------------- PRT
 
 
+@pytest.mark.browser
 def test_prt_frame_equals_relight(browser, tmp_path):
     """--transfer: the page's per-vertex radiance equals prt.relight at the page's rotation,
     for the baked model and after switching mode and degree (no re-bake)."""
@@ -613,6 +625,7 @@ def test_cli_view_prints_url_and_serves(probe_path):
         p.wait(10)
 
 
+@pytest.mark.browser
 def test_hbasis_panel_in_page(page, served):
     """The H-basis view shows the library's normal-mapping comparison for the page's lighting
     (rotation applied): its errors are the library's, H6 beats H4."""

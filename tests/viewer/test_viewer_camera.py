@@ -34,6 +34,7 @@ def _layout(page):
                h: innerHeight, scrollW: d.scrollWidth, scrollH: d.scrollHeight }; }""")
 
 
+@pytest.mark.browser
 def test_view_framed_from_above_and_follows_the_window():
     with serving(Session(str(data_file("probes", "grace.hdr")))) as s, opened(s) as page:
         assert page.evaluate("() => window.__shprobe.lastError") is None
@@ -100,6 +101,7 @@ def test_view_framed_from_above_and_follows_the_window():
         assert not [m for m in page.shprobe_console if m.startswith(("error:", "pageerror:"))]
 
 
+@pytest.mark.browser
 def test_prt_scene_framed_with_its_ground(tmp_path):
     """A PRT bake on a ground plane: the camera looks down on the object (elevation > 0),
     the object is whole and large in the frame, and the ground around it is a floor: its

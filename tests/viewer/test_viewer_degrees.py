@@ -13,7 +13,7 @@ from shprobe.viewer.design import DESIGN_LMAX
 from shprobe.viewer.session import Session
 from tests.viewer.viewer_pages import bake_ball, opened, serving, settle, shot
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.browser, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 SLIDERS = """() => {
   const count = (sel) => { const n = {}; for (const e of document.querySelectorAll(sel))

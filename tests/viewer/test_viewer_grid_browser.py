@@ -14,6 +14,8 @@ from shprobe.viewer.grid import GridView
 from tests.viewer.test_viewer import FLAGS, _need_browser
 from tests.viewer.test_viewer_grid import GridServed, make_grid
 
+pytestmark = pytest.mark.browser
+
 
 def _srgb(v):
     v = np.clip(v, 0.0, 1.0)

@@ -5,10 +5,13 @@ of test_viewer_grid_browser.py: Playwright's sync API runs one at a time)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from shprobe.viewer.grid import GridView
 from tests.viewer.test_viewer import FLAGS, _need_browser
 from tests.viewer.test_viewer_grid import GridServed, make_grid
+
+pytestmark = pytest.mark.browser
 
 
 def test_leak_control_toggle(tmp_path):

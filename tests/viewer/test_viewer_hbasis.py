@@ -54,6 +54,7 @@ def _check_panels(page, keys):
     return caps
 
 
+@pytest.mark.browser
 def test_hbasis_view_labelled_heat_map_in_percent():
     from shprobe.hbasis.rendering import render_normal_mapped
     from shprobe.lighting.projection import total_intensity
@@ -113,6 +114,7 @@ def ball_bake(tmp_path_factory):
     return mesh, out
 
 
+@pytest.mark.browser
 def test_hbasis_bake_opened_with_option_and_loader(ball_bake, tmp_path):
     from shprobe.hbasis.bakefile import load_bake
     from shprobe.hbasis.rendering import render_normal_mapped

@@ -11,7 +11,7 @@ from shprobe.viewer.session import Session
 from tests.conftest import data_file
 from tests.viewer.viewer_pages import opened, serving, shot
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.browser, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 LABELS = """() => [...document.querySelectorAll('canvas')].filter((c) => c.offsetParent)
   .map((c) => { let e = c.closest('#viewwrap') || c, l = e.previousElementSibling;

@@ -97,6 +97,7 @@ CASES = [  # (edit state, format)
 
 
 @pytest.mark.parametrize("state,fmt", CASES)
+@pytest.mark.browser
 def test_download_is_named_as_the_cli_names_it(page, served, probe_path, tmp_path, monkeypatch,
                                                state, fmt):
     from shprobe.cli.main import main
@@ -115,6 +116,7 @@ def test_download_is_named_as_the_cli_names_it(page, served, probe_path, tmp_pat
     set_state(page, {})
 
 
+@pytest.mark.browser
 def test_download_names_an_uploaded_blend_as_the_cli_names_the_file(page, served, probe_path,
                                                                     tmp_path, monkeypatch):
     """A probe blended through the page (an upload) and the same file given to

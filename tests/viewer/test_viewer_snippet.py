@@ -47,6 +47,7 @@ STATES = [
 
 
 @pytest.mark.parametrize("state", range(len(STATES)))
+@pytest.mark.browser
 def test_copy_as_python_runs_and_gives_the_pages_coefficients(page, tmp_path, state):
     set_state(page, STATES[state])
     page.evaluate("() => { window.__shprobe.lastSnippet = null; }")
@@ -67,6 +68,7 @@ def test_copy_as_python_runs_and_gives_the_pages_coefficients(page, tmp_path, st
     set_state(page, {})
 
 
+@pytest.mark.browser
 def test_the_shown_code_follows_the_edits(page, tmp_path):
     """Once shown, the code is remade with each new design (no second click)."""
     set_state(page, {"lmax": 2})
