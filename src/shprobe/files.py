@@ -120,8 +120,9 @@ class _Pending:
 
 @dataclass
 class Transaction:
-    """Outputs written by :func:`atomic_output` inside :func:`transaction`: each is written to
-    its temporary file as usual, but moved into place only when the whole block succeeds."""
+    """Outputs written by [`atomic_output`][shprobe.files.atomic_output] inside
+    [`transaction`][shprobe.files.transaction]: each is written to its temporary file as usual, but
+    moved into place only when the whole block succeeds."""
 
     pending: list[_Pending] = field(default_factory=list)
 
@@ -163,11 +164,11 @@ _TRANSACTION: contextvars.ContextVar[Transaction | None] = contextvars.ContextVa
 
 @contextmanager
 def transaction() -> Iterator[Transaction]:
-    """Commit several outputs together or not at all: every :func:`atomic_output` (and so
-    every writer of shprobe) inside the block writes its temporary file, and all are renamed
-    into place when the block ends without an error; on any error — a full disk on the last
-    file, Ctrl-C — none of them appears and nothing is replaced. Nested blocks join the
-    outermost one."""
+    """Commit several outputs together or not at all: every
+    [`atomic_output`][shprobe.files.atomic_output] (and so every writer of shprobe) inside the block
+    writes its temporary file, and all are renamed into place when the block ends without an error;
+    on any error — a full disk on the last file, Ctrl-C — none of them appears and nothing is
+    replaced. Nested blocks join the outermost one."""
     if _TRANSACTION.get() is not None:
         yield _TRANSACTION.get()  # type: ignore[misc]
         return
@@ -211,8 +212,9 @@ def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iter
     if ``path`` appeared meanwhile (no race with another writer); with it, an atomic rename.
     On any error — or SIGTERM / SIGHUP in the CLI, which raise SystemExit — the temporary
     file is removed and ``path`` is left as it was. Errors name ``path``, not the temporary.
-    Inside :func:`transaction` the move waits for the end of the block. Temporary files that
-    killed writers left in the folder are removed first (:func:`remove_stale_temporaries`).
+    Inside [`transaction`][shprobe.files.transaction] the move waits for the end of the block.
+    Temporary files that killed writers left in the folder are removed first
+    ([`remove_stale_temporaries`][shprobe.files.remove_stale_temporaries]).
     """
     p = check_output_path(path, overwrite)
     try:
@@ -308,11 +310,12 @@ def npz_headers(path: str | os.PathLike[str], what: str = "file"
 
 def load_npz(path: str | os.PathLike[str], names: Any = None,
              what: str = "file") -> dict[str, np.ndarray]:
-    """Arrays of an ``.npz`` archive, read safely: the headers (:func:`npz_headers`) are read
-    and the total inflated size checked against the memory limit *before* anything is
-    inflated (a small compressed file cannot expand to gigabytes unasked), then each member's
-    stored size against its header; one line naming the file on any problem. ``names``
-    limits the arrays read (all by default; a missing one is not an error here)."""
+    """Arrays of an ``.npz`` archive, read safely: the headers
+    ([`npz_headers`][shprobe.files.npz_headers]) are read and the total inflated size checked
+    against the memory limit *before* anything is inflated (a small compressed file cannot expand to
+    gigabytes unasked), then each member's stored size against its header; one line naming the file
+    on any problem. ``names`` limits the arrays read (all by default; a missing one is not an error
+    here)."""
     from .limits import check_memory
 
     p = os.fspath(path)
@@ -376,8 +379,9 @@ def _cache_entry(kind: str, key: str) -> Path | None:
 
 
 def read_cache(kind: str, key: str) -> bytes | None:
-    """The bytes :func:`write_cache` stored under ``kind`` / ``key``, checked against their
-    stored digest; None when absent, unreadable or damaged (a cache is never an error)."""
+    """The bytes [`write_cache`][shprobe.files.write_cache] stored under ``kind`` / ``key``, checked
+    against their stored digest; None when absent, unreadable or damaged (a cache is never an
+    error)."""
     import hashlib
 
     p = _cache_entry(kind, key)

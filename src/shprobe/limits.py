@@ -5,7 +5,7 @@ naming the estimate and the limit, what would not fit.
 The limit is the machine's available memory (``/proc/meminfo`` MemAvailable, else total
 physical memory) less a margin, or ``SHPROBE_MAX_MEMORY`` (bytes, or with a K/M/G/T suffix;
 the CLI's ``--max-memory`` sets it) when that is lower. Work that is naturally chunked stays
-under :data:`CHUNK_BYTES` per chunk instead of being refused.
+under [`CHUNK_BYTES`][shprobe.limits.CHUNK_BYTES] per chunk instead of being refused.
 """
 
 from __future__ import annotations
@@ -68,7 +68,8 @@ def memory_limit() -> int:
 
 
 def check_memory(nbytes: float, what: str, where: Any = None) -> None:
-    """Refuse ``what`` when its estimated ``nbytes`` exceed :func:`memory_limit`."""
+    """Refuse ``what`` when its estimated ``nbytes`` exceed
+    [`memory_limit`][shprobe.limits.memory_limit]."""
     limit = memory_limit()
     if nbytes > limit:
         raise ShprobeError(
@@ -88,7 +89,7 @@ PAIRS_PER_CORE_SECOND = 2e8
 
 
 def pairs_limit() -> float:
-    """Normal × sample products one call may start: :data:`MAX_PAIRS`, or
+    """Normal × sample products one call may start: [`MAX_PAIRS`][shprobe.limits.MAX_PAIRS], or
     ``SHPROBE_MAX_PAIRS`` (a number, e.g. 1e12) when set."""
     env = os.environ.get("SHPROBE_MAX_PAIRS")
     if env:
@@ -104,8 +105,8 @@ def pairs_limit() -> float:
 
 def check_pairs(pairs: float, what: str, where: Any = None, smaller: str = "") -> None:
     """Refuse brute-force work of ``pairs`` normal × sample products over
-    :func:`pairs_limit`, in one line with the estimated time, what to make ``smaller`` and
-    how to raise the limit."""
+    [`pairs_limit`][shprobe.limits.pairs_limit], in one line with the estimated time, what to make
+    ``smaller`` and how to raise the limit."""
     limit = pairs_limit()
     if pairs > limit:
         raise ShprobeError(
@@ -152,7 +153,7 @@ class Cost:
 
     @property
     def long(self) -> bool:
-        """Over :data:`LONG_JOB_SECONDS`: say it before starting."""
+        """Over [`LONG_JOB_SECONDS`][shprobe.limits.LONG_JOB_SECONDS]: say it before starting."""
         return self.seconds > LONG_JOB_SECONDS
 
     def __str__(self) -> str:

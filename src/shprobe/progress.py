@@ -8,8 +8,8 @@ countable, a total. Library functions take ``progress: Progress | None`` and rep
             ...
             bar.advance(len(chunk))
 
-or wrap an iterable with :func:`track`. ``index``/``count`` make the description read
-"2/3: tracing rays". Nothing here draws: :mod:`shprobe.cli.progress` builds the one terminal
+or wrap an iterable with [`track`][shprobe.progress.track]. ``index``/``count`` make the description
+read "2/3: tracing rays". Nothing here draws: `shprobe.cli.progress` builds the one terminal
 bar (rich on a terminal, one plain line per stage otherwise) and the viewer forwards the same
 calls to the page. ``None`` means quiet.
 """
@@ -126,8 +126,8 @@ class Steps:
             bar = step("tracing rays", total=n)
             ...
 
-    Each call ends the stage before it and begins the next (returning its :class:`Stage`);
-    leaving the block ends the last one, also on an error.
+    Each call ends the stage before it and begins the next (returning its
+    [`Stage`][shprobe.progress.Stage]); leaving the block ends the last one, also on an error.
     """
 
     def __init__(self, progress: Progress | None, count: int) -> None:

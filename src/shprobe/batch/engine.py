@@ -9,7 +9,7 @@ folder is removed. Re-running with the same output reads the table and any parts
 interrupted run, skips every file whose content hash already has a successful row (failed
 rows are tried again) and computes the rest. Ctrl-C, or a crash, loses at most the rows not
 yet flushed; a worker that dies has its probes recomputed by Dask on another worker. One
-batch writes an output at a time (:func:`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
+batch writes an output at a time (`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def table_meta(table: Any) -> dict[str, Any]:
 
 
 def _upgrade(t: Any, path: Any):
-    """A table (or part) of any schema version with today's column names (:data:`RENAMED`);
+    """A table (or part) of any schema version with today's column names (`RENAMED`);
     one made by a newer shprobe is refused."""
     version = table_meta(t).get("schema_version", 1)
     if not isinstance(version, int) or version > SCHEMA_VERSION:
@@ -194,8 +194,8 @@ def _keep_heap() -> bool:
 
 class _WarmPlugin:
     """Dask worker plugin: warm numba in every worker, including ones started later; with
-    ``keep_heap`` (only in the cluster shprobe starts itself, :func:`_local_cluster`) also let
-    the heap keep freed image buffers (:func:`_keep_heap`). A user's cluster keeps its heap."""
+    ``keep_heap`` (only in the cluster shprobe starts itself, `_local_cluster`) also let
+    the heap keep freed image buffers (`_keep_heap`). A user's cluster keeps its heap."""
 
     name = "shprobe-warm"
     idempotent = True  # registered once per cluster, not again by every batch
@@ -278,7 +278,7 @@ def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
 
 def _run_dask(jobs, options, done, client, chunk: int | None = None
               ) -> Iterator[dict[str, Any]]:
-    """Rows from tasks of :func:`chunk_size` probes, largest files first. A task that fails
+    """Rows from tasks of `chunk_size` probes, largest files first. A task that fails
     (its worker died too often) is split into one task per probe, so only the probe that
     kills workers becomes an error row."""
     from distributed import as_completed
@@ -341,7 +341,7 @@ class Engine:
     ``"inline"`` runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS``
     when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again. On Dask, each
-    task computes ``chunk`` probes (below 1 means 1; default :func:`chunk_size`: up to 8, fewer
+    task computes ``chunk`` probes (below 1 means 1; default `chunk_size`: up to 8, fewer
     for small batches), the largest files first."""
 
     scheduler: str | None = None
@@ -356,12 +356,13 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               engine: Engine | None = None, force: bool = False,
               progress: Progress | None = None, flush_rows: int = 256,
               flush_seconds: float = 30.0):
-    """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
-    it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
+    """Compute the batch table of INPUTS (see
+    [`shprobe.batch.expand_inputs`][shprobe.batch.expand_inputs]) and return it as a
+    ``pyarrow.Table`` (columns: [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS]), sorted by path.
 
-    ``options`` (:class:`BatchOptions`): what each row computes (default: lmax 2). ``engine``
-    (:class:`Engine`): where it runs (default: a local Dask cluster). ``progress`` gets one
-    stage counting the probes (:mod:`shprobe.progress`).
+    ``options`` ([`BatchOptions`][shprobe.batch.BatchOptions]): what each row computes (default:
+    lmax 2). ``engine`` ([`Engine`][shprobe.batch.Engine]): where it runs (default: a local Dask
+    cluster). ``progress`` gets one stage counting the probes (`shprobe.progress`).
 
     ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
     ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
@@ -391,7 +392,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
 def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
          force: bool, progress: Progress | None, interrupted: list[int], engine: Engine,
          flush_every: tuple[int, float]):
-    """:func:`run_batch` once the output is locked."""
+    """[`run_batch`][shprobe.batch.run_batch] once the output is locked."""
     old: list[dict[str, Any]] = []
     if out is not None:
         if force:

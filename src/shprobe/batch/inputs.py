@@ -52,7 +52,7 @@ def _match(parts: list[str], names: list[str]) -> bool:
 
 
 def _glob(pattern: str) -> list[str]:
-    """Paths matching ``pattern`` (``**`` recursive): :func:`glob.glob` where the pattern has
+    """Paths matching ``pattern`` (``**`` recursive): `glob.glob` where the pattern has
     no ``**``; otherwise a walk below the pattern's fixed folder that follows links to folders
     but enters each folder (device, inode) once, so links to ``.`` or to a parent give each
     file once and end (glob's own ``**`` follows them until the path is too long)."""

@@ -2,10 +2,11 @@
 and the function that computes a row (run in a worker process or in-process).
 
 Every number is computed by the library functions shprobe's commands use: the streamed
-projection :func:`shprobe.lighting.projection.project_file` (R&H 2001 eq. 10),
-:func:`~shprobe.lighting.irradiance_coeffs` (eq. 7), :func:`~shprobe.lighting.irradiance_matrix`
-(eq. 11–12), :func:`~shprobe.lighting.min_irradiance`, :func:`~shprobe.lighting.auto_window`
-and :func:`~shprobe.lighting.error_report` (§3.1).
+projection `shprobe.lighting.projection.project_file` (R&H 2001 eq. 10),
+[`irradiance_coeffs`][shprobe.lighting.irradiance_coeffs] (eq. 7),
+[`irradiance_matrix`][shprobe.lighting.irradiance_matrix] (eq. 11–12),
+[`min_irradiance`][shprobe.lighting.min_irradiance], [`auto_window`][shprobe.lighting.auto_window]
+and [`error_report`][shprobe.lighting.error_report] (§3.1).
 """
 
 from __future__ import annotations
@@ -148,7 +149,7 @@ HASH = "xxh3_128"
 
 
 def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """XXH3-128 of a file's bytes, hex (:data:`HASH`); a regular file only (opened without
+    """XXH3-128 of a file's bytes, hex (`HASH`); a regular file only (opened without
     blocking, so a FIFO put in its place meanwhile is refused, not waited on)."""
     import xxhash
 
@@ -212,7 +213,7 @@ def empty_row(path: str) -> dict[str, Any]:
 
 def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = None,
               done: frozenset[str] | set[str] | None = None) -> dict[str, Any]:
-    """Compute one row (a dict of the :data:`COLUMNS`, plain Python values).
+    """Compute one row (a dict of the [`COLUMNS`][shprobe.batch.COLUMNS], plain Python values).
 
     Never raises for a bad probe: its one-line message goes to ``failure`` and the columns not
     reached stay null. When the file's content hash is in ``done`` the work is skipped and

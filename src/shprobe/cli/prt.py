@@ -1,5 +1,5 @@
 """CLI commands: ``shprobe prt bake`` and ``shprobe prt render`` (precomputed radiance transfer,
-Lisle & Huang 2007 §4; library: :mod:`shprobe.prt`)."""
+Lisle & Huang 2007 §4; library: [`shprobe.prt`][shprobe.prt])."""
 
 from __future__ import annotations
 

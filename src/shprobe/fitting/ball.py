@@ -58,7 +58,8 @@ class BallCamera:
 
 
 def parse_ball_camera(text: str) -> BallCamera:
-    """``orthographic`` | ``perspective:FOV`` (vertical, degrees) → :class:`BallCamera`."""
+    """``orthographic`` | ``perspective:FOV`` (vertical, degrees) →
+    [`BallCamera`][shprobe.fitting.BallCamera]."""
     t = text.strip().lower()
     if t in ("orthographic", "ortho"):
         return BallCamera("orthographic")
@@ -192,10 +193,11 @@ def _image(img: NDArray, path=None) -> NDArray[np.float32]:
 
 @dataclass(repr=False)
 class BallFit:
-    """A ball photo's fit: ``fit`` (:class:`LightingFit`, coefficients in the camera frame),
-    ``circle``, ``camera``, ``pixels`` (:class:`BallPixels`), and for a chrome ball the blind
-    spot: ``blind_angle`` (degrees, half-angle of the cone of directions around −axis that no
-    used pixel reflects) and ``blind_solid_angle`` (sr)."""
+    """A ball photo's fit: ``fit`` ([`LightingFit`][shprobe.fitting.LightingFit], coefficients in
+    the camera frame), ``circle``, ``camera``, ``pixels``
+    ([`BallPixels`][shprobe.fitting.BallPixels]), and for a chrome ball the blind spot:
+    ``blind_angle`` (degrees, half-angle of the cone of directions around −axis that no used pixel
+    reflects) and ``blind_solid_angle`` (sr)."""
 
     fit: LightingFit
     circle: Circle

@@ -52,7 +52,7 @@ class Circle:
 
 
 def parse_circle(text: str) -> Circle:
-    """``"CX,CY,R"`` → :class:`Circle`; one-line error otherwise."""
+    """``"CX,CY,R"`` → [`Circle`][shprobe.fitting.Circle]; one-line error otherwise."""
     try:
         vals = [float(t) for t in text.replace(" ", "").split(",")]
     except ValueError:
@@ -173,8 +173,8 @@ def _edge_points(dist: NDArray, thr: float, x0: float = 0.0, y0: float = 0.0
 def detect_circle(image: NDArray, path=None) -> Circle:
     """Find one ball (a disc differing from the background) in ``image`` (H, W, C) linear.
 
-    Raises a one-line :class:`ShprobeError` when no ball stands out, when the outline is not
-    a circle, or when the ball touches the image border.
+    Raises a one-line [`ShprobeError`][shprobe.errors.ShprobeError] when no ball stands out, when
+    the outline is not a circle, or when the ball touches the image border.
     """
     from scipy import ndimage
 

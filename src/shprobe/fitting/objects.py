@@ -20,9 +20,9 @@ __all__ = ["ObjectFit", "fit_mesh", "fit_normals", "read_normal_map"]
 
 @dataclass(repr=False)
 class ObjectFit:
-    """The fit (:class:`LightingFit`, world-frame coefficients) and where its pixels came
-    from: ``views`` list of (rows, cols) per image, ``shapes`` per image, ``normals`` (P, 3)
-    of all views' pixels in order; ``vertex_albedo``
+    """The fit ([`LightingFit`][shprobe.fitting.LightingFit], world-frame coefficients) and where
+    its pixels came from: ``views`` list of (rows, cols) per image, ``shapes`` per image,
+    ``normals`` (P, 3) of all views' pixels in order; ``vertex_albedo``
     (V, 3) when fitted jointly (mean 1 over the seen regions: the global scale is in the
     coefficients)."""
 
@@ -100,8 +100,8 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
              saturation: float | None = None, robust: bool = True,
              albedo_rounds: int = 50) -> ObjectFit:
     """Lighting from one or more images of ``mesh`` (trimesh, or None for the unit sphere)
-    taken by ``cameras`` (the renderer's :class:`Camera`, one per image, image size = camera
-    size). Normals are the smooth shading normals the renderer shades with.
+    taken by ``cameras`` (the renderer's [`Camera`][shprobe.scene.Camera], one per image, image size
+    = camera size). Normals are the smooth shading normals the renderer shades with.
 
     ``albedo``: a number; a (V,) / (V, 3) known per-vertex albedo; ``"vertex"`` to fit an
     albedo per vertex jointly, or ``"groups"`` to fit one albedo per label of ``groups`` (V,)
@@ -228,7 +228,8 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
 
 def read_normal_map(path) -> NDArray[np.float32]:
     """A float normal map (H, W, 3) as stored (.exr .tif .pfm; signed values kept, unlike
-    :func:`shprobe.probes.images.read_image`, which refuses negative pixels)."""
+    [`shprobe.probes.images.read_image`][shprobe.probes.images.read_image], which refuses negative
+    pixels)."""
     import os
 
     p = os.fspath(path)

@@ -108,7 +108,7 @@ class LightingFit:
     @property
     def poorly_determined(self) -> tuple[str, ...]:
         """Labels (L00 … L22) of the coefficients whose conditioning exceeds
-        :data:`POOR_CONDITION`."""
+        `POOR_CONDITION`."""
         return tuple(RH_LABELS[k] for k in np.flatnonzero(self.conditioning > POOR_CONDITION))
 
     def summary(self) -> str:
@@ -172,7 +172,7 @@ def _starts(a: NDArray, d: NDArray, y: NDArray, w: NDArray, tau: NDArray, floor:
     median of squares over random 10-pixel subsets; and least squares on random 60 % subsets
     of 4×4 tiles of the normals (the tangent-plane coordinates around their mean; for a ball,
     tiles of the image), so that some start leaves out a whole shadow. Returns the best
-    :data:`TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
+    `TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
     use = w > 0
     sw = np.sqrt(w)[:, None]
 

@@ -1,7 +1,8 @@
 """The cells of a probe grid: the volume ``bounds`` split ``resolution`` ways, one probe at each
 cell centre (three.js's ``LightProbeGrid`` convention), and the eight probes around a point
 with their trilinear weights — what both the engines' plain lookup
-(:func:`shprobe.grids.grid.plain_weights`) and leak control (:mod:`.visibility`) start from."""
+([`shprobe.grids.grid.plain_weights`][shprobe.grids.plain_weights]) and leak control
+(`shprobe.grids.visibility`) start from."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Grid files: a ``.npz`` with the arrays of :class:`~shprobe.grids.grid.ProbeGrid` and its
+"""Grid files: a ``.npz`` with the arrays of [`ProbeGrid`][shprobe.grids.ProbeGrid] and its
 bake settings as JSON, read back with every array checked before use."""
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ def save_grid(path: str | os.PathLike[str], grid: ProbeGrid, overwrite: bool = F
 
 
 def load_grid(path: str | os.PathLike[str]) -> ProbeGrid:
-    """Read a grid written by :func:`save_grid` (``shprobe grid bake``); one line naming the
-    file on anything else."""
+    """Read a grid written by [`save_grid`][shprobe.grids.save_grid] (``shprobe grid bake``); one
+    line naming the file on anything else."""
     p = os.fspath(path)
     heads = npz_headers(p, "shprobe grid file")
     if "meta" not in heads or "coeffs" not in heads or "bounds" not in heads:

@@ -1,4 +1,5 @@
-"""How a grid is baked: :class:`GridSettings`, checked in one place before any work."""
+"""How a grid is baked: [`GridSettings`][shprobe.grids.GridSettings], checked in one place before
+any work."""
 
 from __future__ import annotations
 

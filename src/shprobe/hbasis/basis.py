@@ -17,7 +17,8 @@ Conventions (see docs/hbasis.md):
   quadrature to 1e-12).
 * ``sh_to_h_matrix()`` is T_h with (T_h)_ij = ∫_Ω+ H^i(ω) y_j(ω) dω, y_j shprobe's real SH
   (R&H signs, no Condon–Shortley phase, flat index j = l(l+1)+m). The paper omits it; its
-  closed form is derived in docs/hbasis.md and reproduced in :data:`T_H_CLOSED_FORM`.
+  closed form is derived in docs/hbasis.md and reproduced in
+  [`T_H_CLOSED_FORM`][shprobe.hbasis.T_H_CLOSED_FORM].
 """
 
 from __future__ import annotations
@@ -76,7 +77,8 @@ def _check_n(n: int) -> int:
 
 def _float_array(a: ArrayLike, what: str) -> NDArray[np.floating]:
     """float32 stays float32, anything else numeric becomes float64; non-numeric input (object
-    arrays, strings) and NaN or infinite values are one :class:`ShprobeError`."""
+    arrays, strings) and NaN or infinite values are one
+    [`ShprobeError`][shprobe.errors.ShprobeError]."""
     try:
         x = np.asarray(a)
         if x.dtype not in (np.float32, np.float64):
@@ -202,12 +204,12 @@ def sh_to_h_matrix(lmax: int = 2, n: int = 6) -> NDArray[np.float64]:
     """T_h: the (n, (lmax+1)²) matrix taking shprobe SH coefficients to H coefficients.
 
     (T_h)_ij = ∫_Ω+ Hⁱ(ω) y_j(ω) dω (H&W §4.1; the paper omits the matrix). For lmax = 2 this
-    is :data:`T_H_CLOSED_FORM` (H4: its first 4 rows); for larger lmax the extra columns are
-    computed by a quadrature that is exact for these polynomial integrands. The l = 4 block
-    (columns 16..24) is the paper's Appendix A with the sign of its m = ±1 columns flipped
-    (Condon–Shortley phase, see :data:`T_H4_PAPER`). Applied to a signal's SH coefficients it
-    gives the orthogonal projection onto H of the signal restricted to Ω+, exactly when the
-    signal has no SH content above ``lmax``.
+    is [`T_H_CLOSED_FORM`][shprobe.hbasis.T_H_CLOSED_FORM] (H4: its first 4 rows); for larger lmax
+    the extra columns are computed by a quadrature that is exact for these polynomial integrands.
+    The l = 4 block (columns 16..24) is the paper's Appendix A with the sign of its m = ±1 columns
+    flipped (Condon–Shortley phase, see [`T_H4_PAPER`][shprobe.hbasis.T_H4_PAPER]). Applied to a
+    signal's SH coefficients it gives the orthogonal projection onto H of the signal restricted to
+    Ω+, exactly when the signal has no SH content above ``lmax``.
     """
     lmax = check_lmax(lmax, limit=64)
     n = _check_n(n)
@@ -220,12 +222,12 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
 
     Layout as everywhere in shprobe: ``sh_coeffs`` is (..., K, C) with K = (lmax+1)² on axis
     −2 and C channels last, giving (..., n, C); a 1-D (K,) single set gives (n,). N sets of one
-    channel are (N, K, 1), not (N, K). The matrix is :func:`sh_to_h_matrix` (lmax, n). float32
-    stays float32. ``out``: an optional preallocated C-contiguous array of the result's shape
-    and float type, filled and returned. For K = 9 and ≥ 4096 sets a single-threaded numba
-    kernel applies only T_h's 10 nonzeros and writes straight into the output (one-channel,
-    RGB and general-C variants; one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with
-    streaming stores).
+    channel are (N, K, 1), not (N, K). The matrix is
+    [`sh_to_h_matrix`][shprobe.hbasis.sh_to_h_matrix] (lmax, n). float32 stays float32. ``out``: an
+    optional preallocated C-contiguous array of the result's shape and float type, filled and
+    returned. For K = 9 and ≥ 4096 sets a single-threaded numba kernel applies only T_h's 10
+    nonzeros and writes straight into the output (one-channel, RGB and general-C variants;
+    one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with streaming stores).
     """
     n = _check_n(n)
     c = _float_array(sh_coeffs, "SH coefficients")

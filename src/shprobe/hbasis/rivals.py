@@ -1,19 +1,20 @@
 """The hemispherical bases Habel & Wimmer 2010 compare against (§2, Fig. 3), one interface.
 
-Every basis is a :class:`HemiBasis`: ``name``, ``n_coeffs``, ``evaluate(normals)`` (..., n) for
-tangent-frame normals (z = surface normal), ``project(f)`` (coefficients of a function), and
-``sh_matrix(lmax)`` (the fixed (n, K) matrix taking a signal's SH coefficients to the basis
-coefficients — what the Fig. 3 study applies to all signals at once).
+Every basis is a [`HemiBasis`][shprobe.hbasis.HemiBasis]: ``name``, ``n_coeffs``,
+``evaluate(normals)`` (..., n) for tangent-frame normals (z = surface normal), ``project(f)``
+(coefficients of a function), and ``sh_matrix(lmax)`` (the fixed (n, K) matrix taking a signal's SH
+coefficients to the basis coefficients — what the Fig. 3 study applies to all signals at once).
 
 Projection is the L2(Ω+, dω) least-squares fit: c = G⁻¹ ∫_Ω+ f B dω with G the Gram matrix
 ∫_Ω+ B Bᵀ dω; for the orthonormal bases G = I and this is the plain inner product. The one
 exception is quadratic SH ("SH9"), which like the paper keeps the signal's own full-sphere SH
 coefficients (l ≤ 2) and is evaluated on Ω+; "SH9 (LSQ)" is its hemispherical least-squares
-variant. All integrals are by :func:`hemisphere_quadrature` (exact for the polynomial bases).
+variant. All integrals are by [`hemisphere_quadrature`][shprobe.hbasis.hemisphere_quadrature] (exact
+for the polynomial bases).
 
 Definitions (φ from +x towards +y, θ from +z, z = cos θ):
 
-* **H4, H6** — :func:`shprobe.hbasis.basis.h_basis` (H&W eq. 8–13).
+* **H4, H6** — [`shprobe.hbasis.basis.h_basis`][shprobe.hbasis.h_basis] (H&W eq. 8–13).
 * **HL2** — Half-Life 2 basis, √(3/2π) n·h_i with the three h_i of H&W eq. 1 (orthonormal).
 * **HSH2, HSH3** — hemispherical harmonics (Gautron et al. 2004): √2 · y_lm(θ', φ) with
   cos θ' = 2 cos θ − 1, i.e. SH of the shifted direction (2x√(z/(1+z)), 2y√(z/(1+z)), 2z − 1),
@@ -28,7 +29,7 @@ Definitions (φ from +x towards +y, θ from +z, z = cos θ):
   function with HSH (tested): the paper's two "shifted" bases are the same functions, written
   once through shifted SH and once through shifted Jacobi polynomials. The seed paper does not
   print Makhotkin's formulas; an earlier reconstruction, orthonormal for the cosine-weighted
-  measure z dω of radiative transfer, is kept as :func:`makhotkin_cosine` (not in the study).
+  measure z dω of radiative transfer, is kept as `makhotkin_cosine` (not in the study).
 * **Zernike3, Zernike6** — Zernike polynomials on the hemisphere (Koenderink et al. 1996) with
   ρ = √2 sin(θ/2) = √(1 − z) (area-preserving map, dω = 2ρ dρ dφ): N R_n^|m|(ρ) trig(mφ) for
   n ≤ 1 (3) and n ≤ 2 (6); N = √((n+1)/π), or √((n+1)/2π) for m = 0. Z_2^0 = −H³.
@@ -203,7 +204,7 @@ def _makhotkin(nmax: int) -> Callable[[NDArray], NDArray]:
 
     With x = 2z − 1 the measure dω = dz dφ becomes ½ dx dφ and the weight (sin θ′)^{2|m|} =
     (1 − x²)^{|m|} is exactly the Jacobi weight of P^{(|m|,|m|)}: N² · ½ h_k · ∫trig² dφ = 1
-    with h_k the Jacobi norm (:func:`_jacobi_norm2`)."""
+    with h_k the Jacobi norm (`_jacobi_norm2`)."""
     from scipy.special import eval_jacobi
 
     norms = {}
@@ -255,7 +256,8 @@ def _makhotkin_cosine(nmax: int) -> Callable[[NDArray], NDArray]:
 
 def makhotkin_cosine(nmax: int) -> HemiBasis:
     """The cosine-weighted shifted Jacobi variant (orthonormal for z dω, projected with that
-    inner product), bands n ≤ ``nmax``; not part of :func:`all_bases` (docs/hbasis.md §3)."""
+    inner product), bands n ≤ ``nmax``; not part of [`all_bases`][shprobe.hbasis.all_bases]
+    (docs/hbasis.md §3)."""
     if nmax not in (1, 2):
         raise ShprobeError(f"makhotkin_cosine has bands n ≤ 1 or 2, got {nmax!r}")
     return HemiBasis(f"Makhotkin{nmax + 1} (z dω)", (nmax + 1) ** 2, _makhotkin_cosine(nmax),
@@ -320,7 +322,7 @@ def all_bases() -> dict[str, HemiBasis]:
 
 
 def get_basis(name: str) -> HemiBasis:
-    """A basis of :func:`all_bases` by name (case-insensitive)."""
+    """A basis of [`all_bases`][shprobe.hbasis.all_bases] by name (case-insensitive)."""
     for k, b in all_bases().items():
         if k.lower() == name.lower():
             return b

@@ -2,7 +2,8 @@
 constants and basis normalisations, Condon–Shortley signs, padding to a degree.
 
 Every function of the lighting layer and above that takes coefficients goes through
-:func:`as_coeffs`; the coefficient document (JSON) is :mod:`shprobe.lighting.document`.
+[`as_coeffs`][shprobe.lighting.as_coeffs]; the coefficient document (JSON) is
+`shprobe.lighting.document`.
 """
 
 from __future__ import annotations
@@ -71,8 +72,8 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
 
 
 def as_rgb(coeffs: Any, where: Any = None, what: str = "lighting") -> NDArray[np.float64]:
-    """Lighting coefficients as (K, 3) RGB: :func:`as_coeffs`, one channel (or (K,)) repeated
-    to three; any other channel count refused in one line naming ``where``."""
+    """Lighting coefficients as (K, 3) RGB: [`as_coeffs`][shprobe.lighting.as_coeffs], one channel
+    (or (K,)) repeated to three; any other channel count refused in one line naming ``where``."""
     c = as_coeffs(coeffs, where, what)
     if c.shape[1] == 1:
         return np.repeat(c, 3, axis=1)
@@ -135,7 +136,7 @@ RH_CONSTANTS: tuple[float, float, float, float, float] = _rh_constants()
 
 def basis_constants() -> NDArray[np.float64]:
     """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k, R&H eq. 3), exact
-    (the registry's, :func:`shprobe.sh.registry.basis_constants`)."""
+    (the registry's, `shprobe.sh.registry.basis_constants`)."""
     from ..sh.registry import basis_constants as constants
 
     return constants(2)

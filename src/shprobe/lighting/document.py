@@ -70,7 +70,7 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Coefficients (K, C) from a shprobe JSON document (``shprobe prefilter --format json``).
 
     Other formats (Condon–Shortley JSON, three.js, glTF, shaders, cmgen) are refused here:
-    :func:`shprobe.import_coeffs` reads every format and converts it.
+    [`shprobe.import_coeffs`][shprobe.lighting.import_coeffs] reads every format and converts it.
     """
     p = os.fspath(path)
     return coeffs_from_document(parse_json(read_text(p, "text file"), p), p)

@@ -1,13 +1,14 @@
-"""The lighting-edit language: one :class:`EditSpec` that ``shprobe edit`` / ``render`` read
-from their options (:meth:`EditSpec.from_text`), the viewer reads from its edit-state JSON
-(:meth:`EditSpec.from_json`), and both write back (:meth:`EditSpec.to_text`: the equivalent
-command-line arguments; :meth:`EditSpec.to_json`). :func:`shprobe.lighting.design.edit_lighting`
-applies it, in this order: blend, lights, set/scale/negate coefficients, then bands, rotate,
-window.
+"""The lighting-edit language: one [`EditSpec`][shprobe.lighting.EditSpec] that ``shprobe edit`` /
+``render`` read from their options ([`EditSpec.from_text`][shprobe.lighting.EditSpec.from_text]),
+the viewer reads from its edit-state JSON
+([`EditSpec.from_json`][shprobe.lighting.EditSpec.from_json]), and both write back
+([`EditSpec.to_text`][shprobe.lighting.EditSpec.to_text]: the equivalent command-line arguments;
+[`EditSpec.to_json`][shprobe.lighting.EditSpec.to_json]). `shprobe.lighting.design.edit_lighting`
+applies it, in this order: blend, lights, set/scale/negate coefficients, then bands, rotate, window.
 
-Every number is checked when a spec is made (finite, and at most :data:`MAX_VALUE` in size:
+Every number is checked when a spec is made (finite, and at most `MAX_VALUE` in size:
 a weight of 1e308 would overflow the lighting), every (l, m) against the spec's ``lmax``; a bad
-value is one :class:`~shprobe.errors.ShprobeError` line naming the option or key.
+value is one [`ShprobeError`][shprobe.errors.ShprobeError] line naming the option or key.
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ class Rotation:
     values: Floats
 
     def matrix(self) -> NDArray[np.float64]:
-        """The 3×3 rotation matrix (:mod:`shprobe.sh.rotation`)."""
+        """The 3×3 rotation matrix (`shprobe.sh.rotation`)."""
         from ..sh.rotation import from_axis_angle, from_euler_zyz, from_quaternion, one_rotation
 
         v = self.values
@@ -137,7 +138,7 @@ class Rotation:
 @dataclass(frozen=True)
 class EditSpec:
     """Lighting edits at degree ``lmax`` (the result's), in the order
-    :func:`~shprobe.lighting.design.edit_lighting` applies them: the source × ``weight``,
+    `edit_lighting` applies them: the source × ``weight``,
     ``blends``, lights (``directional``: (direction, rgb irradiance); ``cones``: (axis,
     aperture in degrees, rgb radiance); ``sky``: (sky rgb, ground rgb, up)), ``sets`` /
     ``scales`` ((l, m), value or factor), ``negates`` (l, m), ``set_bands`` / ``scale_bands``
@@ -191,7 +192,8 @@ class EditSpec:
     @classmethod
     def from_text(cls, args: Sequence[str]) -> EditSpec:
         """The spec of ``shprobe edit``'s edit options given as arguments (``['--lmax', '4',
-        '--scale-band', '1=0.5', ...]``); :meth:`from_options` reads each option."""
+        '--scale-band', '1=0.5', ...]``); [`from_options`][shprobe.lighting.EditSpec.from_options]
+        reads each option."""
         opts: dict[str, Any] = {}
         it = iter(args)
         for a in it:
@@ -387,8 +389,9 @@ class EditSpec:
         return a
 
     def to_json(self) -> dict[str, Any]:
-        """The edit-state JSON object of this spec (:meth:`from_json` reads it back; a 'file'
-        blend has no JSON form and is refused)."""
+        """The edit-state JSON object of this spec
+        ([`from_json`][shprobe.lighting.EditSpec.from_json] reads it back; a 'file' blend has no
+        JSON form and is refused)."""
         if any(b.kind == "file" for b in self.blends):
             raise ShprobeError("a blend of a file has no edit-state form (the viewer blends "
                                "presets and the probes it loaded)")

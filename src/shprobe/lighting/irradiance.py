@@ -2,14 +2,17 @@
 E(n) for any lmax, the matrix M (eq. 11–12), the polynomial (eq. 13), the quadratic form as
 shading uses it, and irradiance maps on any layout.
 
-Normals, the one policy of every function here and of :func:`shprobe.lighting.reference.
-reference_irradiance`: a normal is a direction, so it is normalised first (a non-unit n gives
-the irradiance of n/|n|); a zero or non-finite normal has no direction and is refused.
-Coefficients holding NaN or infinity are refused likewise (one :class:`ShprobeError`).
+Normals, the one policy of every function here and of
+[`shprobe.lighting.reference.reference_irradiance`][shprobe.lighting.reference_irradiance]: a normal
+is a direction, so it is normalised first (a non-unit n gives the irradiance of n/|n|); a zero or
+non-finite normal has no direction and is refused. Coefficients holding NaN or infinity are refused
+likewise (one [`ShprobeError`][shprobe.errors.ShprobeError]).
 
-:func:`irradiance`, :func:`irradiance_matrix` and :func:`irradiance_quadratic` also take torch
-tensors and JAX arrays (``shprobe.lighting._xp``): same kind, device and dtype, differentiable
-in coefficients and normals.
+[`irradiance`][shprobe.lighting.irradiance.irradiance],
+[`irradiance_matrix`][shprobe.lighting.irradiance_matrix] and
+[`irradiance_quadratic`][shprobe.lighting.irradiance_quadratic] also take torch tensors and JAX
+arrays (``shprobe.lighting._xp``): same kind, device and dtype, differentiable in coefficients and
+normals.
 """
 
 from __future__ import annotations
@@ -76,7 +79,7 @@ def unit_normals(normals: ArrayLike) -> NDArray[np.float64]:
 
 
 def _finite(c: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The coefficients' policy (as :func:`~shprobe.lighting.coeffs.as_coeffs`): NaN or
+    """The coefficients' policy (as [`as_coeffs`][shprobe.lighting.as_coeffs]): NaN or
     infinity is refused."""
     if not np.isfinite(c).all():
         raise ShprobeError("coefficients contain NaN or infinity")
@@ -165,8 +168,8 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
 
 def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
-    :func:`irradiance_matrix` of the coefficients zero-padded to lmax 2 (so lmax 0 and 1 are
-    accepted; lmax > 2 is refused rather than truncated)."""
+    [`irradiance_matrix`][shprobe.lighting.irradiance_matrix] of the coefficients zero-padded to
+    lmax 2 (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated)."""
     return irradiance_matrix(nine(coeffs))
 
 

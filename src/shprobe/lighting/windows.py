@@ -8,8 +8,9 @@ Windows (factors w_l multiplying band l, ``strength`` s ≥ 0, s = 0 is no windo
 * ``laplacian`` w_l = 1 / (1 + s · l²(l + 1)²)  (Sloan 2008, "Stupid SH tricks": the g that
   minimises ‖f − g‖² + λ‖Δg‖², with λ = s).
 
-Non-negativity certificate (:func:`min_irradiance`): for lmax ≤ 2, E(n) = nᵀAn + 2bᵀn + c on
-|n| = 1 (R&H eq. 11 split into blocks). For any μ below the smallest eigenvalue λ₁ of A,
+Non-negativity certificate ([`min_irradiance`][shprobe.lighting.min_irradiance]): for lmax ≤ 2, E(n)
+= nᵀAn + 2bᵀn + c on |n| = 1 (R&H eq. 11 split into blocks). For any μ below the smallest eigenvalue
+λ₁ of A,
 
     E(n) = nᵀ(A − μI)n + 2bᵀn + c + μ ≥ d(μ) = c + μ − bᵀ(A − μI)⁻¹b,
 
@@ -60,7 +61,7 @@ __all__ = [
 
 def parse_window(text: object) -> WindowSpec:
     """The one window grammar: None, '' or 'none' → None; 'auto'; 'KIND:STRENGTH' (KIND one of
-    :data:`WINDOWS`, STRENGTH a finite number ≥ 0) → (kind, strength)."""
+    [`WINDOWS`][shprobe.lighting.WINDOWS], STRENGTH a finite number ≥ 0) → (kind, strength)."""
     if text is None:
         return None
     if not isinstance(text, str):
@@ -83,7 +84,7 @@ def parse_window(text: object) -> WindowSpec:
 
 
 def window_text(spec: WindowSpec) -> str:
-    """:func:`parse_window`'s text of a window choice ('none', 'auto' or 'KIND:STRENGTH')."""
+    """`parse_window`'s text of a window choice ('none', 'auto' or 'KIND:STRENGTH')."""
     if spec is None:
         return "none"
     if isinstance(spec, str):
@@ -244,7 +245,7 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
 
     lmax ≤ 2: exact, by the trust-region dual of nᵀMn (R&H eq. 11) — see the module doc.
     lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then refinement from the 8
-    best well-separated grid points (:func:`shprobe.lighting.sphere_search.refine_max`: compass
+    best well-separated grid points (`shprobe.lighting.sphere_search.refine_max`: compass
     search on the sphere, exact SH sums) until a halving of the step moves the minimum by less
     than ``MIN_TOL`` × the mean irradiance E₀₀Y₀₀ (reported as ``tolerance``).
     """
@@ -280,9 +281,9 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
 
 @dataclass
 class WindowChoice:
-    """Result of :func:`auto_window`: the window kind and strength chosen, its factors, the
-    minimum irradiance before and after, and the bias (relative L2 change of E) it costs.
-    ``kind`` is ``"none"`` when the lighting is already non-negative."""
+    """Result of [`auto_window`][shprobe.lighting.auto_window]: the window kind and strength chosen,
+    its factors, the minimum irradiance before and after, and the bias (relative L2 change of E) it
+    costs. ``kind`` is ``"none"`` when the lighting is already non-negative."""
 
     kind: str
     strength: float
@@ -316,8 +317,8 @@ def _threshold(c: NDArray, kind: str, lmax: int, ok) -> float | None:
 
 def auto_window(coeffs: ArrayLike, kinds: Sequence[str] = WINDOWS) -> WindowChoice:
     """The mildest window making E(n) ≥ 0 on the whole sphere: for each kind the smallest
-    strength whose windowed lighting passes :func:`min_irradiance` (for lmax ≤ 2 the certified
-    lower bound must be ≥ 0), then the kind with the least :func:`window_bias`."""
+    strength whose windowed lighting passes [`min_irradiance`][shprobe.lighting.min_irradiance] (for
+    lmax ≤ 2 the certified lower bound must be ≥ 0), then the kind with the least `window_bias`."""
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
     before = min_irradiance(c)

@@ -1,5 +1,5 @@
-"""An environment map as data: :class:`Env` (linear RGB radiance on the grid of a layout), built
-from an image or a function, read from and written to image files."""
+"""An environment map as data: [`Env`][shprobe.probes.env.Env] (linear RGB radiance on the grid of a
+layout), built from an image or a function, read from and written to image files."""
 
 from __future__ import annotations
 
@@ -49,8 +49,9 @@ class Env:
 
     def rotated(self, rotation: ArrayLike) -> Env:
         """The environment turned by ``rotation`` (anything
-        :func:`shprobe.sh.rotation.one_rotation` takes): L'(ω) = L(Rᵀω), resampled
-        bilinearly on this grid (the map-space counterpart of rotating its SH coefficients)."""
+        [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation] takes): L'(ω) =
+        L(Rᵀω), resampled bilinearly on this grid (the map-space counterpart of rotating its SH
+        coefficients)."""
         from ..sh.rotation import one_rotation
 
         R = one_rotation(rotation)
@@ -85,16 +86,18 @@ class Env:
 
 def load_env(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
              layout: str | Layout | None = None, clamp: bool = False) -> Env:
-    """Read an environment map (see :func:`shprobe.probes.images.read_image`) in a layout.
+    """Read an environment map (see
+    [`shprobe.probes.images.read_image`][shprobe.probes.images.read_image]) in a layout.
 
-    ``layout`` None / 'auto' detects it from the shape (:func:`detect_layout`); a requested
-    layout whose aspect does not fit is a one-line ShprobeError naming the file. A sequence of
-    six paths is a cube map given as six face images, in the order +X −X +Y −Y +Z −Z.
+    ``layout`` None / 'auto' detects it from the shape
+    ([`detect_layout`][shprobe.probes.layouts.detect_layout]); a requested layout whose aspect does
+    not fit is a one-line ShprobeError naming the file. A sequence of six paths is a cube map given
+    as six face images, in the order +X −X +Y −Y +Z −Z.
 
     The whole image is decoded into memory. For probes too big for that, the streaming
-    entry points are :func:`shprobe.lighting.projection.project_file` (SH coefficients of a
+    entry points are `shprobe.lighting.projection.project_file` (SH coefficients of a
     lat-long or cube file, read a block of rows at a time: what a lazy ``load_env`` would be
-    used for) and :class:`shprobe.probes.streaming.ImageRows` (your own pass over the rows).
+    used for) and `shprobe.probes.streaming.ImageRows` (your own pass over the rows).
     """
     if isinstance(path, list | tuple):
         return load_cube_faces(path, clamp=clamp)
@@ -164,7 +167,8 @@ def write_env(path: str | os.PathLike[str], env_or_radiance: Env | ArrayLike,
     """Write an Env (or a radiance grid in ``layout``) as an image file.
 
     Cube maps are written as ``arrangement``: 'hcross' (4:3), 'vcross' (3:4), 'hstrip' (6:1)
-    or 'vstrip' (1:6). See :func:`shprobe.probes.images.write_image` for formats and ``exposure``.
+    or 'vstrip' (1:6). See [`shprobe.probes.images.write_image`][shprobe.probes.images.write_image]
+    for formats and ``exposure``.
     """
     if isinstance(path, Env) or not isinstance(path, str | os.PathLike):
         raise ShprobeError("write_env(path, env): the first argument is the file to write, "

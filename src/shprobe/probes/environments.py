@@ -1,8 +1,8 @@
 """Procedural environments (the built-in default data of ``shprobe demo``).
 
-:func:`procedural_env` is a deterministic lat-long map (world +Y up): a sky gradient, a small
-bright sun, a dim ground and three coloured "windows" on the horizon — enough structure to give
-every l ≤ 2 coefficient a visible value.
+[`procedural_env`][shprobe.probes.environments.procedural_env] is a deterministic lat-long map
+(world +Y up): a sky gradient, a small bright sun, a dim ground and three coloured "windows" on the
+horizon — enough structure to give every l ≤ 2 coefficient a visible value.
 """
 
 from __future__ import annotations

@@ -2,11 +2,11 @@
 colour bar on signed and error panels and a legend where colours encode sign — the one helper
 every command uses for its pictures (matplotlib, Agg, no pyplot state).
 
-Three kinds of panel (:class:`Panel`):
+Three kinds of panel ([`Panel`][shprobe.probes.figures.Panel]):
 
 ``radiance``
-    linear RGB (H, W, 3), tone-mapped as every shprobe PNG is (:func:`shprobe.probes.images.
-    tonemap`: × 2^exposure, clamp, sRGB); the title line gives the units and the exposure.
+    linear RGB (H, W, 3), tone-mapped as every shprobe PNG is (`shprobe.probes.images.tonemap`: ×
+    2^exposure, clamp, sRGB); the title line gives the units and the exposure.
 ``signed``
     a scalar image (H, W) in R&H 2001 Fig. 4 colours: positive green, negative blue, black at
     0, linear in the value over ±``scale``; a colour bar shows the scale and the figure gets a
@@ -15,10 +15,10 @@ Three kinds of panel (:class:`Panel`):
     a non-negative scalar image (H, W) with a sequential colour map from 0 to ``scale`` and a
     colour bar in the panel's units.
 
-Exposure rule (:func:`exposure_for`): the exposure in stops that maps the ``percentile``-th
-percentile of the per-pixel largest channel to display white, rounded down to 1/10 stop and
-lowered further while more than (100 − percentile) % of the pixels would show as 255. (To be
-unified with the tone map in :mod:`shprobe.probes.images`.)
+Exposure rule ([`exposure_for`][shprobe.probes.figures.exposure_for]): the exposure in stops that
+maps the ``percentile``-th percentile of the per-pixel largest channel to display white, rounded
+down to 1/10 stop and lowered further while more than (100 − percentile) % of the pixels would show
+as 255. (To be unified with the tone map in `shprobe.probes.images`.)
 
 A written figure is an 8-bit RGB PNG whose ``shprobe:panels`` text chunk lists each panel's
 title and its image and title boxes in pixels (x0, y0, x1, y1), so tests and tools can find
@@ -96,8 +96,9 @@ def clipped_fraction(values: ArrayLike, exposure: float) -> float:
 class Panel:
     """One labelled panel: ``image`` (H, W, 3) linear RGB for ``kind='radiance'``, (H, W) for
     'signed' / 'error'; ``title`` (one line); ``units`` (shown under the title and on the
-    colour bar); ``exposure`` in stops for radiance panels (None: :func:`exposure_for` of this
-    panel); ``scale``: the value at the ends of the colour bar (None: the panel's max |value|).
+    colour bar); ``exposure`` in stops for radiance panels (None:
+    [`exposure_for`][shprobe.probes.figures.exposure_for] of this panel); ``scale``: the value at
+    the ends of the colour bar (None: the panel's max |value|).
     """
 
     image: ArrayLike
@@ -173,7 +174,8 @@ class Figure:
 
 
 def read_panels(path: str | os.PathLike[str]) -> dict:
-    """The ``shprobe:panels`` metadata of a figure written by :meth:`Figure.save`."""
+    """The ``shprobe:panels`` metadata of a figure written by
+    [`Figure.save`][shprobe.probes.figures.Figure.save]."""
     from PIL import Image
 
     with Image.open(path) as im:
@@ -338,7 +340,8 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
 
 def write_figure(path: str | os.PathLike[str], panels, overwrite: bool = False,
                  **kwargs) -> Figure:
-    """:func:`figure` then :meth:`Figure.save`; returns the Figure (``path`` set)."""
+    """[`figure`][shprobe.probes.figures.figure] then
+    [`Figure.save`][shprobe.probes.figures.Figure.save]; returns the Figure (``path`` set)."""
     fig = figure(panels, **kwargs)
     fig.save(path, overwrite)
     return fig

@@ -7,11 +7,12 @@ normals apart), so smooth vertex normals are shared across what the file stored 
 copies; a multi-part file (glTF scene) is flattened with its graph transforms and concatenated.
 Meshes given as objects are used as they are (only flattened when they are a scene).
 
-The packaged bunny (:func:`bunny_path`, :func:`packaged_bunny`): a 4,968-face copy of the
-Stanford bunny in the package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its
-terms in ``bunny-LICENSE.txt`` beside it). The name :data:`BUNNY` (``"bunny"``) stands for it
-wherever a mesh path is taken (:func:`load_mesh`, hence ``--mesh bunny``) unless a file of that
-name exists: a mesh file always has an extension, which names its format.
+The packaged bunny ([`bunny_path`][shprobe.scene.bunny_path],
+[`packaged_bunny`][shprobe.scene.packaged_bunny]): a 4,968-face copy of the Stanford bunny in the
+package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its terms in
+``bunny-LICENSE.txt`` beside it). The name `BUNNY` (``"bunny"``) stands for it wherever a mesh path
+is taken ([`load_mesh`][shprobe.scene.load_mesh], hence ``--mesh bunny``) unless a file of that name
+exists: a mesh file always has an extension, which names its format.
 
 Colours: 8-bit vertex / face colours and texture images are sRGB and are decoded to linear
 reflectance; material colours (glTF ``baseColorFactor``, OBJ ``Kd``) are already linear.
@@ -66,13 +67,13 @@ def bunny_path() -> Path:
 
 
 def packaged_bunny() -> trimesh.Trimesh:
-    """The packaged Stanford bunny, loaded by :func:`load_mesh`."""
+    """The packaged Stanford bunny, loaded by [`load_mesh`][shprobe.scene.load_mesh]."""
     return load_mesh(bunny_path())
 
 
 def mesh_file(path: str | os.PathLike[str]) -> str:
-    """The file a mesh argument names: :func:`bunny_path` for :data:`BUNNY` (when no file of
-    that name exists), else the path itself."""
+    """The file a mesh argument names: [`bunny_path`][shprobe.scene.bunny_path] for `BUNNY` (when no
+    file of that name exists), else the path itself."""
     p = os.fspath(path)
     return str(bunny_path()) if p == BUNNY and not os.path.exists(p) else p
 
@@ -82,10 +83,10 @@ def mesh_file(path: str | os.PathLike[str]) -> str:
 
 def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
     """Load OBJ / PLY / glTF / GLB (anything trimesh reads) as one triangle mesh; ``"bunny"``
-    is the packaged bunny (:func:`mesh_file`).
+    is the packaged bunny (`mesh_file`).
 
     A scene is flattened (its graph transforms applied) and concatenated. Bad or empty files
-    raise a one-line :class:`ShprobeError` naming the file.
+    raise a one-line [`ShprobeError`][shprobe.errors.ShprobeError] naming the file.
     """
     import trimesh
 
@@ -136,7 +137,8 @@ def _flatten(obj: Any, where: Any = None) -> trimesh.Trimesh:
 
 
 def as_mesh(item: Any) -> trimesh.Trimesh:
-    """A Trimesh from a path (:func:`load_mesh`) or a trimesh object (scenes flattened)."""
+    """A Trimesh from a path ([`load_mesh`][shprobe.scene.load_mesh]) or a trimesh object (scenes
+    flattened)."""
     import trimesh
 
     if isinstance(item, str | os.PathLike):

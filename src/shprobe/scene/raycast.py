@@ -4,15 +4,15 @@ batches — first hits for cameras and PRT interreflection, occlusion for PRT sh
 Precision: Embree works in float32. The mesh is stored in a local frame — translated to its
 bounding-box centre and scaled to unit extent — so that float32 resolves the same fraction of
 the mesh wherever it sits and whatever its units (a mesh at x = 10⁶ keeps its detail).
-:meth:`RayCaster.local` maps world points into that frame; directions only change length,
-and hits are reported as (face, u, v), which the frame does not change.
+[`RayCaster.local`][shprobe.scene.RayCaster.local] maps world points into that frame; directions
+only change length, and hits are reported as (face, u, v), which the frame does not change.
 
-Ray origins (:meth:`RayCaster.offset_points`): rays leave a surface point from a copy moved a
-small distance along its normal, so that they do not hit the surface they leave. Where that step
-crosses *another* surface — a mesh vertex touching the ground, whose downward normal would put
-the origin under the ground, where it sees the open sky — the origin is put back on the point's
-side of the surface crossed, a hundredth of the step from it. The bake
-(:mod:`shprobe.prt.directions`) and the independent reference of the tests use this one rule.
+Ray origins ([`RayCaster.offset_points`][shprobe.scene.RayCaster.offset_points]): rays leave a
+surface point from a copy moved a small distance along its normal, so that they do not hit the
+surface they leave. Where that step crosses *another* surface — a mesh vertex touching the ground,
+whose downward normal would put the origin under the ground, where it sees the open sky — the origin
+is put back on the point's side of the surface crossed, a hundredth of the step from it. The bake
+(`shprobe.prt.directions`) and the independent reference of the tests use this one rule.
 
 Threads: the BVH is committed in the constructor, so that concurrent queries only read it;
 embreex releases the GIL while Embree traces, so worker threads run queries in parallel.
@@ -39,8 +39,8 @@ class RayCaster:
     """Embree scene over one triangle mesh: ``vertices`` (V, 3), ``faces`` (F, 3) indices.
 
     Queries take world-space ray origins and directions (N, 3); the ``*_local`` variants take
-    float32 origins already mapped by :meth:`local` (hot loops map their points once and reuse
-    them for many rays).
+    float32 origins already mapped by [`local`][shprobe.scene.RayCaster.local] (hot loops map their
+    points once and reuse them for many rays).
     """
 
     def __init__(self, vertices: ArrayLike, faces: ArrayLike) -> None:
@@ -131,8 +131,9 @@ class RayCaster:
     @cached_property
     def face_normals(self) -> NDArray[np.float64]:
         """Unit geometric normals (F, 3) of the faces (counter-clockwise winding = front);
-        zero for degenerate faces (made on first use: :meth:`offset_points`, where an origin
-        crossed another surface, and the grid bake's probe tracer)."""
+        zero for degenerate faces (made on first use:
+        [`offset_points`][shprobe.scene.RayCaster.offset_points], where an origin crossed another
+        surface, and the grid bake's probe tracer)."""
         fv = self._vertices[self._faces]
         return unit_vectors(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), zero="keep")
 
@@ -182,7 +183,8 @@ class RayCaster:
 
     def first_hit_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                         ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.float32]]:
-        """:meth:`first_hit` for float32 (N, 3) origins in the local frame."""
+        """[`first_hit`][shprobe.scene.RayCaster.first_hit] for float32 (N, 3) origins in the local
+        frame."""
         if len(origins) == 0:
             return np.empty(0, np.int32), np.empty(0, np.float32), np.empty(0, np.float32)
         r = self._scene.run(origins, dirs, output=1)
@@ -190,7 +192,8 @@ class RayCaster:
 
     def occluded_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                        ) -> NDArray[np.bool_]:
-        """:meth:`occluded` for float32 (N, 3) origins in the local frame."""
+        """[`occluded`][shprobe.scene.RayCaster.occluded] for float32 (N, 3) origins in the local
+        frame."""
         if len(origins) == 0:
             return np.empty(0, bool)
         return self._scene.run(origins, dirs, query="OCCLUDED") != -1

@@ -1,18 +1,20 @@
 """Rendering diffuse objects from SH lighting (R&H 2001 §3.2): primary rays through the one
-ray caster (:mod:`.raycast`), per-pixel and per-vertex shading, basis images.
+ray caster (`shprobe.scene.raycast`), per-pixel and per-vertex shading, basis images.
 
 Outgoing radiance of a diffuse surface of albedo ρ is ρ E(n) / π with the irradiance
 E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7); for lmax ≤ 2 it is evaluated as the quadratic form
-nᵀ M n of eq. 11–12 (:func:`shprobe.lighting.irradiance.shade_irradiance`). Two shading modes:
+nᵀ M n of eq. 11–12
+([`shprobe.lighting.irradiance.shade_irradiance`][shprobe.lighting.shade_irradiance]). Two shading
+modes:
 
 * ``"pixel"``: the normal is interpolated (barycentric, then normalised) at every pixel and
   E is evaluated there;
 * ``"vertex"``: E is evaluated at the vertices and the radiance is interpolated across the
   triangles — the procedural shader of R&H §3.2.
 
-Tone mapping (PNG output): :func:`shprobe.probes.tonemap.tonemap` — ``exposure`` stops
+Tone mapping (PNG output): `shprobe.probes.tonemap.tonemap` — ``exposure`` stops
 (× 2^exposure), clamp to [0, 1], sRGB transfer curve, 8 bits. EXR output is linear radiance,
-untouched. Camera frame: see :mod:`.camera`.
+untouched. Camera frame: see `shprobe.scene.camera`.
 """
 
 from __future__ import annotations
@@ -72,8 +74,8 @@ class Hits:
 
 def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None = None,
           frame: tuple[ArrayLike, float] | None = None) -> Hits:
-    """Cast the camera's primary rays through :class:`RayCaster` (built here unless
-    ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
+    """Cast the camera's primary rays through [`RayCaster`][shprobe.scene.RayCaster] (built here
+    unless ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
     origin when ``mesh`` is None. The camera frames ``frame`` = (centre, radius) — by default
     the mesh's bounding sphere."""
     center, radius = bounding_sphere(mesh) if frame is None else frame
@@ -160,7 +162,7 @@ class RenderResult:
                 f"{int(self.mask.sum())} pixels hit{extra})")
 
     def tonemapped(self, exposure: float = 0.0) -> NDArray[np.uint8]:
-        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see :func:`tonemap`)."""
+        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see `tonemap`)."""
         return tonemap(self.image, exposure)
 
     def save(self, path: str | os.PathLike[str], exposure: float = 0.0,
@@ -269,9 +271,9 @@ def render_result(hits: Hits, radiance: NDArray, irradiance: NDArray, camera: Ca
                   background: Any = None, normals: NDArray | None = None,
                   layers: dict[str, NDArray] | None = None,
                   info: dict[str, Any] | None = None) -> RenderResult:
-    """A :class:`RenderResult` from flat per-pixel buffers (P, ...) of ``hits`` (radiance and
-    irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals; ``layers``
-    (P, ...) each), with ``background`` filled in where the rays missed."""
+    """A [`RenderResult`][shprobe.scene.RenderResult] from flat per-pixel buffers (P, ...) of
+    ``hits`` (radiance and irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals;
+    ``layers`` (P, ...) each), with ``background`` filled in where the rays missed."""
     hit = hits.face >= 0
     img = radiance.copy()
     if background is not None:
@@ -292,7 +294,7 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
     """Render per-vertex outgoing radiance (V, C), interpolated barycentrically across the
     triangles (e.g. the result of PRT relighting). No shading is applied; ``irradiance`` in the
     result is 0 and ``radiance``/``image`` hold the interpolated values. ``frame``: the sphere
-    the camera frames (see :func:`trace`)."""
+    the camera frames (see [`trace`][shprobe.scene.trace])."""
     camera = camera or Camera()
     vr = np.asarray(vertex_radiance, dtype=np.float32)
     if vr.ndim == 1:
@@ -352,11 +354,11 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
-    """Write a render with :func:`shprobe.probes.images.write_image`: ``.png`` tone-mapped by
-    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear.
-    Radiance is never negative: where a truncated SH irradiance dips below zero (per-vertex
-    shading interpolates it unclamped) the file holds 0, so that shprobe's readers (``fit``)
-    accept what ``render`` writes."""
+    """Write a render with [`shprobe.probes.images.write_image`][shprobe.probes.images.write_image]:
+    ``.png`` tone-mapped by `tonemap` (× 2^exposure, clamp, sRGB, 8 bits),
+    ``.exr``/``.hdr``/``.pfm`` linear. Radiance is never negative: where a truncated SH irradiance
+    dips below zero (per-vertex shading interpolates it unclamped) the file holds 0, so that
+    shprobe's readers (``fit``) accept what ``render`` writes."""
     from ..probes.images import write_image
 
     write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),

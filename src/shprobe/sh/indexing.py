@@ -1,8 +1,8 @@
 """The bookkeeping of the SH maths: flat indices k = l(l+1)+m, degrees, the checks of a degree
 argument, the recurrence tables of the basis (Lisle & Huang 2007 §2.1) and unit vectors.
 
-Below :mod:`.basis`, :mod:`.rotation` and the array-API path (:mod:`._xp`), which all use it, so
-that none of them needs another.
+Below `shprobe.sh.basis`, [`shprobe.splats.rotation`][shprobe.splats.rotation] and the array-API
+path (`shprobe.sh._xp`), which all use it, so that none of them needs another.
 """
 
 from __future__ import annotations
@@ -50,7 +50,8 @@ def sh_lm(k: int) -> tuple[int, int]: ...
 @overload
 def sh_lm(k: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]: ...
 def sh_lm(k):
-    """Inverse of :func:`sh_index`: (l, m) of flat index ``k`` (an integer or integer array)."""
+    """Inverse of [`sh_index`][shprobe.sh.sh_index]: (l, m) of flat index ``k`` (an integer or
+    integer array)."""
     ka = np.asarray(k, dtype=np.int64)
     if (ka < 0).any():
         raise ShprobeError(f"flat SH index must be >= 0, got {k}")
@@ -78,7 +79,8 @@ def degrees(lmax: int) -> NDArray[np.int64]:
 
 def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
     """Validate a degree argument: an integer (or integral number) in 0..``limit``; anything
-    else (None, NaN, inf, 2.5, a string, an array) is one :class:`ShprobeError`."""
+    else (None, NaN, inf, 2.5, a string, an array) is one
+    [`ShprobeError`][shprobe.errors.ShprobeError]."""
     try:
         ok = not isinstance(lmax, bool | str | bytes) and float(lmax) == int(lmax)
     except (TypeError, ValueError, OverflowError):

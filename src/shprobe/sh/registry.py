@@ -1,8 +1,8 @@
-"""The one registry of SH coefficient conventions: :func:`convert` between any two, on NumPy
-arrays and on array-API arrays (torch, JAX: differentiable, same kind back).
+"""The one registry of SH coefficient conventions: [`convert`][shprobe.sh.registry.convert] between
+any two, on NumPy arrays and on array-API arrays (torch, JAX: differentiable, same kind back).
 
 Every convention is a linear map T from shprobe's coefficients (real orthonormal SH, R&H
-signs, k = l(l+1)+m, see :mod:`shprobe.sh.conventions`) to its own: a per-coefficient factor
+signs, k = l(l+1)+m, see `shprobe.sh.conventions`) to its own: a per-coefficient factor
 (``diagonal``) or a block matrix (``matrix``, e.g. a relabelling of the axes).
 ``convert(c, from_=a, to=b)`` applies T_b T_a⁻¹ along the K axis of (..., K, C) or (K,)
 coefficients. The registry converts the *basis* (signs, scale, axis order, baked-in
@@ -190,8 +190,8 @@ def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
 
 def convert(coeffs: Any, from_: str = "shprobe", to: str = "shprobe") -> Any:
     """Coefficients (..., K, C) or (K,) in convention ``from_`` → convention ``to`` (names in
-    :data:`CONVENTIONS`). NumPy in: float64 out (float32 stays float32); torch / JAX in: the
-    same kind, device and dtype, differentiable."""
+    [`CONVENTIONS`][shprobe.sh.registry.CONVENTIONS]). NumPy in: float64 out (float32 stays
+    float32); torch / JAX in: the same kind, device and dtype, differentiable."""
     xp = _xp.namespace(coeffs)
     if xp is None:
         c = np.asarray(coeffs)

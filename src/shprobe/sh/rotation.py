@@ -7,7 +7,8 @@ frame instead (express a fixed function in rotated coordinates), pass Rᵀ.
 
 Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quaternions in
 (w, x, y, z) order (scalar first), or anything with an ``.as_matrix()`` method (e.g.
-``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through :func:`from_euler_zyz`.
+``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through
+[`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz].
 
 The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
 z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
@@ -17,8 +18,8 @@ it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is o
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
 angles are never formed: cos/sin of α, β, γ are read algebraically from R, and α is taken
 from the residual Ry(β)ᵀ Rz(γ)ᵀ R, so that gimbal lock (β ≈ 0 or π) is harmless.
-For lmax ≤ 2, :func:`rotate` uses a closed form instead (l = 1: a → R a; l = 2: the band as a
-traceless quadratic form A → R A Rᵀ), tested against the recurrence.
+For lmax ≤ 2, [`rotate`][shprobe.sh.rotation.rotate] uses a closed form instead (l = 1: a → R a; l =
+2: the band as a traceless quadratic form A → R A Rᵀ), tested against the recurrence.
 """
 
 from __future__ import annotations
@@ -122,8 +123,8 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
 
 def as_matrix(rotation: Any) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) float64 from matrices, (w, x, y, z) quaternions (..., 4) or
-    objects with ``.as_matrix()``. Raises :class:`ShprobeError` for anything that is not a
-    proper rotation (orthogonal to :data:`ORTHO_TOL`, det +1).
+    objects with ``.as_matrix()``. Raises [`ShprobeError`][shprobe.errors.ShprobeError] for anything
+    that is not a proper rotation (orthogonal to `ORTHO_TOL`, det +1).
     """
     R = _matrices(rotation)
     if not np.all(np.isfinite(R)):
@@ -226,10 +227,11 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     ``D @ a`` are the coefficients of f∘R⁻¹ when ``a`` are those of f. Each block is
     orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
     leading axes. ``rotation``: (..., 3, 3) matrices, (..., 4) unit quaternions (w, x, y, z),
-    or a scipy ``Rotation``; ZYZ Euler angles through :func:`from_euler_zyz`. The dense result
-    is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and
-    JAX arrays take the array-API path (the Ivanic–Ruedenberg recurrence,
-    ``shprobe.sh._xp_rotation``), differentiable in the rotation.
+    or a scipy ``Rotation``; ZYZ Euler angles through
+    [`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz]. The dense result is limited to
+    ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and JAX arrays take the
+    array-API path (the Ivanic–Ruedenberg recurrence, ``shprobe.sh._xp_rotation``), differentiable
+    in the rotation.
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
     xp = _xp.namespace(rotation)
@@ -263,11 +265,12 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
 
     ``coeffs`` is (..., K, C) (or (K,) for one channel) and ``rotation`` is one rotation or a
     batch: (..., 3, 3) matrices, (..., 4) unit quaternions in **scalar-first (w, x, y, z)**
-    order (:func:`from_quaternion`), or a ``scipy.spatial.transform.Rotation`` (taken through
-    its ``as_matrix()``, so no order question arises); the leading axes of both broadcast.
-    Beware: scipy's ``Rotation.as_quat()`` is scalar-LAST (x, y, z, w) — pass the Rotation
-    itself, or ``np.roll(q, 1, axis=-1)``. float32 coefficients stay float32 (the arithmetic
-    is float64). NaN or infinite coefficients are refused (:class:`ShprobeError`).
+    order ([`from_quaternion`][shprobe.sh.rotation.from_quaternion]), or a
+    ``scipy.spatial.transform.Rotation`` (taken through its ``as_matrix()``, so no order question
+    arises); the leading axes of both broadcast. Beware: scipy's ``Rotation.as_quat()`` is
+    scalar-LAST (x, y, z, w) — pass the Rotation itself, or ``np.roll(q, 1, axis=-1)``. float32
+    coefficients stay float32 (the arithmetic is float64). NaN or infinite coefficients are refused
+    ([`ShprobeError`][shprobe.errors.ShprobeError]).
 
     Torch tensors and JAX arrays (coefficients, rotation or both) take the array-API path
     (``shprobe.sh._xp_rotation``): same kind, device and dtype, differentiable in both.

@@ -134,9 +134,10 @@ def _unit_axis(axis: ArrayLike) -> NDArray[np.float64]:
 def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floating]:
     """b_lm = moments_l · y_lm(axis) (LH eq. 7), shape (..., K) for axes (..., 3).
 
-    ``moments`` (lmax+1,) are 2π∫h P_l (see :func:`legendre_moments`); the axis is normalised.
-    Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis
-    gives float32 coefficients (computed in float64).
+    ``moments`` (lmax+1,) are 2π∫h P_l (see
+    [`legendre_moments`][shprobe.sh.zonal.legendre_moments]); the axis is normalised. Multiply by a
+    colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis gives float32
+    coefficients (computed in float64).
     """
     from .basis import sh_basis
 

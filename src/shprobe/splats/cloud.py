@@ -22,7 +22,7 @@ class Splats:
     ``positions`` (N, 3); ``log_scales`` (N, 3), or (N, 2) for 2D Gaussian splats (surfels);
     ``rotations`` (N, 4) quaternions (w, x, y, z), not necessarily normalised (the renderer
     normalises); ``opacity`` (N,) logits; ``sh`` (N, K, 3) the renderer's SH coefficients
-    (CS phase, :mod:`shprobe.splats.conventions`), k = 0 the DC term ``f_dc``, K = (degree+1)²;
+    (CS phase, `shprobe.splats.conventions`), k = 0 the DC term ``f_dc``, K = (degree+1)²;
     ``normals`` (N, 3) or None (the trainer writes zeros). All float32.
     """
 
@@ -97,7 +97,7 @@ class Splats:
 
 
 def concatenate(parts: list[Splats]) -> Splats:
-    """One :class:`Splats` from several of the same layout."""
+    """One [`Splats`][shprobe.splats.Splats] from several of the same layout."""
     if not parts:
         raise ShprobeError("no splats")
     normals = None if parts[0].normals is None else np.concatenate([p.normals for p in parts])

@@ -7,9 +7,9 @@ diff-gaussian-rasterization) evaluates, per splat and colour channel,
 
 with real SH constants that carry the Condon–Shortley phase (``-C1·y·sh[1] + C1·z·sh[2] −
 C1·x·sh[3]``, C1 = 0.4886025119029199, …): Y^CS_lm = (−1)^|m| y_lm in shprobe's basis (R&H
-signs, :mod:`shprobe.sh.conventions`). So a file's coefficients convert to shprobe's by the
+signs, `shprobe.sh.conventions`). So a file's coefficients convert to shprobe's by the
 same sign flip, a_lm = (−1)^|m| sh_lm, through the one registry
-(:func:`shprobe.sh.conventions.from_condon_shortley`). The DC term is ``f_dc``; the +0.5 is a
+(`shprobe.sh.conventions.from_condon_shortley`). The DC term is ``f_dc``; the +0.5 is a
 bias of the renderer, not a coefficient: the coefficient of the constant 0.5 would be
 0.5 / C0. SPZ and glTF ``KHR_gaussian_splatting`` store the same coefficients.
 """
@@ -49,7 +49,8 @@ def dc_to_colour(dc: ArrayLike) -> NDArray[np.floating]:
 
 
 def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
-    """``f_dc`` of a view-independent colour (the inverse of :func:`dc_to_colour`)."""
+    """``f_dc`` of a view-independent colour (the inverse of
+    [`dc_to_colour`][shprobe.splats.dc_to_colour])."""
     return (np.asarray(colour) - DC_BIAS) / SH_C0
 
 

@@ -1,11 +1,12 @@
 """Splat files by name: read, write, transform (streamed PLY → PLY) and summarise.
 
-Formats by suffix: ``.ply`` (3DGS / 2DGS, :mod:`.ply`), ``.spz`` (:mod:`.spz`), ``.glb``
-(``KHR_gaussian_splatting``, :mod:`.gltf`). In memory splats are always in the trainer PLY's
-frame and SH convention; the SPZ and glTF modules convert their frames at the edge.
-A PLY → PLY transform runs in chunks of :data:`shprobe.splats.ply.CHUNK` splats, so its memory
+Formats by suffix: ``.ply`` (3DGS / 2DGS, `shprobe.splats.ply`), ``.spz`` (`shprobe.splats.spz`),
+``.glb`` (``KHR_gaussian_splatting``, `shprobe.splats.gltf`). In memory splats are always in the
+trainer PLY's frame and SH convention; the SPZ and glTF modules convert their frames at the edge.
+A PLY → PLY transform runs in chunks of `shprobe.splats.ply.CHUNK` splats, so its memory
 does not grow with the file; SPZ and glTF are columnar and compressed, so reading or writing
-them holds the whole scene (checked against :func:`shprobe.limits.check_memory` first).
+them holds the whole scene (checked against
+[`shprobe.limits.check_memory`][shprobe.limits.check_memory] first).
 """
 
 from __future__ import annotations

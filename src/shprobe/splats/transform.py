@@ -108,7 +108,8 @@ class Similarity:
 
 
 def rotation(matrix: ArrayLike) -> Similarity:
-    """A rotation (checked by :func:`shprobe.sh.rotation.one_rotation`)."""
+    """A rotation (checked by
+    [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation])."""
     from ..sh.rotation import one_rotation
 
     return Similarity(one_rotation(matrix))
@@ -151,7 +152,8 @@ def _frame_axes(name: str) -> NDArray[np.float64]:
 
 def frame(source: str, target: str) -> Similarity:
     """Re-express a scene given in frame ``source`` in frame ``target`` (names of
-    :data:`FRAMES` or axis letters), e.g. ``frame("colmap", "gltf")`` = 180° about z."""
+    [`FRAMES`][shprobe.splats.FRAMES] or axis letters), e.g. ``frame("colmap", "gltf")`` = 180°
+    about z."""
     return Similarity(_frame_axes(target).T @ _frame_axes(source))
 
 

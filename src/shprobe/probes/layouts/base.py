@@ -58,8 +58,8 @@ class Layout:
 
 
 def unit(dirs: ArrayLike) -> NDArray[np.float64]:
-    """Directions as unit vectors (zero vectors stay zero): :func:`shprobe.sh.rotation.
-    unit_vectors`, the one normalisation."""
+    """Directions as unit vectors (zero vectors stay zero): `shprobe.sh.rotation.unit_vectors`, the
+    one normalisation."""
     from ...sh.rotation import unit_vectors
 
     return unit_vectors(dirs, "directions", zero="keep")

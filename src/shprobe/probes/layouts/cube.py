@@ -1,5 +1,5 @@
 """The cube-map layout: six faces (OpenGL / DirectX orientation), exact texel solid angles, and
-the file arrangements (crosses and strips). Conventions: :mod:`shprobe.probes.layouts`."""
+the file arrangements (crosses and strips). Conventions: `shprobe.probes.layouts`."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The lat-long (equirectangular) layout: exact per-row solid angles, separable row and column
-helpers (conventions: :mod:`shprobe.probes.layouts`)."""
+helpers (conventions: `shprobe.probes.layouts`)."""
 
 from __future__ import annotations
 
