@@ -173,8 +173,8 @@ BYTES_PER_PROBE = 2048
 
 
 def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
-    """The text of ``grid`` in format ``fmt`` (one of [`FORMATS`][shprobe.lighting.FORMATS]);
-    refused first when it would not fit in memory."""
+    """The text of ``grid`` in format ``fmt`` (one of `FORMATS`); refused first when
+    it would not fit in memory."""
     if fmt not in _WRITERS:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "
                            f"{', '.join(FORMATS)}")

@@ -3,10 +3,9 @@ entry, and its estimate of time and memory.
 
 Three diffuse models, all with the radiance scale of `shprobe.prt.transfer`
 (transfer · L = exit radiance): unshadowed (analytic, b_lm = Â_l y_lm(n) ρ/π, LH eq. 9–10),
-shadowed and interreflected (ray traced, [`shprobe.scene.trace`][shprobe.scene.trace]). A traced
-bake with a ground plane is refined where the transfer varies fast (`shprobe.prt.refine`), by
-default with [`QUICK`][shprobe.prt.QUICK]; [`ACCURATE`][shprobe.prt.ACCURATE] is the opt-in accurate
-contact.
+shadowed and interreflected (ray traced, `shprobe.prt.trace`). A traced bake with a ground plane is
+refined where the transfer varies fast (`shprobe.prt.refine`), by default with
+[`QUICK`][shprobe.prt.QUICK]; [`ACCURATE`][shprobe.prt.ACCURATE] is the opt-in accurate contact.
 
 One bake serves every model up to the one baked (run-time switching, LH §4): the unshadowed
 transfer is analytic in the stored normals; an interreflected bake keeps its bounce-0 (shadowed)
@@ -47,9 +46,8 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
     lmax: degree baked (any lower degree can be used later). samples: ray directions per vertex over
     the whole sphere (about half are traced). bounces: interreflection bounces (interreflected
     only). seed: an integer >= 0, picks the random rotation of the direction set. threads: workers
-    for ray casting, kernels and bounce products (default: all cores;
-    [`shprobe.scene.trace`][shprobe.scene.trace]). progress: a
-    [`Progress`][shprobe.progress.Progress] reporter (stages "k/N: what", countable).
+    for ray casting, kernels and bounce products (default: all cores; `shprobe.prt.trace`).
+    progress: a [`Progress`][shprobe.progress.Progress] reporter (stages "k/N: what", countable).
 
     refine: adaptive refinement of the scene where the transfer varies fast
     (`shprobe.prt.refine`): a [`Refinement`][shprobe.prt.Refinement] ([`QUICK`][shprobe.prt.QUICK],

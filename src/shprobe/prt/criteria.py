@@ -1,9 +1,8 @@
 """Refinement criteria: where a baked transfer needs more vertices or more directions.
 
 Per-vertex transfer is interpolated linearly over each triangle, both when relighting and when
-a bounce gathers the previous bounce at a ray's hit point
-([`shprobe.scene.trace`][shprobe.scene.trace]). Where it varies within a triangle much faster than
-linearly (the contact of an object with the ground) the
+a bounce gathers the previous bounce at a ray's hit point (`shprobe.prt.trace`). Where it varies
+within a triangle much faster than linearly (the contact of an object with the ground) the
 interpolated light is wrong however many rays are traced. These measures say where:
 
 - jumps (`transfer_jumps`): ‖T_b(a) − T_b(c)‖ / s_b across each edge, layer by layer

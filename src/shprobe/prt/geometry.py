@@ -32,9 +32,8 @@ class BakeScene:
     """Flattened scene geometry.
 
     vertices (V, 3), normals (V, 3) unit, faces (F, 3) int64 into vertices, albedo (V, 3) diffuse
-    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see
-    [`mesh_hash`][shprobe.prt.mesh_hash]), n_ground: how many of the last vertices are the ground
-    plane's (0: no ground).
+    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see `mesh_hash`),
+    n_ground: how many of the last vertices are the ground plane's (0: no ground).
     """
 
     vertices: NDArray[np.float64]

@@ -1,6 +1,5 @@
-"""The refined bake: a driver of named stages over [`shprobe.scene.trace`][shprobe.scene.trace],
-`shprobe.prt.criteria` and `shprobe.prt.subdivide`, set by one
-[`Refinement`][shprobe.prt.Refinement].
+"""The refined bake: a driver of named stages over `shprobe.prt.trace`, `shprobe.prt.criteria` and
+`shprobe.prt.subdivide`, set by one [`Refinement`][shprobe.prt.Refinement].
 
 1. **subdivision rounds**: bake the scene with a quarter of the samples (at least 64; enough
    to see where the transfer jumps), mark the edges where `transfer_jumps`

@@ -3,8 +3,7 @@ vertex by Embree occlusion rays, and for an interreflected bake the bounce gathe
 the bounces.
 
 - shadowed: ρ/π Σ_j V(ω_j) max(0, n·ω_j) y(ω_j) 4π/N over the N directions of
-  [`shprobe.probes.env.Env.directions`][shprobe.probes.env.Env.directions] (only those with n·ω > 0
-  are traced);
+  `shprobe.prt.directions` (only those with n·ω > 0 are traced);
 - interreflected: the shadowed term plus k bounces; bounce b gathers, along every blocked ray
   that hits a front face, the previous bounce's transfer interpolated barycentrically over the
   hit triangle: T_b(v) = ρ_v/π Σ_j max(0, n·ω_j) T_{b−1}(hit_j) 4π/N. Back-face hits block

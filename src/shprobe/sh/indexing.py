@@ -1,8 +1,8 @@
 """The bookkeeping of the SH maths: flat indices k = l(l+1)+m, degrees, the checks of a degree
 argument, the recurrence tables of the basis (Lisle & Huang 2007 §2.1) and unit vectors.
 
-Below `shprobe.sh.basis`, [`shprobe.splats.rotation`][shprobe.splats.rotation] and the array-API
-path (`shprobe.sh._xp`), which all use it, so that none of them needs another.
+Below `shprobe.sh.basis`, `shprobe.sh.rotation` and the array-API path (`shprobe.sh._xp`), which all
+use it, so that none of them needs another.
 """
 
 from __future__ import annotations
