@@ -27,6 +27,7 @@ import pytest
 from shprobe.cli.main import main
 
 from .conftest import data_file
+from .tensor_support import need
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 RUN = ("sh", "console", "python")
@@ -101,6 +102,8 @@ def test_page_runs_as_written(page, doc_dir, capsys):
         if lang in ILLUSTRATIVE:
             continue  # marked illustrative in the doc (usage synopsis / sample output)
         if lang == "python":
+            for lib in re.findall(r"^(?:import|from) (torch|jax)\b", body, re.M):
+                need(lib)  # a skip naming the extra outside CI; in CI a failure
             ns: dict = {"__name__": "__doc_snippet__"}
             exec(compile(body, where, "exec"), ns)
             ran += 1
