@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TypeVar
@@ -14,10 +15,15 @@ T = TypeVar("T")
 
 
 def console(stderr: bool = False):
-    """A rich console (imported lazily)."""
+    """A rich console (imported lazily). Piped or redirected (no terminal, no ``COLUMNS``) it
+    has no width to honour: a table row stays one line instead of wrapping at rich's 80."""
+    import sys
+
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False)
+    stream = sys.stderr if stderr else sys.stdout
+    piped = not (getattr(stream, "isatty", lambda: False)() or os.environ.get("COLUMNS"))
+    return Console(stderr=stderr, highlight=False, width=10_000 if piped else None)
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:

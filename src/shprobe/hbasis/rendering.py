@@ -167,6 +167,9 @@ def save_panel(path: str | os.PathLike[str], res: RenderResult, gain: float = 4.
              *(Panel(res.layers[k] / np.pi, k, units=units, exposure=stops) for k in keys)],
             [None, *(Panel(errs[k], f"|{k} − ref|, rel. RMS {100 * rms.get(k, np.nan):.1f} %",
                            "error", units=units, scale=top) for k in keys)]]
+    # why the H6 and H4 panels look alike, said where a reader compares them
+    why = ("; H6 ≈ H4 when the normal map keeps v near the pole, where H⁵ and H⁶ vanish"
+           if "H6" in keys and "H4" in keys else "")
     write_figure(path, rows, overwrite=overwrite, shared_colorbar=True,
-                 title="normal mapping (H&W 2010): per-vertex bases vs exact E at n′")
+                 title="normal mapping (H&W 2010): per-vertex bases vs exact E at n′" + why)
     return Path(path)

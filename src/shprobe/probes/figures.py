@@ -276,9 +276,9 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     def axes(x0: float, y0: float, w: float, h: float):  # pixel box, y down
         return fig.add_axes((x0 / W, 1 - (y0 + h) / H, w / W, h / H))
 
-    if title:
-        fig.text(_MARGIN / W, 1 - (_MARGIN + 2) / H, title, ha="left", va="top",
-                 fontsize=_FONT + 1.5, weight="bold")
+    if title:  # on the page: a long title is set smaller rather than cut by the edge
+        _fit(fig.text(_MARGIN / W, 1 - (_MARGIN + 2) / H, title, ha="left", va="top",
+                      fontsize=_FONT + 1.5, weight="bold"), W - 2 * _MARGIN)
     boxes = []
     shared_drawn = False
     for i, j, p in cells:
