@@ -143,11 +143,16 @@ def module_all(module: str) -> list[str]:
 
 
 def members(module: str, page: str, level: int) -> str:
-    shown = set(re.findall(rf"^::: {re.escape(module)}\.(\w+)\s*$", page, flags=re.M))
+    shown = set(re.findall(r"^::: ([\w.]+)\s*$", page, flags=re.M))
     out = []
     for name in module_all(module):
-        if name not in shown:
-            out.append(f"::: {module}.{name}\n    options:\n      heading_level: {level}\n")
+        target = f"{module}.{name}"
+        if (SRC / Path(*target.split("."))).is_dir() or module_file(target).is_file():
+            # a name that is also a submodule's (lighting.irradiance, scene.render): the
+            # reference would resolve it to the module, so the object is named where it lives
+            target = f"{target}.{name}"
+        if target not in shown:
+            out.append(f"::: {target}\n    options:\n      heading_level: {level}\n")
     return "\n".join(out)
 
 

@@ -1,6 +1,6 @@
 """Layer 3, lighting: the coefficient core (`shprobe.lighting.coeffs`, `shprobe.lighting.document`),
 projection (R&H eq. 10, `shprobe.lighting.projection`), irradiance and the quadratic form (eq. 7,
-11–13, [`shprobe.lighting.irradiance`][shprobe.lighting.irradiance]), the brute-force reference and
+11–13, `shprobe.lighting.irradiance`), the brute-force reference and
 error report (`shprobe.lighting.reference`), lighting design (§3.3, `shprobe.lighting.design`) and
 its one edit language (`shprobe.lighting.edits`), windows and the non-negativity certificate
 (`shprobe.lighting.windows`), engine export / import (`shprobe.lighting.export`) and the one

@@ -71,6 +71,16 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 
     Other formats (Condon–Shortley JSON, three.js, glTF, shaders, cmgen) are refused here:
     [`shprobe.import_coeffs`][shprobe.lighting.import_coeffs] reads every format and converts it.
+
+    Parameters
+    ----------
+    path
+        A shprobe JSON document.
+
+    Returns
+    -------
+    ndarray, shape (K, C)
+        The lighting coefficients it holds.
     """
     p = os.fspath(path)
     return coeffs_from_document(parse_json(read_text(p, "text file"), p), p)

@@ -55,6 +55,18 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
     """E(n) = Σ_lm Â_l L_lm y_lm(n) (R&H eq. 7), any lmax.
 
     ``coeffs`` (K, C) or (K,); ``normals`` (..., 3) unit vectors → (..., C) or (...,).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) or (K,) lighting coefficients L_lm, any lmax.
+    normals
+        (..., 3) normals (normalised here; zero or non-finite ones are refused).
+
+    Returns
+    -------
+    ndarray, shape (..., C) or (...,)
+        The irradiance E(n).
     """
     xp = _xp.namespace(coeffs, normals)
     if xp is not None:
@@ -100,6 +112,16 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
 
     Uses L_lm for l ≤ 2 (higher bands are ignored). Our signs and order are R&H's, so M is
     their matrix verbatim.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) lighting coefficients; the l ≤ 2 ones are used.
+
+    Returns
+    -------
+    ndarray, shape (..., C, 4, 4)
+        M per channel, E(n) = nᵀ M n with n = (x, y, z, 1).
     """
     xp = _xp.namespace(coeffs)
     if xp is not None:
@@ -118,7 +140,20 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
 
 
 def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
-    """E = nᵀ M n with n = (x, y, z, 1) (R&H eq. 11); ``m`` (C, 4, 4) → (..., C)."""
+    """E = nᵀ M n with n = (x, y, z, 1) (R&H eq. 11); ``m`` (C, 4, 4) → (..., C).
+
+    Parameters
+    ----------
+    m
+        (C, 4, 4) matrices of [`irradiance_matrix`][shprobe.lighting.irradiance_matrix].
+    normals
+        (..., 3) normals.
+
+    Returns
+    -------
+    ndarray, shape (..., C)
+        E = nᵀ M n.
+    """
     mm = np.asarray(m, dtype=np.float64)
     if mm.shape[-2:] != (4, 4):
         raise ShprobeError(f"M must have shape (..., 4, 4), got {mm.shape}")
@@ -128,7 +163,20 @@ def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float
 
 
 def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
-    """The expanded polynomial of R&H eq. 13 → (..., C)."""
+    """The expanded polynomial of R&H eq. 13 → (..., C).
+
+    Parameters
+    ----------
+    coeffs
+        (9, C) (or more) lighting coefficients; the l ≤ 2 ones are used.
+    normals
+        (..., 3) normals.
+
+    Returns
+    -------
+    ndarray, shape (..., C)
+        E(n) by the expanded polynomial of R&H eq. 13.
+    """
     xp = _xp.namespace(coeffs, normals)
     if xp is not None:
         from . import _xp as lx
@@ -150,6 +198,20 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
     ``size`` as in ``Layout.grid_shape`` (lat-long H or (W, H); angular / mirror ball N; cube
     face N). ``layout='angular'`` gives the view of R&H Fig. 3 (centre +Z, rim −Z). Pixels
     outside an angular disc are 0.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients L_lm.
+    layout
+        The layout's name or object ('latlong', 'angular', 'mirrorball', 'cube').
+    size
+        As in ``Layout.grid_shape``: lat-long H or (W, H); angular / mirror ball N; cube face N.
+
+    Returns
+    -------
+    Env
+        The irradiance map E(n) on the layout's grid.
     """
     lay = get_layout(layout)
     grid = lay.grid_shape(size)

@@ -196,6 +196,22 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
     angles; default 4π/S, i.e. uniform random samples). A numba kernel, no (S, K) temporary.
     Torch tensors and JAX arrays take the array-API path (``shprobe.lighting._xp``, one
     (S, K) basis table): same kind, device and dtype, differentiable in all three arrays.
+
+    Parameters
+    ----------
+    dirs
+        (S, 3) unit directions.
+    values
+        (S, C) or (S,) sample values.
+    weights
+        (S,) weights (e.g. solid angles); default 4π/S, as for uniform random samples.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (K, C) or (K,)
+        Σ_s values_s y_lm(dirs_s) weights_s.
     """
     from ..sh import _xp
 
@@ -246,6 +262,18 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
     machine's cores, then the normalised Legendre functions in θ); other layouts run one numba
     pass over the pixels with the layout's (cached) direction and solid-angle tables, skipping
     pixels with dω = 0.
+
+    Parameters
+    ----------
+    env
+        The environment map (`load_env`, `procedural_env`, `env_from_function`).
+    lmax
+        The highest degree of the projection.
+
+    Returns
+    -------
+    ndarray, shape (K, 3), float64
+        The lighting coefficients L_lm, K = (lmax + 1)².
     """
     lmax = check_lmax(lmax)
     if not isinstance(env, Env):

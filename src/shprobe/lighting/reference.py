@@ -118,8 +118,26 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     other layouts build their k²-times larger pixel tables whole (memory O(k²·S)).
     ``progress`` gets one stage counting the normal–sample pairs, advanced every ~2²³ pairs
     (`shprobe.progress`); `reference_cost` estimates the time and memory. Normals
-    follow [`shprobe.lighting.irradiance`][shprobe.lighting.irradiance]'s policy (normalised; zero
+    follow `shprobe.lighting.irradiance`'s policy (normalised; zero
     or non-finite refused).
+
+    Parameters
+    ----------
+    env
+        The environment map.
+    normals
+        (..., 3) normals.
+    chunk
+        Samples fed to the kernel at a time (bounds memory).
+    subdivide
+        k: every pixel split into k×k sub-pixels.
+    progress
+        Told about the normal–sample pairs done.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The exact irradiance Σ_pixels L(ω) max(0, n·ω) dω.
     """
     from ._kernels import brute_kernel as kern  # numba, imported lazily
 
@@ -344,6 +362,30 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     same pixels, re-associated) taken per row of a lat-long map from prefix sums (`_Exact`: O(H) per
     normal, so the refinement's thousands of evaluations cost tens of milliseconds); other layouts
     sum pixel by pixel.
+
+    Parameters
+    ----------
+    env
+        The environment map.
+    lmax_values
+        The degrees to report.
+    normals
+        (N, 3) normals to measure at (weighted equally); default the lat-long grid.
+    reference
+        A precomputed E_ref at those normals.
+    progress
+        Told about each step (`shprobe.progress`).
+    normal_grid
+        N of the default (2N)×N grid of normals.
+    refine
+        Refine the max on the whole sphere (default: for the grid, not for given normals).
+    tol
+        The refinement's tolerance, a fraction of ∫L dω.
+
+    Returns
+    -------
+    ErrorReport
+        One row per lmax: mean and max |ΔE| / ∫L dω, mean relative error, sMAPE.
     """
     from .sphere_search import refine_max
 

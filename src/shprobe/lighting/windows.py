@@ -98,7 +98,22 @@ def window_text(spec: WindowSpec) -> str:
 def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]:
     """Window factors w_l, l = 0..lmax (see the module doc for the four kinds); w_0 = 1.
     A torch tensor or JAX array ``strength`` gives factors of that kind, differentiable in
-    it (``shprobe.lighting._xp``)."""
+    it (``shprobe.lighting._xp``).
+
+    Parameters
+    ----------
+    kind
+        One of ``WINDOWS``.
+    lmax
+        The highest degree.
+    strength
+        The window's strength (a torch tensor or JAX array makes the factors one).
+
+    Returns
+    -------
+    ndarray, shape (lmax + 1,)
+        w_0 … w_lmax, w_0 = 1.
+    """
     from ..sh import _xp
 
     xp = _xp.namespace(strength)
@@ -248,6 +263,18 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
     best well-separated grid points (`shprobe.lighting.sphere_search.refine_max`: compass
     search on the sphere, exact SH sums) until a halving of the step moves the minimum by less
     than ``MIN_TOL`` × the mean irradiance E₀₀Y₀₀ (reported as ``tolerance``).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    grid
+        Points of the Fibonacci grid searched first when lmax > 2.
+
+    Returns
+    -------
+    IrradianceMinimum
+        The minimum per channel, where it is and how it was found (exact for lmax ≤ 2).
     """
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
@@ -318,7 +345,20 @@ def _threshold(c: NDArray, kind: str, lmax: int, ok) -> float | None:
 def auto_window(coeffs: ArrayLike, kinds: Sequence[str] = WINDOWS) -> WindowChoice:
     """The mildest window making E(n) ≥ 0 on the whole sphere: for each kind the smallest
     strength whose windowed lighting passes [`min_irradiance`][shprobe.lighting.min_irradiance] (for
-    lmax ≤ 2 the certified lower bound must be ≥ 0), then the kind with the least `window_bias`."""
+    lmax ≤ 2 the certified lower bound must be ≥ 0), then the kind with the least `window_bias`.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    kinds
+        The window kinds to try.
+
+    Returns
+    -------
+    WindowChoice
+        The chosen kind and strength (none when E ≥ 0 already).
+    """
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
     before = min_irradiance(c)

@@ -98,6 +98,20 @@ def load_env(path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     entry points are `shprobe.lighting.projection.project_file` (SH coefficients of a
     lat-long or cube file, read a block of rows at a time: what a lazy ``load_env`` would be
     used for) and `shprobe.probes.streaming.ImageRows` (your own pass over the rows).
+
+    Parameters
+    ----------
+    path
+        An image file, or six face files (+X −X +Y −Y +Z −Z) of a cube map.
+    layout
+        The layout's name or object; None or 'auto' detects it from the image's shape.
+    clamp
+        Clamp NaN, infinite and negative pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    Env
+        The radiance with its layout (directions and exact solid angles).
     """
     if isinstance(path, list | tuple):
         return load_cube_faces(path, clamp=clamp)
@@ -150,6 +164,20 @@ def env_from_function(fn: Callable[[NDArray[np.float64]], ArrayLike], layout: st
 
     ``size``: lat-long H or (W, H); angular / mirror ball N; cube face size N. Invalid pixels
     (outside the disc) are 0.
+
+    Parameters
+    ----------
+    fn
+        Maps (..., 3) directions to (..., 3) radiance.
+    layout
+        The layout's name or object.
+    size
+        Lat-long H or (W, H); angular / mirror ball N; cube face N.
+
+    Returns
+    -------
+    Env
+        ``fn`` at the pixel centres (0 outside a disc layout's circle).
     """
     lay = get_layout(layout)
     grid = lay.grid_shape(size)
@@ -169,6 +197,26 @@ def write_env(path: str | os.PathLike[str], env_or_radiance: Env | ArrayLike,
     Cube maps are written as ``arrangement``: 'hcross' (4:3), 'vcross' (3:4), 'hstrip' (6:1)
     or 'vstrip' (1:6). See [`shprobe.probes.images.write_image`][shprobe.probes.images.write_image]
     for formats and ``exposure``.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    env_or_radiance
+        An Env, or a radiance grid in ``layout``.
+    layout
+        The grid's layout (for a bare radiance grid).
+    overwrite
+        Replace an existing file.
+    exposure
+        Stops applied before tone mapping (PNG / JPEG only).
+    arrangement
+        A cube map's arrangement: 'hcross', 'vcross', 'hstrip' or 'vstrip'.
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     if isinstance(path, Env) or not isinstance(path, str | os.PathLike):
         raise ShprobeError("write_env(path, env): the first argument is the file to write, "

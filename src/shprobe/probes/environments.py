@@ -54,7 +54,18 @@ def procedural_radiance(dirs: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def procedural_env(width: int = 256, height: int = 128) -> Env:
     """The procedural environment as a lat-long Env of ``width`` × ``height`` (W = 2H),
-    each pixel the mean of 2×2 sub-samples."""
+    each pixel the mean of 2×2 sub-samples.
+
+    Parameters
+    ----------
+    width, height
+        The lat-long size (W = 2H).
+
+    Returns
+    -------
+    Env
+        The procedural sky as a lat-long map.
+    """
     if width != 2 * height or height < 2:
         raise ShprobeError(f"procedural_env needs W = 2H ≥ 4, got {width}x{height}")
     lay = LatLong()

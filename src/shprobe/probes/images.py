@@ -50,6 +50,18 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
     (colour is read as stored, not multiplied by alpha).
     Raises [`ShprobeError`][shprobe.errors.ShprobeError] naming the file for a missing, empty,
     truncated, corrupt or unknown file, and for NaN/Inf/negative pixels unless ``clamp``.
+
+    Parameters
+    ----------
+    path
+        The image file (.hdr, .exr, .pfm, .tif, .png, .jpg …).
+    clamp
+        Clamp NaN, infinite and negative pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32
+        Linear RGB, row 0 at the top.
     """
     p = Path(path)
     ext = p.suffix.lower()
@@ -155,6 +167,24 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
     undo it (`read_exposure`). An existing file is replaced only
     with ``overwrite=True``. NaN or Inf values are refused; ``.hdr`` (RGBE, unsigned) stores
     negative values as 0.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    rgb
+        (H, W, 3) linear RGB or (H, W) grey.
+    overwrite
+        Replace an existing file.
+    exposure
+        Stops applied before tone mapping (PNG / JPEG only).
+    half
+        Write half floats (EXR).
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     p = check_image_output(path, overwrite)
     ext = p.suffix.lower()

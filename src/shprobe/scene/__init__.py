@@ -9,7 +9,7 @@
   ``"bunny"`` wherever a mesh path is taken).
 * `shprobe.scene.raycast` — [`RayCaster`][shprobe.scene.RayCaster] (Embree via embreex: first hits
   and occlusion).
-* [`shprobe.scene.render`][shprobe.scene.render] — [`render`][shprobe.scene.render],
+* `shprobe.scene.render` — [`render`][shprobe.scene.render.render],
   [`render_vertex_colors`][shprobe.scene.render_vertex_colors],
   [`RenderResult`][shprobe.scene.RenderResult], [`basis_images`][shprobe.scene.basis_images].
 """

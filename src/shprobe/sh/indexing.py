@@ -21,7 +21,18 @@ LMAX_LIMIT = 1024
 
 
 def num_coeffs(lmax: int) -> int:
-    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``."""
+    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+
+    Returns
+    -------
+    int
+        (lmax + 1)².
+    """
     return (lmax + 1) ** 2
 
 
@@ -65,7 +76,18 @@ def sh_lm(k):
 
 
 def lmax_of(n_coeffs: int) -> int:
-    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square."""
+    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square.
+
+    Parameters
+    ----------
+    n_coeffs
+        A number of coefficients K.
+
+    Returns
+    -------
+    int
+        The degree whose (lmax + 1)² is K; a one-line ShprobeError when K is not a square.
+    """
     l = math.isqrt(max(int(n_coeffs), 0)) - 1
     if l < 0 or (l + 1) ** 2 != n_coeffs:
         raise ShprobeError(f"{n_coeffs} coefficients is not (lmax+1)² for any lmax")

@@ -191,7 +191,21 @@ def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
 def convert(coeffs: Any, from_: str = "shprobe", to: str = "shprobe") -> Any:
     """Coefficients (..., K, C) or (K,) in convention ``from_`` → convention ``to`` (names in
     [`CONVENTIONS`][shprobe.sh.registry.CONVENTIONS]). NumPy in: float64 out (float32 stays
-    float32); torch / JAX in: the same kind, device and dtype, differentiable."""
+    float32); torch / JAX in: the same kind, device and dtype, differentiable.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients in convention ``from_``.
+    from_, to
+        Convention names (``CONVENTIONS``); "shprobe" is this package's.
+
+    Returns
+    -------
+    ndarray or tensor
+        The coefficients in convention ``to``: float64 for NumPy input (float32 stays
+        float32), the same kind, device and dtype for torch / JAX.
+    """
     xp = _xp.namespace(coeffs)
     if xp is None:
         c = np.asarray(coeffs)

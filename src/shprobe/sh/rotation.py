@@ -65,6 +65,16 @@ def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
 
     The quaternion is normalised first; q and −q give the same rotation. A torch tensor or
     JAX array gives the same kind (differentiable in q).
+
+    Parameters
+    ----------
+    q
+        (..., 4) quaternions in (w, x, y, z) order (normalised here).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        The rotation matrices.
     """
     xp = _xp.namespace(q)
     if xp is not None:
@@ -111,6 +121,16 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
     Rz(t) = [[c, −s, 0], [s, c, 0], [0, 0, 1]] and Ry(t) = [[c, 0, s], [0, 1, 0], [−s, 0, c]]
     (right-handed, counter-clockwise looking down the axis). Torch tensors or JAX arrays
     give the same kind (differentiable in the angles).
+
+    Parameters
+    ----------
+    alpha, beta, gamma
+        The ZYZ angles in radians (α applied first); they broadcast.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        R = Rz(γ) Ry(β) Rz(α).
     """
     xp = _xp.namespace(alpha, beta, gamma)
     if xp is not None:
@@ -232,6 +252,19 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and JAX arrays take the
     array-API path (the Ivanic–Ruedenberg recurrence, ``shprobe.sh._xp_rotation``), differentiable
     in the rotation.
+
+    Parameters
+    ----------
+    rotation
+        (..., 3, 3) rotation matrices, (..., 4) unit quaternions (w, x, y, z) or a scipy
+        ``Rotation``.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (..., K, K)
+        The block-diagonal real Wigner matrices D(R), K = (lmax + 1)².
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
     xp = _xp.namespace(rotation)
@@ -274,6 +307,19 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
 
     Torch tensors and JAX arrays (coefficients, rotation or both) take the array-API path
     (``shprobe.sh._xp_rotation``): same kind, device and dtype, differentiable in both.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients of f.
+    rotation
+        One rotation or a batch: (..., 3, 3) matrices, (..., 4) scalar-first quaternions
+        (w, x, y, z), or a scipy ``Rotation``; leading axes broadcast with ``coeffs``'.
+
+    Returns
+    -------
+    ndarray
+        The coefficients of f∘R⁻¹, shaped like ``coeffs`` (with the broadcast leading axes).
     """
     xp = _xp.namespace(coeffs, rotation)
     if xp is not None:

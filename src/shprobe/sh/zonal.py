@@ -25,6 +25,19 @@ def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
     with l!/(2^l ((l/2)!)²) built by the ratio (l+1)/(l+2) so nothing overflows.
     ``like``: a torch tensor or JAX array whose kind, device and floating dtype the factors
     take (default: NumPy float64).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+    like
+        A torch tensor or JAX array whose kind, device and floating dtype the factors take;
+        None for NumPy float64.
+
+    Returns
+    -------
+    ndarray, shape (lmax + 1,)
+        Â_0 … Â_lmax.
     """
     xp = _xp.namespace(like)
     if xp is not None:
@@ -48,6 +61,19 @@ def convolve(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.floating]:
     ``factors = clamped_cosine_factors(lmax)`` this turns lighting L_lm into irradiance
     coefficients E_lm = Â_l L_lm (R&H eq. 7). Torch tensors and JAX arrays (either
     argument) give that kind, differentiable in both.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients.
+    factors
+        Per-band factors, at least lmax + 1 of them (e.g. Â_l or a window's w_l).
+
+    Returns
+    -------
+    ndarray
+        The coefficients with band l multiplied by ``factors[l]``, shaped like ``coeffs``; a
+        torch tensor or JAX array when either argument is one.
     """
     xp = _xp.namespace(coeffs, factors)
     if xp is not None:
@@ -70,6 +96,16 @@ def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
     H_0 = 1, H_1 = 2/3, H_l = 0 for odd l ≥ 3, H_{2n+2} = (½ − n)/(2 + n) H_{2n}. By LH eq. 9
     the clamped cosine about n has coefficients π H_l y_lm(n); comparing with R&H eq. 7–8
     (Â_l = √(4π/(2l+1)) A_l, A_l its zonal coefficient) gives Â_l = π H_l.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+
+    Returns
+    -------
+    ndarray, shape (lmax + 1,)
+        H_0 … H_lmax.
     """
     lmax = check_lmax(lmax)
     h = np.zeros(lmax + 1)
@@ -106,6 +142,22 @@ def legendre_moments(
     outside: put the ends at h's discontinuities so the quadrature converges spectrally.
     ``n_quad`` nodes (default max(2·lmax + 16, 64)); exact when h is a polynomial of degree
     < 2·n_quad − lmax.
+
+    Parameters
+    ----------
+    h
+        Maps an array of z in [−1, 1] to values of the same shape (called once, on all nodes).
+    lmax
+        The highest degree.
+    n_quad
+        Gauss–Legendre nodes (default max(2·lmax + 16, 64)).
+    interval
+        The part [a, b] of [−1, 1] outside which h vanishes.
+
+    Returns
+    -------
+    ndarray, shape (lmax + 1,)
+        2π ∫ h(z) P_l(z) dz for each l.
     """
     lmax = check_lmax(lmax)
     a, b = (float(t) for t in interval)
@@ -138,6 +190,18 @@ def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floati
     [`legendre_moments`][shprobe.sh.zonal.legendre_moments]); the axis is normalised. Multiply by a
     colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis gives float32
     coefficients (computed in float64).
+
+    Parameters
+    ----------
+    moments
+        (lmax + 1,) moments 2π∫h P_l.
+    axis
+        (..., 3) axes (normalised here).
+
+    Returns
+    -------
+    ndarray, shape (..., K)
+        b_lm = moments_l · y_lm(axis); float32 for a float32 axis.
     """
     from .basis import sh_basis
 
@@ -157,7 +221,26 @@ def zonal_coeffs(
     interval: tuple[float, float] = (-1.0, 1.0),
 ) -> NDArray[np.floating]:
     """SH coefficients (..., K) of f(u) = h(u·n) about axis n (LH Prop. 3.2); float32 for a
-    float32 axis."""
+    float32 axis.
+
+    Parameters
+    ----------
+    h
+        The profile: maps an array of u·n in [−1, 1] to values of the same shape.
+    axis
+        (..., 3) axes n (normalised here).
+    lmax
+        The highest degree.
+    n_quad
+        Gauss–Legendre nodes (default max(2·lmax + 16, 64)).
+    interval
+        The part [a, b] of [−1, 1] outside which h vanishes (ends at its discontinuities).
+
+    Returns
+    -------
+    ndarray, shape (..., K)
+        The coefficients, K = (lmax + 1)²; float32 for a float32 axis.
+    """
     return zonal_from_moments(legendre_moments(h, lmax, n_quad, interval), axis)
 
 
@@ -195,6 +278,24 @@ def circular_window(
     L = power / (2π(1 − cos ζ)) inside the cap (= 2/(1 − cos ζ) for power 4π), so
     ∫ L dω = power. With ``radiance`` (a number or a colour (C,)) the window instead has
     that constant radiance inside the cap. Returns (..., K), or (..., K, C) for a colour.
+
+    Parameters
+    ----------
+    axis
+        (..., 3) window centres (normalised here).
+    aperture
+        The angular radius ζ, radians.
+    lmax
+        The highest degree.
+    power
+        The total power ∫L dω (default 4π, LH's normalisation); ignored with ``radiance``.
+    radiance
+        A constant radiance inside the cap: a number, or a colour (C,).
+
+    Returns
+    -------
+    ndarray, shape (..., K) or (..., K, C)
+        The window's SH coefficients; (..., K, C) for a colour ``radiance``.
     """
     mom = window_moments(aperture, lmax)
     if radiance is None:

@@ -30,7 +30,7 @@ GROUND_FRAMING = 1.6
 def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, Any]:
     """The page's two cameras for an object of bounding sphere (``center``, ``radius``):
     ``camera`` the library's default [`Camera`][shprobe.scene.Camera] (512×512, elevation 0:
-    what the page's pixel reads compare with [`shprobe.scene.render`][shprobe.scene.render]) and
+    what the page's pixel reads compare with `shprobe.scene.render`) and
     ``view`` the orbit camera the page starts from (`VIEW_AZIMUTH`, `VIEW_ELEVATION`; on a
     ``ground``, `GROUND_FRAMING` times wider)."""
     from ..scene import Camera

@@ -81,7 +81,18 @@ LAYOUTS: dict[str, Layout] = {
 
 
 def get_layout(name: str | Layout) -> Layout:
-    """The layout object of a name (or the object itself)."""
+    """The layout object of a name (or the object itself).
+
+    Parameters
+    ----------
+    name
+        A layout's name ('latlong', 'angular', 'mirrorball', 'cube') or a Layout.
+
+    Returns
+    -------
+    Layout
+        The layout object.
+    """
     if isinstance(name, Layout):
         return name
     key = str(name).lower().replace("-", "").replace("_", "")
@@ -96,7 +107,20 @@ def get_layout(name: str | Layout) -> Layout:
 
 def detect_layout(image_shape: Sequence[int], path: str | os.PathLike[str] | None = None) -> str:
     """Layout name from an image shape (H, W[, C]): 2:1 → latlong, square → angular,
-    4:3 / 3:4 / 6:1 / 1:6 → cube."""
+    4:3 / 3:4 / 6:1 / 1:6 → cube.
+
+    Parameters
+    ----------
+    image_shape
+        (H, W[, C]).
+    path
+        The file, named in the error when no layout fits.
+
+    Returns
+    -------
+    str
+        The layout's name.
+    """
     h, w = int(image_shape[0]), int(image_shape[1])
     if h <= 0 or w <= 0:
         raise ShprobeError("image has zero size", path)
