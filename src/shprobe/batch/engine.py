@@ -367,6 +367,31 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
     ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
     ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
     made with other options is refused unless ``force``, which starts afresh.
+
+    Parameters
+    ----------
+    inputs
+        Probe files, folders or glob patterns.
+    output
+        The ``.parquet`` table, written in parts and committed atomically; None keeps it in
+        memory.
+    options
+        What each row computes (default: lmax 2).
+    layout
+        The probes' layout, or "auto".
+    engine
+        Where it runs (default: a local Dask cluster).
+    force
+        Start afresh over a table made with other options.
+    progress
+        Told about the probes done.
+    flush_rows, flush_seconds
+        How often a part is written.
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per probe, sorted by path.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
 

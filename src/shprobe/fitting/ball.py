@@ -260,6 +260,32 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     loses nothing that matters while the work drops f²-fold. The result (``circle``,
     ``pixels``, the images) is then at that resolution, ``binning`` = f and ``photo`` the
     block-mean image; ``info['circle_full']`` is the circle in the photo's pixels.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear photo of the ball.
+    circle
+        The ball's outline in pixels; None detects it.
+    camera
+        The camera that took the photo (default: orthographic, looking along −Z).
+    albedo
+        The ball's albedo × exposure, by which the coefficients are divided.
+    saturation
+        Pixels with a channel at or above it are clipped and left out.
+    inset
+        Pixels within this many pixels of the outline are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    max_radius
+        Above this radius (pixels) the photo is fitted on block means.
+    path
+        The photo's file, named in errors.
+
+    Returns
+    -------
+    BallFit
+        The nine RGB coefficients, their standard errors and conditioning, and the fit's pixels.
     """
     img = _image(image, path)
     c = _locate(img, circle, path)
@@ -311,6 +337,28 @@ def fit_chrome_ball(image: NDArray, circle: Circle | None = None,
     only the outermost rim reflects; pixels within ``inset`` px of the outline are left out,
     and the cone they would have covered is reported. Clipped pixels are kept (the brightest
     lights are what clip) and counted in ``info['clipped']``.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear photo of the mirror ball.
+    circle
+        The ball's outline in pixels; None detects it.
+    camera
+        The camera that took the photo (default: orthographic, looking along −Z).
+    reflectance
+        The mirror's reflectance × exposure.
+    saturation
+        Pixels with a channel at or above it are reported as clipped (and kept).
+    inset
+        Pixels within this many pixels of the outline are left out.
+    path
+        The photo's file, named in errors.
+
+    Returns
+    -------
+    BallFit
+        The nine RGB coefficients and the blind spot's cone.
     """
     img = _image(image, path)
     c = _locate(img, circle, path)

@@ -73,7 +73,28 @@ def fit_normals(image: ArrayLike, normals: ArrayLike, mask: ArrayLike | None = N
     """Lighting from an image (H, W, 3) and per-pixel normals (H, W, 3) in the lighting's
     frame (e.g. a G-buffer). Pixels with a zero normal, or outside ``mask``, are background;
     NaN or infinite normals are refused. ``albedo``: a number, or a known (H, W[, 3]) albedo
-    image."""
+    image.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear image.
+    normals
+        (H, W, 3) normals in the lighting's frame; zero marks background.
+    mask
+        (H, W) pixels to use.
+    albedo
+        A number, or a known (H, W[, 3]) albedo image.
+    saturation
+        Pixels with a channel at or above it are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+
+    Returns
+    -------
+    ObjectFit
+        The lighting fit.
+    """
     img = _photo(image, "image")
     n = np.asarray(normals, dtype=np.float64)
     if n.shape[:2] != img.shape[:2] or n.ndim != 3 or n.shape[2] < 3:
@@ -116,6 +137,30 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
     the same normal recurs on differently-coloured vertices (several views do not help on a
     convex object). Regions that each span many normals are well determined; the fit's
     ``info['albedo_change']`` reports the last round's change.
+
+    Parameters
+    ----------
+    images
+        One (H, W, 3) linear image or a sequence of them.
+    mesh
+        A trimesh mesh, or None for the unit sphere.
+    cameras
+        The renderer's ``Camera`` of each image (image size = camera size).
+    albedo
+        A number, a known (V,) / (V, 3) per-vertex albedo, "vertex" or "groups" to fit it.
+    groups
+        (V,) integer labels of constant-albedo regions (with ``albedo="groups"``).
+    saturation
+        Pixels with a channel at or above it are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    albedo_rounds
+        Alternating least-squares rounds when the albedo is fitted.
+
+    Returns
+    -------
+    ObjectFit
+        The lighting fit and, when fitted, the albedo.
     """
     imgs = [images] if isinstance(images, np.ndarray) and np.ndim(images) == 3 else list(images)
     cams = [cameras] if isinstance(cameras, Camera) else list(cameras)

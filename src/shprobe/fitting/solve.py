@@ -252,6 +252,36 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets;
     the coefficients and standard errors are that subset's); the weights, rejected pixels,
     fitted values and residuals are over every pixel.
+
+    Parameters
+    ----------
+    dirs
+        (P, 3) unit normals ("diffuse") or reflected directions ("mirror").
+    values
+        (P, 3) linear pixel values.
+    model
+        "diffuse" (value = ρ E(n)/π) or "mirror" (value = ρ L(ω)).
+    weights
+        (P,) prior weights (default 1).
+    albedo
+        A number, or a known (P,) / (P, 3) per-pixel albedo.
+    saturation, black
+        Pixels with a channel at or above ``saturation`` (at or below ``black``) are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    scale_floor
+        The smallest residual scale of the IRLS weights, a fraction of the signal.
+    max_iter
+        IRLS iterations at most.
+    irls_samples
+        Pixels the IRLS rounds use (a seeded subset of larger problems).
+    seed
+        The subset's seed.
+
+    Returns
+    -------
+    LightingFit
+        The nine RGB coefficients, residual, rejected fraction, standard errors, conditioning.
     """
     factors = design_factors(model)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)

@@ -76,7 +76,20 @@ def _fmt(x: NDArray) -> str:
 
 def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
     """Seconds and peak bytes of [`bake_grid`][shprobe.grids.bake_grid] on this machine, from the
-    arguments."""
+    arguments.
+
+    Parameters
+    ----------
+    n_faces
+        The scene's triangles.
+    settings
+        The bake's settings.
+
+    Returns
+    -------
+    Cost
+        The estimated seconds and peak bytes.
+    """
     p, d = settings.n_probes, settings.samples
     rays = p * (TEST_RAYS + d + settings.depth_rays)
     hits = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
@@ -96,7 +109,24 @@ def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
     [`shprobe.prt.load_scene`][shprobe.prt.load_scene] takes: a mesh path, trimesh, BakeScene or
     list of them; its per-vertex albedo as the renderer reads it) under ``lighting`` (a
     `shprobe.lighting.source.Lighting` — a probe image is then used directly — or SH coefficients
-    (K, 3)) with ``settings`` (module doc)."""
+    (K, 3)) with ``settings`` (module doc).
+
+    Parameters
+    ----------
+    scene
+        A mesh path, trimesh, BakeScene or a list of them.
+    lighting
+        A ``Lighting`` (a probe image is used directly) or SH coefficients (K, 3).
+    settings
+        The grid's resolution, bounds, samples, bounces and leak control.
+    progress
+        Told about each step.
+
+    Returns
+    -------
+    ProbeGrid
+        The baked grid.
+    """
     t0 = time.monotonic()
     if not isinstance(settings, GridSettings):
         raise ShprobeError("bake_grid needs a GridSettings")

@@ -19,7 +19,22 @@ _OPTIONAL = ("positions", "validity", "depth")
 
 
 def save_grid(path: str | os.PathLike[str], grid: ProbeGrid, overwrite: bool = False) -> Path:
-    """Write ``grid`` to ``path`` (``*.npz``) atomically; non-finite values are refused."""
+    """Write ``grid`` to ``path`` (``*.npz``) atomically; non-finite values are refused.
+
+    Parameters
+    ----------
+    path
+        The output file (``*.npz``).
+    grid
+        The grid.
+    overwrite
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     arrays = {"coeffs": np.asarray(grid.coeffs, dtype=np.float32),
               "bounds": np.asarray(grid.bounds, dtype=np.float64)}
     for name in _OPTIONAL:
@@ -33,7 +48,18 @@ def save_grid(path: str | os.PathLike[str], grid: ProbeGrid, overwrite: bool = F
 
 def load_grid(path: str | os.PathLike[str]) -> ProbeGrid:
     """Read a grid written by [`save_grid`][shprobe.grids.save_grid] (``shprobe grid bake``); one
-    line naming the file on anything else."""
+    line naming the file on anything else.
+
+    Parameters
+    ----------
+    path
+        A grid file (``*.npz``) written by ``save_grid``.
+
+    Returns
+    -------
+    ProbeGrid
+        The grid.
+    """
     p = os.fspath(path)
     heads = npz_headers(p, "shprobe grid file")
     if "meta" not in heads or "coeffs" not in heads or "bounds" not in heads:

@@ -109,6 +109,20 @@ def h_basis(normals: ArrayLike, n: int = 6,
     (other types become float64). ``out``: an optional preallocated C-contiguous (..., n)
     array of the normals' float type, filled and returned. Batches of ≥ 4096 normals run a
     single-threaded numba kernel that writes each row straight into the output.
+
+    Parameters
+    ----------
+    normals
+        (..., 3) tangent-frame unit normals (z along the surface normal).
+    n
+        4 (H4) or 6 (H6).
+    out
+        A preallocated C-contiguous (..., n) array of the normals' float type.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        H¹ … Hⁿ at the normals.
     """
     n = _check_n(n)
     d = _float_array(normals, "normals")
@@ -210,6 +224,18 @@ def sh_to_h_matrix(lmax: int = 2, n: int = 6) -> NDArray[np.float64]:
     flipped (Condon–Shortley phase, see [`T_H4_PAPER`][shprobe.hbasis.T_H4_PAPER]). Applied to a
     signal's SH coefficients it gives the orthogonal projection onto H of the signal restricted to
     Ω+, exactly when the signal has no SH content above ``lmax``.
+
+    Parameters
+    ----------
+    lmax
+        The highest SH degree of the coefficients converted.
+    n
+        4 (H4) or 6 (H6).
+
+    Returns
+    -------
+    ndarray, shape (n, (lmax + 1)²)
+        T_h, taking SH coefficients to H coefficients.
     """
     lmax = check_lmax(lmax, limit=64)
     n = _check_n(n)

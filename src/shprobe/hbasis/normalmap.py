@@ -160,7 +160,24 @@ def bake_mesh(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, n: int = 6,
     """Bake per-vertex tangent-space H_n coefficients of ``mesh`` under ``lighting`` (an Env
     or radiance SH (K, 3)), with SH bands ≤ ``bands`` of the irradiance projected into H (2:
     the paper's T_h; 4: + Appendix A). Keeps the frames' handedness, the lighting's SH and the
-    mesh hash, so the bake can be saved (`save_bake`) and rendered later."""
+    mesh hash, so the bake can be saved (`save_bake`) and rendered later.
+
+    Parameters
+    ----------
+    mesh
+        The mesh (its vertex normals and UVs give the tangent frames).
+    lighting
+        An Env, or radiance SH coefficients (K, 3).
+    n
+        4 (H4) or 6 (H6).
+    bands
+        The SH bands of the irradiance projected into H: 2 (the paper's T_h) or 4.
+
+    Returns
+    -------
+    NormalMapBake
+        Per-vertex H coefficients with their frames, the lighting's SH and the mesh hash.
+    """
     L = lighting_coeffs(lighting)
     e = irradiance_coeffs(L)
     fr = tangent_frames(mesh.vertices, mesh.faces, np.asarray(mesh.vertex_normals),

@@ -77,7 +77,20 @@ def _table(xp: Any, t: NDArray[np.float64], like: Any, dt: Any) -> Any:
 def project_latlong(radiance: Any, lmax: int = 2) -> Any:
     """Lighting coefficients (..., K, C) of lat-long radiance maps (..., H, W, C), W = 2H,
     row 0 = +Y (the [`LatLong`][shprobe.probes.layouts.LatLong] layout), with exact solid
-    angles: L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10)."""
+    angles: L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10).
+
+    Parameters
+    ----------
+    radiance
+        (..., H, W, C) lat-long maps, W = 2H (NumPy, torch or JAX).
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    array, shape (..., K, C)
+        The lighting coefficients, of the input's kind.
+    """
     lmax = check_lmax(lmax)
     xp, rad, dt = _setup(radiance, "radiance values")
     if rad.ndim < 3:
@@ -99,7 +112,20 @@ def latlong_radiance(coeffs: Any, size: int = 64) -> Any:
     (..., K, C) (or (K,) → (H, W)), H = ``size``, W = 2H, pixel centres as
     [`LatLong`][shprobe.probes.layouts.LatLong]; the adjoint of
     [`project_latlong`][shprobe.lighting.maps.project_latlong]'s transform without the solid
-    angles."""
+    angles.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+    size
+        H; W = 2H.
+
+    Returns
+    -------
+    array, shape (..., H, W, C) or (H, W)
+        L(ω) at the pixel centres.
+    """
     xp, c, dt = _setup(coeffs, "coefficients")
     if c.ndim == 0:
         raise ShprobeError("coefficients must be (..., K, C) or (K,)")
@@ -122,7 +148,20 @@ def latlong_radiance(coeffs: Any, size: int = 64) -> Any:
 
 def latlong_irradiance(coeffs: Any, size: int = 64) -> Any:
     """The lat-long map of irradiance E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7, not divided by
-    π) from lighting coefficients (..., K, C) or (K,)."""
+    π) from lighting coefficients (..., K, C) or (K,).
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+    size
+        H; W = 2H.
+
+    Returns
+    -------
+    array, shape (..., H, W, C) or (H, W)
+        E(n) at the pixel centres.
+    """
     xp, c, dt = _setup(coeffs, "coefficients")
     if c.ndim == 0:
         raise ShprobeError("coefficients must be (..., K, C) or (K,)")
@@ -147,7 +186,20 @@ def project_cube(radiance: Any, lmax: int = 2) -> Any:
     """Lighting coefficients (..., K, C) of cube maps (..., 6, N, N, C) — faces +X −X +Y −Y
     +Z −Z as [`Cube`][shprobe.probes.layouts.Cube] orders and orients them — with the exact
     texel solid angles (the sum of
-    [`shprobe.lighting.projection.project`][shprobe.lighting.project])."""
+    [`shprobe.lighting.projection.project`][shprobe.lighting.project]).
+
+    Parameters
+    ----------
+    radiance
+        (..., 6, N, N, C) cube maps (NumPy, torch or JAX).
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    array, shape (..., K, C)
+        The lighting coefficients, of the input's kind.
+    """
     lmax = check_lmax(lmax)
     xp, rad, dt = _setup(radiance, "radiance values")
     if rad.ndim < 4 or rad.shape[-4] != 6 or rad.shape[-3] != rad.shape[-2]:

@@ -139,6 +139,26 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     (2N × N normals; the exact map and the error table use the same normals). ``render_size``:
     side of the basis images and the render. ``progress`` gets the job's
     `REPORT_STAGES` stages "k/N: …" (the brute-force integral counted inside its stage).
+
+    Parameters
+    ----------
+    env
+        The probe.
+    mesh
+        A trimesh mesh for the basis images and the render; None for the unit sphere.
+    mesh_name
+        The mesh's name on the page.
+    map_height
+        Rows of the lat-long irradiance maps.
+    render_size
+        Side of the basis images and the render, pixels.
+    progress
+        Told about each stage.
+
+    Returns
+    -------
+    ProbeReport
+        The page's content; [`write_report`][shprobe.report.write_report] writes it.
     """
     h = int(map_height)
     if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
@@ -311,7 +331,22 @@ normals). Error as a fraction of the total intensity ∫L dω, R&amp;H 2001 §3.
 
 def write_report(path: str | os.PathLike[str], report: ProbeReport,
                  overwrite: bool = False) -> Path:
-    """Write the page atomically ([`shprobe.files.write_text`][shprobe.files.write_text])."""
+    """Write the page atomically ([`shprobe.files.write_text`][shprobe.files.write_text]).
+
+    Parameters
+    ----------
+    path
+        The HTML file.
+    report
+        The report of [`probe_report`][shprobe.report.probe_report].
+    overwrite
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     from ..files import write_text
 
     p = Path(path)

@@ -67,7 +67,13 @@ def bunny_path() -> Path:
 
 
 def packaged_bunny() -> trimesh.Trimesh:
-    """The packaged Stanford bunny, loaded by [`load_mesh`][shprobe.scene.load_mesh]."""
+    """The packaged Stanford bunny, loaded by [`load_mesh`][shprobe.scene.load_mesh].
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The 4,968-face Stanford bunny of the package data.
+    """
     return load_mesh(bunny_path())
 
 
@@ -87,6 +93,16 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
 
     A scene is flattened (its graph transforms applied) and concatenated. Bad or empty files
     raise a one-line [`ShprobeError`][shprobe.errors.ShprobeError] naming the file.
+
+    Parameters
+    ----------
+    path
+        An OBJ, PLY, glTF or GLB file, or "bunny" for the packaged bunny.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        One triangle mesh (a scene flattened and concatenated).
     """
     import trimesh
 

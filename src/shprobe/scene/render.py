@@ -242,6 +242,26 @@ def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | Non
     colour, glTF ``baseColorFactor`` or OBJ ``Kd``; else 1), a scalar or (C,) colour, or
     (V, C) per-vertex values (linear). ``background``: None (black), a colour, an Env / object
     with ``sample(dirs)``, a callable, or a lat-long array. Radiance = ρ E(n) / π.
+
+    Parameters
+    ----------
+    mesh
+        A trimesh mesh, or None for the analytic unit sphere.
+    coeffs
+        (K, C) or (K,) lighting coefficients L_lm.
+    camera
+        The camera (default: ``Camera()``, framing the object).
+    mode
+        "pixel" (E per pixel) or "vertex" (E at the vertices, radiance interpolated).
+    albedo
+        None (the mesh's own), a scalar or (C,) colour, or (V, C) per-vertex values (linear).
+    background
+        None (black), a colour, or an Env seen behind the object.
+
+    Returns
+    -------
+    RenderResult
+        The image, its radiance, mask, normals and irradiance per pixel.
     """
     camera = camera or Camera()
     if mode not in ("pixel", "vertex"):
@@ -294,7 +314,26 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
     """Render per-vertex outgoing radiance (V, C), interpolated barycentrically across the
     triangles (e.g. the result of PRT relighting). No shading is applied; ``irradiance`` in the
     result is 0 and ``radiance``/``image`` hold the interpolated values. ``frame``: the sphere
-    the camera frames (see [`trace`][shprobe.scene.trace])."""
+    the camera frames (see [`trace`][shprobe.scene.trace]).
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    vertex_radiance
+        (V, C) outgoing radiance per vertex.
+    camera
+        The camera (default: ``Camera()``).
+    background
+        None (black), a colour or an Env.
+    frame
+        (centre, radius) of the sphere the camera frames.
+
+    Returns
+    -------
+    RenderResult
+        The interpolated radiance; ``irradiance`` is 0.
+    """
     camera = camera or Camera()
     vr = np.asarray(vertex_radiance, dtype=np.float32)
     if vr.ndim == 1:

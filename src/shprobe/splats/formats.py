@@ -52,7 +52,20 @@ def _chunks(layout: ply.PlyLayout, progress: Progress | None,
 
 
 def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Splats:
-    """A whole splat file in memory (PLY, SPZ or glb), checked finite."""
+    """A whole splat file in memory (PLY, SPZ or glb), checked finite.
+
+    Parameters
+    ----------
+    path
+        A PLY, SPZ or glb splat file.
+    progress
+        Told about the splats read.
+
+    Returns
+    -------
+    Splats
+        The splats, checked finite.
+    """
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)
@@ -67,7 +80,24 @@ def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Spla
 def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
           progress: Progress | None = None) -> Path:
     """Write splats (PLY in the trainer's layout, SPZ or glb) atomically; non-finite values
-    are refused before anything is written."""
+    are refused before anything is written.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    splats
+        The splats.
+    overwrite
+        Replace an existing file.
+    progress
+        Told about the splats written.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     kind = format_of(path)
     splats.check_finite(os.fspath(path))
     from ..files import atomic_output
@@ -157,7 +187,24 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                    ) -> TransformResult:
     """Read ``src``, move every splat by ``settings.similarity`` (SH included), truncate the
     SH if asked, write ``dst`` (any format to any). PLY → PLY is streamed in chunks, keeping
-    properties the transform does not know (they are carried through unchanged)."""
+    properties the transform does not know (they are carried through unchanged).
+
+    Parameters
+    ----------
+    src
+        The splat file read (PLY, SPZ or glb).
+    dst
+        The splat file written (any of the three).
+    settings
+        The similarity, the SH degree to keep and whether to overwrite.
+    progress
+        Told about the splats done.
+
+    Returns
+    -------
+    TransformResult
+        The count, the SH degree in and out, the path written.
+    """
     from ..files import atomic_output, check_output_path
 
     check_output_path(dst, settings.overwrite)
@@ -214,7 +261,20 @@ def _bands(degree: int) -> np.ndarray:
 
 
 def info(path: str | os.PathLike[str], progress: Progress | None = None) -> SplatInfo:
-    """Summarise a splat file (a PLY is streamed)."""
+    """Summarise a splat file (a PLY is streamed).
+
+    Parameters
+    ----------
+    path
+        A splat file.
+    progress
+        Told about the splats read.
+
+    Returns
+    -------
+    SplatInfo
+        Its format, count, SH degree and bounds.
+    """
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)
