@@ -13,7 +13,20 @@ __all__ = ["cell_centres", "cell_probes"]
 
 
 def cell_centres(bounds: ArrayLike, resolution: tuple[int, int, int]) -> NDArray[np.float64]:
-    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways."""
+    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways.
+
+    Parameters
+    ----------
+    bounds
+        (2, 3) minimum and maximum corners.
+    resolution
+        Cells along x, y and z.
+
+    Returns
+    -------
+    ndarray, shape (NX, NY, NZ, 3)
+        The centres.
+    """
     b = np.asarray(bounds, dtype=np.float64)
     axes = [b[0, a] + (np.arange(resolution[a]) + 0.5) * (b[1, a] - b[0, a]) / resolution[a]
             for a in range(3)]

@@ -139,7 +139,24 @@ def plain_weights(bounds: ArrayLike, resolution: tuple[int, int, int], points: N
                   normals: NDArray) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Flat probe indices (..., 8) and trilinear weights (..., 8) as three.js samples its
     ``LightProbeGrid`` texture: sample point p + n·spacing/2, clamped to the outer probe
-    centres, hardware trilinear filtering between cell centres."""
+    centres, hardware trilinear filtering between cell centres.
+
+    Parameters
+    ----------
+    bounds
+        (2, 3) the grid's corners.
+    resolution
+        Probes along x, y and z.
+    points
+        (..., 3) positions.
+    normals
+        (..., 3) normals at the positions.
+
+    Returns
+    -------
+    tuple
+        Flat probe indices (..., 8) and trilinear weights (..., 8).
+    """
     b = np.asarray(bounds, dtype=np.float64)
     spacing = (b[1] - b[0]) / np.asarray(resolution, dtype=np.float64)
     return cell_probes(b, resolution, points + normals * spacing * 0.5)

@@ -156,6 +156,18 @@ def evaluate_h(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.floating]:
     tangent-frame unit normals whose leading axes broadcast against the coefficients'
     leading axes. Returns (..., C), or (...) for 1-D coefficients. One-channel per-point
     coefficients are (P, n, 1), not (P, n).
+
+    Parameters
+    ----------
+    coeffs
+        (..., n, C) or (n,) H coefficients, n = 4 or 6.
+    normals
+        (..., 3) tangent-frame unit normals.
+
+    Returns
+    -------
+    ndarray, shape (..., C) or (...,)
+        E_H(n).
     """
     c = _float_array(coeffs, "H coefficients")
     nd = _float_array(normals, "normals")
@@ -184,6 +196,18 @@ def hemisphere_quadrature(n_z: int = 32, n_phi: int = 64) -> tuple[NDArray, NDAr
     Gauss–Legendre in z = cos θ on [0, 1] times the uniform rule in φ: exact for every
     polynomial in (x, y, z) of degree ≤ min(2 n_z − 1, n_phi − 1) (dω = dz dφ). The weights
     sum to 2π.
+
+    Parameters
+    ----------
+    n_z
+        Gauss–Legendre nodes in z.
+    n_phi
+        Uniform nodes in φ.
+
+    Returns
+    -------
+    tuple
+        Nodes (N, 3) and weights (N,), N = n_z · n_phi.
     """
     if n_z < 1 or n_phi < 1:
         raise ShprobeError("quadrature sizes must be positive")
@@ -254,6 +278,20 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
     returned. For K = 9 and ≥ 4096 sets a single-threaded numba kernel applies only T_h's 10
     nonzeros and writes straight into the output (one-channel, RGB and general-C variants;
     one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with streaming stores).
+
+    Parameters
+    ----------
+    sh_coeffs
+        (..., K, C) or (K,) SH coefficients.
+    n
+        4 (H4) or 6 (H6).
+    out
+        A preallocated C-contiguous array of the result's shape and float type.
+
+    Returns
+    -------
+    ndarray, shape (..., n, C) or (n,)
+        The H coefficients.
     """
     n = _check_n(n)
     c = _float_array(sh_coeffs, "SH coefficients")
@@ -290,6 +328,20 @@ def project_h(func, n: int = 6, n_z: int = 48, n_phi: int = 96) -> NDArray[np.fl
 
     ``func`` maps (N, 3) tangent-frame directions to (N,) or (N, C) values. Exact for
     polynomials of degree ≤ min(2 n_z − 3, n_phi − 3).
+
+    Parameters
+    ----------
+    func
+        Maps (N, 3) tangent-frame directions to (N,) or (N, C) values.
+    n
+        4 (H4) or 6 (H6).
+    n_z, n_phi
+        The quadrature's nodes.
+
+    Returns
+    -------
+    ndarray, shape (n,) or (n, C)
+        h_i = ∫_Ω+ f Hⁱ dω.
     """
     nodes, w = hemisphere_quadrature(n_z, n_phi)
     vals = np.asarray(func(np.array(nodes)), dtype=np.float64)

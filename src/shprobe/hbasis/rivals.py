@@ -298,7 +298,13 @@ def _zernike(nmax: int) -> Callable[[NDArray], NDArray]:
 
 @lru_cache(maxsize=1)
 def all_bases() -> dict[str, HemiBasis]:
-    """Every basis of the Fig. 3 study, by name, in the study's order."""
+    """Every basis of the Fig. 3 study, by name, in the study's order.
+
+    Returns
+    -------
+    dict of str to HemiBasis
+        Every basis of the study, in its order.
+    """
     bases = [
         HemiBasis("HL2", 3, _hl2, description="Half-Life 2 basis (H&W eq. 1-2)"),
         HemiBasis("Zernike3", 3, _zernike(1), description="Zernike n<=1 (Koenderink 1996)"),
@@ -322,7 +328,18 @@ def all_bases() -> dict[str, HemiBasis]:
 
 
 def get_basis(name: str) -> HemiBasis:
-    """A basis of [`all_bases`][shprobe.hbasis.all_bases] by name (case-insensitive)."""
+    """A basis of [`all_bases`][shprobe.hbasis.all_bases] by name (case-insensitive).
+
+    Parameters
+    ----------
+    name
+        A basis's name (case-insensitive).
+
+    Returns
+    -------
+    HemiBasis
+        The basis.
+    """
     for k, b in all_bases().items():
         if k.lower() == name.lower():
             return b

@@ -37,7 +37,18 @@ RH_LABELS = ("L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22")
 
 
 def labels(lmax: int) -> list[str]:
-    """``L{l}{m}`` for every flat index k = l(l+1)+m up to ``lmax`` (R&H Fig. 2 names)."""
+    """``L{l}{m}`` for every flat index k = l(l+1)+m up to ``lmax`` (R&H Fig. 2 names).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    list of str
+        One label per flat index.
+    """
     return [f"L{l}{m}" for l in range(check_lmax(lmax) + 1) for m in range(-l, l + 1)]
 
 
@@ -47,6 +58,22 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
 
     Refuses, with one line naming ``where`` (a file, when the data came from one), anything
     that is not a real numeric array of that shape, and (``finite``) NaN or infinity.
+
+    Parameters
+    ----------
+    coeffs
+        Coefficients, (K, C) or (K,).
+    where
+        The file they came from, named in the error.
+    what
+        What they are, named in the error.
+    finite
+        Refuse NaN and infinity.
+
+    Returns
+    -------
+    ndarray, shape (K, C), float64
+        A checked copy.
     """
     if isinstance(coeffs, (str, bytes, dict)) or coeffs is None:
         raise ShprobeError(f"{what} must be a numeric array, got {type(coeffs).__name__}",
@@ -102,7 +129,20 @@ def coeff_lmax(coeffs: ArrayLike) -> int:
 
 
 def pad_coeffs(coeffs: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """Coefficients padded with zeros (or truncated) to degree ``lmax``, (K', C)."""
+    """Coefficients padded with zeros (or truncated) to degree ``lmax``, (K', C).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) coefficients.
+    lmax
+        The degree wanted.
+
+    Returns
+    -------
+    ndarray, shape (K', C)
+        The coefficients zero-padded or truncated, K' = (lmax + 1)².
+    """
     c = as_coeffs(coeffs)
     out = np.zeros((num_coeffs(check_lmax(lmax)), c.shape[1]))
     k = min(out.shape[0], c.shape[0])

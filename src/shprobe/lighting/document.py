@@ -26,6 +26,20 @@ def coeffs_document(coeffs: ArrayLike, source: str | None = None, layout: str | 
 
     Keys: shprobe_version, source, layout, lmax, convention, labels, coefficients `[k][rgb]`,
     irradiance_coefficients `[k][rgb]` (Â_l L_lm) and, for lmax ≥ 2, M `[rgb][4][4]` (eq. 11–12).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    source
+        What they came from.
+    layout
+        The source image's layout.
+
+    Returns
+    -------
+    dict
+        The JSON-able document.
     """
     c = as_coeffs(coeffs)
     if c.shape[1] == 1:

@@ -45,7 +45,18 @@ __all__ = [
 
 
 def irradiance_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """E_lm = Â_l L_lm (R&H eq. 7), same shape as ``coeffs``."""
+    """E_lm = Â_l L_lm (R&H eq. 7), same shape as ``coeffs``.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+
+    Returns
+    -------
+    ndarray
+        E_lm, shaped like ``coeffs``.
+    """
     c = check_coeffs(coeffs)
     lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
     return convolve(c, clamped_cosine_factors(lmax))
@@ -231,7 +242,18 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
 def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
     [`irradiance_matrix`][shprobe.lighting.irradiance_matrix] of the coefficients zero-padded to
-    lmax 2 (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated)."""
+    lmax 2 (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients, lmax ≤ 2.
+
+    Returns
+    -------
+    ndarray, shape (C, 4, 4)
+        M per channel.
+    """
     return irradiance_matrix(nine(coeffs))
 
 
@@ -244,6 +266,20 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
     for 1-D coefficients). For lmax ≤ 2 the quadratic polynomial of eq. 11–13 is evaluated by
     a numba kernel (one pass over the normals, each normalised on the fly); higher lmax uses
     the SH basis.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) or (K,) lighting coefficients.
+    normals
+        (..., 3) normals (normalised on the fly).
+    dtype
+        The result's float type.
+
+    Returns
+    -------
+    ndarray, shape (..., C) or (...,)
+        E(n).
     """
     one = np.ndim(coeffs) == 1
     c = as_coeffs(coeffs, finite=False)

@@ -312,7 +312,18 @@ def projection_bytes(grid: tuple[int, ...], layout: str, lmax: int, channels: in
 
 
 def total_intensity(env: Env) -> NDArray[np.float64]:
-    """∫ L dω per channel, (3,)."""
+    """∫ L dω per channel, (3,).
+
+    Parameters
+    ----------
+    env
+        The environment map.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        ∫ L dω per channel.
+    """
     dw = env.solid_angles()
     rad = env.radiance.reshape(-1, env.radiance.shape[-1]).astype(np.float64)
     return dw.reshape(-1) @ rad

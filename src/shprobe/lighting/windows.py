@@ -143,7 +143,20 @@ def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]
 
 
 def apply_window(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.float64]:
-    """L_lm · w_l."""
+    """L_lm · w_l.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    factors
+        (lmax + 1,) window factors w_l.
+
+    Returns
+    -------
+    ndarray, shape (K, C)
+        L_lm · w_l.
+    """
     return np.asarray(convolve(as_coeffs(coeffs), factors), dtype=np.float64)
 
 

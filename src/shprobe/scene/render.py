@@ -77,7 +77,24 @@ def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None
     """Cast the camera's primary rays through [`RayCaster`][shprobe.scene.RayCaster] (built here
     unless ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
     origin when ``mesh`` is None. The camera frames ``frame`` = (centre, radius) — by default
-    the mesh's bounding sphere."""
+    the mesh's bounding sphere.
+
+    Parameters
+    ----------
+    mesh
+        A mesh, or None for the analytic unit sphere.
+    camera
+        The camera.
+    caster
+        A ray caster already built over this mesh.
+    frame
+        (centre, radius) the camera frames (default: the mesh's bounding sphere).
+
+    Returns
+    -------
+    Hits
+        Per pixel: hit or not, face, barycentrics, position and normal.
+    """
     center, radius = bounding_sphere(mesh) if frame is None else frame
     origins, dirs = camera.rays(center, radius)
     P = origins.shape[0]
@@ -293,7 +310,32 @@ def render_result(hits: Hits, radiance: NDArray, irradiance: NDArray, camera: Ca
                   info: dict[str, Any] | None = None) -> RenderResult:
     """A [`RenderResult`][shprobe.scene.RenderResult] from flat per-pixel buffers (P, ...) of
     ``hits`` (radiance and irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals;
-    ``layers`` (P, ...) each), with ``background`` filled in where the rays missed."""
+    ``layers`` (P, ...) each), with ``background`` filled in where the rays missed.
+
+    Parameters
+    ----------
+    hits
+        The rays' hits.
+    radiance, irradiance
+        (P, C) per hit pixel.
+    camera
+        The camera.
+    mode
+        "pixel" or "vertex".
+    background
+        None (black), a colour or an Env.
+    normals
+        (P, 3) shading normals (default: the hits').
+    layers
+        Further (P, ...) per-pixel buffers.
+    info
+        Scalars about the render.
+
+    Returns
+    -------
+    RenderResult
+        The full-frame images.
+    """
     hit = hits.face >= 0
     img = radiance.copy()
     if background is not None:
@@ -360,6 +402,24 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
 
     Rendering is linear in L, so for any lighting (K, C) the relighting identity
     image_c = Σ_k L_kc · basis_k holds (to float32 rounding) in both shading modes.
+
+    Parameters
+    ----------
+    mesh
+        A mesh, or None for the unit sphere.
+    camera
+        The camera (default: ``Camera()``).
+    lmax
+        The highest degree (K = (lmax + 1)² images).
+    mode
+        "pixel" or "vertex".
+    albedo
+        As in [`render`][shprobe.scene.render.render].
+
+    Returns
+    -------
+    RenderResult
+        ``image`` (H, W, K): channel k is the object under the lighting e_k.
     """
     from ..sh import num_coeffs
 
@@ -369,7 +429,20 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
 
 def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
     """Σ_k L_kc · basis_k: an image (H, W, C) from basis images (H, W, K) and lighting
-    (K, C)."""
+    (K, C).
+
+    Parameters
+    ----------
+    basis
+        (H, W, K) basis images.
+    coeffs
+        (K, C) lighting coefficients.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C), float32
+        The relit image.
+    """
     b = np.asarray(basis, dtype=np.float32)
     c = np.asarray(coeffs, dtype=np.float32)
     if c.ndim == 1:
@@ -381,7 +454,20 @@ def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
 
 def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.float32]:
     """R&H Fig. 4 colouring of a signed image (H, W): positive green, negative blue, linear,
-    divided by ``scale`` (default: its own max |value|)."""
+    divided by ``scale`` (default: its own max |value|).
+
+    Parameters
+    ----------
+    values
+        (H, W) signed image.
+    scale
+        The value shown at full intensity (default: its max |value|).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32
+        Positive green, negative blue.
+    """
     v = np.asarray(values, dtype=np.float32)
     s = float(np.abs(v).max()) if scale is None else float(scale)
     v = v / (s if s > 0 else 1.0)
@@ -397,7 +483,19 @@ def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float =
     ``.png`` tone-mapped by `tonemap` (× 2^exposure, clamp, sRGB, 8 bits),
     ``.exr``/``.hdr``/``.pfm`` linear. Radiance is never negative: where a truncated SH irradiance
     dips below zero (per-vertex shading interpolates it unclamped) the file holds 0, so that
-    shprobe's readers (``fit``) accept what ``render`` writes."""
+    shprobe's readers (``fit``) accept what ``render`` writes.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    image
+        (H, W, C) linear radiance.
+    exposure
+        Stops applied before tone mapping (PNG only).
+    overwrite
+        Replace an existing file.
+    """
     from ..probes.images import write_image
 
     write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),

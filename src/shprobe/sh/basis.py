@@ -64,7 +64,20 @@ def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
 
 def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
     """Reference numpy implementation of [`sh_basis`][shprobe.sh.sh_basis] (vectorised over
-    directions)."""
+    directions).
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (..., (lmax + 1)²)
+        y_lm at the directions, as [`sh_basis`][shprobe.sh.sh_basis].
+    """
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     out_dtype = d.dtype
@@ -97,6 +110,18 @@ def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
     scipy.special.sph_harm_y (complex, with the Condon–Shortley phase) turned real with R&H
     signs: y_l0 = Y_l0, y_lm = √2 (−1)^m Re Y_lm, y_l,−m = √2 (−1)^m Im Y_lm (m > 0). θ is
     taken as atan2(√(x²+y²), z), which stays accurate near the poles.
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (..., (lmax + 1)²), float64
+        y_lm at the directions, from SciPy's complex harmonics.
     """
     from scipy.special import sph_harm_y
 

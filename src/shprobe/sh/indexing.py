@@ -41,7 +41,18 @@ def sh_index(l: int, m: int) -> int: ...
 @overload
 def sh_index(l: ArrayLike, m: ArrayLike) -> NDArray[np.int64]: ...
 def sh_index(l, m):
-    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast)."""
+    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast).
+
+    Parameters
+    ----------
+    l, m
+        Degree and order, |m| ≤ l (integers or integer arrays, broadcast).
+
+    Returns
+    -------
+    int or ndarray of int64
+        k = l(l + 1) + m.
+    """
     if np.ndim(l) == 0 and np.ndim(m) == 0:
         l, m = int(l), int(m)
         if l < 0 or abs(m) > l:
@@ -62,7 +73,18 @@ def sh_lm(k: int) -> tuple[int, int]: ...
 def sh_lm(k: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]: ...
 def sh_lm(k):
     """Inverse of [`sh_index`][shprobe.sh.sh_index]: (l, m) of flat index ``k`` (an integer or
-    integer array)."""
+    integer array).
+
+    Parameters
+    ----------
+    k
+        A flat index ≥ 0, or an integer array of them.
+
+    Returns
+    -------
+    tuple
+        (l, m), integers or int64 arrays.
+    """
     ka = np.asarray(k, dtype=np.int64)
     if (ka < 0).any():
         raise ShprobeError(f"flat SH index must be >= 0, got {k}")
@@ -95,14 +117,38 @@ def lmax_of(n_coeffs: int) -> int:
 
 
 def degrees(lmax: int) -> NDArray[np.int64]:
-    """Degree l of every flat index up to ``lmax`` (length K)."""
+    """Degree l of every flat index up to ``lmax`` (length K).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (K,), int64
+        l of each flat index k.
+    """
     return np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
 
 
 def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
     """Validate a degree argument: an integer (or integral number) in 0..``limit``; anything
     else (None, NaN, inf, 2.5, a string, an array) is one
-    [`ShprobeError`][shprobe.errors.ShprobeError]."""
+    [`ShprobeError`][shprobe.errors.ShprobeError].
+
+    Parameters
+    ----------
+    lmax
+        The degree given.
+    limit
+        The largest degree allowed.
+
+    Returns
+    -------
+    int
+        The degree as an int.
+    """
     try:
         ok = not isinstance(lmax, bool | str | bytes) and float(lmax) == int(lmax)
     except (TypeError, ValueError, OverflowError):
@@ -117,7 +163,18 @@ def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
 
 @lru_cache(maxsize=64)
 def recurrence_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m]."""
+    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m].
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    tuple of ndarray, each of shape (lmax + 1, lmax + 1)
+        a_lm and b_lm, indexed [l, m].
+    """
     a = np.zeros((lmax + 1, lmax + 1))
     b = np.zeros((lmax + 1, lmax + 1))
     for m in range(lmax + 1):

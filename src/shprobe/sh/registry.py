@@ -156,7 +156,18 @@ CONVENTIONS: dict[str, Convention] = {c.name: c for c in (
 
 
 def convention(name: str) -> Convention:
-    """The registry entry ``name`` (one line listing the names for an unknown one)."""
+    """The registry entry ``name`` (one line listing the names for an unknown one).
+
+    Parameters
+    ----------
+    name
+        A name of ``CONVENTIONS``.
+
+    Returns
+    -------
+    Convention
+        The registry's entry.
+    """
     try:
         return CONVENTIONS[name]
     except (KeyError, TypeError):
@@ -183,7 +194,20 @@ def _map(name: str, lmax: int, inverse: bool) -> tuple[bool, NDArray[np.float64]
 
 
 def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
-    """The (K, K) matrix T of convention ``name`` (from shprobe's coefficients to its own)."""
+    """The (K, K) matrix T of convention ``name`` (from shprobe's coefficients to its own).
+
+    Parameters
+    ----------
+    name
+        A name of ``CONVENTIONS``.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (K, K)
+        T, from shprobe's coefficients to the convention's.
+    """
     diag, t = _map(name, lmax, False)
     return np.diag(t) if diag else t.copy()
 

@@ -45,7 +45,20 @@ WIGNER_D_MAX_BYTES = 2 << 30
 
 def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
     """Rotation matrix turning by ``degrees`` (right-handed) about ``axis`` (Rodrigues):
-    R = I + sin t K + (1 − cos t) K², K the cross-product matrix of the unit axis."""
+    R = I + sin t K + (1 − cos t) K², K the cross-product matrix of the unit axis.
+
+    Parameters
+    ----------
+    axis
+        The axis (normalised here).
+    degrees
+        The angle, degrees, right-handed.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        The rotation matrix.
+    """
     a = unit_vectors(axis, "rotation axis")
     try:
         t = np.radians(np.asarray(degrees, dtype=np.float64))
@@ -145,6 +158,17 @@ def as_matrix(rotation: Any) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) float64 from matrices, (w, x, y, z) quaternions (..., 4) or
     objects with ``.as_matrix()``. Raises [`ShprobeError`][shprobe.errors.ShprobeError] for anything
     that is not a proper rotation (orthogonal to `ORTHO_TOL`, det +1).
+
+    Parameters
+    ----------
+    rotation
+        (..., 3, 3) matrices, (..., 4) quaternions (w, x, y, z), or an object with
+        ``.as_matrix()``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3), float64
+        The checked rotation matrices.
     """
     R = _matrices(rotation)
     if not np.all(np.isfinite(R)):
@@ -157,7 +181,18 @@ def as_matrix(rotation: Any) -> NDArray[np.float64]:
 
 
 def one_rotation(rotation: Any) -> NDArray[np.float64]:
-    """One checked 3×3 rotation (matrix, (w, x, y, z) quaternion or scipy ``Rotation``)."""
+    """One checked 3×3 rotation (matrix, (w, x, y, z) quaternion or scipy ``Rotation``).
+
+    Parameters
+    ----------
+    rotation
+        A matrix, a (w, x, y, z) quaternion or a scipy ``Rotation``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        The checked rotation matrix.
+    """
     r = as_matrix(rotation)
     if r.shape != (3, 3):
         raise ShprobeError(f"need one rotation, got shape {r.shape}")
@@ -383,14 +418,36 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
 def z_mirror_signs(lmax: int) -> NDArray[np.float64]:
     """The coefficients of f(x, y, −z) are those of f times these signs ((lmax+1)²,): −1
     where y_lm is odd in z, i.e. l + |m| odd (y_lm ∝ P_l^|m|(z) × a function of x and y, and
-    P_l^|m| has the parity of l − |m|). The frame change of left-handed engines."""
+    P_l^|m| has the parity of l − |m|). The frame change of left-handed engines.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape ((lmax + 1)²,)
+        ±1 per coefficient.
+    """
     l, m = sh_lm(np.arange(num_coeffs(check_lmax(lmax))))
     return np.where((l + np.abs(m)) % 2 == 1, -1.0, 1.0)
 
 
 def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
     """Right-handed frames (..., 3, 3), columns (t, b, n), from unit normals alone (Duff et
-    al. 2017). Continuous except at n = (0, 0, −1)."""
+    al. 2017). Continuous except at n = (0, 0, −1).
+
+    Parameters
+    ----------
+    normals
+        (..., 3) unit normals.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Frames with columns (t, b, n).
+    """
     n = unit_vectors(normals, "normals", zero="keep")
     x, y, z = n[..., 0], n[..., 1], n[..., 2]
     sign = np.where(z >= 0, 1.0, -1.0)

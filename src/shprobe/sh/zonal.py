@@ -118,7 +118,20 @@ def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
 
 
 def legendre_polynomials(z: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """P_l(z) for l = 0..lmax, shape (*z.shape, lmax+1), by Bonnet's recurrence."""
+    """P_l(z) for l = 0..lmax, shape (*z.shape, lmax+1), by Bonnet's recurrence.
+
+    Parameters
+    ----------
+    z
+        Arguments in [−1, 1], any shape.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (*z.shape, lmax + 1)
+        P_0(z) … P_lmax(z).
+    """
     z = np.asarray(z, dtype=np.float64)
     p = np.empty((*z.shape, lmax + 1))
     p[..., 0] = 1.0
@@ -249,6 +262,18 @@ def window_moments(aperture: float, lmax: int) -> NDArray[np.float64]:
 
     These are the moments 2π∫h P_l of LH's circular window h = 2/(1−cos ζ) on the cap
     z > cos ζ (total power ∫ L_f = 4π for every aperture ζ, in radians, 0 < ζ ≤ π).
+
+    Parameters
+    ----------
+    aperture
+        The window's angular radius ζ, radians, 0 < ζ ≤ π.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray, shape (lmax + 1,)
+        The moments 4π f_l(cos ζ).
     """
     lmax = check_lmax(lmax)
     zeta = float(aperture)
