@@ -38,7 +38,20 @@ class Progress(Protocol):
 
 
 def label(description: str, index: int | None = None, count: int | None = None) -> str:
-    """'k/N: description' when the stage's place is known, else the description."""
+    """'k/N: description' when the stage's place is known, else the description.
+
+    Parameters
+    ----------
+    description
+        What the stage does.
+    index, count
+        The stage's place, when known.
+
+    Returns
+    -------
+    str
+        "k/N: description", or the description.
+    """
     if index is not None and count is not None:
         return f"{index}/{count}: {description}"
     return description
@@ -65,7 +78,20 @@ class Numbered:
 
 
 def numbered(progress: Progress | None, index: int, count: int) -> Progress | None:
-    """``progress`` with its stages labelled "index/count: …" (None stays None)."""
+    """``progress`` with its stages labelled "index/count: …" (None stays None).
+
+    Parameters
+    ----------
+    progress
+        A reporter, or None.
+    index, count
+        The place its stages are labelled with.
+
+    Returns
+    -------
+    Progress or None
+        The labelling reporter.
+    """
     return None if progress is None else Numbered(progress, index, count)
 
 
@@ -94,7 +120,24 @@ class Stage:
 @contextmanager
 def stage(progress: Progress | None, description: str, total: float | None = None, *,
           index: int | None = None, count: int | None = None) -> Iterator[Stage]:
-    """Report one stage; the stage ends when the block does, also on an error."""
+    """Report one stage; the stage ends when the block does, also on an error.
+
+    Parameters
+    ----------
+    progress
+        A reporter, or None (nothing is reported).
+    description
+        What the stage does.
+    total
+        Its units of work, when known.
+    index, count
+        Its place among the job's stages.
+
+    Yields
+    ------
+    Stage
+        Advance it with ``update(done)``.
+    """
     if progress is not None:
         progress.begin(label(description, index, count), total)
     try:
@@ -107,7 +150,26 @@ def stage(progress: Progress | None, description: str, total: float | None = Non
 def track(items: Iterable[T], progress: Progress | None, description: str,
           total: int | None = None, *, index: int | None = None,
           count: int | None = None) -> Iterator[T]:
-    """Yield ``items`` as one stage, one unit of work per item."""
+    """Yield ``items`` as one stage, one unit of work per item.
+
+    Parameters
+    ----------
+    items
+        The work items.
+    progress
+        A reporter, or None.
+    description
+        What the stage does.
+    total
+        The number of items, when ``items`` has no length.
+    index, count
+        Its place among the job's stages.
+
+    Yields
+    ------
+    object
+        The items, in order.
+    """
     if total is None and hasattr(items, "__len__"):
         total = len(items)  # type: ignore[arg-type]
     with stage(progress, description, total, index=index, count=count) as bar:

@@ -38,7 +38,18 @@ Progress = Callable[[int, int], None]
 
 
 def parts_dir(output: str | os.PathLike[str]) -> Path:
-    """Folder of the parts of ``output`` while a batch runs: ``<output>.parts``."""
+    """Folder of the parts of ``output`` while a batch runs: ``<output>.parts``.
+
+    Parameters
+    ----------
+    output
+        The batch table's path.
+
+    Returns
+    -------
+    Path
+        ``<output>.parts``.
+    """
     p = Path(output)
     return p.with_name(p.name + ".parts")
 
@@ -65,7 +76,18 @@ def _upgrade(t: Any, path: Any):
 def read_table(path: str | os.PathLike[str]):
     """A batch table (pyarrow.Table) with its metadata, columns named as today (a table of an
     older schema version has its renamed columns renamed); one line for a file that is not
-    one."""
+    one.
+
+    Parameters
+    ----------
+    path
+        A batch table (``.parquet``).
+
+    Returns
+    -------
+    pyarrow.Table
+        The table with its metadata.
+    """
     import pyarrow.parquet as pq
 
     if os.path.exists(path) and not os.path.isfile(path):

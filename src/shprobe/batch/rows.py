@@ -101,7 +101,18 @@ def _arrow_type(name: str):
 
 def schema(meta: dict[str, Any] | None = None):
     """The Arrow schema of a batch table; each field's metadata holds its ``unit`` and
-    ``description``; the schema's ``shprobe`` key holds ``meta`` (JSON) with the convention."""
+    ``description``; the schema's ``shprobe`` key holds ``meta`` (JSON) with the convention.
+
+    Parameters
+    ----------
+    meta
+        The table's metadata (the options, the convention).
+
+    Returns
+    -------
+    pyarrow.Schema
+        The table's schema with units and descriptions.
+    """
     import json
 
     import pyarrow as pa
@@ -150,7 +161,20 @@ HASH = "xxh3_128"
 
 def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
     """XXH3-128 of a file's bytes, hex (`HASH`); a regular file only (opened without
-    blocking, so a FIFO put in its place meanwhile is refused, not waited on)."""
+    blocking, so a FIFO put in its place meanwhile is refused, not waited on).
+
+    Parameters
+    ----------
+    path
+        A regular file.
+    chunk
+        Bytes read at a time.
+
+    Returns
+    -------
+    str
+        XXH3-128 of the bytes, hex.
+    """
     import xxhash
 
     h = xxhash.xxh3_128()
@@ -218,6 +242,22 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
     Never raises for a bad probe: its one-line message goes to ``failure`` and the columns not
     reached stay null. When the file's content hash is in ``done`` the work is skipped and
     the row has only ``path``, ``size_bytes``, ``content_hash`` and ``"skipped": True``.
+
+    Parameters
+    ----------
+    path
+        The probe.
+    layout
+        Its layout, or "auto".
+    options
+        What the row computes (default: lmax 2).
+    done
+        Content hashes already in the table: their work is skipped.
+
+    Returns
+    -------
+    dict
+        The row's values by column name.
     """
     from ..lighting import (
         auto_window,

@@ -59,7 +59,18 @@ class BallCamera:
 
 def parse_ball_camera(text: str) -> BallCamera:
     """``orthographic`` | ``perspective:FOV`` (vertical, degrees) →
-    [`BallCamera`][shprobe.fitting.BallCamera]."""
+    [`BallCamera`][shprobe.fitting.BallCamera].
+
+    Parameters
+    ----------
+    text
+        "orthographic" or "perspective:FOV" (vertical, degrees).
+
+    Returns
+    -------
+    BallCamera
+        The camera.
+    """
     t = text.strip().lower()
     if t in ("orthographic", "ortho"):
         return BallCamera("orthographic")
@@ -137,7 +148,26 @@ def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | Non
                 inset: float = 0.0, mirror: bool = True) -> BallPixels:
     """Pixels whose centre lies on the ball more than ``inset`` pixels inside its outline.
     ``mirror`` False skips the reflected directions' solid angles (zeros; a grey ball needs
-    only the normals)."""
+    only the normals).
+
+    Parameters
+    ----------
+    circle
+        The ball's outline.
+    shape
+        The image's (H, W).
+    camera
+        The camera (default: orthographic).
+    inset
+        Pixels within this many pixels of the outline are left out.
+    mirror
+        Compute the reflected directions' solid angles (a chrome ball).
+
+    Returns
+    -------
+    BallPixels
+        The pixels, their normals and, for a mirror, reflected directions and solid angles.
+    """
     camera = camera or BallCamera()
     H, W = shape[:2]
     circle = check_circle(circle, shape)

@@ -52,7 +52,18 @@ class Circle:
 
 
 def parse_circle(text: str) -> Circle:
-    """``"CX,CY,R"`` → [`Circle`][shprobe.fitting.Circle]; one-line error otherwise."""
+    """``"CX,CY,R"`` → [`Circle`][shprobe.fitting.Circle]; one-line error otherwise.
+
+    Parameters
+    ----------
+    text
+        "CX,CY,R" in pixels.
+
+    Returns
+    -------
+    Circle
+        The circle.
+    """
     try:
         vals = [float(t) for t in text.replace(" ", "").split(",")]
     except ValueError:
@@ -65,7 +76,22 @@ def parse_circle(text: str) -> Circle:
 
 
 def check_circle(circle: Circle, shape: tuple[int, ...], path=None) -> Circle:
-    """Refuse a circle that leaves the image or is too small to fit."""
+    """Refuse a circle that leaves the image or is too small to fit.
+
+    Parameters
+    ----------
+    circle
+        The circle.
+    shape
+        The image's shape.
+    path
+        The image file, named in the error.
+
+    Returns
+    -------
+    Circle
+        The same circle, checked.
+    """
     h, w = shape[:2]
     c = circle
     if c.r < 2.0:
@@ -175,6 +201,18 @@ def detect_circle(image: NDArray, path=None) -> Circle:
 
     Raises a one-line [`ShprobeError`][shprobe.errors.ShprobeError] when no ball stands out, when
     the outline is not a circle, or when the ball touches the image border.
+
+    Parameters
+    ----------
+    image
+        (H, W, C) linear image.
+    path
+        The image file, named in the error.
+
+    Returns
+    -------
+    Circle
+        The ball's outline.
     """
     from scipy import ndimage
 

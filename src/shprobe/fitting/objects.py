@@ -274,7 +274,18 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
 def read_normal_map(path) -> NDArray[np.float32]:
     """A float normal map (H, W, 3) as stored (.exr .tif .pfm; signed values kept, unlike
     [`shprobe.probes.images.read_image`][shprobe.probes.images.read_image], which refuses negative
-    pixels)."""
+    pixels).
+
+    Parameters
+    ----------
+    path
+        A float image (.exr, .tif, .pfm).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32
+        The normals as stored, signed.
+    """
     import os
 
     p = os.fspath(path)

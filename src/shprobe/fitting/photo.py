@@ -58,7 +58,18 @@ class Photo:
 def read_photo(path: str | os.PathLike[str]) -> Photo:
     """Read a photo for fitting (see the module docstring). An 8/16-bit file issues one
     [`LDRWarning`][shprobe.probes.images.LDRWarning], as
-    [`read_image`][shprobe.probes.images.read_image]."""
+    [`read_image`][shprobe.probes.images.read_image].
+
+    Parameters
+    ----------
+    path
+        The photo's file.
+
+    Returns
+    -------
+    Photo
+        Its linear pixels, with the exposure shprobe recorded undone.
+    """
     p = os.fspath(path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LDRWarning)

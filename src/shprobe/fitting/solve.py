@@ -58,7 +58,18 @@ ALBEDO_RANGE = (1e-30, 1e30)
 def design_factors(model: str) -> NDArray[np.float64]:
     """Factor per coefficient that turns y_lm into a design-matrix column: ``"diffuse"``
     Â_l/π (radiance of a white Lambertian surface, R&H eq. 7), ``"mirror"`` 1 (radiance
-    seen directly, a chrome ball)."""
+    seen directly, a chrome ball).
+
+    Parameters
+    ----------
+    model
+        "diffuse" or "mirror".
+
+    Returns
+    -------
+    ndarray, shape (9,)
+        The factor of each coefficient's column.
+    """
     if model == "diffuse":
         return np.repeat(clamped_cosine_factors(2), [1, 3, 5]) / np.pi
     if model == "mirror":

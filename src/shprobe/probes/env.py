@@ -130,7 +130,20 @@ def _check_path(path: object) -> None:
 
 
 def load_cube_faces(paths: Sequence[str | os.PathLike[str]], clamp: bool = False) -> Env:
-    """A cube map from six square face images, in the order +X −X +Y −Y +Z −Z."""
+    """A cube map from six square face images, in the order +X −X +Y −Y +Z −Z.
+
+    Parameters
+    ----------
+    paths
+        Six square face images, +X −X +Y −Y +Z −Z.
+    clamp
+        Clamp NaN, infinite and negative pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    Env
+        The cube map.
+    """
     paths = list(paths)
     if len(paths) != 6:
         raise ShprobeError(f"a cube map needs 6 face images (+X -X +Y -Y +Z -Z), got "
@@ -148,7 +161,22 @@ def load_cube_faces(paths: Sequence[str | os.PathLike[str]], clamp: bool = False
 
 def env_from_image(img: ArrayLike, layout: str | Layout,
                    path: str | os.PathLike[str] | None = None) -> Env:
-    """Wrap an (H, W, 3) image as an Env in ``layout`` (cube files are cut into faces)."""
+    """Wrap an (H, W, 3) image as an Env in ``layout`` (cube files are cut into faces).
+
+    Parameters
+    ----------
+    img
+        (H, W, 3) linear image.
+    layout
+        The layout's name or object.
+    path
+        The file it came from, named in errors.
+
+    Returns
+    -------
+    Env
+        The image as an environment map.
+    """
     lay = get_layout(layout)
     a = np.asarray(img, dtype=np.float32)
     p = None if path is None else os.fspath(path)

@@ -29,7 +29,18 @@ _WINDOWS = (
 
 
 def procedural_radiance(dirs: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Radiance (..., 3) of the procedural environment in unit directions (..., 3)."""
+    """Radiance (..., 3) of the procedural environment in unit directions (..., 3).
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The procedural sky's radiance.
+    """
     d = np.asarray(dirs, dtype=np.float64)
     y = d[..., 1:2]
     up = np.clip(y, 0.0, 1.0)

@@ -61,7 +61,22 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
     rounded down to 0.1 stop, then lowered by 0.1 stop while more than (100 − percentile) %
     of the pixels would reach 8-bit 255 (ties in flat regions). ``mask``
     (boolean, the image's leading shape) picks the pixels that count (e.g. an object's). An
-    all-zero image gives 0."""
+    all-zero image gives 0.
+
+    Parameters
+    ----------
+    values
+        (..., 3) linear RGB.
+    percentile
+        The percentile mapped to display white.
+    mask
+        The pixels that count.
+
+    Returns
+    -------
+    float
+        The exposure, stops.
+    """
     v = np.asarray(values, dtype=np.float64)
     if v.ndim >= 1 and v.shape[-1] in (3, 4):
         v = v[..., :3].max(axis=-1)
@@ -86,7 +101,20 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
 
 def clipped_fraction(values: ArrayLike, exposure: float) -> float:
     """Fraction of pixels of a linear RGB image ``(..., 3)`` with a channel that reaches
-    display white (8-bit 255) at ``exposure`` (stops)."""
+    display white (8-bit 255) at ``exposure`` (stops).
+
+    Parameters
+    ----------
+    values
+        (..., 3) linear RGB.
+    exposure
+        Stops.
+
+    Returns
+    -------
+    float
+        The fraction of pixels with a channel at display white.
+    """
     v = np.asarray(values, dtype=np.float64)
     m = v[..., :3].max(axis=-1) * 2.0 ** exposure
     return float((m >= _WHITE).mean()) if m.size else 0.0
@@ -175,7 +203,18 @@ class Figure:
 
 def read_panels(path: str | os.PathLike[str]) -> dict:
     """The ``shprobe:panels`` metadata of a figure written by
-    [`Figure.save`][shprobe.probes.figures.Figure.save]."""
+    [`Figure.save`][shprobe.probes.figures.Figure.save].
+
+    Parameters
+    ----------
+    path
+        A figure's PNG.
+
+    Returns
+    -------
+    dict
+        Its title, legend and panels (titles, kinds, boxes, exposures).
+    """
     from PIL import Image
 
     with Image.open(path) as im:
@@ -237,6 +276,26 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     least 160 and at most 512); images are scaled to it, nearest-neighbour when enlarged.
     ``shared_colorbar``: the scalar panels share one scale (give each the same ``scale``) and
     one colour bar at the right of the page instead of one each.
+
+    Parameters
+    ----------
+    panels
+        A flat list of panels, or a list of rows; None leaves a cell empty.
+    title
+        A line over the page.
+    columns
+        Panels per row of a flat list.
+    legend
+        Show the green = positive / blue = negative legend (default: when a panel is signed).
+    display_width
+        Pixels per panel image.
+    shared_colorbar
+        One colour bar for all scalar panels.
+
+    Returns
+    -------
+    Figure
+        The rendered page with its panels' boxes.
     """
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -341,7 +400,24 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
 def write_figure(path: str | os.PathLike[str], panels, overwrite: bool = False,
                  **kwargs) -> Figure:
     """[`figure`][shprobe.probes.figures.figure] then
-    [`Figure.save`][shprobe.probes.figures.Figure.save]; returns the Figure (``path`` set)."""
+    [`Figure.save`][shprobe.probes.figures.Figure.save]; returns the Figure (``path`` set).
+
+    Parameters
+    ----------
+    path
+        The output PNG.
+    panels
+        As for [`figure`][shprobe.probes.figures.figure].
+    overwrite
+        Replace an existing file.
+    **kwargs
+        The other arguments of [`figure`][shprobe.probes.figures.figure].
+
+    Returns
+    -------
+    Figure
+        The figure, ``path`` set.
+    """
     fig = figure(panels, **kwargs)
     fig.save(path, overwrite)
     return fig

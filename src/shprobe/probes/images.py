@@ -88,7 +88,15 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
 
 
 def check_readable(p: Path, ext: str) -> None:
-    """One line for an unknown extension, a missing file, a folder or an empty file."""
+    """One line for an unknown extension, a missing file, a folder or an empty file.
+
+    Parameters
+    ----------
+    p
+        The file.
+    ext
+        Its extension.
+    """
     if ext not in READ_EXTENSIONS:
         raise ShprobeError(
             f"unknown image extension {ext or '(none)'!r}; expected one of "
@@ -116,7 +124,22 @@ def to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
                  clamp: bool = False) -> NDArray[np.float32]:
-    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``.
+
+    Parameters
+    ----------
+    img
+        The image.
+    path
+        Its file, named in the error.
+    clamp
+        Clamp bad pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    ndarray
+        The image (clamped when asked).
+    """
     if img.size == 0:
         return img
     lo, hi = img.min(), img.max()  # fast path: two reductions, no temporaries
@@ -144,7 +167,20 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
 def check_image_output(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
     """Refuse, before any work, an output [`write_image`][shprobe.probes.images.write_image] cannot
     write or may not replace: an unknown extension, an existing file (unless ``overwrite``), a
-    missing folder."""
+    missing folder.
+
+    Parameters
+    ----------
+    path
+        The output file.
+    overwrite
+        An existing file may be replaced.
+
+    Returns
+    -------
+    Path
+        The path, checked.
+    """
     p = Path(path)
     ext = p.suffix.lower()
     if ext not in WRITE_EXTENSIONS:

@@ -97,7 +97,18 @@ class Splats:
 
 
 def concatenate(parts: list[Splats]) -> Splats:
-    """One [`Splats`][shprobe.splats.Splats] from several of the same layout."""
+    """One [`Splats`][shprobe.splats.Splats] from several of the same layout.
+
+    Parameters
+    ----------
+    parts
+        Splats of the same layout (SH degree and attributes).
+
+    Returns
+    -------
+    Splats
+        All of them, in order.
+    """
     if not parts:
         raise ShprobeError("no splats")
     normals = None if parts[0].normals is None else np.concatenate([p.normals for p in parts])

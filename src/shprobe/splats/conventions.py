@@ -34,29 +34,86 @@ __all__ = ["DC_BIAS", "MAX_DEGREE", "SH_C0", "colour_to_dc", "dc_to_colour", "fr
 
 def to_shprobe(sh: ArrayLike) -> NDArray[np.floating]:
     """Splat-file SH (..., K, C) (CS phase, as the renderer evaluates them) → shprobe's
-    coefficients of the same function without the bias: a_lm = (−1)^|m| sh_lm."""
+    coefficients of the same function without the bias: a_lm = (−1)^|m| sh_lm.
+
+    Parameters
+    ----------
+    sh
+        (..., K, C) SH as a splat file stores them.
+
+    Returns
+    -------
+    ndarray, shape (..., K, C)
+        shprobe's coefficients, a_lm = (−1)^|m| sh_lm.
+    """
     return from_condon_shortley(sh)
 
 
 def from_shprobe(coeffs: ArrayLike) -> NDArray[np.floating]:
-    """shprobe coefficients (..., K, C) → splat-file SH (the same involution)."""
+    """shprobe coefficients (..., K, C) → splat-file SH (the same involution).
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) shprobe coefficients.
+
+    Returns
+    -------
+    ndarray, shape (..., K, C)
+        The splat file's SH (Condon–Shortley phase).
+    """
     return to_condon_shortley(coeffs)
 
 
 def dc_to_colour(dc: ArrayLike) -> NDArray[np.floating]:
-    """The view-independent colour of ``f_dc``: C0·dc + 0.5 (before the renderer's clamp)."""
+    """The view-independent colour of ``f_dc``: C0·dc + 0.5 (before the renderer's clamp).
+
+    Parameters
+    ----------
+    dc
+        (..., 3) ``f_dc`` values.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        C0·dc + 0.5.
+    """
     return np.asarray(dc) * SH_C0 + DC_BIAS
 
 
 def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
     """``f_dc`` of a view-independent colour (the inverse of
-    [`dc_to_colour`][shprobe.splats.dc_to_colour])."""
+    [`dc_to_colour`][shprobe.splats.dc_to_colour]).
+
+    Parameters
+    ----------
+    colour
+        (..., 3) view-independent colours.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``f_dc`` = (colour − 0.5) / C0.
+    """
     return (np.asarray(colour) - DC_BIAS) / SH_C0
 
 
 def view_colour(sh: ArrayLike, directions: ArrayLike) -> NDArray[np.float64]:
     """The renderer's colour max(0, Σ sh_k Y^CS_k(d) + 0.5) of splats with SH ``sh`` (N, K, C)
-    seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis."""
+    seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis.
+
+    Parameters
+    ----------
+    sh
+        (N, K, C) the splats' SH.
+    directions
+        (N, 3) unit directions, camera → splat.
+
+    Returns
+    -------
+    ndarray, shape (N, C)
+        The colour the renderer shows.
+    """
     from ..sh.basis import sh_basis_numpy
     from ..sh.indexing import lmax_of
 

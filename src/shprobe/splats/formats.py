@@ -31,7 +31,18 @@ BYTES_PER_SPLAT = 1024
 
 
 def format_of(path: str | os.PathLike[str]) -> str:
-    """'.ply', '.spz' or '.glb' from the file name; one line otherwise."""
+    """'.ply', '.spz' or '.glb' from the file name; one line otherwise.
+
+    Parameters
+    ----------
+    path
+        A splat file's name.
+
+    Returns
+    -------
+    str
+        '.ply', '.spz' or '.glb'.
+    """
     suffix = Path(path).suffix.lower()
     if suffix not in FORMATS:
         raise ShprobeError(f"unknown splat format {suffix or '(no suffix)'!r}: use "

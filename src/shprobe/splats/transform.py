@@ -109,13 +109,36 @@ class Similarity:
 
 def rotation(matrix: ArrayLike) -> Similarity:
     """A rotation (checked by
-    [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation])."""
+    [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation]).
+
+    Parameters
+    ----------
+    matrix
+        A 3×3 rotation, (w, x, y, z) quaternion or scipy ``Rotation``.
+
+    Returns
+    -------
+    Similarity
+        The rotation.
+    """
     from ..sh.rotation import one_rotation
 
     return Similarity(one_rotation(matrix))
 
 
 def translation(offset: ArrayLike) -> Similarity:
+    """A translation by ``offset``: positions move, SH (directions) do not.
+
+    Parameters
+    ----------
+    offset
+        (3,) the displacement, finite.
+
+    Returns
+    -------
+    Similarity
+        x ↦ x + offset.
+    """
     t = np.asarray(offset, dtype=np.float64).reshape(3)
     if not np.all(np.isfinite(t)):
         raise ShprobeError("translation must be finite")
@@ -123,6 +146,18 @@ def translation(offset: ArrayLike) -> Similarity:
 
 
 def uniform_scale(factor: float) -> Similarity:
+    """A uniform scale about the origin: positions and splat scales grow, SH do not change.
+
+    Parameters
+    ----------
+    factor
+        The scale, finite and positive.
+
+    Returns
+    -------
+    Similarity
+        x ↦ factor · x.
+    """
     s = float(factor)
     if not (np.isfinite(s) and s > 0):
         raise ShprobeError(f"scale must be a finite positive number, got {factor!r}")
@@ -130,7 +165,18 @@ def uniform_scale(factor: float) -> Similarity:
 
 
 def mirror(axis: str) -> Similarity:
-    """The reflection x ↦ −x (or y, z) through the plane of the other two axes."""
+    """The reflection x ↦ −x (or y, z) through the plane of the other two axes.
+
+    Parameters
+    ----------
+    axis
+        "x", "y" or "z".
+
+    Returns
+    -------
+    Similarity
+        The reflection.
+    """
     i = "xyz".find(str(axis).strip().lower())
     if i < 0 or len(str(axis).strip()) != 1:
         raise ShprobeError(f"mirror axis must be x, y or z, got {axis!r}")
@@ -153,7 +199,18 @@ def _frame_axes(name: str) -> NDArray[np.float64]:
 def frame(source: str, target: str) -> Similarity:
     """Re-express a scene given in frame ``source`` in frame ``target`` (names of
     [`FRAMES`][shprobe.splats.FRAMES] or axis letters), e.g. ``frame("colmap", "gltf")`` = 180°
-    about z."""
+    about z.
+
+    Parameters
+    ----------
+    source, target
+        Frame names of ``FRAMES`` or axis letters.
+
+    Returns
+    -------
+    Similarity
+        The change of frame.
+    """
     return Similarity(_frame_axes(target).T @ _frame_axes(source))
 
 
@@ -189,7 +246,20 @@ def _sh_matrix_cached(key: bytes, degree: int) -> NDArray[np.float64]:
 def sh_matrix(linear: ArrayLike, degree: int) -> NDArray[np.float64]:
     """(K, K) matrix M mapping a splat's SH (renderer's CS-phase convention, K = (degree+1)²)
     under the orthogonal map ``linear``: sh' = M @ sh, so that the colour seen from Q·d after
-    equals the colour seen from d before."""
+    equals the colour seen from d before.
+
+    Parameters
+    ----------
+    linear
+        (3, 3) orthogonal map (a rotation or a reflection).
+    degree
+        The SH degree, K = (degree + 1)².
+
+    Returns
+    -------
+    ndarray, shape (K, K)
+        M with sh' = M @ sh.
+    """
     q = np.ascontiguousarray(linear, dtype=np.float64)
     if q.shape != (3, 3) or not np.allclose(q @ q.T, np.eye(3), atol=1e-6):
         raise ShprobeError("the SH of splats transform only under an orthogonal 3×3 map")
@@ -240,7 +310,20 @@ X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
-    """The splats moved by ``sim`` (see the module docstring), every SH band included."""
+    """The splats moved by ``sim`` (see the module docstring), every SH band included.
+
+    Parameters
+    ----------
+    splats
+        The splats.
+    sim
+        The similarity.
+
+    Returns
+    -------
+    Splats
+        The moved splats, every SH band turned with them.
+    """
     q = np.asarray(sim.linear, dtype=np.float64)
     mirror_ = np.linalg.det(q) < 0
     proper = -q if mirror_ else q

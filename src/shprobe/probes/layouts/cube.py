@@ -38,7 +38,20 @@ CUBE_ARRANGEMENTS: dict[str, tuple[tuple[int, int], tuple[tuple[int, int, bool],
 
 def cube_arrangement(image_shape: Sequence[int], path=None) -> str:
     """Which cube arrangement an (H, W) image is: hcross 4:3, vcross 3:4, hstrip 6:1,
-    vstrip 1:6."""
+    vstrip 1:6.
+
+    Parameters
+    ----------
+    image_shape
+        (H, W[, C]).
+    path
+        The file, named in the error.
+
+    Returns
+    -------
+    str
+        'hcross', 'vcross', 'hstrip' or 'vstrip'.
+    """
     h, w = int(image_shape[0]), int(image_shape[1])
     if h <= 0 or w <= 0:
         raise ShprobeError("image has zero size", path)
