@@ -219,7 +219,15 @@ def format_seconds(s: float) -> str:
 @dataclass(frozen=True)
 class Cost:
     """A job's estimate before it starts: seconds on this machine and peak bytes (the bytes
-    are the figure the job's memory check refuses on)."""
+    are the figure the job's memory check refuses on).
+
+    Attributes
+    ----------
+    seconds
+        The estimated time on this machine.
+    nbytes
+        The estimated peak bytes.
+    """
 
     seconds: float
     nbytes: float

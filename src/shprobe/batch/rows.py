@@ -130,11 +130,24 @@ def schema(meta: dict[str, Any] | None = None):
 
 @dataclass(frozen=True)
 class BatchOptions:
-    """What each row computes: ``lmax``; ``clamp`` bad pixels instead of failing;
-    ``reference`` N adds the exact-irradiance error on a 2N×N normal grid; ``thumbnail``
-    width in pixels (0: none); ``window`` False leaves the auto-window columns null (they
-    cost more than decoding a 2k probe when a window is needed); ``block_bytes`` of one
-    streamed block of rows."""
+    """What each row computes.
+
+    Parameters
+    ----------
+    lmax
+        The coefficients' degree.
+    clamp
+        Clamp bad pixels instead of failing the row.
+    window
+        Fill the auto-window columns (False leaves them null: they cost more than decoding a
+        2k probe when a window is needed).
+    reference
+        N: add the exact-irradiance error on a 2N×N normal grid.
+    thumbnail
+        The thumbnail's width in pixels (0: none).
+    block_bytes
+        The bytes of one streamed block of rows.
+    """
 
     lmax: int = 2
     clamp: bool = False

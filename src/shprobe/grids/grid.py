@@ -32,14 +32,24 @@ GRID_VERSION = 1
 class ProbeGrid:
     """An irradiance volume.
 
-    coeffs (NX, NY, NZ, (lmax+1)², 3) radiance L_lm per probe (lmax 1 or 2); bounds (2, 3) the
-    volume's min and max corners (probes at cell centres); positions (NX, NY, NZ, 3) where each
-    probe was baked, when a probe was moved out of geometry (None: the cell centres); validity
-    (NX, NY, NZ) in [0, 1], 0 for a probe that was inside geometry and whose value is filled
-    from its neighbours (None: all valid); depth (NX, NY, NZ, D, D, 2) mean and mean-square
-    distance to the first hit over an octahedral map of directions (None: no visibility data,
-    interpolation is plain trilinear); meta: how it was baked (lmax, bounces, albedo, samples,
-    lighting, scene).
+    Parameters
+    ----------
+    coeffs
+        (NX, NY, NZ, (lmax+1)², 3) radiance L_lm per probe (lmax 1 or 2).
+    bounds
+        (2, 3) the volume's min and max corners (probes at cell centres).
+    positions
+        (NX, NY, NZ, 3) where each probe was baked, when a probe was moved out of geometry
+        (None: the cell centres).
+    validity
+        (NX, NY, NZ) in [0, 1], 0 for a probe that was inside geometry and whose value is
+        filled from its neighbours (None: all valid).
+    depth
+        (NX, NY, NZ, D, D, 2) mean and mean-square distance to the first hit over an
+        octahedral map of directions (None: no visibility data, interpolation is plain
+        trilinear).
+    meta
+        How it was baked (lmax, bounces, albedo, samples, lighting, scene).
     """
 
     coeffs: NDArray[np.float32]

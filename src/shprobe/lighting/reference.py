@@ -301,7 +301,19 @@ class ErrorRow:
 
 @dataclass(frozen=True)
 class ErrorReport:
-    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of grid normals."""
+    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of grid normals.
+
+    Attributes
+    ----------
+    rows
+        One [`ErrorRow`][shprobe.lighting.ErrorRow] per lmax.
+    total_intensity
+        (3,) ∫L dω per channel.
+    n_normals
+        The normals measured at.
+    refined
+        Whether the max was refined on the whole sphere.
+    """
 
     rows: tuple[ErrorRow, ...]
     total_intensity: NDArray[np.float64]

@@ -21,6 +21,15 @@ class Env:
     """An environment map: linear RGB radiance on the grid of a layout.
 
     ``radiance`` is ``(*grid, 3)`` float32 with grid (H, W), or (6, N, N) for cube maps.
+
+    Parameters
+    ----------
+    radiance
+        ``(*grid, 3)`` float32 linear radiance.
+    layout
+        The layout (directions and exact solid angles of the grid).
+    path
+        The file it was read from, named in errors.
     """
 
     radiance: NDArray[np.float32]

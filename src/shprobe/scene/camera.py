@@ -35,6 +35,25 @@ class Camera:
     sphere with ``margin`` (1.0 = the sphere just touches the nearer image edge). For the
     orthographic camera ``distance`` only places the ray origins; ``ortho_height`` (the
     world-space height of the view) defaults to the fit.
+
+    Parameters
+    ----------
+    width, height
+        The image's size, pixels.
+    projection
+        "perspective" or "orthographic".
+    azimuth, elevation
+        The orbit's angles, degrees.
+    fov
+        The perspective camera's vertical field of view, degrees.
+    distance
+        From the target (default: fitted to the object).
+    target
+        The point looked at (default: the object's centre).
+    margin
+        The fit's margin (1.0: the bounding sphere touches the nearer image edge).
+    ortho_height
+        The orthographic view's world-space height (default: fitted).
     """
 
     width: int = 512

@@ -131,8 +131,17 @@ def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
 
 @dataclass(frozen=True)
 class TransformSettings:
-    """What ``transform_file`` does: the similarity, an optional SH degree to truncate to,
-    whether an existing output may be replaced."""
+    """What [`transform_file`][shprobe.splats.transform_file] does.
+
+    Parameters
+    ----------
+    similarity
+        The move: rotation or reflection, uniform scale and translation.
+    sh_degree
+        The SH degree to truncate to (None: keep the file's).
+    overwrite
+        An existing output may be replaced.
+    """
 
     similarity: Similarity = field(default_factory=Similarity.identity)
     sh_degree: int | None = None
@@ -141,6 +150,18 @@ class TransformSettings:
 
 @dataclass(frozen=True)
 class TransformResult:
+    """What [`transform_file`][shprobe.splats.transform_file] did.
+
+    Attributes
+    ----------
+    count
+        Splats written.
+    degree_in, degree_out
+        The SH degree read and written.
+    path
+        The file written.
+    """
+
     count: int
     degree_in: int
     degree_out: int
