@@ -364,7 +364,20 @@ class Engine:
     when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again. On Dask, each
     task computes ``chunk`` probes (below 1 means 1; default `chunk_size`: up to 8, fewer
-    for small batches), the largest files first."""
+    for small batches), the largest files first.
+
+    Parameters
+    ----------
+    scheduler
+        "inline", "tcp://HOST:PORT", or None (``$DASK_SCHEDULER_ADDRESS``, else a local
+        cluster).
+    workers
+        Processes of a local cluster (default: one per core).
+    client
+        A ``distributed.Client`` to use instead.
+    chunk
+        Probes per Dask task (default: up to 8).
+    """
 
     scheduler: str | None = None
     workers: int | None = None

@@ -37,7 +37,15 @@ __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_gr
 @dataclass(frozen=True)
 class BallCamera:
     """``projection`` "orthographic" or "perspective"; ``fov``: vertical field of view of the
-    whole image in degrees (perspective only)."""
+    whole image in degrees (perspective only).
+
+    Parameters
+    ----------
+    projection
+        "orthographic" or "perspective".
+    fov
+        The whole image's vertical field of view, degrees (perspective only).
+    """
 
     projection: str = "orthographic"
     fov: float | None = None
@@ -227,7 +235,29 @@ class BallFit:
     the camera frame), ``circle``, ``camera``, ``pixels``
     ([`BallPixels`][shprobe.fitting.BallPixels]), and for a chrome ball the blind spot:
     ``blind_angle`` (degrees, half-angle of the cone of directions around −axis that no used pixel
-    reflects) and ``blind_solid_angle`` (sr)."""
+    reflects) and ``blind_solid_angle`` (sr).
+
+    Attributes
+    ----------
+    fit
+        The lighting fit, coefficients in the camera frame.
+    circle
+        The ball's outline.
+    camera
+        The camera assumed.
+    pixels
+        The pixels used.
+    kind
+        "grey" or "chrome".
+    binning
+        The block size the photo was averaged by (1: none).
+    photo
+        The (block-mean) photo fitted.
+    blind_angle, blind_solid_angle
+        A chrome ball's blind cone: half-angle (degrees) and solid angle (sr).
+    info
+        Further figures about the fit.
+    """
 
     fit: LightingFit
     circle: Circle

@@ -37,7 +37,17 @@ THRESHOLD = 0.02
 class Circle:
     """A circle in pixel coordinates (x right, y down, top-left corner 0, pixel centres at
     +0.5). ``inliers``: fraction of the outline points the fit agrees with (1 for a given
-    circle)."""
+    circle).
+
+    Parameters
+    ----------
+    cx, cy
+        The centre, pixels (x right, y down, pixel centres at +0.5).
+    r
+        The radius, pixels.
+    inliers
+        The fraction of outline points the fit agrees with (1 for a given circle).
+    """
 
     cx: float
     cy: float

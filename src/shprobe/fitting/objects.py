@@ -24,7 +24,23 @@ class ObjectFit:
     its pixels came from: ``views`` list of (rows, cols) per image, ``shapes`` per image,
     ``normals`` (P, 3) of all views' pixels in order; ``vertex_albedo``
     (V, 3) when fitted jointly (mean 1 over the seen regions: the global scale is in the
-    coefficients)."""
+    coefficients).
+
+    Attributes
+    ----------
+    fit
+        The lighting fit, world-frame coefficients.
+    views
+        (rows, cols) of the pixels used, per image.
+    shapes
+        Each image's (H, W).
+    normals
+        (P, 3) the pixels' normals, all views in order.
+    vertex_albedo
+        (V, 3) the albedo fitted jointly, or None.
+    info
+        Further figures about the fit.
+    """
 
     fit: LightingFit
     views: list[tuple[NDArray[np.intp], NDArray[np.intp]]]

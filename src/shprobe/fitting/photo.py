@@ -29,7 +29,19 @@ LDR_SATURATION = 0.999
 class Photo:
     """``image`` (H, W, 3) linear radiance, the recorded exposure undone; ``ldr`` whether the
     file was 8/16-bit (sRGB-decoded); ``exposure`` the EV shprobe recorded (None for a photo
-    without it); ``path`` the file."""
+    without it); ``path`` the file.
+
+    Attributes
+    ----------
+    image
+        (H, W, 3) linear radiance, the recorded exposure undone.
+    ldr
+        Whether the file was 8/16-bit (sRGB-decoded).
+    exposure
+        The EV shprobe recorded, or None.
+    path
+        The file.
+    """
 
     image: NDArray[np.float32]
     ldr: bool

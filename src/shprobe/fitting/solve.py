@@ -90,6 +90,31 @@ class LightingFit:
     ``condition``: the 2-norm condition number of Ĝ. ``weights`` (P,): final IRLS weights
     relative to the prior weights (1 = fully used, 0 = rejected or clipped), ``fitted`` and
     ``residual`` (P, 3) in the pixels' units.
+
+    Attributes
+    ----------
+    coeffs
+        (9, 3) L_lm divided by ``albedo``.
+    albedo
+        The albedo (× exposure) the coefficients were divided by.
+    stderr
+        (9, 3) standard errors.
+    conditioning
+        (9,) how well each coefficient is determined (1: independently of the others).
+    condition
+        The normal matrix's condition number.
+    weights, fitted, residual
+        Per pixel: the final IRLS weights, the model's values, the residuals.
+    clipped
+        Per pixel: left out as clipped.
+    rms
+        The inliers' RMS residual.
+    iterations
+        IRLS iterations run.
+    model
+        "diffuse" or "mirror".
+    info
+        Further figures about the fit.
     """
 
     coeffs: NDArray[np.float64]

@@ -43,7 +43,25 @@ MAX_RENDER = 2048
 
 @dataclass
 class ProbeReport:
-    """The page (``html``) and what it shows."""
+    """The page (``html``) and what it shows.
+
+    Attributes
+    ----------
+    html
+        The self-contained page.
+    source
+        The probe's name.
+    coeffs
+        (K, 3) its lighting coefficients.
+    errors
+        The error table ([`ErrorReport`][shprobe.lighting.ErrorReport]).
+    minimum
+        The certified minimum irradiance.
+    window
+        The window ``auto`` picks.
+    figures
+        The page's figures by name.
+    """
 
     html: str
     source: str

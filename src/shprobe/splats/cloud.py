@@ -24,6 +24,21 @@ class Splats:
     normalises); ``opacity`` (N,) logits; ``sh`` (N, K, 3) the renderer's SH coefficients
     (CS phase, `shprobe.splats.conventions`), k = 0 the DC term ``f_dc``, K = (degree+1)²;
     ``normals`` (N, 3) or None (the trainer writes zeros). All float32.
+
+    Parameters
+    ----------
+    positions
+        (N, 3).
+    log_scales
+        (N, 3), or (N, 2) for 2D Gaussian splats.
+    rotations
+        (N, 4) quaternions (w, x, y, z).
+    opacity
+        (N,) logits.
+    sh
+        (N, K, 3) the renderer's SH coefficients, k = 0 the DC term.
+    normals
+        (N, 3) or None.
     """
 
     positions: NDArray[np.float32]
