@@ -127,6 +127,21 @@ class Panel:
     colour bar); ``exposure`` in stops for radiance panels (None:
     [`exposure_for`][shprobe.probes.figures.exposure_for] of this panel); ``scale``: the value at
     the ends of the colour bar (None: the panel's max |value|).
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear RGB for "radiance", (H, W) for "signed" / "error".
+    title
+        One line.
+    kind
+        "radiance", "signed" or "error".
+    units
+        Shown under the title and on the colour bar.
+    exposure
+        Stops, for a radiance panel (None: automatic).
+    scale
+        The value at the ends of the colour bar (None: the panel's max |value|).
     """
 
     image: ArrayLike
@@ -154,7 +169,21 @@ class PanelBox:
 
 @dataclass
 class Figure:
-    """A rendered figure: ``pixels`` (H, W, 3) uint8 and the panel boxes."""
+    """A rendered figure: ``pixels`` (H, W, 3) uint8 and the panel boxes.
+
+    Attributes
+    ----------
+    pixels
+        (H, W, 3) uint8 page.
+    panels
+        Each panel's title, kind and boxes.
+    title
+        The page's title.
+    legend
+        Whether the sign legend is shown.
+    path
+        The file once saved.
+    """
 
     pixels: NDArray[np.uint8]
     panels: list[PanelBox]

@@ -41,6 +41,13 @@ class RayCaster:
     Queries take world-space ray origins and directions (N, 3); the ``*_local`` variants take
     float32 origins already mapped by [`local`][shprobe.scene.RayCaster.local] (hot loops map their
     points once and reuse them for many rays).
+
+    Parameters
+    ----------
+    vertices
+        (V, 3) positions.
+    faces
+        (F, 3) vertex indices.
     """
 
     def __init__(self, vertices: ArrayLike, faces: ArrayLike) -> None:

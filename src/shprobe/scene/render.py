@@ -62,7 +62,23 @@ __all__ = [
 
 @dataclass
 class Hits:
-    """First hits of the primary rays (flat over pixels; miss → face −1)."""
+    """First hits of the primary rays (flat over pixels; miss → face −1).
+
+    Attributes
+    ----------
+    face
+        (P,) triangle index, −1 for a miss.
+    bary
+        (P, 3) barycentric weights.
+    position
+        (P, 3) hit points.
+    geo_normal
+        (P, 3) the triangles' normals.
+    normal
+        (P, 3) interpolated shading normals.
+    directions
+        (P, 3) the rays' directions.
+    """
 
     face: NDArray[np.int64]  # (P,) triangle index, -1 where the ray misses
     bary: NDArray[np.float32]  # (P, 3) barycentric weights of the face's 3 vertices
@@ -158,6 +174,31 @@ class RenderResult:
     ``layers``: further named per-pixel images (H, W, ...) a renderer produces beside the
     radiance (e.g. the H-basis normal-mapped render's irradiance per basis and its
     tangent-space normals); ``info``: scalars about the render (e.g. error figures).
+
+    Attributes
+    ----------
+    image
+        (H, W, C) linear radiance, background included.
+    radiance
+        The same with the background 0.
+    mask
+        (H, W) True where the object is hit.
+    normals
+        (H, W, 3) unit shading normals (0 on the background).
+    irradiance
+        (H, W, C) E at each pixel.
+    face
+        (H, W) triangle index (−1 on the background).
+    bary
+        (H, W, 3) barycentric weights.
+    camera
+        The camera.
+    mode
+        "pixel" or "vertex".
+    info
+        Scalars about the render.
+    layers
+        Further named per-pixel images.
     """
 
     image: NDArray[np.float32]

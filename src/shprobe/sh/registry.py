@@ -32,7 +32,23 @@ __all__ = ["CONVENTIONS", "Convention", "convention", "convention_matrix", "conv
 class Convention:
     """One entry: ``name``, who uses it (``users``), what it stores (``doc``), its largest
     degree (``lmax``, None for any) and the map from shprobe's coefficients: ``diagonal(lmax)``
-    → (K,) factors, or ``matrix(lmax)`` → (K, K)."""
+    → (K,) factors, or ``matrix(lmax)`` → (K, K).
+
+    Parameters
+    ----------
+    name
+        The convention's name in ``CONVENTIONS``.
+    users
+        Who stores coefficients this way.
+    doc
+        What it stores.
+    lmax
+        Its largest degree (None for any).
+    diagonal
+        lmax → (K,) factors, for a per-coefficient map.
+    matrix
+        lmax → (K, K), for a block map.
+    """
 
     name: str
     users: str

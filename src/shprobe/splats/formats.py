@@ -267,7 +267,23 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
 @dataclass(frozen=True)
 class SplatInfo:
     """What ``shprobe splat info`` prints: count, SH degree, kind, bounds of the positions and
-    the energy of each SH band (mean over splats of Σ_m Σ_rgb coefficient², band 0 = f_dc)."""
+    the energy of each SH band (mean over splats of Σ_m Σ_rgb coefficient², band 0 = f_dc).
+
+    Attributes
+    ----------
+    path, format
+        The file and its format.
+    count
+        Splats.
+    degree
+        SH degree.
+    kind
+        "3DGS" or "2DGS".
+    bounds_min, bounds_max
+        The positions' bounding box.
+    band_energy
+        Per SH band, the mean over splats of Σ_m Σ_rgb coefficient².
+    """
 
     path: str
     format: str

@@ -44,7 +44,17 @@ _LETTERS = {"R": (1, 0, 0), "L": (-1, 0, 0), "U": (0, 1, 0), "D": (0, -1, 0),
 
 @dataclass(frozen=True)
 class Similarity:
-    """x ↦ scale · linear · x + translation; ``linear`` orthogonal (det ±1), ``scale`` > 0."""
+    """x ↦ scale · linear · x + translation; ``linear`` orthogonal (det ±1), ``scale`` > 0.
+
+    Parameters
+    ----------
+    linear
+        (3, 3) orthogonal (det ±1).
+    scale
+        Uniform scale, > 0.
+    translation
+        (3,) offset.
+    """
 
     linear: NDArray[np.float64]
     scale: float = 1.0
