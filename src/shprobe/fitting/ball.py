@@ -100,7 +100,25 @@ class BallPixels:
     ``view`` (P, 3) unit direction from the ball towards the camera; ``reflect`` (P, 3) the
     mirror direction 2(n·v)n − v; ``solid_angle`` (P,) dω of the reflected directions over
     the pixel (|∂ω/∂x × ∂ω/∂y|, central differences); ``axis``: unit direction from the ball
-    towards the camera at its centre (the blind spot lies around −axis)."""
+    towards the camera at its centre (the blind spot lies around −axis).
+
+    Attributes
+    ----------
+    rows, cols
+        (P,) pixel indices.
+    normals
+        (P, 3) unit normals.
+    view
+        (P, 3) unit directions from the ball towards the camera.
+    reflect
+        (P, 3) mirror directions 2(n·v)n − v.
+    solid_angle
+        (P,) dω of the reflected directions over each pixel.
+    axis
+        The unit direction from the ball's centre towards the camera.
+    shape
+        The image's (H, W).
+    """
 
     rows: NDArray[np.intp]
     cols: NDArray[np.intp]

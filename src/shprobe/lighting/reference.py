@@ -275,6 +275,27 @@ class ErrorRow:
     finer grid's max is no substitute: a grid straddles any ridge narrower than its spacing,
     whatever the spacing. ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and
     N×N/2 grids (NaN for given normals): the mean's stated accuracy.
+
+    Attributes
+    ----------
+    lmax
+        The SH order measured.
+    mean_frac, max_frac
+        Mean and max |E_SH − E_ref| / ∫L dω.
+    mean_rel
+        Mean |ΔE| / E_ref over normals with E_ref > 0.
+    smape
+        Mean 2|ΔE| / (|E_SH| + |E_ref|).
+    max_normal, max_channel
+        Where the max occurs.
+    max_tol
+        The max's stated tolerance.
+    max_change
+        The last refinement level's change of the max.
+    grid_max_frac
+        The plain sample max over the grid.
+    mean_change
+        |mean(N) − mean(N/2)|: the mean's stated accuracy (NaN for given normals).
     """
 
     lmax: int

@@ -158,7 +158,17 @@ class Panel:
 
 @dataclass
 class PanelBox:
-    """Where a panel landed on the page, in pixels (x0, y0, x1, y1; y down)."""
+    """Where a panel landed on the page, in pixels (x0, y0, x1, y1; y down).
+
+    Attributes
+    ----------
+    title, kind
+        The panel's title and kind.
+    image_box, title_box
+        (x0, y0, x1, y1) of its image and its title, pixels, y down.
+    colorbar_box
+        Its colour bar's box, or None.
+    """
 
     title: str
     kind: str
