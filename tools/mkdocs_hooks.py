@@ -132,14 +132,16 @@ def module_file(module: str) -> Path:
 
 def module_all(module: str) -> list[str]:
     """The module's ``__all__`` (a literal list), read from the source without importing it;
-    without one, the functions and classes it defines whose names do not start with ``_``."""
+    without one, the documented functions and classes it defines whose names do not start
+    with ``_``."""
     tree = ast.parse(module_file(module).read_text(encoding="utf-8"))
     for node in tree.body:
         target = node.targets[0] if isinstance(node, ast.Assign) else getattr(node, "target", None)
         if getattr(target, "id", "") == "__all__":
             return list(ast.literal_eval(node.value))
     return [n.name for n in tree.body
-            if isinstance(n, ast.FunctionDef | ast.ClassDef) and not n.name.startswith("_")]
+            if isinstance(n, ast.FunctionDef | ast.ClassDef) and not n.name.startswith("_")
+            and ast.get_docstring(n)]
 
 
 def members(module: str, page: str, level: int) -> str:

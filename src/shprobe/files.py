@@ -167,7 +167,13 @@ class Transaction:
 
     def commit(self) -> None:
         """Move every output into place; if one fails, undo the ones already moved (a
-        replaced file is restored) and raise."""
+        replaced file is restored) and raise.
+
+        Raises
+        ------
+        OSError
+            When an output cannot be moved into place (the others are undone first).
+        """
         done: list[tuple[Path, Path | None]] = []  # (target, backup of what it replaced)
         try:
             for w in self.pending:

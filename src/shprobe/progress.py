@@ -28,10 +28,24 @@ class Progress(Protocol):
     """What a reporter implements: one stage at a time."""
 
     def begin(self, description: str, total: float | None = None) -> None:
-        """A stage starts; ``total`` is its amount of work when countable (else None)."""
+        """A stage starts; ``total`` is its amount of work when countable (else None).
+
+        Parameters
+        ----------
+        description
+            What the stage does.
+        total
+            Its amount of work, when countable.
+        """
 
     def update(self, done: float) -> None:
-        """Work done so far in the stage under way (absolute, not an increment)."""
+        """Work done so far in the stage under way (absolute, not an increment).
+
+        Parameters
+        ----------
+        done
+            The work done so far in the stage (absolute).
+        """
 
     def end(self) -> None:
         """The stage under way is finished (shown at 100 %, or removed)."""
@@ -105,13 +119,25 @@ class Stage:
         self._done = 0.0
 
     def advance(self, amount: float = 1) -> None:
-        """Add ``amount`` to the work done."""
+        """Add ``amount`` to the work done.
+
+        Parameters
+        ----------
+        amount
+            Work done since the last call.
+        """
         self._done += amount
         if self._progress is not None:
             self._progress.update(self._done)
 
     def set(self, done: float) -> None:
-        """Set the work done (for callers that know the absolute count)."""
+        """Set the work done (for callers that know the absolute count).
+
+        Parameters
+        ----------
+        done
+            The work done so far (absolute).
+        """
         self._done = float(done)
         if self._progress is not None:
             self._progress.update(self._done)

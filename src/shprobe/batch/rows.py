@@ -157,7 +157,13 @@ class BatchOptions:
     block_bytes: int = 16 << 20
 
     def key(self) -> dict[str, Any]:
-        """The options a table's rows depend on (resume refuses a table made with others)."""
+        """The options a table's rows depend on (resume refuses a table made with others).
+
+        Returns
+        -------
+        dict
+            The options the rows depend on, by name.
+        """
         d = asdict(self)
         d.pop("block_bytes")
         return d | {"hash": HASH}

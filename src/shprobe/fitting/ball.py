@@ -294,7 +294,18 @@ class BallFit:
 
     def image(self, values: NDArray) -> NDArray[np.float32]:
         """Scatter per-pixel values (P,) or (P, C) back into a full (H, W[, C]) image (0
-        off the ball)."""
+        off the ball).
+
+        Parameters
+        ----------
+        values
+            (P,) or (P, C) per-pixel values of the fit.
+
+        Returns
+        -------
+        ndarray, shape (H, W) or (H, W, C), float32
+            The values in their pixels, 0 off the ball.
+        """
         v = np.asarray(values)
         out = np.zeros((*self.pixels.shape, *v.shape[1:]), dtype=np.float32)
         out[self.pixels.rows, self.pixels.cols] = v

@@ -54,7 +54,20 @@ class ObjectFit:
         return self.fit.coeffs
 
     def image(self, values: NDArray, view: int = 0) -> NDArray[np.float32]:
-        """Per-pixel values (P,) / (P, C) of all views scattered into view ``view``'s image."""
+        """Per-pixel values (P,) / (P, C) of all views scattered into view ``view``'s image.
+
+        Parameters
+        ----------
+        values
+            (P,) or (P, C) per-pixel values of all views.
+        view
+            The view whose image is made.
+
+        Returns
+        -------
+        ndarray, shape (H, W) or (H, W, C), float32
+            That view's values in their pixels, 0 elsewhere.
+        """
         v = np.asarray(values)
         start = sum(r.size for r, _ in self.views[:view])
         rows, cols = self.views[view]

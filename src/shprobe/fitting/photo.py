@@ -55,7 +55,19 @@ class Photo:
 
     def saturation(self, level: float | None = None) -> float | None:
         """The clipping level in `image`'s units: ``level`` is in the file's linear
-        values (default: `LDR_SATURATION` for 8/16-bit files, none for HDR)."""
+        values (default: `LDR_SATURATION` for 8/16-bit files, none for HDR).
+
+        Parameters
+        ----------
+        level
+            The clipping level in the file's linear values (default: the LDR level for 8/16-bit
+            files, none for HDR).
+
+        Returns
+        -------
+        float or None
+            The level in ``image``'s units.
+        """
         check_level(level, "saturation")
         if level is None and self.ldr:
             level = LDR_SATURATION

@@ -148,7 +148,13 @@ class LightingFit:
         return tuple(RH_LABELS[k] for k in np.flatnonzero(self.conditioning > POOR_CONDITION))
 
     def summary(self) -> str:
-        """One line: RMS residual, fraction rejected, poorly determined coefficients."""
+        """One line: RMS residual, fraction rejected, poorly determined coefficients.
+
+        Returns
+        -------
+        str
+            One line about the fit's quality.
+        """
         poor = ", ".join(self.poorly_determined) or "none"
         what = "RMS residual" if self.model == "diffuse" else "RMS detail above l = 2"
         return (f"{self.weights.size} pixels, {what} {self.rms:.4g} "

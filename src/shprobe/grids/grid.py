@@ -95,11 +95,23 @@ class ProbeGrid:
         return (self.bounds[1] - self.bounds[0]) / np.asarray(self.resolution, dtype=np.float64)
 
     def centres(self) -> NDArray[np.float64]:
-        """Cell centres (NX, NY, NZ, 3): where the probes stand unless moved."""
+        """Cell centres (NX, NY, NZ, 3): where the probes stand unless moved.
+
+        Returns
+        -------
+        ndarray, shape (NX, NY, NZ, 3)
+            The cell centres.
+        """
         return cell_centres(self.bounds, self.resolution)
 
     def probe_positions(self) -> NDArray[np.float64]:
-        """Where each probe was baked (NX, NY, NZ, 3)."""
+        """Where each probe was baked (NX, NY, NZ, 3).
+
+        Returns
+        -------
+        ndarray, shape (NX, NY, NZ, 3)
+            Where each probe was baked.
+        """
         return self.centres() if self.positions is None else np.asarray(self.positions,
                                                                         dtype=np.float64)
 
@@ -112,6 +124,20 @@ class ProbeGrid:
         Plain (``leak_control=False``, or a grid without depth data): three.js's
         ``LightProbeGrid`` sampling — the point moved half a cell along the normal, clamped to
         the outermost probe centres, trilinear weights.
+
+        Parameters
+        ----------
+        points
+            (..., 3) positions.
+        normals
+            (..., 3) normals of the surfaces there.
+        leak_control
+            Weigh probes by visibility (needs depth data); False: three.js's plain trilinear.
+
+        Returns
+        -------
+        ndarray, shape (..., (lmax+1)², 3)
+            The blended radiance coefficients.
         """
         p, n = _points_normals(points, normals)
         if leak_control and self.depth is not None:
@@ -131,7 +157,22 @@ class ProbeGrid:
     def irradiance(self, points: ArrayLike, normals: ArrayLike,
                    leak_control: bool = True) -> NDArray[np.float64]:
         """Irradiance E (..., 3) at ``points`` on surfaces facing ``normals`` (R&H eq. 7 on the
-        interpolated L_lm), clamped at 0 as three.js's shader does."""
+        interpolated L_lm), clamped at 0 as three.js's shader does.
+
+        Parameters
+        ----------
+        points
+            (..., 3) positions.
+        normals
+            (..., 3) normals of the surfaces there.
+        leak_control
+            Weigh probes by visibility (needs depth data).
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            E, clamped at 0.
+        """
         n = unit_normals(normals)
         c = irradiance_coeffs(self.interpolate(points, n, leak_control))
         y = sh_basis(n, self.lmax)

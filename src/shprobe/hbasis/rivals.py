@@ -89,24 +89,70 @@ class HemiBasis:
     description: str = ""
 
     def evaluate(self, normals: ArrayLike) -> NDArray[np.float64]:
-        """Basis functions at tangent-frame unit normals (..., 3) → (..., n)."""
+        """Basis functions at tangent-frame unit normals (..., 3) → (..., n).
+
+        Parameters
+        ----------
+        normals
+            (..., 3) tangent-frame unit normals.
+
+        Returns
+        -------
+        ndarray, shape (..., n)
+            The basis functions.
+        """
         return self._eval(_dirs(normals))
 
     def gram(self, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
-        """G = ∫_Ω+ B Bᵀ dω by quadrature (identity for an orthonormal basis)."""
+        """G = ∫_Ω+ B Bᵀ dω by quadrature (identity for an orthonormal basis).
+
+        Parameters
+        ----------
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            G = ∫_Ω+ B Bᵀ dω.
+        """
         nodes, w = hemisphere_quadrature(*quad)
         b = self.evaluate(nodes)
         return (b * w[:, None]).T @ b
 
     def projection_matrix(self, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
-        """P (n, N): coefficients = P @ samples at the nodes of ``hemisphere_quadrature(*quad)``."""
+        """P (n, N): coefficients = P @ samples at the nodes of ``hemisphere_quadrature(*quad)``.
+
+        Parameters
+        ----------
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray, shape (n, N)
+            P with coefficients = P @ samples at the nodes.
+        """
         return _projection_matrix(self, quad)
 
     def project(self, f: Callable[[NDArray], ArrayLike] | ArrayLike,
                 quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
         """Coefficients (n,) or (n, C) of ``f``: a callable on (N, 3) directions or samples at
         the nodes of ``hemisphere_quadrature(*quad)``. SH9 needs a callable (it integrates
-        over the whole sphere)."""
+        over the whole sphere).
+
+        Parameters
+        ----------
+        f
+            A callable on (N, 3) directions, or samples at the quadrature's nodes.
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray, shape (n,) or (n, C)
+            The coefficients.
+        """
         if self.fit == "sphere":
             if not callable(f):
                 raise ShprobeError(f"{self.name} projects over the whole sphere: pass a function")
@@ -121,7 +167,20 @@ class HemiBasis:
 
     def sh_matrix(self, lmax: int, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
         """M (n, K): basis coefficients of a signal with SH coefficients s (K = (lmax+1)²) are
-        M @ s. For SH9 this is the truncation to l ≤ 2."""
+        M @ s. For SH9 this is the truncation to l ≤ 2.
+
+        Parameters
+        ----------
+        lmax
+            The SH degree of the signal.
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray, shape (n, K)
+            M with basis coefficients = M @ s.
+        """
         if self.fit == "sphere":
             k = min(self.n_coeffs, num_coeffs(lmax))
             m = np.zeros((self.n_coeffs, num_coeffs(lmax)))

@@ -193,7 +193,18 @@ class EditSpec:
     def from_text(cls, args: Sequence[str]) -> EditSpec:
         """The spec of ``shprobe edit``'s edit options given as arguments (``['--lmax', '4',
         '--scale-band', '1=0.5', ...]``); [`from_options`][shprobe.lighting.EditSpec.from_options]
-        reads each option."""
+        reads each option.
+
+        Parameters
+        ----------
+        args
+            ``shprobe edit``'s edit options as command-line arguments.
+
+        Returns
+        -------
+        EditSpec
+            The spec.
+        """
         opts: dict[str, Any] = {}
         it = iter(args)
         for a in it:
@@ -216,7 +227,18 @@ class EditSpec:
         """The spec of the CLI's edit options by name (click's parameter names without the
         dashes: ``lmax``, ``weight``, ``blend``, ``directional``, ``cone``, ``sky``, ``set``,
         ``scale``, ``negate``, ``set_band``, ``scale_band``, ``negate_band``, ``rotate``,
-        ``window``); repeatable options take a sequence of their text values."""
+        ``window``); repeatable options take a sequence of their text values.
+
+        Parameters
+        ----------
+        opts
+            The edit options by name.
+
+        Returns
+        -------
+        EditSpec
+            The spec.
+        """
         def many(k: str) -> list[str]:
             v = opts.get(k) or ()
             return [v] if isinstance(v, str) else [str(x) for x in v]
@@ -289,6 +311,18 @@ class EditSpec:
         ``set_band``: {"l": rgb}; ``negate``: ["l,m"]; ``negate_band``: [l]; ``rotation``:
         null | {"axis": xyz, "degrees": d} | {"euler": [a,b,g]} | {"quat": [w,x,y,z]} | a list
         of these; ``window``: null | "none" | "auto" | "KIND:STRENGTH".
+
+        Parameters
+        ----------
+        doc
+            The edit-state JSON object.
+        max_lmax
+            The largest ``lmax`` accepted.
+
+        Returns
+        -------
+        EditSpec
+            The spec (a one-line error for anything malformed).
         """
         from ..probes.presets import PRESETS
 
@@ -365,7 +399,18 @@ class EditSpec:
     # -- writing ----------------------------------------------------------------
     def to_text(self, probe_names: Mapping[str, str] | None = None) -> list[str]:
         """The ``shprobe edit`` arguments doing the same edits (after the source);
-        ``probe_names`` gives the file of each blended probe id."""
+        ``probe_names`` gives the file of each blended probe id.
+
+        Parameters
+        ----------
+        probe_names
+            The file of each blended probe id.
+
+        Returns
+        -------
+        list of str
+            The ``shprobe edit`` arguments.
+        """
         a = ["--lmax", str(self.lmax)]
         if self.weight != 1.0:
             a += ["--weight", num_text(self.weight)]
@@ -391,7 +436,13 @@ class EditSpec:
     def to_json(self) -> dict[str, Any]:
         """The edit-state JSON object of this spec
         ([`from_json`][shprobe.lighting.EditSpec.from_json] reads it back; a 'file' blend has no
-        JSON form and is refused)."""
+        JSON form and is refused).
+
+        Returns
+        -------
+        dict
+            The edit-state JSON object.
+        """
         if any(b.kind == "file" for b in self.blends):
             raise ShprobeError("a blend of a file has no edit-state form (the viewer blends "
                                "presets and the probes it loaded)")
@@ -420,14 +471,26 @@ class EditSpec:
 
     # -- views ------------------------------------------------------------------
     def rotation_matrix(self) -> NDArray[np.float64]:
-        """All the rotations as one 3×3 matrix (applied in order: R = Rₙ ⋯ R₁)."""
+        """All the rotations as one 3×3 matrix (applied in order: R = Rₙ ⋯ R₁).
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+            R = Rₙ ⋯ R₁.
+        """
         R = np.eye(3)
         for r in self.rotations:
             R = r.matrix() @ R
         return R
 
     def unrotated(self) -> EditSpec:
-        """The edits before the rotation (no rotation, no window)."""
+        """The edits before the rotation (no rotation, no window).
+
+        Returns
+        -------
+        EditSpec
+            The spec without its rotations and window.
+        """
         return replace(self, rotations=(), window=None)
 
     def with_lmax(self, lmax: int) -> EditSpec:

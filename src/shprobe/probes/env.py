@@ -53,14 +53,31 @@ class Env:
         return self._grid
 
     def directions(self) -> NDArray[np.float64]:
-        """Unit vectors of the pixel centres, ``(*grid, 3)``."""
+        """Unit vectors of the pixel centres, ``(*grid, 3)``.
+
+        Returns
+        -------
+        ndarray, shape (*grid, 3)
+            The pixel centres' directions.
+        """
         return self.layout.pixel_directions(self._grid)
 
     def rotated(self, rotation: ArrayLike) -> Env:
         """The environment turned by ``rotation`` (anything
         [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation] takes): L'(ω) =
         L(Rᵀω), resampled bilinearly on this grid (the map-space counterpart of rotating its SH
-        coefficients)."""
+        coefficients).
+
+        Parameters
+        ----------
+        rotation
+            A matrix, a (w, x, y, z) quaternion or a scipy ``Rotation``.
+
+        Returns
+        -------
+        Env
+            The turned environment on the same grid.
+        """
         from ..sh.rotation import one_rotation
 
         R = one_rotation(rotation)
@@ -70,21 +87,50 @@ class Env:
         return Env(out, self.layout, self.path)
 
     def solid_angles(self) -> NDArray[np.float64]:
-        """Exact per-pixel solid angle ``(*grid,)``, 0 where invalid."""
+        """Exact per-pixel solid angle ``(*grid,)``, 0 where invalid.
+
+        Returns
+        -------
+        ndarray, shape (*grid,)
+            The pixels' solid angles.
+        """
         return self.layout.solid_angles(self._grid)
 
     def samples(self) -> tuple[NDArray[np.float64], NDArray[np.float32], NDArray[np.float64]]:
-        """Valid pixels only: (dirs (S, 3), radiance (S, 3), dω (S,))."""
+        """Valid pixels only: (dirs (S, 3), radiance (S, 3), dω (S,)).
+
+        Returns
+        -------
+        tuple
+            dirs (S, 3), radiance (S, 3), dω (S,) of the valid pixels.
+        """
         dw = self.solid_angles()
         mask = dw > 0
         return self.directions()[mask], self.radiance[mask], dw[mask]
 
     def sample(self, dirs: ArrayLike) -> NDArray[np.float32]:
-        """Bilinear radiance lookup in directions ``(..., 3)`` → ``(..., 3)``."""
+        """Bilinear radiance lookup in directions ``(..., 3)`` → ``(..., 3)``.
+
+        Parameters
+        ----------
+        dirs
+            (..., 3) directions.
+
+        Returns
+        -------
+        ndarray, shape (..., 3), float32
+            The radiance there.
+        """
         return self.layout.sample(self.radiance, dirs)
 
     def __repr__(self) -> str:
-        """Short: layout, grid, dtype, path and ∫L dω per channel (not the pixels)."""
+        """Short: layout, grid, dtype, path and ∫L dω per channel (not the pixels).
+
+        Returns
+        -------
+        str
+            The summary.
+        """
         grid = "x".join(map(str, self._grid[::-1] if len(self._grid) == 2 else self._grid))
         rad = self.radiance.reshape(-1, self.radiance.shape[-1])
         total = self.solid_angles().reshape(-1) @ rad.astype(np.float64)

@@ -208,12 +208,31 @@ class Figure:
                 + (f", {self.path}" if self.path else "") + ")")
 
     def metadata(self) -> str:
-        """The ``shprobe:panels`` JSON of a written PNG."""
+        """The ``shprobe:panels`` JSON of a written PNG.
+
+        Returns
+        -------
+        str
+            The JSON.
+        """
         return json.dumps({"title": self.title, "legend": self.legend,
                            "panels": [p.__dict__ for p in self.panels]})
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> Path:
-        """Write the PNG (atomically; refuses to replace without ``overwrite``)."""
+        """Write the PNG (atomically; refuses to replace without ``overwrite``).
+
+        Parameters
+        ----------
+        path
+            The PNG file.
+        overwrite
+            Replace an existing file.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         from PIL import Image
         from PIL.PngImagePlugin import PngInfo
 
@@ -230,7 +249,13 @@ class Figure:
         return p
 
     def png_bytes(self) -> bytes:
-        """The PNG as bytes (for inlining, e.g. in an HTML report)."""
+        """The PNG as bytes (for inlining, e.g. in an HTML report).
+
+        Returns
+        -------
+        bytes
+            The PNG.
+        """
         import io
 
         from PIL import Image

@@ -82,11 +82,33 @@ class RayCaster:
 
     @classmethod
     def from_mesh(cls, mesh: trimesh.Trimesh) -> RayCaster:
-        """A caster over a trimesh mesh's vertices and faces."""
+        """A caster over a trimesh mesh's vertices and faces.
+
+        Parameters
+        ----------
+        mesh
+            A trimesh mesh.
+
+        Returns
+        -------
+        RayCaster
+            The caster.
+        """
         return cls(mesh.vertices, mesh.faces)
 
     def local(self, points: ArrayLike) -> NDArray[np.float32]:
-        """World points (..., 3) → the caster's frame, float32 (N, 3) C-contiguous."""
+        """World points (..., 3) → the caster's frame, float32 (N, 3) C-contiguous.
+
+        Parameters
+        ----------
+        points
+            (..., 3) world points.
+
+        Returns
+        -------
+        ndarray, shape (N, 3), float32
+            The points in the caster's frame.
+        """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         return np.ascontiguousarray((p - self.center) * self.scale, dtype=np.float32)
 
@@ -102,6 +124,22 @@ class RayCaster:
         The point's own part is left out of the test (its own surface passes through p, and a
         ray cast towards p cannot tell it from another surface through p, as at a vertex
         touching the ground); parts are the connected components of the faces' vertices.
+
+        Parameters
+        ----------
+        points
+            (N, 3) surface points.
+        normals
+            (N, 3) unit normals there.
+        offset
+            The step along the normal.
+        faces
+            (N,) a face each point lies on (−1: none).
+
+        Returns
+        -------
+        tuple of ndarray
+            The ray origins (N, 3) and which of them were put back (N,).
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
@@ -181,17 +219,50 @@ class RayCaster:
 
     def first_hit(self, origins: ArrayLike, dirs: ArrayLike
                   ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.float32]]:
-        """Closest hit of each ray: (face index or −1, u, v), hit = (1−u−v)p0 + u p1 + v p2."""
+        """Closest hit of each ray: (face index or −1, u, v), hit = (1−u−v)p0 + u p1 + v p2.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) world-space rays.
+
+        Returns
+        -------
+        tuple of ndarray
+            Face index (−1 for a miss), u, v, each (N,).
+        """
         return self.first_hit_local(self.local(origins), self._dirs(dirs))
 
     def occluded(self, origins: ArrayLike, dirs: ArrayLike) -> NDArray[np.bool_]:
-        """True where the ray hits anything (any-hit query)."""
+        """True where the ray hits anything (any-hit query).
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) world-space rays.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            Whether each ray hits anything.
+        """
         return self.occluded_local(self.local(origins), self._dirs(dirs))
 
     def first_hit_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                         ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.float32]]:
         """[`first_hit`][shprobe.scene.RayCaster.first_hit] for float32 (N, 3) origins in the local
-        frame."""
+        frame.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) float32 rays, origins in the local frame.
+
+        Returns
+        -------
+        tuple of ndarray
+            Face index (−1 for a miss), u, v, each (N,).
+        """
         if len(origins) == 0:
             return np.empty(0, np.int32), np.empty(0, np.float32), np.empty(0, np.float32)
         r = self._scene.run(origins, dirs, output=1)
@@ -200,7 +271,18 @@ class RayCaster:
     def occluded_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                        ) -> NDArray[np.bool_]:
         """[`occluded`][shprobe.scene.RayCaster.occluded] for float32 (N, 3) origins in the local
-        frame."""
+        frame.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) float32 rays, origins in the local frame.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            Whether each ray hits anything.
+        """
         if len(origins) == 0:
             return np.empty(0, bool)
         return self._scene.run(origins, dirs, query="OCCLUDED") != -1

@@ -220,12 +220,33 @@ class RenderResult:
                 f"{int(self.mask.sum())} pixels hit{extra})")
 
     def tonemapped(self, exposure: float = 0.0) -> NDArray[np.uint8]:
-        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see `tonemap`)."""
+        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see `tonemap`).
+
+        Parameters
+        ----------
+        exposure
+            Stops.
+
+        Returns
+        -------
+        ndarray, shape (H, W, 3), uint8
+            The sRGB image.
+        """
         return tonemap(self.image, exposure)
 
     def save(self, path: str | os.PathLike[str], exposure: float = 0.0,
              overwrite: bool = False) -> None:
-        """PNG/JPEG (tone-mapped) or EXR/HDR/PFM (linear), by the file's suffix."""
+        """PNG/JPEG (tone-mapped) or EXR/HDR/PFM (linear), by the file's suffix.
+
+        Parameters
+        ----------
+        path
+            The output file; its suffix picks the format.
+        exposure
+            Stops (PNG / JPEG only).
+        overwrite
+            Replace an existing file.
+        """
         save_image(path, self.image, exposure=exposure, overwrite=overwrite)
 
 

@@ -84,13 +84,35 @@ class Splats:
         return f"Splats({self.count} {kind} splats, SH degree {self.degree})"
 
     def take(self, index) -> Splats:
-        """The splats selected by ``index`` (a slice, mask or index array)."""
+        """The splats selected by ``index`` (a slice, mask or index array).
+
+        Parameters
+        ----------
+        index
+            A slice, boolean mask or index array.
+
+        Returns
+        -------
+        Splats
+            The selected splats.
+        """
         return Splats(self.positions[index], self.log_scales[index], self.rotations[index],
                       self.opacity[index], self.sh[index],
                       None if self.normals is None else self.normals[index])
 
     def truncated(self, degree: int) -> Splats:
-        """The same splats with SH bands above ``degree`` dropped."""
+        """The same splats with SH bands above ``degree`` dropped.
+
+        Parameters
+        ----------
+        degree
+            The highest SH degree kept.
+
+        Returns
+        -------
+        Splats
+            The splats with the higher bands dropped.
+        """
         if not 0 <= degree <= self.degree:
             raise ShprobeError(f"SH degree {degree} must be between 0 and the data's "
                                f"{self.degree}")
@@ -99,7 +121,15 @@ class Splats:
 
     def check_finite(self, where=None, offset: int = 0) -> None:
         """Refuse non-finite values, naming the first splat (numbered from ``offset``) and
-        attribute."""
+        attribute.
+
+        Parameters
+        ----------
+        where
+            The file, named in the error.
+        offset
+            The number of the first splat.
+        """
         for name in ("positions", "log_scales", "rotations", "opacity", "sh", "normals"):
             a = getattr(self, name)
             if a is None:

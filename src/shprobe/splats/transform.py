@@ -78,7 +78,18 @@ class Similarity:
         return m
 
     def then(self, other: Similarity) -> Similarity:
-        """This transform followed by ``other``."""
+        """This transform followed by ``other``.
+
+        Parameters
+        ----------
+        other
+            The transform applied after this one.
+
+        Returns
+        -------
+        Similarity
+            The composition.
+        """
         return Similarity(other.linear @ self.linear, other.scale * self.scale,
                           other.scale * other.linear @ self.translation + other.translation)
 
@@ -89,7 +100,18 @@ class Similarity:
     @classmethod
     def from_matrix(cls, matrix: ArrayLike) -> Similarity:
         """A 4×4 (or 3×4) matrix that must be a similarity: shear and non-uniform scale are
-        refused in one line (they would turn the SH lobes into no SH of the same degree)."""
+        refused in one line (they would turn the SH lobes into no SH of the same degree).
+
+        Parameters
+        ----------
+        matrix
+            A 4×4 or 3×4 similarity matrix.
+
+        Returns
+        -------
+        Similarity
+            The similarity (shear and non-uniform scale refused).
+        """
         try:
             m = np.asarray(matrix, dtype=np.float64)
         except (TypeError, ValueError):

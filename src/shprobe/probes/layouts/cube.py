@@ -134,7 +134,20 @@ class Cube(Layout):
 
     # files ------------------------------------------------------------------
     def image_to_grid(self, img: NDArray[np.float32], path=None) -> NDArray[np.float32]:
-        """Cut a cross or strip image (H, W, C) into faces (6, N, N, C)."""
+        """Cut a cross or strip image (H, W, C) into faces (6, N, N, C).
+
+        Parameters
+        ----------
+        img
+            (H, W, C) cross or strip.
+        path
+            The file, named in errors.
+
+        Returns
+        -------
+        ndarray, shape (6, N, N, C)
+            The faces.
+        """
         name = cube_arrangement(img.shape, path)
         (fw, _), pos = CUBE_ARRANGEMENTS[name]
         n = img.shape[1] // fw
@@ -145,7 +158,20 @@ class Cube(Layout):
         return faces
 
     def grid_to_image(self, faces: ArrayLike, arrangement: str = "hcross") -> NDArray[np.float32]:
-        """Lay faces (6, N, N, C) out as ``arrangement`` (unused areas black)."""
+        """Lay faces (6, N, N, C) out as ``arrangement`` (unused areas black).
+
+        Parameters
+        ----------
+        faces
+            (6, N, N, C) faces.
+        arrangement
+            'hcross', 'vcross', 'hstrip' or 'vstrip'.
+
+        Returns
+        -------
+        ndarray
+            The laid-out image.
+        """
         faces = np.asarray(faces, dtype=np.float32)
         if arrangement not in CUBE_ARRANGEMENTS:
             raise ShprobeError(f"unknown cube arrangement {arrangement!r}; choose one of "
