@@ -64,7 +64,7 @@ def on_post_build(config, **kwargs) -> None:
         (site / "search" / "main.js").write_text(SEARCH_JS, encoding="utf-8")
 
 
-SEARCH_JS = """// The manual's search, on the page's own thread (works from file:// and from a server).
+SEARCH_JS = """// The manual's search, on the page's own thread (file:// or a server).
 (function () {
   var index = null, docs = {}, minLength = 3;
   function url(path) { return base_url.replace(/\\/$/, "") + "/" + path; }
