@@ -303,7 +303,7 @@ class BallFit:
 
         Returns
         -------
-        ndarray, shape (H, W) or (H, W, C), float32
+        ndarray of shape (H, W) or (H, W, C), float32
             The values in their pixels, 0 off the ball.
         """
         v = np.asarray(values)

@@ -65,7 +65,7 @@ class ObjectFit:
 
         Returns
         -------
-        ndarray, shape (H, W) or (H, W, C), float32
+        ndarray of shape (H, W) or (H, W, C), float32
             That view's values in their pixels, 0 elsewhere.
         """
         v = np.asarray(values)
@@ -312,7 +312,7 @@ def read_normal_map(path) -> NDArray[np.float32]:
 
     Returns
     -------
-    ndarray, shape (H, W, 3), float32
+    ndarray of shape (H, W, 3), float32
         The normals as stored, signed.
     """
     import os

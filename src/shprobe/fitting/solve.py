@@ -67,7 +67,7 @@ def design_factors(model: str) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (9,)
+    ndarray of shape (9,)
         The factor of each coefficient's column.
     """
     if model == "diffuse":

@@ -24,7 +24,7 @@ def cell_centres(bounds: ArrayLike, resolution: tuple[int, int, int]) -> NDArray
 
     Returns
     -------
-    ndarray, shape (NX, NY, NZ, 3)
+    ndarray of shape (NX, NY, NZ, 3)
         The centres.
     """
     b = np.asarray(bounds, dtype=np.float64)

@@ -99,7 +99,7 @@ class ProbeGrid:
 
         Returns
         -------
-        ndarray, shape (NX, NY, NZ, 3)
+        ndarray of shape (NX, NY, NZ, 3)
             The cell centres.
         """
         return cell_centres(self.bounds, self.resolution)
@@ -109,7 +109,7 @@ class ProbeGrid:
 
         Returns
         -------
-        ndarray, shape (NX, NY, NZ, 3)
+        ndarray of shape (NX, NY, NZ, 3)
             Where each probe was baked.
         """
         return self.centres() if self.positions is None else np.asarray(self.positions,
@@ -136,7 +136,7 @@ class ProbeGrid:
 
         Returns
         -------
-        ndarray, shape (..., (lmax+1)², 3)
+        ndarray of shape (..., (lmax+1)², 3)
             The blended radiance coefficients.
         """
         p, n = _points_normals(points, normals)
@@ -170,7 +170,7 @@ class ProbeGrid:
 
         Returns
         -------
-        ndarray, shape (..., 3)
+        ndarray of shape (..., 3)
             E, clamped at 0.
         """
         n = unit_normals(normals)

@@ -121,7 +121,7 @@ def h_basis(normals: ArrayLike, n: int = 6,
 
     Returns
     -------
-    ndarray, shape (..., n)
+    ndarray of shape (..., n)
         H¹ … Hⁿ at the normals.
     """
     n = _check_n(n)
@@ -166,7 +166,7 @@ def evaluate_h(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., C) or (...,)
+    ndarray of shape (..., C) or (...,)
         E_H(n).
     """
     c = _float_array(coeffs, "H coefficients")
@@ -258,7 +258,7 @@ def sh_to_h_matrix(lmax: int = 2, n: int = 6) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (n, (lmax + 1)²)
+    ndarray of shape (n, (lmax + 1)²)
         T_h, taking SH coefficients to H coefficients.
     """
     lmax = check_lmax(lmax, limit=64)
@@ -290,7 +290,7 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
 
     Returns
     -------
-    ndarray, shape (..., n, C) or (n,)
+    ndarray of shape (..., n, C) or (n,)
         The H coefficients.
     """
     n = _check_n(n)
@@ -340,7 +340,7 @@ def project_h(func, n: int = 6, n_z: int = 48, n_phi: int = 96) -> NDArray[np.fl
 
     Returns
     -------
-    ndarray, shape (n,) or (n, C)
+    ndarray of shape (n,) or (n, C)
         h_i = ∫_Ω+ f Hⁱ dω.
     """
     nodes, w = hemisphere_quadrature(n_z, n_phi)

@@ -98,7 +98,7 @@ class HemiBasis:
 
         Returns
         -------
-        ndarray, shape (..., n)
+        ndarray of shape (..., n)
             The basis functions.
         """
         return self._eval(_dirs(normals))
@@ -113,7 +113,7 @@ class HemiBasis:
 
         Returns
         -------
-        ndarray, shape (n, n)
+        ndarray of shape (n, n)
             G = ∫_Ω+ B Bᵀ dω.
         """
         nodes, w = hemisphere_quadrature(*quad)
@@ -130,7 +130,7 @@ class HemiBasis:
 
         Returns
         -------
-        ndarray, shape (n, N)
+        ndarray of shape (n, N)
             P with coefficients = P @ samples at the nodes.
         """
         return _projection_matrix(self, quad)
@@ -150,7 +150,7 @@ class HemiBasis:
 
         Returns
         -------
-        ndarray, shape (n,) or (n, C)
+        ndarray of shape (n,) or (n, C)
             The coefficients.
         """
         if self.fit == "sphere":
@@ -178,7 +178,7 @@ class HemiBasis:
 
         Returns
         -------
-        ndarray, shape (n, K)
+        ndarray of shape (n, K)
             M with basis coefficients = M @ s.
         """
         if self.fit == "sphere":

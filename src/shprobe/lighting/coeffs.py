@@ -72,7 +72,7 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
 
     Returns
     -------
-    ndarray, shape (K, C), float64
+    ndarray of shape (K, C), float64
         A checked copy.
     """
     if isinstance(coeffs, (str, bytes, dict)) or coeffs is None:
@@ -140,7 +140,7 @@ def pad_coeffs(coeffs: ArrayLike, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K', C)
+    ndarray of shape (K', C)
         The coefficients zero-padded or truncated, K' = (lmax + 1)².
     """
     c = as_coeffs(coeffs)

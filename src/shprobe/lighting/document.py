@@ -93,7 +93,7 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, C)
+    ndarray of shape (K, C)
         The lighting coefficients it holds.
     """
     p = os.fspath(path)

@@ -475,7 +475,7 @@ class EditSpec:
 
         Returns
         -------
-        ndarray, shape (3, 3)
+        ndarray of shape (3, 3)
             R = Rₙ ⋯ R₁.
         """
         R = np.eye(3)

@@ -448,7 +448,7 @@ def import_coeffs(path: str | os.PathLike[str]) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, C)
+    ndarray of shape (K, C)
         The lighting coefficients L_lm in shprobe's convention.
     """
     p = os.fspath(path)

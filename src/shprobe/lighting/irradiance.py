@@ -76,7 +76,7 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., C) or (...,)
+    ndarray of shape (..., C) or (...,)
         The irradiance E(n).
     """
     xp = _xp.namespace(coeffs, normals)
@@ -131,7 +131,7 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., C, 4, 4)
+    ndarray of shape (..., C, 4, 4)
         M per channel, E(n) = nᵀ M n with n = (x, y, z, 1).
     """
     xp = _xp.namespace(coeffs)
@@ -162,7 +162,7 @@ def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float
 
     Returns
     -------
-    ndarray, shape (..., C)
+    ndarray of shape (..., C)
         E = nᵀ M n.
     """
     mm = np.asarray(m, dtype=np.float64)
@@ -185,7 +185,7 @@ def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.fl
 
     Returns
     -------
-    ndarray, shape (..., C)
+    ndarray of shape (..., C)
         E(n) by the expanded polynomial of R&H eq. 13.
     """
     xp = _xp.namespace(coeffs, normals)
@@ -251,7 +251,7 @@ def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (C, 4, 4)
+    ndarray of shape (C, 4, 4)
         M per channel.
     """
     return irradiance_matrix(nine(coeffs))
@@ -278,7 +278,7 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
 
     Returns
     -------
-    ndarray, shape (..., C) or (...,)
+    ndarray of shape (..., C) or (...,)
         E(n).
     """
     one = np.ndim(coeffs) == 1

@@ -88,7 +88,7 @@ def project_latlong(radiance: Any, lmax: int = 2) -> Any:
 
     Returns
     -------
-    array, shape (..., K, C)
+    array of shape (..., K, C)
         The lighting coefficients, of the input's kind.
     """
     lmax = check_lmax(lmax)
@@ -123,7 +123,7 @@ def latlong_radiance(coeffs: Any, size: int = 64) -> Any:
 
     Returns
     -------
-    array, shape (..., H, W, C) or (H, W)
+    array of shape (..., H, W, C) or (H, W)
         L(ω) at the pixel centres.
     """
     xp, c, dt = _setup(coeffs, "coefficients")
@@ -159,7 +159,7 @@ def latlong_irradiance(coeffs: Any, size: int = 64) -> Any:
 
     Returns
     -------
-    array, shape (..., H, W, C) or (H, W)
+    array of shape (..., H, W, C) or (H, W)
         E(n) at the pixel centres.
     """
     xp, c, dt = _setup(coeffs, "coefficients")
@@ -197,7 +197,7 @@ def project_cube(radiance: Any, lmax: int = 2) -> Any:
 
     Returns
     -------
-    array, shape (..., K, C)
+    array of shape (..., K, C)
         The lighting coefficients, of the input's kind.
     """
     lmax = check_lmax(lmax)

@@ -210,7 +210,7 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
 
     Returns
     -------
-    ndarray, shape (K, C) or (K,)
+    ndarray of shape (K, C) or (K,)
         Σ_s values_s y_lm(dirs_s) weights_s.
     """
     from ..sh import _xp
@@ -272,7 +272,7 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, 3), float64
+    ndarray of shape (K, 3), float64
         The lighting coefficients L_lm, K = (lmax + 1)².
     """
     lmax = check_lmax(lmax)
@@ -321,7 +321,7 @@ def total_intensity(env: Env) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (3,)
+    ndarray of shape (3,)
         ∫ L dω per channel.
     """
     dw = env.solid_angles()

@@ -136,7 +136,7 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
 
     Returns
     -------
-    ndarray, shape (..., 3)
+    ndarray of shape (..., 3)
         The exact irradiance Σ_pixels L(ω) max(0, n·ω) dω.
     """
     from ._kernels import brute_kernel as kern  # numba, imported lazily

@@ -111,7 +111,7 @@ def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]
 
     Returns
     -------
-    ndarray, shape (lmax + 1,)
+    ndarray of shape (lmax + 1,)
         w_0 … w_lmax, w_0 = 1.
     """
     from ..sh import _xp
@@ -154,7 +154,7 @@ def apply_window(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, C)
+    ndarray of shape (K, C)
         L_lm · w_l.
     """
     return np.asarray(convolve(as_coeffs(coeffs), factors), dtype=np.float64)

@@ -57,7 +57,7 @@ class Env:
 
         Returns
         -------
-        ndarray, shape (*grid, 3)
+        ndarray of shape (*grid, 3)
             The pixel centres' directions.
         """
         return self.layout.pixel_directions(self._grid)
@@ -91,7 +91,7 @@ class Env:
 
         Returns
         -------
-        ndarray, shape (*grid,)
+        ndarray of shape (*grid,)
             The pixels' solid angles.
         """
         return self.layout.solid_angles(self._grid)
@@ -118,7 +118,7 @@ class Env:
 
         Returns
         -------
-        ndarray, shape (..., 3), float32
+        ndarray of shape (..., 3), float32
             The radiance there.
         """
         return self.layout.sample(self.radiance, dirs)

@@ -38,7 +38,7 @@ def procedural_radiance(dirs: NDArray[np.float64]) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., 3)
+    ndarray of shape (..., 3)
         The procedural sky's radiance.
     """
     d = np.asarray(dirs, dtype=np.float64)

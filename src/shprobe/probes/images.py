@@ -60,7 +60,7 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
 
     Returns
     -------
-    ndarray, shape (H, W, 3), float32
+    ndarray of shape (H, W, 3), float32
         Linear RGB, row 0 at the top.
     """
     p = Path(path)

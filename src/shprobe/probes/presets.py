@@ -71,7 +71,7 @@ def get_preset(name: str) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (9, 3)
+    ndarray of shape (9, 3)
         Its lighting coefficients L_lm (a fresh copy).
     """
     key = "".join(ch for ch in str(name).lower() if ch.isalnum())

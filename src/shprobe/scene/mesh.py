@@ -270,7 +270,7 @@ def mesh_uvs(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
 
     Returns
     -------
-    ndarray, shape (V, 2), or None
+    ndarray of shape (V, 2), or None
         Its per-vertex texture coordinates.
     """
     uv = getattr(getattr(mesh, "visual", None), "uv", None)
@@ -341,7 +341,7 @@ def mesh_vertex_albedo(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
 
     Returns
     -------
-    ndarray, shape (V, 3), or None
+    ndarray of shape (V, 3), or None
         Its own linear albedo per vertex.
     """
     nv = len(mesh.vertices)
@@ -376,7 +376,7 @@ def sample_texture(tex: ArrayLike, uv: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., C)
+    ndarray of shape (..., C)
         The bilinear lookups.
     """
     t = np.asarray(tex)

@@ -106,7 +106,7 @@ class RayCaster:
 
         Returns
         -------
-        ndarray, shape (N, 3), float32
+        ndarray of shape (N, 3), float32
             The points in the caster's frame.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)

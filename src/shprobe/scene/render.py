@@ -229,7 +229,7 @@ class RenderResult:
 
         Returns
         -------
-        ndarray, shape (H, W, 3), uint8
+        ndarray of shape (H, W, 3), uint8
             The sRGB image.
         """
         return tonemap(self.image, exposure)
@@ -502,7 +502,7 @@ def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
 
     Returns
     -------
-    ndarray, shape (H, W, C), float32
+    ndarray of shape (H, W, C), float32
         The relit image.
     """
     b = np.asarray(basis, dtype=np.float32)
@@ -527,7 +527,7 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 
     Returns
     -------
-    ndarray, shape (H, W, 3), float32
+    ndarray of shape (H, W, 3), float32
         Positive green, negative blue.
     """
     v = np.asarray(values, dtype=np.float32)

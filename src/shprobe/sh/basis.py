@@ -75,7 +75,7 @@ def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., (lmax + 1)²)
+    ndarray of shape (..., (lmax + 1)²)
         y_lm at the directions, as [`sh_basis`][shprobe.sh.sh_basis].
     """
     d = _as_dirs(dirs)
@@ -120,7 +120,7 @@ def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., (lmax + 1)²), float64
+    ndarray of shape (..., (lmax + 1)²), float64
         y_lm at the directions, from SciPy's complex harmonics.
     """
     from scipy.special import sph_harm_y

@@ -126,7 +126,7 @@ def degrees(lmax: int) -> NDArray[np.int64]:
 
     Returns
     -------
-    ndarray, shape (K,), int64
+    ndarray of shape (K,), int64
         l of each flat index k.
     """
     return np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)

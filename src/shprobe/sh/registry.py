@@ -221,7 +221,7 @@ def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, K)
+    ndarray of shape (K, K)
         T, from shprobe's coefficients to the convention's.
     """
     diag, t = _map(name, lmax, False)

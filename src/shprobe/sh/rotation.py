@@ -56,7 +56,7 @@ def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (3, 3)
+    ndarray of shape (3, 3)
         The rotation matrix.
     """
     a = unit_vectors(axis, "rotation axis")
@@ -86,7 +86,7 @@ def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., 3, 3)
+    ndarray of shape (..., 3, 3)
         The rotation matrices.
     """
     xp = _xp.namespace(q)
@@ -142,7 +142,7 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
 
     Returns
     -------
-    ndarray, shape (..., 3, 3)
+    ndarray of shape (..., 3, 3)
         R = Rz(γ) Ry(β) Rz(α).
     """
     xp = _xp.namespace(alpha, beta, gamma)
@@ -167,7 +167,7 @@ def as_matrix(rotation: Any) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., 3, 3), float64
+    ndarray of shape (..., 3, 3), float64
         The checked rotation matrices.
     """
     R = _matrices(rotation)
@@ -190,7 +190,7 @@ def one_rotation(rotation: Any) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (3, 3)
+    ndarray of shape (3, 3)
         The checked rotation matrix.
     """
     r = as_matrix(rotation)
@@ -298,7 +298,7 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., K, K)
+    ndarray of shape (..., K, K)
         The block-diagonal real Wigner matrices D(R), K = (lmax + 1)².
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
@@ -427,7 +427,7 @@ def z_mirror_signs(lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape ((lmax + 1)²,)
+    ndarray of shape ((lmax + 1)²,)
         ±1 per coefficient.
     """
     l, m = sh_lm(np.arange(num_coeffs(check_lmax(lmax))))
@@ -445,7 +445,7 @@ def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (..., 3, 3)
+    ndarray of shape (..., 3, 3)
         Frames with columns (t, b, n).
     """
     n = unit_vectors(normals, "normals", zero="keep")

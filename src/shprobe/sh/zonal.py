@@ -36,7 +36,7 @@ def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (lmax + 1,)
+    ndarray of shape (lmax + 1,)
         Â_0 … Â_lmax.
     """
     xp = _xp.namespace(like)
@@ -104,7 +104,7 @@ def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (lmax + 1,)
+    ndarray of shape (lmax + 1,)
         H_0 … H_lmax.
     """
     lmax = check_lmax(lmax)
@@ -129,7 +129,7 @@ def legendre_polynomials(z: ArrayLike, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (*z.shape, lmax + 1)
+    ndarray of shape (*z.shape, lmax + 1)
         P_0(z) … P_lmax(z).
     """
     z = np.asarray(z, dtype=np.float64)
@@ -169,7 +169,7 @@ def legendre_moments(
 
     Returns
     -------
-    ndarray, shape (lmax + 1,)
+    ndarray of shape (lmax + 1,)
         2π ∫ h(z) P_l(z) dz for each l.
     """
     lmax = check_lmax(lmax)
@@ -213,7 +213,7 @@ def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floati
 
     Returns
     -------
-    ndarray, shape (..., K)
+    ndarray of shape (..., K)
         b_lm = moments_l · y_lm(axis); float32 for a float32 axis.
     """
     from .basis import sh_basis
@@ -251,7 +251,7 @@ def zonal_coeffs(
 
     Returns
     -------
-    ndarray, shape (..., K)
+    ndarray of shape (..., K)
         The coefficients, K = (lmax + 1)²; float32 for a float32 axis.
     """
     return zonal_from_moments(legendre_moments(h, lmax, n_quad, interval), axis)
@@ -272,7 +272,7 @@ def window_moments(aperture: float, lmax: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (lmax + 1,)
+    ndarray of shape (lmax + 1,)
         The moments 4π f_l(cos ζ).
     """
     lmax = check_lmax(lmax)
@@ -319,7 +319,7 @@ def circular_window(
 
     Returns
     -------
-    ndarray, shape (..., K) or (..., K, C)
+    ndarray of shape (..., K) or (..., K, C)
         The window's SH coefficients; (..., K, C) for a colour ``radiance``.
     """
     mom = window_moments(aperture, lmax)

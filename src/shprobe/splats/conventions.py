@@ -43,7 +43,7 @@ def to_shprobe(sh: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., K, C)
+    ndarray of shape (..., K, C)
         shprobe's coefficients, a_lm = (−1)^|m| sh_lm.
     """
     return from_condon_shortley(sh)
@@ -59,7 +59,7 @@ def from_shprobe(coeffs: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., K, C)
+    ndarray of shape (..., K, C)
         The splat file's SH (Condon–Shortley phase).
     """
     return to_condon_shortley(coeffs)
@@ -75,7 +75,7 @@ def dc_to_colour(dc: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., 3)
+    ndarray of shape (..., 3)
         C0·dc + 0.5.
     """
     return np.asarray(dc) * SH_C0 + DC_BIAS
@@ -92,7 +92,7 @@ def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
 
     Returns
     -------
-    ndarray, shape (..., 3)
+    ndarray of shape (..., 3)
         ``f_dc`` = (colour − 0.5) / C0.
     """
     return (np.asarray(colour) - DC_BIAS) / SH_C0
@@ -111,7 +111,7 @@ def view_colour(sh: ArrayLike, directions: ArrayLike) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (N, C)
+    ndarray of shape (N, C)
         The colour the renderer shows.
     """
     from ..sh.basis import sh_basis_numpy

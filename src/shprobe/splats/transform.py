@@ -289,7 +289,7 @@ def sh_matrix(linear: ArrayLike, degree: int) -> NDArray[np.float64]:
 
     Returns
     -------
-    ndarray, shape (K, K)
+    ndarray of shape (K, K)
         M with sh' = M @ sh.
     """
     q = np.ascontiguousarray(linear, dtype=np.float64)

@@ -65,7 +65,7 @@ class Layout:
 
         Returns
         -------
-        ndarray, shape (*grid, 3)
+        ndarray of shape (*grid, 3)
             The pixel centres' directions.
         """
         raise NotImplementedError
@@ -81,7 +81,7 @@ class Layout:
 
         Returns
         -------
-        ndarray, shape (*grid,)
+        ndarray of shape (*grid,)
             Each pixel's solid angle.
         """
         raise NotImplementedError
@@ -114,7 +114,7 @@ class Layout:
 
         Returns
         -------
-        ndarray, shape (..., 2) or (..., 3)
+        ndarray of shape (..., 2) or (..., 3)
             Continuous pixel coordinates (cube maps: face, x, y).
         """
         raise NotImplementedError
@@ -131,7 +131,7 @@ class Layout:
 
         Returns
         -------
-        ndarray, shape (..., C), float32
+        ndarray of shape (..., C), float32
             The bilinear lookups.
         """
         raise NotImplementedError

@@ -145,7 +145,7 @@ class Cube(Layout):
 
         Returns
         -------
-        ndarray, shape (6, N, N, C)
+        ndarray of shape (6, N, N, C)
             The faces.
         """
         name = cube_arrangement(img.shape, path)

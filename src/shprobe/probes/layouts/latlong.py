@@ -44,7 +44,7 @@ class LatLong(Layout):
 
         Returns
         -------
-        ndarray, shape (H,)
+        ndarray of shape (H,)
             θ of each row centre.
         """
         return np.pi * (np.arange(h) + 0.5) / h
@@ -60,7 +60,7 @@ class LatLong(Layout):
 
         Returns
         -------
-        ndarray, shape (H,)
+        ndarray of shape (H,)
             cos θ of each row centre.
         """
         return np.cos(LatLong.row_theta(h))
@@ -76,7 +76,7 @@ class LatLong(Layout):
 
         Returns
         -------
-        ndarray, shape (H,)
+        ndarray of shape (H,)
             sin θ of each row centre.
         """
         return np.sin(LatLong.row_theta(h))
@@ -93,7 +93,7 @@ class LatLong(Layout):
 
         Returns
         -------
-        ndarray, shape (H,)
+        ndarray of shape (H,)
             One pixel's solid angle in each row.
         """
         edges = np.cos(np.pi * np.arange(h + 1) / h)
@@ -111,7 +111,7 @@ class LatLong(Layout):
 
         Returns
         -------
-        ndarray, shape (W,)
+        ndarray of shape (W,)
             ψ of each column centre.
         """
         return 2.0 * np.pi * (np.arange(w) + 0.5) / w
