@@ -77,7 +77,24 @@ def _trig(m: int, x: NDArray, y: NDArray, r: NDArray) -> NDArray:
 
 @dataclass(frozen=True)
 class HemiBasis:
-    """A finite function set on the upper hemisphere with least-squares projection."""
+    """A finite function set on the upper hemisphere with least-squares projection.
+
+    Parameters
+    ----------
+    name
+        The basis's name in the study.
+    n_coeffs
+        Its number of functions n.
+    _eval
+        Maps (N, 3) tangent-frame directions to (N, n) function values.
+    fit
+        How coefficients are fitted: "hemisphere" (least squares over the upper hemisphere),
+        "cosine" or "sphere".
+    orthonormal
+        Whether its functions are orthonormal over the hemisphere.
+    description
+        One line about it.
+    """
 
     name: str
     n_coeffs: int

@@ -137,13 +137,36 @@ class Rotation:
 
 @dataclass(frozen=True)
 class EditSpec:
-    """Lighting edits at degree ``lmax`` (the result's), in the order
-    `edit_lighting` applies them: the source × ``weight``,
-    ``blends``, lights (``directional``: (direction, rgb irradiance); ``cones``: (axis,
-    aperture in degrees, rgb radiance); ``sky``: (sky rgb, ground rgb, up)), ``sets`` /
-    ``scales`` ((l, m), value or factor), ``negates`` (l, m), ``set_bands`` / ``scale_bands``
-    (l, value or factor), ``negate_bands``, ``rotations``, ``window`` (None, 'auto' or
-    (kind, strength)). Colours and values are 1 or 3 numbers. Checked when made."""
+    """Lighting edits at degree ``lmax`` (the result's), in the order `edit_lighting` applies
+    them. Colours and values are 1 or 3 numbers. Checked when made.
+
+    Parameters
+    ----------
+    lmax
+        The result's degree.
+    weight
+        The source's factor.
+    blends
+        Other lightings added, each with its weight.
+    directional
+        Lights as (direction, rgb irradiance).
+    cones
+        Lights as (axis, aperture in degrees, rgb radiance).
+    sky
+        (sky rgb, ground rgb, up), or None.
+    sets, scales
+        ((l, m), value or factor): one coefficient set or scaled.
+    negates
+        (l, m) of coefficients negated.
+    set_bands, scale_bands
+        (l, value or factor): a whole band set or scaled.
+    negate_bands
+        Bands negated.
+    rotations
+        Rotations applied in order.
+    window
+        None, 'auto' or (kind, strength).
+    """
 
     lmax: int = 2
     weight: float = 1.0
