@@ -10,6 +10,13 @@ class ShprobeError(ValueError):
 
     The CLI prints it as one line, ``shprobe: error: <path>: <message>``, and exits non-zero
     without a traceback. ``path`` names the file concerned, where there is one.
+
+    Parameters
+    ----------
+    message
+        One line saying what is wrong.
+    path
+        The file concerned, where there is one.
     """
 
     def __init__(self, message: str, path: str | os.PathLike[str] | None = None) -> None:

@@ -25,7 +25,20 @@ from .errors import ShprobeError
 
 def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
     """The UTF-8 text of an input file, or one line naming it (missing, a folder, unreadable,
-    not text)."""
+    not text).
+
+    Parameters
+    ----------
+    path
+        The input file.
+    what
+        What the file is, named in errors.
+
+    Returns
+    -------
+    str
+        Its text.
+    """
     p = os.fspath(path)
     try:
         with open(p, encoding="utf-8") as f:
@@ -44,7 +57,20 @@ def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> 
     """Refuse, before any work, an output that could not be written: an existing file (or
     link, even a dangling one) unless ``overwrite``, a folder, a parent that is a file or a
     folder that is not writable. Missing parent folders are fine: they are made when the file
-    is written (every command makes its output folders the same way)."""
+    is written (every command makes its output folders the same way).
+
+    Parameters
+    ----------
+    path
+        The output file.
+    overwrite
+        An existing file may be replaced.
+
+    Returns
+    -------
+    Path
+        The path, checked.
+    """
     p = Path(path)
     if len(os.fsencode(p.name)) > 255:
         raise ShprobeError("file name is longer than 255 bytes", p)
@@ -90,7 +116,20 @@ def remove_stale_temporaries(folder: str | os.PathLike[str],
     """Remove the temporary outputs that writers killed outright (SIGKILL, power loss) left in
     ``folder``: only files named as shprobe names them (``.shprobe-<pid>-<hex>.tmp…``),
     regular files, whose PID is no running process and that have not changed for
-    ``min_age`` seconds. Never an error (a file another process removes first is fine)."""
+    ``min_age`` seconds. Never an error (a file another process removes first is fine).
+
+    Parameters
+    ----------
+    folder
+        The folder to clean.
+    min_age
+        Seconds a temporary must have been left unchanged.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
     gone: list[Path] = []
     now = time.time()
     try:
@@ -120,14 +159,21 @@ class _Pending:
 
 @dataclass
 class Transaction:
-    """Outputs written by :func:`atomic_output` inside :func:`transaction`: each is written to
-    its temporary file as usual, but moved into place only when the whole block succeeds."""
+    """Outputs written by [`atomic_output`][shprobe.files.atomic_output] inside
+    [`transaction`][shprobe.files.transaction]: each is written to its temporary file as usual, but
+    moved into place only when the whole block succeeds."""
 
     pending: list[_Pending] = field(default_factory=list)
 
     def commit(self) -> None:
         """Move every output into place; if one fails, undo the ones already moved (a
-        replaced file is restored) and raise."""
+        replaced file is restored) and raise.
+
+        Raises
+        ------
+        OSError
+            When an output cannot be moved into place (the others are undone first).
+        """
         done: list[tuple[Path, Path | None]] = []  # (target, backup of what it replaced)
         try:
             for w in self.pending:
@@ -163,11 +209,17 @@ _TRANSACTION: contextvars.ContextVar[Transaction | None] = contextvars.ContextVa
 
 @contextmanager
 def transaction() -> Iterator[Transaction]:
-    """Commit several outputs together or not at all: every :func:`atomic_output` (and so
-    every writer of shprobe) inside the block writes its temporary file, and all are renamed
-    into place when the block ends without an error; on any error — a full disk on the last
-    file, Ctrl-C — none of them appears and nothing is replaced. Nested blocks join the
-    outermost one."""
+    """Commit several outputs together or not at all: every
+    [`atomic_output`][shprobe.files.atomic_output] (and so every writer of shprobe) inside the block
+    writes its temporary file, and all are renamed into place when the block ends without an error;
+    on any error — a full disk on the last file, Ctrl-C — none of them appears and nothing is
+    replaced. Nested blocks join the outermost one.
+
+    Yields
+    ------
+    Transaction
+        The block's commit of every output written inside it.
+    """
     if _TRANSACTION.get() is not None:
         yield _TRANSACTION.get()  # type: ignore[misc]
         return
@@ -211,8 +263,21 @@ def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iter
     if ``path`` appeared meanwhile (no race with another writer); with it, an atomic rename.
     On any error — or SIGTERM / SIGHUP in the CLI, which raise SystemExit — the temporary
     file is removed and ``path`` is left as it was. Errors name ``path``, not the temporary.
-    Inside :func:`transaction` the move waits for the end of the block. Temporary files that
-    killed writers left in the folder are removed first (:func:`remove_stale_temporaries`).
+    Inside [`transaction`][shprobe.files.transaction] the move waits for the end of the block.
+    Temporary files that killed writers left in the folder are removed first
+    ([`remove_stale_temporaries`][shprobe.files.remove_stale_temporaries]).
+
+    Parameters
+    ----------
+    path
+        The output file.
+    overwrite
+        An existing file may be replaced.
+
+    Yields
+    ------
+    Path
+        The temporary file to write.
     """
     p = check_output_path(path, overwrite)
     try:
@@ -243,20 +308,65 @@ def atomic_output(path: str | os.PathLike[str], overwrite: bool = False) -> Iter
 
 
 def write_text(path: str | os.PathLike[str], text: str, overwrite: bool = False) -> Path:
-    """Write ``text`` atomically."""
+    """Write ``text`` atomically.
+
+    Parameters
+    ----------
+    path
+        The output file.
+    text
+        The text (UTF-8).
+    overwrite
+        An existing file may be replaced.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     with atomic_output(path, overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
 
 
 def write_json(path: str | os.PathLike[str], obj: Any, overwrite: bool = False) -> Path:
-    """Write ``obj`` as indented JSON atomically."""
+    """Write ``obj`` as indented JSON atomically.
+
+    Parameters
+    ----------
+    path
+        The output file.
+    obj
+        A JSON-able object.
+    overwrite
+        An existing file may be replaced.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     return write_text(path, json.dumps(obj, indent=2) + "\n", overwrite)
 
 
 def save_npz(path: str | os.PathLike[str], overwrite: bool = False, **arrays: Any) -> Path:
     """``np.savez_compressed`` atomically, to a ``.npz`` name only (so a bake never replaces,
-    say, the mesh it was made from); non-finite float arrays are refused."""
+    say, the mesh it was made from); non-finite float arrays are refused.
+
+    Parameters
+    ----------
+    path
+        The ``.npz`` file.
+    overwrite
+        An existing file may be replaced.
+    **arrays
+        The arrays by name.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     if Path(path).suffix.lower() != ".npz":
         raise ShprobeError("an .npz output must be named *.npz", path)
     for k, a in arrays.items():
@@ -272,7 +382,20 @@ def npz_headers(path: str | os.PathLike[str], what: str = "file"
                 ) -> dict[str, tuple[tuple[int, ...], np.dtype, bool]]:
     """(shape, dtype, stored size matches the header) of every array of an ``.npz``, read from
     the ``.npy`` headers alone (nothing is inflated); object arrays are refused (no pickles);
-    a missing, empty, truncated or corrupt archive is one line naming it."""
+    a missing, empty, truncated or corrupt archive is one line naming it.
+
+    Parameters
+    ----------
+    path
+        The ``.npz`` archive.
+    what
+        What the file is, named in errors.
+
+    Returns
+    -------
+    dict
+        Per array: (shape, dtype, whether its stored size matches the header).
+    """
     import zipfile
 
     p = os.fspath(path)
@@ -308,11 +431,27 @@ def npz_headers(path: str | os.PathLike[str], what: str = "file"
 
 def load_npz(path: str | os.PathLike[str], names: Any = None,
              what: str = "file") -> dict[str, np.ndarray]:
-    """Arrays of an ``.npz`` archive, read safely: the headers (:func:`npz_headers`) are read
-    and the total inflated size checked against the memory limit *before* anything is
-    inflated (a small compressed file cannot expand to gigabytes unasked), then each member's
-    stored size against its header; one line naming the file on any problem. ``names``
-    limits the arrays read (all by default; a missing one is not an error here)."""
+    """Arrays of an ``.npz`` archive, read safely: the headers
+    ([`npz_headers`][shprobe.files.npz_headers]) are read and the total inflated size checked
+    against the memory limit *before* anything is inflated (a small compressed file cannot expand to
+    gigabytes unasked), then each member's stored size against its header; one line naming the file
+    on any problem. ``names`` limits the arrays read (all by default; a missing one is not an error
+    here).
+
+    Parameters
+    ----------
+    path
+        The ``.npz`` archive.
+    names
+        The arrays to read (default: all).
+    what
+        What the file is, named in errors.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The arrays by name.
+    """
     from .limits import check_memory
 
     p = os.fspath(path)
@@ -345,7 +484,13 @@ def cache_dir() -> Path | None:
     """The folder of shprobe's on-disk caches: ``$SHPROBE_CACHE_DIR``, else
     ``$XDG_CACHE_HOME/shprobe``, else ``~/.cache/shprobe``; None when ``$SHPROBE_CACHE_DIR``
     is ``off``. What is kept there is derived from input files (keyed by their content) and
-    may be deleted at any time."""
+    may be deleted at any time.
+
+    Returns
+    -------
+    Path or None
+        The cache folder, or None when caching is off.
+    """
     env = os.environ.get(CACHE_ENV)
     if env is not None and env.strip():
         return None if env.strip().lower() == "off" else Path(env).expanduser()
@@ -356,7 +501,20 @@ def cache_dir() -> Path | None:
 def file_digest(path: str | os.PathLike[str], *extra: str | bytes) -> str:
     """Hex BLAKE2b (128-bit) of a file's bytes and of ``extra`` (e.g. the versions of the code
     that derives something from it): a cache key that changes with the content, not the name
-    or the time stamp."""
+    or the time stamp.
+
+    Parameters
+    ----------
+    path
+        The file.
+    *extra
+        More strings or bytes hashed after its content.
+
+    Returns
+    -------
+    str
+        The digest, hex.
+    """
     import hashlib
 
     h = hashlib.blake2b(digest_size=16)
@@ -376,8 +534,22 @@ def _cache_entry(kind: str, key: str) -> Path | None:
 
 
 def read_cache(kind: str, key: str) -> bytes | None:
-    """The bytes :func:`write_cache` stored under ``kind`` / ``key``, checked against their
-    stored digest; None when absent, unreadable or damaged (a cache is never an error)."""
+    """The bytes [`write_cache`][shprobe.files.write_cache] stored under ``kind`` / ``key``, checked
+    against their stored digest; None when absent, unreadable or damaged (a cache is never an
+    error).
+
+    Parameters
+    ----------
+    kind
+        The cache's kind (a sub-folder).
+    key
+        The entry's key.
+
+    Returns
+    -------
+    bytes or None
+        The stored bytes, or None.
+    """
     import hashlib
 
     p = _cache_entry(kind, key)
@@ -401,7 +573,24 @@ def write_cache(kind: str, key: str, data: bytes, keep: int = CACHE_KEEP) -> boo
     """Store ``data`` under ``kind`` / ``key`` (written to a temporary name and renamed, with
     its digest, so a reader never sees half an entry) and remove the least recently used
     entries of ``kind`` beyond ``keep``; False, silently, where the cache folder cannot be
-    written (a cache is never an error)."""
+    written (a cache is never an error).
+
+    Parameters
+    ----------
+    kind
+        The cache's kind (a sub-folder).
+    key
+        The entry's key.
+    data
+        The bytes.
+    keep
+        Entries of ``kind`` kept, least recently used removed first.
+
+    Returns
+    -------
+    bool
+        Whether the entry was stored.
+    """
     import hashlib
 
     p = _cache_entry(kind, key)

@@ -5,7 +5,7 @@ naming the estimate and the limit, what would not fit.
 The limit is the machine's available memory (``/proc/meminfo`` MemAvailable, else total
 physical memory) less a margin, or ``SHPROBE_MAX_MEMORY`` (bytes, or with a K/M/G/T suffix;
 the CLI's ``--max-memory`` sets it) when that is lower. Work that is naturally chunked stays
-under :data:`CHUNK_BYTES` per chunk instead of being refused.
+under [`CHUNK_BYTES`][shprobe.limits.CHUNK_BYTES] per chunk instead of being refused.
 """
 
 from __future__ import annotations
@@ -28,7 +28,18 @@ _UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
 
 def parse_bytes(text: str) -> int:
-    """'512M', '2G', '1.5GiB', '1000000' → bytes."""
+    """'512M', '2G', '1.5GiB', '1000000' → bytes.
+
+    Parameters
+    ----------
+    text
+        A size such as "512M", "2G", "1.5GiB" or "1000000".
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
     m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
     if not m:
         raise ShprobeError(f"cannot parse memory size {text!r}: expected e.g. 512M or 4G")
@@ -36,7 +47,18 @@ def parse_bytes(text: str) -> int:
 
 
 def format_bytes(n: float) -> str:
-    """Bytes for people: 1.5 GB, 300 MB, 12 kB."""
+    """Bytes for people: 1.5 GB, 300 MB, 12 kB.
+
+    Parameters
+    ----------
+    n
+        Bytes.
+
+    Returns
+    -------
+    str
+        e.g. "1.5 GB".
+    """
     for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if abs(n) >= size:
             return f"{n / size:.3g} {unit}"
@@ -59,7 +81,13 @@ def _available() -> int:
 
 def memory_limit() -> int:
     """Bytes one operation may allocate: 80 % of the available memory, or
-    ``SHPROBE_MAX_MEMORY`` when set and lower."""
+    ``SHPROBE_MAX_MEMORY`` when set and lower.
+
+    Returns
+    -------
+    int
+        Bytes one operation may allocate.
+    """
     limit = int(0.8 * _available())
     env = os.environ.get("SHPROBE_MAX_MEMORY")
     if env:
@@ -68,7 +96,18 @@ def memory_limit() -> int:
 
 
 def check_memory(nbytes: float, what: str, where: Any = None) -> None:
-    """Refuse ``what`` when its estimated ``nbytes`` exceed :func:`memory_limit`."""
+    """Refuse ``what`` when its estimated ``nbytes`` exceed
+    [`memory_limit`][shprobe.limits.memory_limit].
+
+    Parameters
+    ----------
+    nbytes
+        The estimated bytes.
+    what
+        The work, named in the error.
+    where
+        The file concerned, named in the error.
+    """
     limit = memory_limit()
     if nbytes > limit:
         raise ShprobeError(
@@ -88,8 +127,14 @@ PAIRS_PER_CORE_SECOND = 2e8
 
 
 def pairs_limit() -> float:
-    """Normal × sample products one call may start: :data:`MAX_PAIRS`, or
-    ``SHPROBE_MAX_PAIRS`` (a number, e.g. 1e12) when set."""
+    """Normal × sample products one call may start: [`MAX_PAIRS`][shprobe.limits.MAX_PAIRS], or
+    ``SHPROBE_MAX_PAIRS`` (a number, e.g. 1e12) when set.
+
+    Returns
+    -------
+    float
+        Normal × sample products one call may start.
+    """
     env = os.environ.get("SHPROBE_MAX_PAIRS")
     if env:
         try:
@@ -104,8 +149,20 @@ def pairs_limit() -> float:
 
 def check_pairs(pairs: float, what: str, where: Any = None, smaller: str = "") -> None:
     """Refuse brute-force work of ``pairs`` normal × sample products over
-    :func:`pairs_limit`, in one line with the estimated time, what to make ``smaller`` and
-    how to raise the limit."""
+    [`pairs_limit`][shprobe.limits.pairs_limit], in one line with the estimated time, what to make
+    ``smaller`` and how to raise the limit.
+
+    Parameters
+    ----------
+    pairs
+        Normal × sample products.
+    what
+        The work, named in the error.
+    where
+        The file concerned, named in the error.
+    smaller
+        What to make smaller, said in the error.
+    """
     limit = pairs_limit()
     if pairs > limit:
         raise ShprobeError(
@@ -122,7 +179,13 @@ LONG_JOB_SECONDS = 30.0
 
 
 def cores() -> int:
-    """The cores this process may run on (the parallel kernels' threads)."""
+    """The cores this process may run on (the parallel kernels' threads).
+
+    Returns
+    -------
+    int
+        The cores available to this process.
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):  # pragma: no cover - not Linux
@@ -130,7 +193,18 @@ def cores() -> int:
 
 
 def format_seconds(s: float) -> str:
-    """Seconds for people: '40 s', '1½ min', '12 min', '2.5 h'."""
+    """Seconds for people: '40 s', '1½ min', '12 min', '2.5 h'.
+
+    Parameters
+    ----------
+    s
+        Seconds.
+
+    Returns
+    -------
+    str
+        e.g. "1½ min".
+    """
     if s < 60:
         return f"{max(1, round(s))} s"
     if s < 600:
@@ -145,14 +219,22 @@ def format_seconds(s: float) -> str:
 @dataclass(frozen=True)
 class Cost:
     """A job's estimate before it starts: seconds on this machine and peak bytes (the bytes
-    are the figure the job's memory check refuses on)."""
+    are the figure the job's memory check refuses on).
+
+    Attributes
+    ----------
+    seconds
+        The estimated time on this machine.
+    nbytes
+        The estimated peak bytes.
+    """
 
     seconds: float
     nbytes: float
 
     @property
     def long(self) -> bool:
-        """Over :data:`LONG_JOB_SECONDS`: say it before starting."""
+        """Over [`LONG_JOB_SECONDS`][shprobe.limits.LONG_JOB_SECONDS]: say it before starting."""
         return self.seconds > LONG_JOB_SECONDS
 
     def __str__(self) -> str:

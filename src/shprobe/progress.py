@@ -8,8 +8,8 @@ countable, a total. Library functions take ``progress: Progress | None`` and rep
             ...
             bar.advance(len(chunk))
 
-or wrap an iterable with :func:`track`. ``index``/``count`` make the description read
-"2/3: tracing rays". Nothing here draws: :mod:`shprobe.cli.progress` builds the one terminal
+or wrap an iterable with [`track`][shprobe.progress.track]. ``index``/``count`` make the description
+read "2/3: tracing rays". Nothing here draws: `shprobe.cli.progress` builds the one terminal
 bar (rich on a terminal, one plain line per stage otherwise) and the viewer forwards the same
 calls to the page. ``None`` means quiet.
 """
@@ -28,17 +28,44 @@ class Progress(Protocol):
     """What a reporter implements: one stage at a time."""
 
     def begin(self, description: str, total: float | None = None) -> None:
-        """A stage starts; ``total`` is its amount of work when countable (else None)."""
+        """A stage starts; ``total`` is its amount of work when countable (else None).
+
+        Parameters
+        ----------
+        description
+            What the stage does.
+        total
+            Its amount of work, when countable.
+        """
 
     def update(self, done: float) -> None:
-        """Work done so far in the stage under way (absolute, not an increment)."""
+        """Work done so far in the stage under way (absolute, not an increment).
+
+        Parameters
+        ----------
+        done
+            The work done so far in the stage (absolute).
+        """
 
     def end(self) -> None:
         """The stage under way is finished (shown at 100 %, or removed)."""
 
 
 def label(description: str, index: int | None = None, count: int | None = None) -> str:
-    """'k/N: description' when the stage's place is known, else the description."""
+    """'k/N: description' when the stage's place is known, else the description.
+
+    Parameters
+    ----------
+    description
+        What the stage does.
+    index, count
+        The stage's place, when known.
+
+    Returns
+    -------
+    str
+        "k/N: description", or the description.
+    """
     if index is not None and count is not None:
         return f"{index}/{count}: {description}"
     return description
@@ -65,7 +92,20 @@ class Numbered:
 
 
 def numbered(progress: Progress | None, index: int, count: int) -> Progress | None:
-    """``progress`` with its stages labelled "index/count: …" (None stays None)."""
+    """``progress`` with its stages labelled "index/count: …" (None stays None).
+
+    Parameters
+    ----------
+    progress
+        A reporter, or None.
+    index, count
+        The place its stages are labelled with.
+
+    Returns
+    -------
+    Progress or None
+        The labelling reporter.
+    """
     return None if progress is None else Numbered(progress, index, count)
 
 
@@ -79,13 +119,25 @@ class Stage:
         self._done = 0.0
 
     def advance(self, amount: float = 1) -> None:
-        """Add ``amount`` to the work done."""
+        """Add ``amount`` to the work done.
+
+        Parameters
+        ----------
+        amount
+            Work done since the last call.
+        """
         self._done += amount
         if self._progress is not None:
             self._progress.update(self._done)
 
     def set(self, done: float) -> None:
-        """Set the work done (for callers that know the absolute count)."""
+        """Set the work done (for callers that know the absolute count).
+
+        Parameters
+        ----------
+        done
+            The work done so far (absolute).
+        """
         self._done = float(done)
         if self._progress is not None:
             self._progress.update(self._done)
@@ -94,7 +146,24 @@ class Stage:
 @contextmanager
 def stage(progress: Progress | None, description: str, total: float | None = None, *,
           index: int | None = None, count: int | None = None) -> Iterator[Stage]:
-    """Report one stage; the stage ends when the block does, also on an error."""
+    """Report one stage; the stage ends when the block does, also on an error.
+
+    Parameters
+    ----------
+    progress
+        A reporter, or None (nothing is reported).
+    description
+        What the stage does.
+    total
+        Its units of work, when known.
+    index, count
+        Its place among the job's stages.
+
+    Yields
+    ------
+    Stage
+        Advance it with ``update(done)``.
+    """
     if progress is not None:
         progress.begin(label(description, index, count), total)
     try:
@@ -107,7 +176,26 @@ def stage(progress: Progress | None, description: str, total: float | None = Non
 def track(items: Iterable[T], progress: Progress | None, description: str,
           total: int | None = None, *, index: int | None = None,
           count: int | None = None) -> Iterator[T]:
-    """Yield ``items`` as one stage, one unit of work per item."""
+    """Yield ``items`` as one stage, one unit of work per item.
+
+    Parameters
+    ----------
+    items
+        The work items.
+    progress
+        A reporter, or None.
+    description
+        What the stage does.
+    total
+        The number of items, when ``items`` has no length.
+    index, count
+        Its place among the job's stages.
+
+    Yields
+    ------
+    object
+        The items, in order.
+    """
     if total is None and hasattr(items, "__len__"):
         total = len(items)  # type: ignore[arg-type]
     with stage(progress, description, total, index=index, count=count) as bar:
@@ -126,8 +214,8 @@ class Steps:
             bar = step("tracing rays", total=n)
             ...
 
-    Each call ends the stage before it and begins the next (returning its :class:`Stage`);
-    leaving the block ends the last one, also on an error.
+    Each call ends the stage before it and begins the next (returning its
+    [`Stage`][shprobe.progress.Stage]); leaving the block ends the last one, also on an error.
     """
 
     def __init__(self, progress: Progress | None, count: int) -> None:

@@ -33,8 +33,8 @@ def tour_lines() -> list[str]:
 def tour_dir(tmp_path, monkeypatch):
     grace, ennis, bunny = (data_file("probes", "grace.hdr"), data_file("probes", "ennis.hdr"),
                            data_file("meshes", "bunny.obj"))
-    for src, name in ((grace, "probe.hdr"), (grace, "grace.hdr"), (ennis, "ennis.hdr"),
-                      (bunny, "bunny.obj")):
+    # exactly the files the tour's setup sentence names
+    for src, name in ((grace, "grace.hdr"), (ennis, "ennis.hdr"), (bunny, "bunny.obj")):
         shutil.copy(src, tmp_path / name)
     monkeypatch.chdir(tmp_path)
     return tmp_path
@@ -68,6 +68,22 @@ def test_the_tour_says_how_to_reach_the_command():
     text = README.read_text(encoding="utf-8")
     tour = text[text.index("## A tour"):text.index("```sh", text.index("## A tour"))]
     assert ". .venv/bin/activate" in tour and ".venv/bin/shprobe" in tour
+    # the files the tour's lines read are the ones its setup sentence names
+    named = set(re.findall(r"`(\w+\.(?:hdr|obj))`", tour))
+    used = {w for ln in tour_lines() for w in shlex.split(ln)
+            if re.fullmatch(r"\w+\.(?:hdr|obj)", w)}
+    assert used <= named == {"grace.hdr", "ennis.hdr", "bunny.obj"}, (used, named)
+
+
+def test_every_workflow_is_linked():
+    text = README.read_text(encoding="utf-8")
+    for page in ("prefilter", "render", "sh", "hbasis", "prt", "fitting", "report", "batch",
+                 "viewer", "grids", "grid-exports", "splats", "tensors", "lightmaps",
+                 "contributing", "install"):
+        assert f"(docs/{page}.md)" in text, page
+    extras = text[text.index("### Installing only what you need"):text.index("## A tour")]
+    for extra in ("viewer", "batch", "splats", "torch", "jax", "all"):
+        assert f"shprobe[{extra}]" in extras, extra
 
 
 def test_readme_python_snippet_runs(tour_dir):

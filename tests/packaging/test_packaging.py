@@ -249,7 +249,7 @@ def test_installed_wheel_core_then_viewer_then_batch_then_the_tour(dists, tmp_pa
 
     # every README tour line, as written, in a shell whose venv is activated
     data = shared_dir()
-    files = {"probe.hdr": data / "probes" / "grace.hdr", "grace.hdr": data / "probes" /
+    files = {"grace.hdr": data / "probes" /
              "grace.hdr", "ennis.hdr": data / "probes" / "ennis.hdr",
              "bunny.obj": data / "meshes" / "bunny.obj"}
     if all(f.is_file() for f in files.values()):

@@ -57,7 +57,7 @@ def test_package_names_its_modules_and_the_source_states_the_present():
     doc = prt.__doc__
     for p in PRT.glob("*.py"):
         if p.stem not in ("__init__", "_kernels"):
-            assert f":mod:`.{p.stem}`" in doc, p.stem
+            assert f"`shprobe.prt.{p.stem}`" in doc or f":mod:`.{p.stem}`" in doc, p.stem
     for p in [*PRT.glob("*.py"), CLI]:
         text = p.read_text()
         assert not re.search(r"\b(issue|run) \d+", text), p.name

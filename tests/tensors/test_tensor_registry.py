@@ -80,8 +80,8 @@ def test_e3nn_itself():
     """e3nn itself (a dev requirement) evaluates its own harmonics."""
     c = coeffs(4)
     b = convert(c, to="e3nn")
-    torch = pytest.importorskip("torch")
-    o3 = pytest.importorskip("e3nn.o3")
+    torch = need("torch")
+    o3 = need("e3nn.o3")
     Y = np.concatenate([o3.spherical_harmonics(l, torch.tensor(D), normalize=True,
                                                normalization="integral").numpy()
                         for l in range(5)], axis=-1)

@@ -9,7 +9,7 @@ folder is removed. Re-running with the same output reads the table and any parts
 interrupted run, skips every file whose content hash already has a successful row (failed
 rows are tried again) and computes the rest. Ctrl-C, or a crash, loses at most the rows not
 yet flushed; a worker that dies has its probes recomputed by Dask on another worker. One
-batch writes an output at a time (:func:`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
+batch writes an output at a time (`shprobe.batch.lock.output_lock`, ``T.parquet.lock``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,18 @@ Progress = Callable[[int, int], None]
 
 
 def parts_dir(output: str | os.PathLike[str]) -> Path:
-    """Folder of the parts of ``output`` while a batch runs: ``<output>.parts``."""
+    """Folder of the parts of ``output`` while a batch runs: ``<output>.parts``.
+
+    Parameters
+    ----------
+    output
+        The batch table's path.
+
+    Returns
+    -------
+    Path
+        ``<output>.parts``.
+    """
     p = Path(output)
     return p.with_name(p.name + ".parts")
 
@@ -50,7 +61,7 @@ def table_meta(table: Any) -> dict[str, Any]:
 
 
 def _upgrade(t: Any, path: Any):
-    """A table (or part) of any schema version with today's column names (:data:`RENAMED`);
+    """A table (or part) of any schema version with today's column names (`RENAMED`);
     one made by a newer shprobe is refused."""
     version = table_meta(t).get("schema_version", 1)
     if not isinstance(version, int) or version > SCHEMA_VERSION:
@@ -65,7 +76,18 @@ def _upgrade(t: Any, path: Any):
 def read_table(path: str | os.PathLike[str]):
     """A batch table (pyarrow.Table) with its metadata, columns named as today (a table of an
     older schema version has its renamed columns renamed); one line for a file that is not
-    one."""
+    one.
+
+    Parameters
+    ----------
+    path
+        A batch table (``.parquet``).
+
+    Returns
+    -------
+    pyarrow.Table
+        The table with its metadata.
+    """
     import pyarrow.parquet as pq
 
     if os.path.exists(path) and not os.path.isfile(path):
@@ -194,8 +216,8 @@ def _keep_heap() -> bool:
 
 class _WarmPlugin:
     """Dask worker plugin: warm numba in every worker, including ones started later; with
-    ``keep_heap`` (only in the cluster shprobe starts itself, :func:`_local_cluster`) also let
-    the heap keep freed image buffers (:func:`_keep_heap`). A user's cluster keeps its heap."""
+    ``keep_heap`` (only in the cluster shprobe starts itself, `_local_cluster`) also let
+    the heap keep freed image buffers (`_keep_heap`). A user's cluster keeps its heap."""
 
     name = "shprobe-warm"
     idempotent = True  # registered once per cluster, not again by every batch
@@ -278,7 +300,7 @@ def _run_inline(jobs, options, done) -> Iterator[dict[str, Any]]:
 
 def _run_dask(jobs, options, done, client, chunk: int | None = None
               ) -> Iterator[dict[str, Any]]:
-    """Rows from tasks of :func:`chunk_size` probes, largest files first. A task that fails
+    """Rows from tasks of `chunk_size` probes, largest files first. A task that fails
     (its worker died too often) is split into one task per probe, so only the probe that
     kills workers becomes an error row."""
     from distributed import as_completed
@@ -341,8 +363,21 @@ class Engine:
     ``"inline"`` runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS``
     when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
     processes (default: one per core) × 1 thread is started and closed again. On Dask, each
-    task computes ``chunk`` probes (below 1 means 1; default :func:`chunk_size`: up to 8, fewer
-    for small batches), the largest files first."""
+    task computes ``chunk`` probes (below 1 means 1; default `chunk_size`: up to 8, fewer
+    for small batches), the largest files first.
+
+    Parameters
+    ----------
+    scheduler
+        "inline", "tcp://HOST:PORT", or None (``$DASK_SCHEDULER_ADDRESS``, else a local
+        cluster).
+    workers
+        Processes of a local cluster (default: one per core).
+    client
+        A ``distributed.Client`` to use instead.
+    chunk
+        Probes per Dask task (default: up to 8).
+    """
 
     scheduler: str | None = None
     workers: int | None = None
@@ -356,16 +391,42 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               engine: Engine | None = None, force: bool = False,
               progress: Progress | None = None, flush_rows: int = 256,
               flush_seconds: float = 30.0):
-    """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
-    it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
+    """Compute the batch table of INPUTS (see
+    [`shprobe.batch.expand_inputs`][shprobe.batch.expand_inputs]) and return it as a
+    ``pyarrow.Table`` (columns: [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS]), sorted by path.
 
-    ``options`` (:class:`BatchOptions`): what each row computes (default: lmax 2). ``engine``
-    (:class:`Engine`): where it runs (default: a local Dask cluster). ``progress`` gets one
-    stage counting the probes (:mod:`shprobe.progress`).
+    ``options`` ([`BatchOptions`][shprobe.batch.BatchOptions]): what each row computes (default:
+    lmax 2). ``engine`` ([`Engine`][shprobe.batch.Engine]): where it runs (default: a local Dask
+    cluster). ``progress`` gets one stage counting the probes (`shprobe.progress`).
 
     ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
     ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
     made with other options is refused unless ``force``, which starts afresh.
+
+    Parameters
+    ----------
+    inputs
+        Probe files, folders or glob patterns.
+    output
+        The ``.parquet`` table, written in parts and committed atomically; None keeps it in
+        memory.
+    options
+        What each row computes (default: lmax 2).
+    layout
+        The probes' layout, or "auto".
+    engine
+        Where it runs (default: a local Dask cluster).
+    force
+        Start afresh over a table made with other options.
+    progress
+        Told about the probes done.
+    flush_rows, flush_seconds
+        How often a part is written.
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per probe, sorted by path.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
 
@@ -391,7 +452,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
 def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
          force: bool, progress: Progress | None, interrupted: list[int], engine: Engine,
          flush_every: tuple[int, float]):
-    """:func:`run_batch` once the output is locked."""
+    """[`run_batch`][shprobe.batch.run_batch] once the output is locked."""
     old: list[dict[str, Any]] = []
     if out is not None:
         if force:

@@ -52,7 +52,7 @@ def _match(parts: list[str], names: list[str]) -> bool:
 
 
 def _glob(pattern: str) -> list[str]:
-    """Paths matching ``pattern`` (``**`` recursive): :func:`glob.glob` where the pattern has
+    """Paths matching ``pattern`` (``**`` recursive): `glob.glob` where the pattern has
     no ``**``; otherwise a walk below the pattern's fixed folder that follows links to folders
     but enters each folder (device, inode) once, so links to ``.`` or to a parent give each
     file once and end (glob's own ``**`` follows them until the path is too long)."""
@@ -127,6 +127,18 @@ def expand_inputs(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[st
     relative paths are relative to the list's folder) or a glob (``**`` recursive). A path
     that does not exist is kept (its row will carry the error); a glob matching nothing is
     an error. ``layout`` applies where a list gives none; ``auto`` detects it per file.
+
+    Parameters
+    ----------
+    inputs
+        Folders, image files, path lists (.txt, .lst, .csv, .parquet) or globs.
+    layout
+        The layout where a list gives none ("auto" detects it).
+
+    Returns
+    -------
+    list of tuple
+        (absolute path, layout) per probe, duplicates dropped, order kept.
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]

@@ -1,8 +1,8 @@
 """One batch per output at a time, and a Ctrl-C that always ends a batch.
 
 Two batches writing one table would each merge their own rows and the last to finish would
-drop the other's: :func:`output_lock` lets one hold the output and refuses the other in one
-line. :func:`interruptible` records SIGINT so that the batch loop ends even when a library on
+drop the other's: `output_lock` lets one hold the output and refuses the other in one
+line. `interruptible` records SIGINT so that the batch loop ends even when a library on
 the way (Dask's client) caught the KeyboardInterrupt.
 """
 
@@ -27,7 +27,7 @@ def lock_path(output: str | os.PathLike[str]) -> Path:
 
 @contextmanager
 def output_lock(output: Path | None) -> Iterator[None]:
-    """Hold ``output`` for this batch: an exclusive ``flock`` on :func:`lock_path` (released by
+    """Hold ``output`` for this batch: an exclusive ``flock`` on `lock_path` (released by
     the kernel when the process ends, however it ends, so a killed batch leaves no stale
     lock); another batch on the same output is refused in one line naming the process that
     holds it. Nothing for ``None``."""

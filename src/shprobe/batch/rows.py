@@ -2,10 +2,11 @@
 and the function that computes a row (run in a worker process or in-process).
 
 Every number is computed by the library functions shprobe's commands use: the streamed
-projection :func:`shprobe.lighting.projection.project_file` (R&H 2001 eq. 10),
-:func:`~shprobe.lighting.irradiance_coeffs` (eq. 7), :func:`~shprobe.lighting.irradiance_matrix`
-(eq. 11–12), :func:`~shprobe.lighting.min_irradiance`, :func:`~shprobe.lighting.auto_window`
-and :func:`~shprobe.lighting.error_report` (§3.1).
+projection `shprobe.lighting.projection.project_file` (R&H 2001 eq. 10),
+[`irradiance_coeffs`][shprobe.lighting.irradiance_coeffs] (eq. 7),
+[`irradiance_matrix`][shprobe.lighting.irradiance_matrix] (eq. 11–12),
+[`min_irradiance`][shprobe.lighting.min_irradiance], [`auto_window`][shprobe.lighting.auto_window]
+and [`error_report`][shprobe.lighting.error_report] (§3.1).
 """
 
 from __future__ import annotations
@@ -100,7 +101,18 @@ def _arrow_type(name: str):
 
 def schema(meta: dict[str, Any] | None = None):
     """The Arrow schema of a batch table; each field's metadata holds its ``unit`` and
-    ``description``; the schema's ``shprobe`` key holds ``meta`` (JSON) with the convention."""
+    ``description``; the schema's ``shprobe`` key holds ``meta`` (JSON) with the convention.
+
+    Parameters
+    ----------
+    meta
+        The table's metadata (the options, the convention).
+
+    Returns
+    -------
+    pyarrow.Schema
+        The table's schema with units and descriptions.
+    """
     import json
 
     import pyarrow as pa
@@ -118,11 +130,24 @@ def schema(meta: dict[str, Any] | None = None):
 
 @dataclass(frozen=True)
 class BatchOptions:
-    """What each row computes: ``lmax``; ``clamp`` bad pixels instead of failing;
-    ``reference`` N adds the exact-irradiance error on a 2N×N normal grid; ``thumbnail``
-    width in pixels (0: none); ``window`` False leaves the auto-window columns null (they
-    cost more than decoding a 2k probe when a window is needed); ``block_bytes`` of one
-    streamed block of rows."""
+    """What each row computes.
+
+    Parameters
+    ----------
+    lmax
+        The coefficients' degree.
+    clamp
+        Clamp bad pixels instead of failing the row.
+    window
+        Fill the auto-window columns (False leaves them null: they cost more than decoding a
+        2k probe when a window is needed).
+    reference
+        N: add the exact-irradiance error on a 2N×N normal grid.
+    thumbnail
+        The thumbnail's width in pixels (0: none).
+    block_bytes
+        The bytes of one streamed block of rows.
+    """
 
     lmax: int = 2
     clamp: bool = False
@@ -132,7 +157,13 @@ class BatchOptions:
     block_bytes: int = 16 << 20
 
     def key(self) -> dict[str, Any]:
-        """The options a table's rows depend on (resume refuses a table made with others)."""
+        """The options a table's rows depend on (resume refuses a table made with others).
+
+        Returns
+        -------
+        dict
+            The options the rows depend on, by name.
+        """
         d = asdict(self)
         d.pop("block_bytes")
         return d | {"hash": HASH}
@@ -148,8 +179,21 @@ HASH = "xxh3_128"
 
 
 def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """XXH3-128 of a file's bytes, hex (:data:`HASH`); a regular file only (opened without
-    blocking, so a FIFO put in its place meanwhile is refused, not waited on)."""
+    """XXH3-128 of a file's bytes, hex (`HASH`); a regular file only (opened without
+    blocking, so a FIFO put in its place meanwhile is refused, not waited on).
+
+    Parameters
+    ----------
+    path
+        A regular file.
+    chunk
+        Bytes read at a time.
+
+    Returns
+    -------
+    str
+        XXH3-128 of the bytes, hex.
+    """
     import xxhash
 
     h = xxhash.xxh3_128()
@@ -212,11 +256,27 @@ def empty_row(path: str) -> dict[str, Any]:
 
 def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = None,
               done: frozenset[str] | set[str] | None = None) -> dict[str, Any]:
-    """Compute one row (a dict of the :data:`COLUMNS`, plain Python values).
+    """Compute one row (a dict of the [`COLUMNS`][shprobe.batch.COLUMNS], plain Python values).
 
     Never raises for a bad probe: its one-line message goes to ``failure`` and the columns not
     reached stay null. When the file's content hash is in ``done`` the work is skipped and
     the row has only ``path``, ``size_bytes``, ``content_hash`` and ``"skipped": True``.
+
+    Parameters
+    ----------
+    path
+        The probe.
+    layout
+        Its layout, or "auto".
+    options
+        What the row computes (default: lmax 2).
+    done
+        Content hashes already in the table: their work is skipped.
+
+    Returns
+    -------
+    dict
+        The row's values by column name.
     """
     from ..lighting import (
         auto_window,

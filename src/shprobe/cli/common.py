@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TypeVar
@@ -14,10 +15,15 @@ T = TypeVar("T")
 
 
 def console(stderr: bool = False):
-    """A rich console (imported lazily)."""
+    """A rich console (imported lazily). Piped or redirected (no terminal, no ``COLUMNS``) it
+    has no width to honour: a table row stays one line instead of wrapping at rich's 80."""
+    import sys
+
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False)
+    stream = sys.stderr if stderr else sys.stdout
+    piped = not (getattr(stream, "isatty", lambda: False)() or os.environ.get("COLUMNS"))
+    return Console(stderr=stderr, highlight=False, width=10_000 if piped else None)
 
 
 def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[float]:
@@ -34,7 +40,7 @@ def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[f
 
 
 def parse_vector(text: str, what: str = "direction"):
-    """'x,y,z' → a unit vector (numpy array), via :func:`shprobe.sh.rotation.unit_vectors`
+    """'x,y,z' → a unit vector (numpy array), via `shprobe.sh.rotation.unit_vectors`
     (overflow-safe; zero and non-finite vectors refused in one line)."""
     from ..sh.rotation import unit_vectors
 
@@ -51,7 +57,7 @@ ROTATE_HELP = ("Rotation AX,AY,AZ:DEGREES (right-hand rule about the axis), "
 
 
 def parse_rotation(text: str):
-    """One ``--rotate`` value (:data:`ROTATE_HELP`) → a checked 3×3 rotation matrix."""
+    """One ``--rotate`` value (`ROTATE_HELP`) → a checked 3×3 rotation matrix."""
     import numpy as np
 
     from ..sh.rotation import from_axis_angle, from_euler_zyz, from_quaternion, one_rotation
@@ -74,7 +80,7 @@ def parse_rotation(text: str):
 
 def parse_exposure(text: str) -> float | None:
     """The one ``--exposure`` grammar: ``auto`` → None (the command picks it by
-    :func:`shprobe.probes.tonemap.auto_exposure` and prints it); otherwise finite stops."""
+    `shprobe.probes.tonemap.auto_exposure` and prints it); otherwise finite stops."""
     import math
 
     if str(text).strip().lower() == "auto":
@@ -95,7 +101,7 @@ MAX_SIDE = 16384
 def parse_size(text: str, layout: str | None = None) -> tuple[int, int]:
     """The one ``--size`` grammar → (W, H): 'WxH' everywhere; a bare 'N' is N×N for camera
     images and square layouts, and N×N/2 for lat-long (its 2:1 aspect). Sides are capped at
-    :data:`MAX_SIDE`."""
+    `MAX_SIDE`."""
     t = text.strip().lower()
     try:
         if "x" in t:
@@ -139,8 +145,8 @@ clamp_option = click.option(
 
 @contextmanager
 def ldr_warnings_as_lines() -> Iterator[None]:
-    """An LDR probe's :class:`shprobe.probes.images.LDRWarning` as one line on stderr (not a
-    Python warning); other warnings pass through."""
+    """An LDR probe's [`shprobe.probes.images.LDRWarning`][shprobe.probes.images.LDRWarning] as one
+    line on stderr (not a Python warning); other warnings pass through."""
     import warnings
 
     from ..probes.images import LDRWarning

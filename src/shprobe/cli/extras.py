@@ -32,7 +32,8 @@ def missing(extra: str) -> list[str]:
 
 
 def require(extra: str, command: str) -> None:
-    """Raise a one-line :class:`ShprobeError` naming the extra when its modules are missing."""
+    """Raise a one-line [`ShprobeError`][shprobe.errors.ShprobeError] naming the extra when its
+    modules are missing."""
     gone = missing(extra)
     if gone:
         raise ShprobeError(f"shprobe {command} needs the optional packages of shprobe[{extra}] "

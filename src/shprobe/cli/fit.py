@@ -1,4 +1,5 @@
-"""``shprobe fit``: SH lighting from photographs (a thin shell over :mod:`shprobe.fitting`)."""
+"""``shprobe fit``: SH lighting from photographs (a thin shell over
+[`shprobe.fitting`][shprobe.fitting])."""
 
 from __future__ import annotations
 
@@ -47,8 +48,8 @@ def _ball_options(f):
 
 
 def _read_photo(path: str):
-    """The photo (:func:`shprobe.fitting.read_photo`): LDR photos give one warning line, not a
-    Python warning; an exposure shprobe recorded is undone (said by :func:`_emit`)."""
+    """The photo ([`shprobe.fitting.read_photo`][shprobe.fitting.read_photo]): LDR photos give one
+    warning line, not a Python warning; an exposure shprobe recorded is undone (said by `_emit`)."""
     import warnings
 
     from ..fitting import read_photo

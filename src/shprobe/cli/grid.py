@@ -1,5 +1,5 @@
 """CLI commands: the ``shprobe grid`` group and ``shprobe grid bake`` (irradiance volumes;
-library: :mod:`shprobe.grids`); ``grid export`` lives in :mod:`shprobe.cli.grid_export`."""
+library: [`shprobe.grids`][shprobe.grids]); ``grid export`` lives in `shprobe.cli.grid_export`."""
 
 from __future__ import annotations
 
@@ -126,7 +126,7 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
 
 
 def register(group: click.Group) -> None:
-    """Add the ``grid`` group, with ``grid export`` (:mod:`shprobe.cli.grid_export`)."""
+    """Add the ``grid`` group, with ``grid export`` (`shprobe.cli.grid_export`)."""
     from .grid_export import export
 
     grid.add_command(export)

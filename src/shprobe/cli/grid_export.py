@@ -1,5 +1,5 @@
 """``shprobe grid export GRID --format three|unity|godot -o FILE``: a baked grid in an engine's
-format (:mod:`shprobe.grids.exports`; docs/grid-exports.md shows how each is loaded)."""
+format (`shprobe.grids.exports`; docs/grid-exports.md shows how each is loaded)."""
 
 from __future__ import annotations
 

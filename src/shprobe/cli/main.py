@@ -27,7 +27,7 @@ COMMANDS: dict[str, str] = {
 
 
 class LazyGroup(click.Group):
-    """The top-level group: commands from :data:`COMMANDS`, their modules imported on use."""
+    """The top-level group: commands from `COMMANDS`, their modules imported on use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(set(self.commands) | set(COMMANDS))

@@ -1,11 +1,11 @@
 """What a command says: its estimate before a long job, one line naming what it wrote.
 
-Every command that writes files ends with :func:`wrote` (silenced by ``-q``; ``-v`` adds
-detail lines through :func:`detail`). The product of a command (a table, a JSON document sent
+Every command that writes files ends with `wrote` (silenced by ``-q``; ``-v`` adds
+detail lines through `detail`). The product of a command (a table, a JSON document sent
 to stdout) goes to stdout; these lines go to stderr so that a command's stdout stays its
-product. A job estimated over :data:`shprobe.limits.LONG_JOB_SECONDS` says so before it starts
-(:func:`estimate`, from the cost model its memory check uses); :func:`progress` is the one
-terminal reporter of the :mod:`shprobe.progress` protocol.
+product. A job estimated over [`shprobe.limits.LONG_JOB_SECONDS`][shprobe.limits.LONG_JOB_SECONDS]
+says so before it starts (`estimate`, from the cost model its memory check uses); `progress` is the
+one terminal reporter of the `shprobe.progress` protocol.
 """
 
 from __future__ import annotations
@@ -85,10 +85,11 @@ def wrote(paths: Sequence[str | os.PathLike] | str | os.PathLike, what: str = ""
 
 
 def estimate(cost, what: str) -> None:
-    """Say ``what`` will take ``cost`` (a :class:`shprobe.limits.Cost`) before it starts, when
-    it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length). A job
-    whose bytes are over the memory limit is refused first, in one line
-    (:func:`shprobe.limits.check_memory`, the check the job itself makes)."""
+    """Say ``what`` will take ``cost`` (a [`shprobe.limits.Cost`][shprobe.limits.Cost]) before it
+    starts, when it is a long job; quiet under ``-q`` (and shown under ``-v`` whatever its length).
+    A job whose bytes are over the memory limit is refused first, in one line
+    ([`shprobe.limits.check_memory`][shprobe.limits.check_memory], the check the job itself
+    makes)."""
     from ..limits import check_memory
 
     check_memory(cost.nbytes, what)

@@ -37,7 +37,7 @@ def coeff_table(coeffs, title: str | None = None):
 
 
 def coeff_text(coeffs) -> str:
-    """Plain-text version of :func:`coeff_table`."""
+    """Plain-text version of `coeff_table`."""
     from ..sh import lmax_of
 
     lines = [f"{'':6}{'R':>10}{'G':>10}{'B':>10}"]
@@ -50,7 +50,7 @@ def coeff_text(coeffs) -> str:
 
 
 def error_table(report, title: str | None = None):
-    """A rich table of an :class:`~shprobe.lighting.reference.ErrorReport`."""
+    """A rich table of an [`ErrorReport`][shprobe.lighting.ErrorReport]."""
     from rich.table import Table
 
     from ..report.probe import error_note
@@ -125,7 +125,7 @@ def _finite(d: dict) -> dict:
 
 
 def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
-    """--size (the one grammar, :func:`shprobe.cli.common.parse_size`) → the layout's size
+    """--size (the one grammar, `shprobe.cli.common.parse_size`) → the layout's size
     argument; defaults 256x128 (lat-long), 64 (cube face), 256 (discs)."""
     from .common import parse_size
 

@@ -1,11 +1,11 @@
 """The one place that draws progress in the terminal.
 
-:class:`TerminalProgress` implements :class:`shprobe.progress.Progress`. On a terminal: one rich
-display on stderr holding a bar per stage under way (description "k/N: what", a percentage and
-an ETA when the stage's total is known, the elapsed time always); a stage that ends is shown at
-100 % and removed, and the display is erased when the last stage ends, so no bar is left on
-screen below 100 %. Otherwise (stderr redirected to a file or a pipe): one plain line on
-stderr, "k/N: what …", for each stage still under way after :data:`LOG_AFTER` seconds, and
+`TerminalProgress` implements [`shprobe.progress.Progress`][shprobe.progress.Progress]. On a
+terminal: one rich display on stderr holding a bar per stage under way (description "k/N: what", a
+percentage and an ETA when the stage's total is known, the elapsed time always); a stage that ends
+is shown at 100 % and removed, and the display is erased when the last stage ends, so no bar is left
+on screen below 100 %. Otherwise (stderr redirected to a file or a pipe): one plain line on
+stderr, "k/N: what …", for each stage still under way after `LOG_AFTER` seconds, and
 nothing else, so logs get no blank lines and no control codes, and a quick command's log is
 its closing line alone (bad input still gives one line). Quiet mode reports nothing. Stages
 may nest (a library stage inside a command's stage): each gets its own bar, the inner one
@@ -47,7 +47,8 @@ def _columns() -> list[Any]:
 
 
 class TerminalProgress:
-    """A :class:`shprobe.progress.Progress` for the CLI (see the module docstring)."""
+    """A [`shprobe.progress.Progress`][shprobe.progress.Progress] for the CLI (see the module
+    docstring)."""
 
     def __init__(self, quiet: bool = False, stream: Any = None,
                  log_after: float | None = None) -> None:

@@ -1,5 +1,5 @@
 """CLI commands: ``shprobe prt bake`` and ``shprobe prt render`` (precomputed radiance transfer,
-Lisle & Huang 2007 §4; library: :mod:`shprobe.prt`)."""
+Lisle & Huang 2007 §4; library: [`shprobe.prt`][shprobe.prt])."""
 
 from __future__ import annotations
 
@@ -258,4 +258,5 @@ def register(group: click.Group) -> None:
         for i, frame in enumerate(track(frames, progress(), "1/1: turntable frames",
                                         turntable)):
             frame.save(name(i), stops, force)  # one frame at a time: nothing accumulates
-        wrote([name(0), name(turntable - 1)], f"{turntable} turntable frames")
+        # every frame named, so the line reads "36 files in frames/: f_000.png … f_035.png"
+        wrote([name(i) for i in range(turntable)], "turntable frames")

@@ -36,7 +36,7 @@ def source_options(fn):
 def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
                 required=True) -> tuple[Any, str, Any]:
     """(coefficients (K, C), name, Env or None) from the source options
-    (:func:`shprobe.cli.sources.resolve_coeffs`)."""
+    (`shprobe.cli.sources.resolve_coeffs`)."""
     if not required and not (probe or preset or coeffs_file):
         return None, "", None
     src = resolve_coeffs(probe, preset, coeffs_file, layout=layout, lmax=lmax, clamp=clamp)
@@ -44,9 +44,10 @@ def load_source(probe, preset, coeffs_file, layout="auto", clamp=False, lmax=2,
 
 
 def edit(coeffs, options: dict[str, Any], layout: str = "auto", clamp: bool = False):
-    """The edit options of a command (:meth:`shprobe.lighting.edits.EditSpec.from_options`)
-    applied by :func:`shprobe.lighting.design.edit_lighting` (blended probes read in
-    ``layout``); returns (coeffs, description of the window step or None)."""
+    """The edit options of a command
+    ([`shprobe.lighting.edits.EditSpec.from_options`][shprobe.lighting.EditSpec.from_options])
+    applied by `shprobe.lighting.design.edit_lighting` (blended probes read in ``layout``); returns
+    (coeffs, description of the window step or None)."""
     from ..lighting.design import edit_lighting
     from ..lighting.edits import EditSpec
     from ..lighting.source import blend_lighting
@@ -58,7 +59,7 @@ def edit(coeffs, options: dict[str, Any], layout: str = "auto", clamp: bool = Fa
 
 def export_path(output: str | None, source: str, options: dict[str, Any], fmt: str) -> str:
     """Where an export goes: ``-o FILE`` as given; ``-o FOLDER``, or no ``-o``, the export's
-    name in that folder or here (:func:`shprobe.lighting.filenames.export_name`: the name the
+    name in that folder or here (`shprobe.lighting.filenames.export_name`: the name the
     viewer gives the same export's download)."""
     from ..lighting.edits import EditSpec
     from ..lighting.filenames import export_name

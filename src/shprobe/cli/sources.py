@@ -1,7 +1,7 @@
 """The lighting-source options shared by commands (PROBE | --preset | --coeffs), resolved by the
-library's one resolver, :func:`shprobe.lighting.source.resolve_lighting`.
+library's one resolver, `shprobe.lighting.source.resolve_lighting`.
 
-Use :func:`coeff_source_options` on a click command and :func:`resolve_coeffs` in its body::
+Use `coeff_source_options` on a click command and `resolve_coeffs` in its body::
 
     @group.command()
     @coeff_source_options
@@ -57,7 +57,7 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
                    coeffs_file: str | None = None, layout: str = "auto",
                    lmax: int | None = 2, clamp: bool = False, need_env: bool = False,
                    cone: tuple[Any, float] | None = None) -> Lighting:
-    """:func:`shprobe.lighting.source.resolve_lighting` for commands: the option names in the
+    """`shprobe.lighting.source.resolve_lighting` for commands: the option names in the
     messages, and an LDR probe's warning as one line on stderr."""
     from ..lighting.source import SourceChoiceError, resolve_lighting
 

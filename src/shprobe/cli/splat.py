@@ -1,5 +1,5 @@
 """CLI commands ``shprobe splat transform`` and ``shprobe splat info`` (a shell over
-:mod:`shprobe.splats`)."""
+[`shprobe.splats`][shprobe.splats])."""
 
 from __future__ import annotations
 

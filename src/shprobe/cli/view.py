@@ -1,4 +1,4 @@
-"""CLI command: view (the browser viewer, :mod:`shprobe.viewer`)."""
+"""CLI command: view (the browser viewer, [`shprobe.viewer`][shprobe.viewer])."""
 
 from __future__ import annotations
 

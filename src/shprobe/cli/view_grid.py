@@ -1,5 +1,5 @@
 """CLI: ``shprobe view --grid GRID [--mesh OBJECT] [--scene SCENE]``, the grid page of the
-viewer (:mod:`shprobe.viewer.grid`): its files are read before the URL is printed, so a bad
+viewer (`shprobe.viewer.grid`): its files are read before the URL is printed, so a bad
 one is one line and a non-zero exit, with no server started."""
 
 from __future__ import annotations

@@ -2,15 +2,15 @@
 only the l ≤ 2 part of the lighting, so images of an object of known shape determine the nine
 coefficients L_lm through a linear least-squares problem.
 
-- :mod:`.solve`: the 9×9 normal equations, IRLS (Huber / Tukey) rejection, conditioning per
-  coefficient (:class:`LightingFit`);
-- :mod:`.circle`: a ball's outline, given (``CX,CY,R``) or detected;
-- :mod:`.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera);
-- :mod:`.objects`: any diffuse object — per-pixel normals, or a mesh seen by cameras, with
+- `shprobe.fitting.solve`: the 9×9 normal equations, IRLS (Huber / Tukey) rejection, conditioning
+  per coefficient ([`LightingFit`][shprobe.fitting.LightingFit]);
+- `shprobe.fitting.circle`: a ball's outline, given (``CX,CY,R``) or detected;
+- `shprobe.fitting.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera);
+- `shprobe.fitting.objects`: any diffuse object — per-pixel normals, or a mesh seen by cameras, with
   optional per-vertex albedo fitted jointly;
-- :mod:`.photo`: the photo read for a fit, the exposure a shprobe picture records undone.
+- `shprobe.fitting.photo`: the photo read for a fit, the exposure a shprobe picture records undone.
 
-Scene names come from :mod:`shprobe.scene`.
+Scene names come from [`shprobe.scene`][shprobe.scene].
 """
 
 from .ball import (

@@ -37,7 +37,15 @@ __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_gr
 @dataclass(frozen=True)
 class BallCamera:
     """``projection`` "orthographic" or "perspective"; ``fov``: vertical field of view of the
-    whole image in degrees (perspective only)."""
+    whole image in degrees (perspective only).
+
+    Parameters
+    ----------
+    projection
+        "orthographic" or "perspective".
+    fov
+        The whole image's vertical field of view, degrees (perspective only).
+    """
 
     projection: str = "orthographic"
     fov: float | None = None
@@ -58,7 +66,19 @@ class BallCamera:
 
 
 def parse_ball_camera(text: str) -> BallCamera:
-    """``orthographic`` | ``perspective:FOV`` (vertical, degrees) → :class:`BallCamera`."""
+    """``orthographic`` | ``perspective:FOV`` (vertical, degrees) →
+    [`BallCamera`][shprobe.fitting.BallCamera].
+
+    Parameters
+    ----------
+    text
+        "orthographic" or "perspective:FOV" (vertical, degrees).
+
+    Returns
+    -------
+    BallCamera
+        The camera.
+    """
     t = text.strip().lower()
     if t in ("orthographic", "ortho"):
         return BallCamera("orthographic")
@@ -80,7 +100,25 @@ class BallPixels:
     ``view`` (P, 3) unit direction from the ball towards the camera; ``reflect`` (P, 3) the
     mirror direction 2(n·v)n − v; ``solid_angle`` (P,) dω of the reflected directions over
     the pixel (|∂ω/∂x × ∂ω/∂y|, central differences); ``axis``: unit direction from the ball
-    towards the camera at its centre (the blind spot lies around −axis)."""
+    towards the camera at its centre (the blind spot lies around −axis).
+
+    Attributes
+    ----------
+    rows, cols
+        (P,) pixel indices.
+    normals
+        (P, 3) unit normals.
+    view
+        (P, 3) unit directions from the ball towards the camera.
+    reflect
+        (P, 3) mirror directions 2(n·v)n − v.
+    solid_angle
+        (P,) dω of the reflected directions over each pixel.
+    axis
+        The unit direction from the ball's centre towards the camera.
+    shape
+        The image's (H, W).
+    """
 
     rows: NDArray[np.intp]
     cols: NDArray[np.intp]
@@ -136,7 +174,26 @@ def ball_pixels(circle: Circle, shape: tuple[int, int], camera: BallCamera | Non
                 inset: float = 0.0, mirror: bool = True) -> BallPixels:
     """Pixels whose centre lies on the ball more than ``inset`` pixels inside its outline.
     ``mirror`` False skips the reflected directions' solid angles (zeros; a grey ball needs
-    only the normals)."""
+    only the normals).
+
+    Parameters
+    ----------
+    circle
+        The ball's outline.
+    shape
+        The image's (H, W).
+    camera
+        The camera (default: orthographic).
+    inset
+        Pixels within this many pixels of the outline are left out.
+    mirror
+        Compute the reflected directions' solid angles (a chrome ball).
+
+    Returns
+    -------
+    BallPixels
+        The pixels, their normals and, for a mirror, reflected directions and solid angles.
+    """
     camera = camera or BallCamera()
     H, W = shape[:2]
     circle = check_circle(circle, shape)
@@ -192,10 +249,33 @@ def _image(img: NDArray, path=None) -> NDArray[np.float32]:
 
 @dataclass(repr=False)
 class BallFit:
-    """A ball photo's fit: ``fit`` (:class:`LightingFit`, coefficients in the camera frame),
-    ``circle``, ``camera``, ``pixels`` (:class:`BallPixels`), and for a chrome ball the blind
-    spot: ``blind_angle`` (degrees, half-angle of the cone of directions around −axis that no
-    used pixel reflects) and ``blind_solid_angle`` (sr)."""
+    """A ball photo's fit: ``fit`` ([`LightingFit`][shprobe.fitting.LightingFit], coefficients in
+    the camera frame), ``circle``, ``camera``, ``pixels``
+    ([`BallPixels`][shprobe.fitting.BallPixels]), and for a chrome ball the blind spot:
+    ``blind_angle`` (degrees, half-angle of the cone of directions around −axis that no used pixel
+    reflects) and ``blind_solid_angle`` (sr).
+
+    Attributes
+    ----------
+    fit
+        The lighting fit, coefficients in the camera frame.
+    circle
+        The ball's outline.
+    camera
+        The camera assumed.
+    pixels
+        The pixels used.
+    kind
+        "grey" or "chrome".
+    binning
+        The block size the photo was averaged by (1: none).
+    photo
+        The (block-mean) photo fitted.
+    blind_angle, blind_solid_angle
+        A chrome ball's blind cone: half-angle (degrees) and solid angle (sr).
+    info
+        Further figures about the fit.
+    """
 
     fit: LightingFit
     circle: Circle
@@ -214,7 +294,18 @@ class BallFit:
 
     def image(self, values: NDArray) -> NDArray[np.float32]:
         """Scatter per-pixel values (P,) or (P, C) back into a full (H, W[, C]) image (0
-        off the ball)."""
+        off the ball).
+
+        Parameters
+        ----------
+        values
+            (P,) or (P, C) per-pixel values of the fit.
+
+        Returns
+        -------
+        ndarray of shape (H, W) or (H, W, C), float32
+            The values in their pixels, 0 off the ball.
+        """
         v = np.asarray(values)
         out = np.zeros((*self.pixels.shape, *v.shape[1:]), dtype=np.float32)
         out[self.pixels.rows, self.pixels.cols] = v
@@ -258,6 +349,32 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     loses nothing that matters while the work drops f²-fold. The result (``circle``,
     ``pixels``, the images) is then at that resolution, ``binning`` = f and ``photo`` the
     block-mean image; ``info['circle_full']`` is the circle in the photo's pixels.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear photo of the ball.
+    circle
+        The ball's outline in pixels; None detects it.
+    camera
+        The camera that took the photo (default: orthographic, looking along −Z).
+    albedo
+        The ball's albedo × exposure, by which the coefficients are divided.
+    saturation
+        Pixels with a channel at or above it are clipped and left out.
+    inset
+        Pixels within this many pixels of the outline are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    max_radius
+        Above this radius (pixels) the photo is fitted on block means.
+    path
+        The photo's file, named in errors.
+
+    Returns
+    -------
+    BallFit
+        The nine RGB coefficients, their standard errors and conditioning, and the fit's pixels.
     """
     img = _image(image, path)
     c = _locate(img, circle, path)
@@ -309,6 +426,28 @@ def fit_chrome_ball(image: NDArray, circle: Circle | None = None,
     only the outermost rim reflects; pixels within ``inset`` px of the outline are left out,
     and the cone they would have covered is reported. Clipped pixels are kept (the brightest
     lights are what clip) and counted in ``info['clipped']``.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear photo of the mirror ball.
+    circle
+        The ball's outline in pixels; None detects it.
+    camera
+        The camera that took the photo (default: orthographic, looking along −Z).
+    reflectance
+        The mirror's reflectance × exposure.
+    saturation
+        Pixels with a channel at or above it are reported as clipped (and kept).
+    inset
+        Pixels within this many pixels of the outline are left out.
+    path
+        The photo's file, named in errors.
+
+    Returns
+    -------
+    BallFit
+        The nine RGB coefficients and the blind spot's cone.
     """
     img = _image(image, path)
     c = _locate(img, circle, path)

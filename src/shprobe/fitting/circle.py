@@ -37,7 +37,17 @@ THRESHOLD = 0.02
 class Circle:
     """A circle in pixel coordinates (x right, y down, top-left corner 0, pixel centres at
     +0.5). ``inliers``: fraction of the outline points the fit agrees with (1 for a given
-    circle)."""
+    circle).
+
+    Parameters
+    ----------
+    cx, cy
+        The centre, pixels (x right, y down, pixel centres at +0.5).
+    r
+        The radius, pixels.
+    inliers
+        The fraction of outline points the fit agrees with (1 for a given circle).
+    """
 
     cx: float
     cy: float
@@ -52,7 +62,18 @@ class Circle:
 
 
 def parse_circle(text: str) -> Circle:
-    """``"CX,CY,R"`` → :class:`Circle`; one-line error otherwise."""
+    """``"CX,CY,R"`` → [`Circle`][shprobe.fitting.Circle]; one-line error otherwise.
+
+    Parameters
+    ----------
+    text
+        "CX,CY,R" in pixels.
+
+    Returns
+    -------
+    Circle
+        The circle.
+    """
     try:
         vals = [float(t) for t in text.replace(" ", "").split(",")]
     except ValueError:
@@ -65,7 +86,22 @@ def parse_circle(text: str) -> Circle:
 
 
 def check_circle(circle: Circle, shape: tuple[int, ...], path=None) -> Circle:
-    """Refuse a circle that leaves the image or is too small to fit."""
+    """Refuse a circle that leaves the image or is too small to fit.
+
+    Parameters
+    ----------
+    circle
+        The circle.
+    shape
+        The image's shape.
+    path
+        The image file, named in the error.
+
+    Returns
+    -------
+    Circle
+        The same circle, checked.
+    """
     h, w = shape[:2]
     c = circle
     if c.r < 2.0:
@@ -173,8 +209,20 @@ def _edge_points(dist: NDArray, thr: float, x0: float = 0.0, y0: float = 0.0
 def detect_circle(image: NDArray, path=None) -> Circle:
     """Find one ball (a disc differing from the background) in ``image`` (H, W, C) linear.
 
-    Raises a one-line :class:`ShprobeError` when no ball stands out, when the outline is not
-    a circle, or when the ball touches the image border.
+    Raises a one-line [`ShprobeError`][shprobe.errors.ShprobeError] when no ball stands out, when
+    the outline is not a circle, or when the ball touches the image border.
+
+    Parameters
+    ----------
+    image
+        (H, W, C) linear image.
+    path
+        The image file, named in the error.
+
+    Returns
+    -------
+    Circle
+        The ball's outline.
     """
     from scipy import ndimage
 

@@ -20,11 +20,27 @@ __all__ = ["ObjectFit", "fit_mesh", "fit_normals", "read_normal_map"]
 
 @dataclass(repr=False)
 class ObjectFit:
-    """The fit (:class:`LightingFit`, world-frame coefficients) and where its pixels came
-    from: ``views`` list of (rows, cols) per image, ``shapes`` per image, ``normals`` (P, 3)
-    of all views' pixels in order; ``vertex_albedo``
+    """The fit ([`LightingFit`][shprobe.fitting.LightingFit], world-frame coefficients) and where
+    its pixels came from: ``views`` list of (rows, cols) per image, ``shapes`` per image,
+    ``normals`` (P, 3) of all views' pixels in order; ``vertex_albedo``
     (V, 3) when fitted jointly (mean 1 over the seen regions: the global scale is in the
-    coefficients)."""
+    coefficients).
+
+    Attributes
+    ----------
+    fit
+        The lighting fit, world-frame coefficients.
+    views
+        (rows, cols) of the pixels used, per image.
+    shapes
+        Each image's (H, W).
+    normals
+        (P, 3) the pixels' normals, all views in order.
+    vertex_albedo
+        (V, 3) the albedo fitted jointly, or None.
+    info
+        Further figures about the fit.
+    """
 
     fit: LightingFit
     views: list[tuple[NDArray[np.intp], NDArray[np.intp]]]
@@ -38,7 +54,20 @@ class ObjectFit:
         return self.fit.coeffs
 
     def image(self, values: NDArray, view: int = 0) -> NDArray[np.float32]:
-        """Per-pixel values (P,) / (P, C) of all views scattered into view ``view``'s image."""
+        """Per-pixel values (P,) / (P, C) of all views scattered into view ``view``'s image.
+
+        Parameters
+        ----------
+        values
+            (P,) or (P, C) per-pixel values of all views.
+        view
+            The view whose image is made.
+
+        Returns
+        -------
+        ndarray of shape (H, W) or (H, W, C), float32
+            That view's values in their pixels, 0 elsewhere.
+        """
         v = np.asarray(values)
         start = sum(r.size for r, _ in self.views[:view])
         rows, cols = self.views[view]
@@ -73,7 +102,28 @@ def fit_normals(image: ArrayLike, normals: ArrayLike, mask: ArrayLike | None = N
     """Lighting from an image (H, W, 3) and per-pixel normals (H, W, 3) in the lighting's
     frame (e.g. a G-buffer). Pixels with a zero normal, or outside ``mask``, are background;
     NaN or infinite normals are refused. ``albedo``: a number, or a known (H, W[, 3]) albedo
-    image."""
+    image.
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear image.
+    normals
+        (H, W, 3) normals in the lighting's frame; zero marks background.
+    mask
+        (H, W) pixels to use.
+    albedo
+        A number, or a known (H, W[, 3]) albedo image.
+    saturation
+        Pixels with a channel at or above it are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+
+    Returns
+    -------
+    ObjectFit
+        The lighting fit.
+    """
     img = _photo(image, "image")
     n = np.asarray(normals, dtype=np.float64)
     if n.shape[:2] != img.shape[:2] or n.ndim != 3 or n.shape[2] < 3:
@@ -100,8 +150,8 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
              saturation: float | None = None, robust: bool = True,
              albedo_rounds: int = 50) -> ObjectFit:
     """Lighting from one or more images of ``mesh`` (trimesh, or None for the unit sphere)
-    taken by ``cameras`` (the renderer's :class:`Camera`, one per image, image size = camera
-    size). Normals are the smooth shading normals the renderer shades with.
+    taken by ``cameras`` (the renderer's [`Camera`][shprobe.scene.Camera], one per image, image size
+    = camera size). Normals are the smooth shading normals the renderer shades with.
 
     ``albedo``: a number; a (V,) / (V, 3) known per-vertex albedo; ``"vertex"`` to fit an
     albedo per vertex jointly, or ``"groups"`` to fit one albedo per label of ``groups`` (V,)
@@ -116,6 +166,30 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
     the same normal recurs on differently-coloured vertices (several views do not help on a
     convex object). Regions that each span many normals are well determined; the fit's
     ``info['albedo_change']`` reports the last round's change.
+
+    Parameters
+    ----------
+    images
+        One (H, W, 3) linear image or a sequence of them.
+    mesh
+        A trimesh mesh, or None for the unit sphere.
+    cameras
+        The renderer's ``Camera`` of each image (image size = camera size).
+    albedo
+        A number, a known (V,) / (V, 3) per-vertex albedo, "vertex" or "groups" to fit it.
+    groups
+        (V,) integer labels of constant-albedo regions (with ``albedo="groups"``).
+    saturation
+        Pixels with a channel at or above it are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    albedo_rounds
+        Alternating least-squares rounds when the albedo is fitted.
+
+    Returns
+    -------
+    ObjectFit
+        The lighting fit and, when fitted, the albedo.
     """
     imgs = [images] if isinstance(images, np.ndarray) and np.ndim(images) == 3 else list(images)
     cams = [cameras] if isinstance(cameras, Camera) else list(cameras)
@@ -228,7 +302,19 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
 
 def read_normal_map(path) -> NDArray[np.float32]:
     """A float normal map (H, W, 3) as stored (.exr .tif .pfm; signed values kept, unlike
-    :func:`shprobe.probes.images.read_image`, which refuses negative pixels)."""
+    [`shprobe.probes.images.read_image`][shprobe.probes.images.read_image], which refuses negative
+    pixels).
+
+    Parameters
+    ----------
+    path
+        A float image (.exr, .tif, .pfm).
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3), float32
+        The normals as stored, signed.
+    """
     import os
 
     p = os.fspath(path)

@@ -1,7 +1,7 @@
 """The photo a fit reads: linear radiance, with the exposure a shprobe picture records undone.
 
 A picture written by shprobe (``shprobe render -o ball.png``) is the radiance × 2^EV, sRGB
-encoded, with EV in its metadata (:func:`shprobe.probes.codecs.read_exposure`); reading it
+encoded, with EV in its metadata (`shprobe.probes.codecs.read_exposure`); reading it
 back divides by 2^EV, so a fit returns the lighting the picture was rendered with. A photo
 without that metadata is fitted as it is: its coefficients carry the photo's own (unknown)
 exposure, which the fit's document says.
@@ -29,7 +29,19 @@ LDR_SATURATION = 0.999
 class Photo:
     """``image`` (H, W, 3) linear radiance, the recorded exposure undone; ``ldr`` whether the
     file was 8/16-bit (sRGB-decoded); ``exposure`` the EV shprobe recorded (None for a photo
-    without it); ``path`` the file."""
+    without it); ``path`` the file.
+
+    Attributes
+    ----------
+    image
+        (H, W, 3) linear radiance, the recorded exposure undone.
+    ldr
+        Whether the file was 8/16-bit (sRGB-decoded).
+    exposure
+        The EV shprobe recorded, or None.
+    path
+        The file.
+    """
 
     image: NDArray[np.float32]
     ldr: bool
@@ -42,8 +54,20 @@ class Photo:
         return 1.0 if self.exposure is None else float(2.0 ** -self.exposure)
 
     def saturation(self, level: float | None = None) -> float | None:
-        """The clipping level in :attr:`image`'s units: ``level`` is in the file's linear
-        values (default: :data:`LDR_SATURATION` for 8/16-bit files, none for HDR)."""
+        """The clipping level in `image`'s units: ``level`` is in the file's linear
+        values (default: `LDR_SATURATION` for 8/16-bit files, none for HDR).
+
+        Parameters
+        ----------
+        level
+            The clipping level in the file's linear values (default: the LDR level for 8/16-bit
+            files, none for HDR).
+
+        Returns
+        -------
+        float or None
+            The level in ``image``'s units.
+        """
         check_level(level, "saturation")
         if level is None and self.ldr:
             level = LDR_SATURATION
@@ -57,7 +81,19 @@ class Photo:
 
 def read_photo(path: str | os.PathLike[str]) -> Photo:
     """Read a photo for fitting (see the module docstring). An 8/16-bit file issues one
-    :class:`~shprobe.probes.images.LDRWarning`, as :func:`~shprobe.probes.images.read_image`."""
+    [`LDRWarning`][shprobe.probes.images.LDRWarning], as
+    [`read_image`][shprobe.probes.images.read_image].
+
+    Parameters
+    ----------
+    path
+        The photo's file.
+
+    Returns
+    -------
+    Photo
+        Its linear pixels, with the exposure shprobe recorded undone.
+    """
     p = os.fspath(path)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LDRWarning)

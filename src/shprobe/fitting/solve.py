@@ -58,7 +58,18 @@ ALBEDO_RANGE = (1e-30, 1e30)
 def design_factors(model: str) -> NDArray[np.float64]:
     """Factor per coefficient that turns y_lm into a design-matrix column: ``"diffuse"``
     Â_l/π (radiance of a white Lambertian surface, R&H eq. 7), ``"mirror"`` 1 (radiance
-    seen directly, a chrome ball)."""
+    seen directly, a chrome ball).
+
+    Parameters
+    ----------
+    model
+        "diffuse" or "mirror".
+
+    Returns
+    -------
+    ndarray of shape (9,)
+        The factor of each coefficient's column.
+    """
     if model == "diffuse":
         return np.repeat(clamped_cosine_factors(2), [1, 3, 5]) / np.pi
     if model == "mirror":
@@ -79,6 +90,31 @@ class LightingFit:
     ``condition``: the 2-norm condition number of Ĝ. ``weights`` (P,): final IRLS weights
     relative to the prior weights (1 = fully used, 0 = rejected or clipped), ``fitted`` and
     ``residual`` (P, 3) in the pixels' units.
+
+    Attributes
+    ----------
+    coeffs
+        (9, 3) L_lm divided by ``albedo``.
+    albedo
+        The albedo (× exposure) the coefficients were divided by.
+    stderr
+        (9, 3) standard errors.
+    conditioning
+        (9,) how well each coefficient is determined (1: independently of the others).
+    condition
+        The normal matrix's condition number.
+    weights, fitted, residual
+        Per pixel: the final IRLS weights, the model's values, the residuals.
+    clipped
+        Per pixel: left out as clipped.
+    rms
+        The inliers' RMS residual.
+    iterations
+        IRLS iterations run.
+    model
+        "diffuse" or "mirror".
+    info
+        Further figures about the fit.
     """
 
     coeffs: NDArray[np.float64]
@@ -108,11 +144,17 @@ class LightingFit:
     @property
     def poorly_determined(self) -> tuple[str, ...]:
         """Labels (L00 … L22) of the coefficients whose conditioning exceeds
-        :data:`POOR_CONDITION`."""
+        `POOR_CONDITION`."""
         return tuple(RH_LABELS[k] for k in np.flatnonzero(self.conditioning > POOR_CONDITION))
 
     def summary(self) -> str:
-        """One line: RMS residual, fraction rejected, poorly determined coefficients."""
+        """One line: RMS residual, fraction rejected, poorly determined coefficients.
+
+        Returns
+        -------
+        str
+            One line about the fit's quality.
+        """
         poor = ", ".join(self.poorly_determined) or "none"
         what = "RMS residual" if self.model == "diffuse" else "RMS detail above l = 2"
         return (f"{self.weights.size} pixels, {what} {self.rms:.4g} "
@@ -172,7 +214,7 @@ def _starts(a: NDArray, d: NDArray, y: NDArray, w: NDArray, tau: NDArray, floor:
     median of squares over random 10-pixel subsets; and least squares on random 60 % subsets
     of 4×4 tiles of the normals (the tangent-plane coordinates around their mean; for a ball,
     tiles of the image), so that some start leaves out a whole shadow. Returns the best
-    :data:`TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
+    `TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
     use = w > 0
     sw = np.sqrt(w)[:, None]
 
@@ -252,6 +294,36 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets;
     the coefficients and standard errors are that subset's); the weights, rejected pixels,
     fitted values and residuals are over every pixel.
+
+    Parameters
+    ----------
+    dirs
+        (P, 3) unit normals ("diffuse") or reflected directions ("mirror").
+    values
+        (P, 3) linear pixel values.
+    model
+        "diffuse" (value = ρ E(n)/π) or "mirror" (value = ρ L(ω)).
+    weights
+        (P,) prior weights (default 1).
+    albedo
+        A number, or a known (P,) / (P, 3) per-pixel albedo.
+    saturation, black
+        Pixels with a channel at or above ``saturation`` (at or below ``black``) are left out.
+    robust
+        Reject outliers (IRLS) rather than fit plain least squares.
+    scale_floor
+        The smallest residual scale of the IRLS weights, a fraction of the signal.
+    max_iter
+        IRLS iterations at most.
+    irls_samples
+        Pixels the IRLS rounds use (a seeded subset of larger problems).
+    seed
+        The subset's seed.
+
+    Returns
+    -------
+    LightingFit
+        The nine RGB coefficients, residual, rejected fraction, standard errors, conditioning.
     """
     factors = design_factors(model)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)

@@ -1,5 +1,6 @@
 """Numba kernels of grid lookups (compiled once, cached on disk): the leak-controlled weights
-of :mod:`.visibility`, point by point, and the blend of probe coefficients. Imported lazily."""
+of `shprobe.grids.visibility`, point by point, and the blend of probe coefficients. Imported
+lazily."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 @numba.njit(cache=True, nogil=True, inline="always")
 def _moments(padded, probe, dx, dy, dz, n):  # pragma: no cover - compiled
     """Bilinear mean and mean-square distance of a probe's bordered octahedral depth map
-    (:func:`shprobe.grids.octahedral.octahedral_lookup`, +Y the pole) in direction d."""
+    (`shprobe.grids.octahedral.octahedral_lookup`, +Y the pole) in direction d."""
     s = abs(dx) + abs(dy) + abs(dz)
     px, pz = dx / s, dz / s
     if dy < 0:
@@ -37,7 +38,7 @@ def visibility_weights(q, nrm, idx, tri, pos, padded, valid, out):  # pragma: no
     """Leak-controlled weights out (N, 8) of the probes idx (N, 8) of each lookup point q
     (N, 3) with unit normal nrm (N, 3), from their trilinear weights tri (N, 8), probe
     positions pos (P, 3), bordered depth maps padded (P, n+2, n+2, 2) and validity (P,):
-    the rule of :mod:`shprobe.grids.visibility`."""
+    the rule of `shprobe.grids.visibility`."""
     n = padded.shape[1] - 2
     for i in numba.prange(q.shape[0]):
         total = 0.0

@@ -1,7 +1,7 @@
 """Baking a probe grid: per probe, the environment as it is seen past the scene plus the
 diffuse light of the scene's surfaces, to N bounces, with the depth moments of leak control.
 
-Per probe (at its cell centre, or moved out of geometry: :mod:`.placement`), ``samples``
+Per probe (at its cell centre, or moved out of geometry: `shprobe.grids.placement`), ``samples``
 spherical-Fibonacci directions are traced once. A ray that leaves the scene brings the SH
 moments of the probe image over the direction's own cell of the sphere (each image pixel goes
 to its nearest direction, so the cells tile the image: an unoccluded probe holds the image's
@@ -9,13 +9,13 @@ projection pixel for pixel, and occlusion is resolved per cell without aliasing 
 bright spots), or 4π/D · L(ω) y(ω) from the lighting's SH where there is no image. A ray that
 meets the front of a surface sees ρ/π·E, E the surface's irradiance from the previous
 bounce's grid through the leak-controlled interpolation (DDGI's recursive bounce, Majercik
-et al. 2019 §5) or, with ``gather`` > 0, gathered from the surface itself (:mod:`.gather`), ρ
-the albedo there, projected with weight 4π/D (R&H 2001 eq. 6 by quadrature); a back face is
+et al. 2019 §5) or, with ``gather`` > 0, gathered from the surface itself (`shprobe.grids.gather`),
+ρ the albedo there, projected with weight 4π/D (R&H 2001 eq. 6 by quadrature); a back face is
 black.
 
 Each probe's octahedral depth map (mean and mean-square distance to the first hit over
 ``depth_samples``² rays per texel, distances capped at twice the cell diagonal) feeds the
-Chebyshev test of :mod:`.visibility`.
+Chebyshev test of `shprobe.grids.visibility`.
 """
 
 from __future__ import annotations
@@ -75,7 +75,21 @@ def _fmt(x: NDArray) -> str:
 
 
 def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
-    """Seconds and peak bytes of :func:`bake_grid` on this machine, from the arguments."""
+    """Seconds and peak bytes of [`bake_grid`][shprobe.grids.bake_grid] on this machine, from the
+    arguments.
+
+    Parameters
+    ----------
+    n_faces
+        The scene's triangles.
+    settings
+        The bake's settings.
+
+    Returns
+    -------
+    Cost
+        The estimated seconds and peak bytes.
+    """
     p, d = settings.n_probes, settings.samples
     rays = p * (TEST_RAYS + d + settings.depth_rays)
     hits = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
@@ -91,10 +105,28 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
 
 def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
               progress: Progress | None = None) -> ProbeGrid:
-    """Bake an irradiance volume of ``scene`` (anything :func:`shprobe.prt.load_scene` takes:
-    a mesh path, trimesh, BakeScene or list of them; its per-vertex albedo as the renderer
-    reads it) under ``lighting`` (a :class:`shprobe.lighting.source.Lighting` — a probe image
-    is then used directly — or SH coefficients (K, 3)) with ``settings`` (module doc)."""
+    """Bake an irradiance volume of ``scene`` (anything
+    [`shprobe.prt.load_scene`][shprobe.prt.load_scene] takes: a mesh path, trimesh, BakeScene or
+    list of them; its per-vertex albedo as the renderer reads it) under ``lighting`` (a
+    `shprobe.lighting.source.Lighting` — a probe image is then used directly — or SH coefficients
+    (K, 3)) with ``settings`` (module doc).
+
+    Parameters
+    ----------
+    scene
+        A mesh path, trimesh, BakeScene or a list of them.
+    lighting
+        A ``Lighting`` (a probe image is used directly) or SH coefficients (K, 3).
+    settings
+        The grid's resolution, bounds, samples, bounces and leak control.
+    progress
+        Told about each step.
+
+    Returns
+    -------
+    ProbeGrid
+        The baked grid.
+    """
     t0 = time.monotonic()
     if not isinstance(settings, GridSettings):
         raise ShprobeError("bake_grid needs a GridSettings")
@@ -204,7 +236,7 @@ def _from_grid(grid: ProbeGrid, where):
 
 
 def _gathered(tracer, sc, where, sky, previous, settings, rng, advance):
-    """E at the hits ``i`` by the final gather of :mod:`.gather`."""
+    """E at the hits ``i`` by the final gather of `shprobe.grids.gather`."""
     from .gather import gather_irradiance
 
     def albedo_at(h, rays):

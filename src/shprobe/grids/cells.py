@@ -1,7 +1,8 @@
 """The cells of a probe grid: the volume ``bounds`` split ``resolution`` ways, one probe at each
 cell centre (three.js's ``LightProbeGrid`` convention), and the eight probes around a point
 with their trilinear weights — what both the engines' plain lookup
-(:func:`shprobe.grids.grid.plain_weights`) and leak control (:mod:`.visibility`) start from."""
+([`shprobe.grids.grid.plain_weights`][shprobe.grids.plain_weights]) and leak control
+(`shprobe.grids.visibility`) start from."""
 
 from __future__ import annotations
 
@@ -12,7 +13,20 @@ __all__ = ["cell_centres", "cell_probes"]
 
 
 def cell_centres(bounds: ArrayLike, resolution: tuple[int, int, int]) -> NDArray[np.float64]:
-    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways."""
+    """Centres (NX, NY, NZ, 3) of the cells of ``bounds`` split ``resolution`` ways.
+
+    Parameters
+    ----------
+    bounds
+        (2, 3) minimum and maximum corners.
+    resolution
+        Cells along x, y and z.
+
+    Returns
+    -------
+    ndarray of shape (NX, NY, NZ, 3)
+        The centres.
+    """
     b = np.asarray(bounds, dtype=np.float64)
     axes = [b[0, a] + (np.arange(resolution[a]) + 0.5) * (b[1, a] - b[0, a]) / resolution[a]
             for a in range(3)]

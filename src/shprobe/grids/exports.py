@@ -2,7 +2,7 @@
 probes and a Godot 4 text resource; docs/grid-exports.md shows how each is loaded.
 
 Every format holds the 9 RGB coefficients of each probe (lmax 1 grids are zero-padded) and
-the volume; what differs is the basis scaling (a convention of :mod:`shprobe.sh.registry`)
+the volume; what differs is the basis scaling (a convention of `shprobe.sh.registry`)
 and the frame, turned here at the edge:
 
 ========= ===================================================================================
@@ -173,7 +173,7 @@ BYTES_PER_PROBE = 2048
 
 
 def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
-    """The text of ``grid`` in format ``fmt`` (one of :data:`FORMATS`); refused first when
+    """The text of ``grid`` in format ``fmt`` (one of `FORMATS`); refused first when
     it would not fit in memory."""
     if fmt not in _WRITERS:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "

@@ -32,14 +32,24 @@ GRID_VERSION = 1
 class ProbeGrid:
     """An irradiance volume.
 
-    coeffs (NX, NY, NZ, (lmax+1)², 3) radiance L_lm per probe (lmax 1 or 2); bounds (2, 3) the
-    volume's min and max corners (probes at cell centres); positions (NX, NY, NZ, 3) where each
-    probe was baked, when a probe was moved out of geometry (None: the cell centres); validity
-    (NX, NY, NZ) in [0, 1], 0 for a probe that was inside geometry and whose value is filled
-    from its neighbours (None: all valid); depth (NX, NY, NZ, D, D, 2) mean and mean-square
-    distance to the first hit over an octahedral map of directions (None: no visibility data,
-    interpolation is plain trilinear); meta: how it was baked (lmax, bounces, albedo, samples,
-    lighting, scene).
+    Parameters
+    ----------
+    coeffs
+        (NX, NY, NZ, (lmax+1)², 3) radiance L_lm per probe (lmax 1 or 2).
+    bounds
+        (2, 3) the volume's min and max corners (probes at cell centres).
+    positions
+        (NX, NY, NZ, 3) where each probe was baked, when a probe was moved out of geometry
+        (None: the cell centres).
+    validity
+        (NX, NY, NZ) in [0, 1], 0 for a probe that was inside geometry and whose value is
+        filled from its neighbours (None: all valid).
+    depth
+        (NX, NY, NZ, D, D, 2) mean and mean-square distance to the first hit over an
+        octahedral map of directions (None: no visibility data, interpolation is plain
+        trilinear).
+    meta
+        How it was baked (lmax, bounces, albedo, samples, lighting, scene).
     """
 
     coeffs: NDArray[np.float32]
@@ -85,11 +95,23 @@ class ProbeGrid:
         return (self.bounds[1] - self.bounds[0]) / np.asarray(self.resolution, dtype=np.float64)
 
     def centres(self) -> NDArray[np.float64]:
-        """Cell centres (NX, NY, NZ, 3): where the probes stand unless moved."""
+        """Cell centres (NX, NY, NZ, 3): where the probes stand unless moved.
+
+        Returns
+        -------
+        ndarray of shape (NX, NY, NZ, 3)
+            The cell centres.
+        """
         return cell_centres(self.bounds, self.resolution)
 
     def probe_positions(self) -> NDArray[np.float64]:
-        """Where each probe was baked (NX, NY, NZ, 3)."""
+        """Where each probe was baked (NX, NY, NZ, 3).
+
+        Returns
+        -------
+        ndarray of shape (NX, NY, NZ, 3)
+            Where each probe was baked.
+        """
         return self.centres() if self.positions is None else np.asarray(self.positions,
                                                                         dtype=np.float64)
 
@@ -102,6 +124,20 @@ class ProbeGrid:
         Plain (``leak_control=False``, or a grid without depth data): three.js's
         ``LightProbeGrid`` sampling — the point moved half a cell along the normal, clamped to
         the outermost probe centres, trilinear weights.
+
+        Parameters
+        ----------
+        points
+            (..., 3) positions.
+        normals
+            (..., 3) normals of the surfaces there.
+        leak_control
+            Weigh probes by visibility (needs depth data); False: three.js's plain trilinear.
+
+        Returns
+        -------
+        ndarray of shape (..., (lmax+1)², 3)
+            The blended radiance coefficients.
         """
         p, n = _points_normals(points, normals)
         if leak_control and self.depth is not None:
@@ -121,7 +157,22 @@ class ProbeGrid:
     def irradiance(self, points: ArrayLike, normals: ArrayLike,
                    leak_control: bool = True) -> NDArray[np.float64]:
         """Irradiance E (..., 3) at ``points`` on surfaces facing ``normals`` (R&H eq. 7 on the
-        interpolated L_lm), clamped at 0 as three.js's shader does."""
+        interpolated L_lm), clamped at 0 as three.js's shader does.
+
+        Parameters
+        ----------
+        points
+            (..., 3) positions.
+        normals
+            (..., 3) normals of the surfaces there.
+        leak_control
+            Weigh probes by visibility (needs depth data).
+
+        Returns
+        -------
+        ndarray of shape (..., 3)
+            E, clamped at 0.
+        """
         n = unit_normals(normals)
         c = irradiance_coeffs(self.interpolate(points, n, leak_control))
         y = sh_basis(n, self.lmax)
@@ -139,7 +190,24 @@ def plain_weights(bounds: ArrayLike, resolution: tuple[int, int, int], points: N
                   normals: NDArray) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Flat probe indices (..., 8) and trilinear weights (..., 8) as three.js samples its
     ``LightProbeGrid`` texture: sample point p + n·spacing/2, clamped to the outer probe
-    centres, hardware trilinear filtering between cell centres."""
+    centres, hardware trilinear filtering between cell centres.
+
+    Parameters
+    ----------
+    bounds
+        (2, 3) the grid's corners.
+    resolution
+        Probes along x, y and z.
+    points
+        (..., 3) positions.
+    normals
+        (..., 3) normals at the positions.
+
+    Returns
+    -------
+    tuple
+        Flat probe indices (..., 8) and trilinear weights (..., 8).
+    """
     b = np.asarray(bounds, dtype=np.float64)
     spacing = (b[1] - b[0]) / np.asarray(resolution, dtype=np.float64)
     return cell_probes(b, resolution, points + normals * spacing * 0.5)

@@ -1,4 +1,4 @@
-"""Grid files: a ``.npz`` with the arrays of :class:`~shprobe.grids.grid.ProbeGrid` and its
+"""Grid files: a ``.npz`` with the arrays of [`ProbeGrid`][shprobe.grids.ProbeGrid] and its
 bake settings as JSON, read back with every array checked before use."""
 
 from __future__ import annotations
@@ -19,7 +19,22 @@ _OPTIONAL = ("positions", "validity", "depth")
 
 
 def save_grid(path: str | os.PathLike[str], grid: ProbeGrid, overwrite: bool = False) -> Path:
-    """Write ``grid`` to ``path`` (``*.npz``) atomically; non-finite values are refused."""
+    """Write ``grid`` to ``path`` (``*.npz``) atomically; non-finite values are refused.
+
+    Parameters
+    ----------
+    path
+        The output file (``*.npz``).
+    grid
+        The grid.
+    overwrite
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     arrays = {"coeffs": np.asarray(grid.coeffs, dtype=np.float32),
               "bounds": np.asarray(grid.bounds, dtype=np.float64)}
     for name in _OPTIONAL:
@@ -32,8 +47,19 @@ def save_grid(path: str | os.PathLike[str], grid: ProbeGrid, overwrite: bool = F
 
 
 def load_grid(path: str | os.PathLike[str]) -> ProbeGrid:
-    """Read a grid written by :func:`save_grid` (``shprobe grid bake``); one line naming the
-    file on anything else."""
+    """Read a grid written by [`save_grid`][shprobe.grids.save_grid] (``shprobe grid bake``); one
+    line naming the file on anything else.
+
+    Parameters
+    ----------
+    path
+        A grid file (``*.npz``) written by ``save_grid``.
+
+    Returns
+    -------
+    ProbeGrid
+        The grid.
+    """
     p = os.fspath(path)
     heads = npz_headers(p, "shprobe grid file")
     if "meta" not in heads or "coeffs" not in heads or "bounds" not in heads:

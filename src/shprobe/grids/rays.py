@@ -1,5 +1,6 @@
 """Rays from probes: the first surface each direction meets, its distance and whether the
-probe sees its back (the one ray caster, :class:`shprobe.scene.raycast.RayCaster`)."""
+probe sees its back (the one ray caster,
+[`shprobe.scene.raycast.RayCaster`][shprobe.scene.RayCaster])."""
 
 from __future__ import annotations
 

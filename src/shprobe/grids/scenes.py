@@ -1,6 +1,6 @@
 """Reference scenes for probe grids: a closed room standing on an open ground, the case where
 an irradiance volume leaks (light inside a room that no light reaches), and the packaged bunny
-on a ground. The command line names them (:data:`SCENE_NAMES`, :func:`named_scene`)."""
+on a ground. The command line names them (`SCENE_NAMES`, `named_scene`)."""
 
 from __future__ import annotations
 
@@ -88,7 +88,7 @@ class RoomScene:
         return (floor, up), (volume, normals), (ground, up[: len(ground)])
 
     def leak(self, grid, leak_control: bool = True) -> RoomLeak:
-        """How much of the outside light ``grid`` (a :class:`~shprobe.grids.ProbeGrid` of this
+        """How much of the outside light ``grid`` (a [`ProbeGrid`][shprobe.grids.ProbeGrid] of this
         scene) lets into the room through its interpolation."""
         (fp, fn), (vp, vn), (gp, gn) = self.leak_points()
 
@@ -137,7 +137,7 @@ def bunny_on_ground(height: float = 1.5, ground: float = 4.0):
 
 def named_scene(arg: str | os.PathLike[str]) -> tuple[Any, np.ndarray] | None:
     """(trimesh, grid bounds (2, 3)) of the reference scene ``arg`` names — ``room``
-    (:func:`room_on_ground`) or ``bunny-on-ground`` (:func:`bunny_on_ground`) — unless a file
+    (`room_on_ground`) or ``bunny-on-ground`` (`bunny_on_ground`) — unless a file
     of that name exists; None for anything else (a mesh file)."""
     name = os.fspath(arg)
     if name not in SCENE_NAMES or os.path.exists(name):

@@ -1,4 +1,5 @@
-"""How a grid is baked: :class:`GridSettings`, checked in one place before any work."""
+"""How a grid is baked: [`GridSettings`][shprobe.grids.GridSettings], checked in one place before
+any work."""
 
 from __future__ import annotations
 
@@ -21,18 +22,35 @@ MAX_RESOLUTION = 512
 class GridSettings:
     """The bake of a probe grid.
 
-    resolution: probes along X, Y, Z; bounds: (2, 3) min and max corners of the volume (None:
-    the scene's bounding box); lmax: 1 or 2; bounces: diffuse interreflection bounces (0: the
-    environment as the probe sees it past the scene, surfaces black); samples: ray directions
-    per probe (spherical Fibonacci, the accuracy option); depth_resolution: texels a side of
-    each probe's octahedral depth map and depth_samples the rays a side per texel (leak
-    control); normal_bias: the lookup offset along the normal, a fraction of the smallest cell
-    side; inside_fraction: a probe whose rays hit back faces more often than this is inside
-    geometry (moved within its cell to free space, else marked invalid and filled from its
-    neighbours); seed: the random turn of the direction set (and of the gather's rays);
-    gather: rays per surface a probe ray meets, gathering that surface's irradiance from the
-    surface itself (0: read it from the grid of the bounce before, DDGI's recursion, which
-    lights the foot of a wall as the nearest probe sees it; docs/grids.md gives both).
+    Parameters
+    ----------
+    resolution
+        Probes along X, Y, Z.
+    bounds
+        (2, 3) min and max corners of the volume (None: the scene's bounding box).
+    lmax
+        1 or 2.
+    bounces
+        Diffuse interreflection bounces (0: the environment as the probe sees it past the
+        scene, surfaces black).
+    samples
+        Ray directions per probe (spherical Fibonacci): the accuracy option.
+    depth_resolution
+        Texels a side of each probe's octahedral depth map (leak control).
+    depth_samples
+        Rays a side per depth texel.
+    normal_bias
+        The lookup offset along the normal, a fraction of the smallest cell side.
+    inside_fraction
+        A probe whose rays hit back faces more often than this is inside geometry: moved
+        within its cell to free space, else marked invalid and filled from its neighbours.
+    seed
+        The random turn of the direction set (and of the gather's rays).
+    gather
+        Rays per surface a probe ray meets, gathering that surface's irradiance from the
+        surface itself (0: read it from the grid of the bounce before, DDGI's recursion,
+        which lights the foot of a wall as the nearest probe sees it; docs/grids.md gives
+        both).
     """
 
     resolution: tuple[int, int, int]

@@ -15,7 +15,7 @@ normal bias, a fraction of the smallest cell side); each of the 8 probes of q's 
 
 The weights are normalised to sum to 1; a point whose every probe is hidden or invalid falls
 back on the trilinear weights (of the valid probes, else of all). The lookups run in a numba
-kernel (:mod:`._kernels`); :func:`visibility_weights_reference` is the same rule in numpy.
+kernel (`shprobe.grids._kernels`); `visibility_weights_reference` is the same rule in numpy.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def visibility_weights(grid, points: NDArray[np.float64], normals: NDArray[np.fl
 def visibility_weights_reference(grid, points: NDArray[np.float64],
                                  normals: NDArray[np.float64]
                                  ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """:func:`visibility_weights` in numpy, array by array (the reference of the kernel)."""
+    """`visibility_weights` in numpy, array by array (the reference of the kernel)."""
     p, n, shape, depth, pos, valid, bias = _inputs(grid, points, normals)
     idx = np.empty((len(p), 8), dtype=np.int64)
     w = np.empty((len(p), 8))

@@ -1,12 +1,14 @@
 """The H-basis and rival hemispherical bases (Habel & Wimmer 2010).
 
-* :mod:`.basis` — H4/H6 (eq. 8–13), T_h (SH → H), hemispherical quadrature and projection.
-* :mod:`.rivals` — HL2, HSH, Makhotkin, Zernike, least-squares SH: one ``HemiBasis`` interface.
-* :mod:`.study` — the Fig. 3 IMSE study.
-* :mod:`.frames` — per-vertex tangent frames, world SH turned into a frame.
-* :mod:`.normalmap` — per-vertex bakes (``bake_normalmap``, ``bake_mesh``), shading, normal maps.
-* :mod:`.bakefile` — bake files (``save_bake`` / ``load_bake``).
-* :mod:`.rendering` — normal-mapped rendering through the scene layer against the exact
+* `shprobe.hbasis.basis` — H4/H6 (eq. 8–13), T_h (SH → H), hemispherical quadrature and projection.
+* `shprobe.hbasis.rivals` — HL2, HSH, Makhotkin, Zernike, least-squares SH: one ``HemiBasis``
+  interface.
+* `shprobe.hbasis.study` — the Fig. 3 IMSE study.
+* `shprobe.hbasis.frames` — per-vertex tangent frames, world SH turned into a frame.
+* `shprobe.hbasis.normalmap` — per-vertex bakes (``bake_normalmap``, ``bake_mesh``), shading, normal
+  maps.
+* `shprobe.hbasis.bakefile` — bake files (``save_bake`` / ``load_bake``).
+* `shprobe.hbasis.rendering` — normal-mapped rendering through the scene layer against the exact
   reference, and its comparison figure.
 
 Conventions: docs/hbasis.md.

@@ -16,8 +16,8 @@ cache before overwriting it (the read-for-ownership), a third of these memory-bo
 traffic. Only the one-channel float64 kernel streams (``t_h_c1_stream``): its stores are
 sequential 8-byte ones, which fill whole lines in the write-combining buffers; the RGB
 kernel's interleaved stores and 4-byte float32 stores gained nothing (or lost) when streamed.
-:func:`shprobe.hbasis.basis.sh_to_h` uses it above ``STREAM_MIN_BYTES``; a fence at the end
-orders the stores for other threads.
+[`shprobe.hbasis.basis.sh_to_h`][shprobe.hbasis.sh_to_h] uses it above ``STREAM_MIN_BYTES``; a fence
+at the end orders the stores for other threads.
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ def t_h_c1(s, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def t_h_c1_stream(s, out):  # pragma: no cover - compiled
-    """:func:`t_h_c1` for a float64 output far larger than the caches: s (N·9,) → out (N·n,)
+    """`t_h_c1` for a float64 output far larger than the caches: s (N·9,) → out (N·n,)
     flat, written in address order with streaming stores, then a fence."""
     rows = s.shape[0] // 9
     n = out.shape[0] // rows if rows else 6

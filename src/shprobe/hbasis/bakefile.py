@@ -1,8 +1,8 @@
 """Bake files of ``shprobe hbasis bake``: an .npz of ``h`` (V, n, C), ``sh9`` (V, 9, C),
 ``frames`` (V, 3, 3), ``handedness`` (V,) int8, ``t_h``, ``basis``, ``bands``, ``L`` (the probe's
-radiance SH, l ≤ 16) and ``mesh_hash`` (:func:`shprobe.scene.mesh_hash`), written atomically; on
-load every array's header is checked (shapes, types, sizes) before anything is inflated, and a
-bake is refused for another mesh."""
+radiance SH, l ≤ 16) and ``mesh_hash`` ([`shprobe.scene.mesh_hash`][shprobe.prt.mesh_hash]), written
+atomically; on load every array's header is checked (shapes, types, sizes) before anything is
+inflated, and a bake is refused for another mesh."""
 
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ MAX_BAKE_BYTES = 8 << 30
 
 def save_bake(path: str | os.PathLike[str], bk: NormalMapBake, overwrite: bool = False
               ) -> Path:
-    """Write a mesh's bake (from :func:`bake_mesh`) as .npz, atomically (an existing file is
-    replaced only with ``overwrite``)."""
+    """Write a mesh's bake (from [`bake_mesh`][shprobe.hbasis.normalmap.bake_mesh]) as .npz,
+    atomically (an existing file is replaced only with ``overwrite``)."""
 
     if bk.mesh_hash is None or bk.bands is None:
         raise ShprobeError("only a bake of a mesh (bake_mesh) can be saved: it needs the "
@@ -67,11 +67,11 @@ def is_bake(path: str | os.PathLike[str]) -> bool:
 
 
 def load_bake(path: str | os.PathLike[str], mesh: trimesh.Trimesh | None = None) -> NormalMapBake:
-    """Read a bake file (:func:`save_bake`, ``shprobe hbasis bake``).
+    """Read a bake file (`save_bake`, ``shprobe hbasis bake``).
 
     Every array's shape and type is checked from its header before anything is inflated; with
-    ``mesh``, a file baked for another mesh (another :func:`mesh_hash`) is refused. One-line
-    :class:`ShprobeError` naming the file on any problem.
+    ``mesh``, a file baked for another mesh (another [`mesh_hash`][shprobe.prt.mesh_hash]) is
+    refused. One-line [`ShprobeError`][shprobe.errors.ShprobeError] naming the file on any problem.
     """
     p = Path(path)
     heads = npz_headers(p, "bake file")

@@ -17,7 +17,8 @@ Conventions (see docs/hbasis.md):
   quadrature to 1e-12).
 * ``sh_to_h_matrix()`` is T_h with (T_h)_ij = ∫_Ω+ H^i(ω) y_j(ω) dω, y_j shprobe's real SH
   (R&H signs, no Condon–Shortley phase, flat index j = l(l+1)+m). The paper omits it; its
-  closed form is derived in docs/hbasis.md and reproduced in :data:`T_H_CLOSED_FORM`.
+  closed form is derived in docs/hbasis.md and reproduced in
+  [`T_H_CLOSED_FORM`][shprobe.hbasis.T_H_CLOSED_FORM].
 """
 
 from __future__ import annotations
@@ -76,7 +77,8 @@ def _check_n(n: int) -> int:
 
 def _float_array(a: ArrayLike, what: str) -> NDArray[np.floating]:
     """float32 stays float32, anything else numeric becomes float64; non-numeric input (object
-    arrays, strings) and NaN or infinite values are one :class:`ShprobeError`."""
+    arrays, strings) and NaN or infinite values are one
+    [`ShprobeError`][shprobe.errors.ShprobeError]."""
     try:
         x = np.asarray(a)
         if x.dtype not in (np.float32, np.float64):
@@ -107,6 +109,20 @@ def h_basis(normals: ArrayLike, n: int = 6,
     (other types become float64). ``out``: an optional preallocated C-contiguous (..., n)
     array of the normals' float type, filled and returned. Batches of ≥ 4096 normals run a
     single-threaded numba kernel that writes each row straight into the output.
+
+    Parameters
+    ----------
+    normals
+        (..., 3) tangent-frame unit normals (z along the surface normal).
+    n
+        4 (H4) or 6 (H6).
+    out
+        A preallocated C-contiguous (..., n) array of the normals' float type.
+
+    Returns
+    -------
+    ndarray of shape (..., n)
+        H¹ … Hⁿ at the normals.
     """
     n = _check_n(n)
     d = _float_array(normals, "normals")
@@ -140,6 +156,18 @@ def evaluate_h(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.floating]:
     tangent-frame unit normals whose leading axes broadcast against the coefficients'
     leading axes. Returns (..., C), or (...) for 1-D coefficients. One-channel per-point
     coefficients are (P, n, 1), not (P, n).
+
+    Parameters
+    ----------
+    coeffs
+        (..., n, C) or (n,) H coefficients, n = 4 or 6.
+    normals
+        (..., 3) tangent-frame unit normals.
+
+    Returns
+    -------
+    ndarray of shape (..., C) or (...,)
+        E_H(n).
     """
     c = _float_array(coeffs, "H coefficients")
     nd = _float_array(normals, "normals")
@@ -168,6 +196,18 @@ def hemisphere_quadrature(n_z: int = 32, n_phi: int = 64) -> tuple[NDArray, NDAr
     Gauss–Legendre in z = cos θ on [0, 1] times the uniform rule in φ: exact for every
     polynomial in (x, y, z) of degree ≤ min(2 n_z − 1, n_phi − 1) (dω = dz dφ). The weights
     sum to 2π.
+
+    Parameters
+    ----------
+    n_z
+        Gauss–Legendre nodes in z.
+    n_phi
+        Uniform nodes in φ.
+
+    Returns
+    -------
+    tuple
+        Nodes (N, 3) and weights (N,), N = n_z · n_phi.
     """
     if n_z < 1 or n_phi < 1:
         raise ShprobeError("quadrature sizes must be positive")
@@ -202,12 +242,24 @@ def sh_to_h_matrix(lmax: int = 2, n: int = 6) -> NDArray[np.float64]:
     """T_h: the (n, (lmax+1)²) matrix taking shprobe SH coefficients to H coefficients.
 
     (T_h)_ij = ∫_Ω+ Hⁱ(ω) y_j(ω) dω (H&W §4.1; the paper omits the matrix). For lmax = 2 this
-    is :data:`T_H_CLOSED_FORM` (H4: its first 4 rows); for larger lmax the extra columns are
-    computed by a quadrature that is exact for these polynomial integrands. The l = 4 block
-    (columns 16..24) is the paper's Appendix A with the sign of its m = ±1 columns flipped
-    (Condon–Shortley phase, see :data:`T_H4_PAPER`). Applied to a signal's SH coefficients it
-    gives the orthogonal projection onto H of the signal restricted to Ω+, exactly when the
-    signal has no SH content above ``lmax``.
+    is [`T_H_CLOSED_FORM`][shprobe.hbasis.T_H_CLOSED_FORM] (H4: its first 4 rows); for larger lmax
+    the extra columns are computed by a quadrature that is exact for these polynomial integrands.
+    The l = 4 block (columns 16..24) is the paper's Appendix A with the sign of its m = ±1 columns
+    flipped (Condon–Shortley phase, see [`T_H4_PAPER`][shprobe.hbasis.T_H4_PAPER]). Applied to a
+    signal's SH coefficients it gives the orthogonal projection onto H of the signal restricted to
+    Ω+, exactly when the signal has no SH content above ``lmax``.
+
+    Parameters
+    ----------
+    lmax
+        The highest SH degree of the coefficients converted.
+    n
+        4 (H4) or 6 (H6).
+
+    Returns
+    -------
+    ndarray of shape (n, (lmax + 1)²)
+        T_h, taking SH coefficients to H coefficients.
     """
     lmax = check_lmax(lmax, limit=64)
     n = _check_n(n)
@@ -220,12 +272,26 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
 
     Layout as everywhere in shprobe: ``sh_coeffs`` is (..., K, C) with K = (lmax+1)² on axis
     −2 and C channels last, giving (..., n, C); a 1-D (K,) single set gives (n,). N sets of one
-    channel are (N, K, 1), not (N, K). The matrix is :func:`sh_to_h_matrix` (lmax, n). float32
-    stays float32. ``out``: an optional preallocated C-contiguous array of the result's shape
-    and float type, filled and returned. For K = 9 and ≥ 4096 sets a single-threaded numba
-    kernel applies only T_h's 10 nonzeros and writes straight into the output (one-channel,
-    RGB and general-C variants; one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with
-    streaming stores).
+    channel are (N, K, 1), not (N, K). The matrix is
+    [`sh_to_h_matrix`][shprobe.hbasis.sh_to_h_matrix] (lmax, n). float32 stays float32. ``out``: an
+    optional preallocated C-contiguous array of the result's shape and float type, filled and
+    returned. For K = 9 and ≥ 4096 sets a single-threaded numba kernel applies only T_h's 10
+    nonzeros and writes straight into the output (one-channel, RGB and general-C variants;
+    one-channel float64 outputs of ≥ ``STREAM_MIN_BYTES`` with streaming stores).
+
+    Parameters
+    ----------
+    sh_coeffs
+        (..., K, C) or (K,) SH coefficients.
+    n
+        4 (H4) or 6 (H6).
+    out
+        A preallocated C-contiguous array of the result's shape and float type.
+
+    Returns
+    -------
+    ndarray of shape (..., n, C) or (n,)
+        The H coefficients.
     """
     n = _check_n(n)
     c = _float_array(sh_coeffs, "SH coefficients")
@@ -262,6 +328,20 @@ def project_h(func, n: int = 6, n_z: int = 48, n_phi: int = 96) -> NDArray[np.fl
 
     ``func`` maps (N, 3) tangent-frame directions to (N,) or (N, C) values. Exact for
     polynomials of degree ≤ min(2 n_z − 3, n_phi − 3).
+
+    Parameters
+    ----------
+    func
+        Maps (N, 3) tangent-frame directions to (N,) or (N, C) values.
+    n
+        4 (H4) or 6 (H6).
+    n_z, n_phi
+        The quadrature's nodes.
+
+    Returns
+    -------
+    ndarray of shape (n,) or (n, C)
+        h_i = ∫_Ω+ f Hⁱ dω.
     """
     nodes, w = hemisphere_quadrature(n_z, n_phi)
     vals = np.asarray(func(np.array(nodes)), dtype=np.float64)

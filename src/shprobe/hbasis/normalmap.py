@@ -2,15 +2,15 @@
 shading, procedural and image normal maps.
 
 Baking (§4.1): the world irradiance E(ω) = Σ e_lm y_lm(ω) (e = Â_l L_lm) becomes, in the
-tangent frame F (:mod:`.frames`), the function v ↦ E(F v) = (E∘F)(v); since
+tangent frame F (`shprobe.hbasis.frames`), the function v ↦ E(F v) = (E∘F)(v); since
 ``shprobe.sh.rotation.rotate(c, R)`` returns the coefficients of f∘R⁻¹, the tangent-space SH
 coefficients are ``rotate(e, Fᵀ)``, and the H coefficients are T_h times them. Shading (§4.2,
 eq. 15) evaluates Σ h_i Hⁱ(v) at the tangent-space normal v read from a normal map.
 
-Lighting: an environment map (:func:`shprobe.probes.env.load_env`, any layout), projected with
-:func:`shprobe.lighting.project` to l ≤ 16; or SH radiance coefficients L_lm (K, 3) — as
-:func:`shprobe.lighting.source.resolve_lighting` gives them. Bake files: :mod:`.bakefile`;
-rendering against the exact reference: :mod:`.rendering`.
+Lighting: an environment map ([`shprobe.probes.env.load_env`][shprobe.probes.env.load_env], any
+layout), projected with [`shprobe.lighting.project`][shprobe.lighting.project] to l ≤ 16; or SH
+radiance coefficients L_lm (K, 3) — as `shprobe.lighting.source.resolve_lighting` gives them. Bake
+files: `shprobe.hbasis.bakefile`; rendering against the exact reference: `shprobe.hbasis.rendering`.
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ class NormalMapBake:
     """Per-vertex tangent-space coefficients: ``h`` (V, n, C) H coefficients (n = 6 or 4),
     ``sh`` (V, 9, C) the tangent-space quadratic SH of the same irradiance (for comparison),
     ``frames`` (V, 3, 3) the tangent frames they are expressed in. A bake of a mesh
-    (:func:`bake_mesh`, :func:`load_bake`) also has the frames' ``handedness`` (V,), the
-    probe's radiance SH ``lighting`` L_lm (K, 3), the SH ``bands`` projected into H and the
-    ``mesh_hash`` of the mesh it belongs to."""
+    ([`bake_mesh`][shprobe.hbasis.normalmap.bake_mesh], `load_bake`) also has the frames'
+    ``handedness`` (V,), the probe's radiance SH ``lighting`` L_lm (K, 3), the SH ``bands``
+    projected into H and the ``mesh_hash`` of the mesh it belongs to."""
 
     h: NDArray[np.float64]
     sh: NDArray[np.float64]
@@ -148,7 +148,7 @@ def read_normal_map(path) -> NDArray[np.float64]:
 
 
 def lighting_coeffs(lighting: Env | ArrayLike) -> NDArray[np.float64]:
-    """Radiance SH L_lm (K, 3): an Env projected to l ≤ :data:`LIGHTING_LMAX` (R&H eq. 10),
+    """Radiance SH L_lm (K, 3): an Env projected to l ≤ `LIGHTING_LMAX` (R&H eq. 10),
     or the coefficients given."""
     if isinstance(lighting, Env):
         return project(lighting, LIGHTING_LMAX)
@@ -160,7 +160,24 @@ def bake_mesh(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, n: int = 6,
     """Bake per-vertex tangent-space H_n coefficients of ``mesh`` under ``lighting`` (an Env
     or radiance SH (K, 3)), with SH bands ≤ ``bands`` of the irradiance projected into H (2:
     the paper's T_h; 4: + Appendix A). Keeps the frames' handedness, the lighting's SH and the
-    mesh hash, so the bake can be saved (:func:`save_bake`) and rendered later."""
+    mesh hash, so the bake can be saved (`save_bake`) and rendered later.
+
+    Parameters
+    ----------
+    mesh
+        The mesh (its vertex normals and UVs give the tangent frames).
+    lighting
+        An Env, or radiance SH coefficients (K, 3).
+    n
+        4 (H4) or 6 (H6).
+    bands
+        The SH bands of the irradiance projected into H: 2 (the paper's T_h) or 4.
+
+    Returns
+    -------
+    NormalMapBake
+        Per-vertex H coefficients with their frames, the lighting's SH and the mesh hash.
+    """
     L = lighting_coeffs(lighting)
     e = irradiance_coeffs(L)
     fr = tangent_frames(mesh.vertices, mesh.faces, np.asarray(mesh.vertex_normals),

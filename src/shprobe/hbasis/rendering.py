@@ -1,8 +1,8 @@
 """Normal-mapped rendering of a mesh shaded with per-vertex H6, H4 and tangent-space SH9 against
 the exact irradiance at the perturbed normal (Habel & Wimmer 2010 §4.2–4.3, their Fig. 6), and
 the labelled comparison figure. Rendering goes through the scene layer (one orthographic
-:class:`~shprobe.scene.Camera`, the one ray caster) and returns its
-:class:`~shprobe.scene.RenderResult`."""
+[`Camera`][shprobe.scene.Camera], the one ray caster) and returns its
+[`RenderResult`][shprobe.scene.RenderResult]."""
 
 from __future__ import annotations
 
@@ -43,16 +43,16 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
     """Render ``mesh`` under ``lighting`` (an Env, or radiance SH (K, 3)) with a tangent-space
     ``normal_map`` (H, W, 3) looked up bilinearly at the interpolated UV (u wraps, v up;
     green flipped on mirrored charts; needs UVs), or else a UV-free procedural bump
-    (:func:`bump_world`), shading with per-vertex baked H6, H4 and tangent-space SH9
+    (`bump_world`), shading with per-vertex baked H6, H4 and tangent-space SH9
     (linearly interpolated, as the paper's per-vertex variant), against the reference E(n′) at
     the perturbed world normal: brute force over the probe's pixels
-    (:func:`shprobe.lighting.reference_irradiance`), or the lighting's own SH expansion when
-    only coefficients were given. ``baked``: per-vertex coefficients from :func:`bake_normalmap` /
-    :func:`load_bake` for this mesh (with their frames) instead of baking here (H4-only bakes
-    give no "H6" image).
+    ([`shprobe.lighting.reference_irradiance`][shprobe.lighting.reference_irradiance]), or the
+    lighting's own SH expansion when only coefficients were given. ``baked``: per-vertex
+    coefficients from `bake_normalmap` / `load_bake` for this mesh (with their frames) instead of
+    baking here (H4-only bakes give no "H6" image).
 
     The camera is orthographic on +Z looking along −Z, +Y up, framing the mesh's x–y extent.
-    Returns a :class:`~shprobe.scene.RenderResult`: ``irradiance`` the reference E(n′) (and
+    Returns a [`RenderResult`][shprobe.scene.RenderResult]: ``irradiance`` the reference E(n′) (and
     ``image`` = ``radiance`` = E/π, a white diffuse surface), ``normals`` the perturbed world
     normals n′; ``layers`` "H6" (6-function bakes), "H4", "SH9" (irradiance (H, W, 3)),
     "tangent_normals" v = F_pᵀ n′ and "frames" F_p (H, W, 3, 3), the frame interpolated at each
@@ -137,7 +137,7 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
 
 def panel_image(res: RenderResult, gain: float = 4.0) -> NDArray[np.float32]:
     """2×4 panel (2×3 without H6) of linear irradiance: top reference | H6 | H4 | SH9, bottom
-    (blank) | |error| × gain of each basis. Write it with :func:`save_panel`."""
+    (blank) | |error| × gain of each basis. Write it with `save_panel`."""
     ref = res.irradiance
     keys = [k for k in ("H6", "H4", "SH9") if k in res.layers]
     top = [ref, *(res.layers[k] for k in keys)]
@@ -148,11 +148,11 @@ def panel_image(res: RenderResult, gain: float = 4.0) -> NDArray[np.float32]:
 
 def save_panel(path: str | os.PathLike[str], res: RenderResult, gain: float = 4.0,
                overwrite: bool = False) -> Path:
-    """Write the comparison as a labelled figure (:mod:`shprobe.probes.figures`): top, the
+    """Write the comparison as a labelled figure (`shprobe.probes.figures`): top, the
     reference and each basis as E/π (the radiance of a white diffuse surface) at one exposure
     (the reference's 99th percentile at white); bottom, |basis − reference| / π on one shared
     error scale with its colour bar, each titled with the basis's relative RMS error. ``gain``
-    is kept for the raw :func:`panel_image`; the figure's colour bar replaces it."""
+    is kept for the raw `panel_image`; the figure's colour bar replaces it."""
     from ..probes.figures import Panel, write_figure
     from ..probes.tonemap import auto_exposure
 
@@ -167,6 +167,9 @@ def save_panel(path: str | os.PathLike[str], res: RenderResult, gain: float = 4.
              *(Panel(res.layers[k] / np.pi, k, units=units, exposure=stops) for k in keys)],
             [None, *(Panel(errs[k], f"|{k} − ref|, rel. RMS {100 * rms.get(k, np.nan):.1f} %",
                            "error", units=units, scale=top) for k in keys)]]
+    # why the H6 and H4 panels look alike, said where a reader compares them
+    why = ("; H6 ≈ H4 when the normal map keeps v near the pole, where H⁵ and H⁶ vanish"
+           if "H6" in keys and "H4" in keys else "")
     write_figure(path, rows, overwrite=overwrite, shared_colorbar=True,
-                 title="normal mapping (H&W 2010): per-vertex bases vs exact E at n′")
+                 title="normal mapping (H&W 2010): per-vertex bases vs exact E at n′" + why)
     return Path(path)

@@ -1,19 +1,20 @@
 """The hemispherical bases Habel & Wimmer 2010 compare against (§2, Fig. 3), one interface.
 
-Every basis is a :class:`HemiBasis`: ``name``, ``n_coeffs``, ``evaluate(normals)`` (..., n) for
-tangent-frame normals (z = surface normal), ``project(f)`` (coefficients of a function), and
-``sh_matrix(lmax)`` (the fixed (n, K) matrix taking a signal's SH coefficients to the basis
-coefficients — what the Fig. 3 study applies to all signals at once).
+Every basis is a [`HemiBasis`][shprobe.hbasis.HemiBasis]: ``name``, ``n_coeffs``,
+``evaluate(normals)`` (..., n) for tangent-frame normals (z = surface normal), ``project(f)``
+(coefficients of a function), and ``sh_matrix(lmax)`` (the fixed (n, K) matrix taking a signal's SH
+coefficients to the basis coefficients — what the Fig. 3 study applies to all signals at once).
 
 Projection is the L2(Ω+, dω) least-squares fit: c = G⁻¹ ∫_Ω+ f B dω with G the Gram matrix
 ∫_Ω+ B Bᵀ dω; for the orthonormal bases G = I and this is the plain inner product. The one
 exception is quadratic SH ("SH9"), which like the paper keeps the signal's own full-sphere SH
 coefficients (l ≤ 2) and is evaluated on Ω+; "SH9 (LSQ)" is its hemispherical least-squares
-variant. All integrals are by :func:`hemisphere_quadrature` (exact for the polynomial bases).
+variant. All integrals are by [`hemisphere_quadrature`][shprobe.hbasis.hemisphere_quadrature] (exact
+for the polynomial bases).
 
 Definitions (φ from +x towards +y, θ from +z, z = cos θ):
 
-* **H4, H6** — :func:`shprobe.hbasis.basis.h_basis` (H&W eq. 8–13).
+* **H4, H6** — [`shprobe.hbasis.basis.h_basis`][shprobe.hbasis.h_basis] (H&W eq. 8–13).
 * **HL2** — Half-Life 2 basis, √(3/2π) n·h_i with the three h_i of H&W eq. 1 (orthonormal).
 * **HSH2, HSH3** — hemispherical harmonics (Gautron et al. 2004): √2 · y_lm(θ', φ) with
   cos θ' = 2 cos θ − 1, i.e. SH of the shifted direction (2x√(z/(1+z)), 2y√(z/(1+z)), 2z − 1),
@@ -28,7 +29,7 @@ Definitions (φ from +x towards +y, θ from +z, z = cos θ):
   function with HSH (tested): the paper's two "shifted" bases are the same functions, written
   once through shifted SH and once through shifted Jacobi polynomials. The seed paper does not
   print Makhotkin's formulas; an earlier reconstruction, orthonormal for the cosine-weighted
-  measure z dω of radiative transfer, is kept as :func:`makhotkin_cosine` (not in the study).
+  measure z dω of radiative transfer, is kept as `makhotkin_cosine` (not in the study).
 * **Zernike3, Zernike6** — Zernike polynomials on the hemisphere (Koenderink et al. 1996) with
   ρ = √2 sin(θ/2) = √(1 − z) (area-preserving map, dω = 2ρ dρ dφ): N R_n^|m|(ρ) trig(mφ) for
   n ≤ 1 (3) and n ≤ 2 (6); N = √((n+1)/π), or √((n+1)/2π) for m = 0. Z_2^0 = −H³.
@@ -76,7 +77,24 @@ def _trig(m: int, x: NDArray, y: NDArray, r: NDArray) -> NDArray:
 
 @dataclass(frozen=True)
 class HemiBasis:
-    """A finite function set on the upper hemisphere with least-squares projection."""
+    """A finite function set on the upper hemisphere with least-squares projection.
+
+    Parameters
+    ----------
+    name
+        The basis's name in the study.
+    n_coeffs
+        Its number of functions n.
+    _eval
+        Maps (N, 3) tangent-frame directions to (N, n) function values.
+    fit
+        How coefficients are fitted: "hemisphere" (least squares over the upper hemisphere),
+        "cosine" or "sphere".
+    orthonormal
+        Whether its functions are orthonormal over the hemisphere.
+    description
+        One line about it.
+    """
 
     name: str
     n_coeffs: int
@@ -88,24 +106,70 @@ class HemiBasis:
     description: str = ""
 
     def evaluate(self, normals: ArrayLike) -> NDArray[np.float64]:
-        """Basis functions at tangent-frame unit normals (..., 3) → (..., n)."""
+        """Basis functions at tangent-frame unit normals (..., 3) → (..., n).
+
+        Parameters
+        ----------
+        normals
+            (..., 3) tangent-frame unit normals.
+
+        Returns
+        -------
+        ndarray of shape (..., n)
+            The basis functions.
+        """
         return self._eval(_dirs(normals))
 
     def gram(self, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
-        """G = ∫_Ω+ B Bᵀ dω by quadrature (identity for an orthonormal basis)."""
+        """G = ∫_Ω+ B Bᵀ dω by quadrature (identity for an orthonormal basis).
+
+        Parameters
+        ----------
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray of shape (n, n)
+            G = ∫_Ω+ B Bᵀ dω.
+        """
         nodes, w = hemisphere_quadrature(*quad)
         b = self.evaluate(nodes)
         return (b * w[:, None]).T @ b
 
     def projection_matrix(self, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
-        """P (n, N): coefficients = P @ samples at the nodes of ``hemisphere_quadrature(*quad)``."""
+        """P (n, N): coefficients = P @ samples at the nodes of ``hemisphere_quadrature(*quad)``.
+
+        Parameters
+        ----------
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray of shape (n, N)
+            P with coefficients = P @ samples at the nodes.
+        """
         return _projection_matrix(self, quad)
 
     def project(self, f: Callable[[NDArray], ArrayLike] | ArrayLike,
                 quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
         """Coefficients (n,) or (n, C) of ``f``: a callable on (N, 3) directions or samples at
         the nodes of ``hemisphere_quadrature(*quad)``. SH9 needs a callable (it integrates
-        over the whole sphere)."""
+        over the whole sphere).
+
+        Parameters
+        ----------
+        f
+            A callable on (N, 3) directions, or samples at the quadrature's nodes.
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray of shape (n,) or (n, C)
+            The coefficients.
+        """
         if self.fit == "sphere":
             if not callable(f):
                 raise ShprobeError(f"{self.name} projects over the whole sphere: pass a function")
@@ -120,7 +184,20 @@ class HemiBasis:
 
     def sh_matrix(self, lmax: int, quad: tuple[int, int] = QUAD) -> NDArray[np.float64]:
         """M (n, K): basis coefficients of a signal with SH coefficients s (K = (lmax+1)²) are
-        M @ s. For SH9 this is the truncation to l ≤ 2."""
+        M @ s. For SH9 this is the truncation to l ≤ 2.
+
+        Parameters
+        ----------
+        lmax
+            The SH degree of the signal.
+        quad
+            (n_z, n_phi) of the hemisphere quadrature.
+
+        Returns
+        -------
+        ndarray of shape (n, K)
+            M with basis coefficients = M @ s.
+        """
         if self.fit == "sphere":
             k = min(self.n_coeffs, num_coeffs(lmax))
             m = np.zeros((self.n_coeffs, num_coeffs(lmax)))
@@ -203,7 +280,7 @@ def _makhotkin(nmax: int) -> Callable[[NDArray], NDArray]:
 
     With x = 2z − 1 the measure dω = dz dφ becomes ½ dx dφ and the weight (sin θ′)^{2|m|} =
     (1 − x²)^{|m|} is exactly the Jacobi weight of P^{(|m|,|m|)}: N² · ½ h_k · ∫trig² dφ = 1
-    with h_k the Jacobi norm (:func:`_jacobi_norm2`)."""
+    with h_k the Jacobi norm (`_jacobi_norm2`)."""
     from scipy.special import eval_jacobi
 
     norms = {}
@@ -255,7 +332,8 @@ def _makhotkin_cosine(nmax: int) -> Callable[[NDArray], NDArray]:
 
 def makhotkin_cosine(nmax: int) -> HemiBasis:
     """The cosine-weighted shifted Jacobi variant (orthonormal for z dω, projected with that
-    inner product), bands n ≤ ``nmax``; not part of :func:`all_bases` (docs/hbasis.md §3)."""
+    inner product), bands n ≤ ``nmax``; not part of [`all_bases`][shprobe.hbasis.all_bases]
+    (docs/hbasis.md §3)."""
     if nmax not in (1, 2):
         raise ShprobeError(f"makhotkin_cosine has bands n ≤ 1 or 2, got {nmax!r}")
     return HemiBasis(f"Makhotkin{nmax + 1} (z dω)", (nmax + 1) ** 2, _makhotkin_cosine(nmax),
@@ -296,7 +374,13 @@ def _zernike(nmax: int) -> Callable[[NDArray], NDArray]:
 
 @lru_cache(maxsize=1)
 def all_bases() -> dict[str, HemiBasis]:
-    """Every basis of the Fig. 3 study, by name, in the study's order."""
+    """Every basis of the Fig. 3 study, by name, in the study's order.
+
+    Returns
+    -------
+    dict of str to HemiBasis
+        Every basis of the study, in its order.
+    """
     bases = [
         HemiBasis("HL2", 3, _hl2, description="Half-Life 2 basis (H&W eq. 1-2)"),
         HemiBasis("Zernike3", 3, _zernike(1), description="Zernike n<=1 (Koenderink 1996)"),
@@ -320,7 +404,18 @@ def all_bases() -> dict[str, HemiBasis]:
 
 
 def get_basis(name: str) -> HemiBasis:
-    """A basis of :func:`all_bases` by name (case-insensitive)."""
+    """A basis of [`all_bases`][shprobe.hbasis.all_bases] by name (case-insensitive).
+
+    Parameters
+    ----------
+    name
+        A basis's name (case-insensitive).
+
+    Returns
+    -------
+    HemiBasis
+        The basis.
+    """
     for k, b in all_bases().items():
         if k.lower() == name.lower():
             return b

@@ -1,7 +1,7 @@
 """The error study of Habel & Wimmer 2010, Fig. 3: IMSE (eq. 16) of every hemispherical basis,
 averaged over random irradiance signals, grouped by coefficient count.
 
-**Signal generator** (:func:`random_signals`; everything in the tangent frame, z = the surface
+**Signal generator** (`random_signals`; everything in the tangent frame, z = the surface
 normal; RGB). Each signal is a physically valid radiance distribution — non-negative
 everywhere — made of normalised von Mises–Fisher (vMF) lobes
 
@@ -21,15 +21,15 @@ exact irradiance; the dynamic range is large (peak radiance up to ~2·10³ again
 as low as 0.01; a light's flux up to 10⁴ × the ambient's). SH coefficients are exact closed
 forms: the constant has L_00 = a c √(4π), a lobe has L_lm = P c h_l(κ) y_lm(a) with the vMF
 Legendre moments h_l(κ) = 2π∫ v_κ P_l = I_{l+½}(κ) / I_{½}(κ) (ratio of modified Bessel
-functions; :func:`vmf_moments`). The irradiance is E_lm = Â_l L_lm (Funk–Hecke; R&H 2001 eq. 7) for
-l ≤ ``lmax`` (default :data:`LMAX_SIGNAL` = 32), the study's E. The exact irradiance differs
-from it only by the bands above ``lmax``; :meth:`Signals.truncation_bound` bounds that
+functions; `vmf_moments`). The irradiance is E_lm = Â_l L_lm (Funk–Hecke; R&H 2001 eq. 7) for
+l ≤ ``lmax`` (default `LMAX_SIGNAL` = 32), the study's E. The exact irradiance differs
+from it only by the bands above ``lmax``; `Signals.truncation_bound` bounds that
 remainder per signal in L2(S²) (Σ_i |P_i c_i| (Σ_{l>lmax} Â_l² h_l(κ_i)² (2l+1)/4π)^½), and
 for every basis |√IMSE(E) − √IMSE(E_lmax)| ≤ that bound (the fit is an orthogonal
 projection, or for SH9 does not see bands > 2). The pointwise version of that bound is below
 π a for every signal this generator draws (κ ≤ 128 at lmax = 32), so the band-limited E is
-provably positive in every direction (:meth:`Signals.min_irradiance_certificate`; sharper
-lights would need far more bands for that). :meth:`Signals.irradiance_exact` evaluates the
+provably positive in every direction (`Signals.min_irradiance_certificate`; sharper
+lights would need far more bands for that). `Signals.irradiance_exact` evaluates the
 exact irradiance pointwise by a 1-D integral per lobe (for tests).
 
 **IMSE** (H&W eq. 16) of basis b for a signal with SH coefficients e: ∫_Ω+ (Σ c_i B_i − E)² dω
@@ -108,7 +108,7 @@ def _ring_integral(t: NDArray, cg: float, sg: float) -> NDArray:
 def vmf_irradiance(kappa: float, cos_gamma: float) -> float:
     """Exact irradiance ∫ v_κ(a·ω) max(0, n·ω) dω of a unit-flux vMF lobe at a normal making
     angle γ with its axis: a 1-D integral over t = a·ω of v_κ(t) times the closed-form ring
-    integral (:func:`_ring_integral`), by adaptive quadrature with the kinks t = ±sin γ and the
+    integral (`_ring_integral`), by adaptive quadrature with the kinks t = ±sin γ and the
     lobe's width as break points."""
     from scipy.integrate import quad
 
@@ -186,7 +186,7 @@ class Signals:
 
     def irradiance_exact(self, normals: ArrayLike, signal: int) -> NDArray[np.float64]:
         """Exact irradiance (N, 3) of signal ``signal`` at unit normals (N, 3): π × ambient plus
-        every lobe's :func:`vmf_irradiance` (slow; for checks)."""
+        every lobe's `vmf_irradiance` (slow; for checks)."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         out = np.broadcast_to(np.pi * self.ambient[signal], (len(n), 3)).copy()
         for j in np.flatnonzero(self.lobe_signal == signal):
@@ -257,7 +257,7 @@ def random_signals(n_signals: int, seed: int = 0) -> Signals:
 
 
 def random_irradiance(n_signals: int, seed: int = 0, lmax: int = LMAX_SIGNAL) -> NDArray:
-    """Irradiance SH coefficients E_lm = Â_l L_lm (S, K, 3) of :func:`random_signals`."""
+    """Irradiance SH coefficients E_lm = Â_l L_lm (S, K, 3) of `random_signals`."""
     return random_signals(n_signals, seed).irradiance_sh(lmax)
 
 
@@ -317,7 +317,7 @@ class GramReport:
 
 
 def gram_report(basis: HemiBasis, quad: tuple[int, int] = QUAD) -> GramReport:
-    """:class:`GramReport` of ``basis`` on the ``hemisphere_quadrature(*quad)`` rule."""
+    """`GramReport` of ``basis`` on the ``hemisphere_quadrature(*quad)`` rule."""
     g = basis.gram(quad)
     ev = np.linalg.eigvalsh(g)
     return GramReport(basis.name, g, float(np.abs(g - np.eye(len(g))).max()), float(ev[0]),
@@ -429,7 +429,7 @@ STUDY_SECONDS = (3.0, 1 / 2000)
 
 
 def study_cost(n_signals: int, lmax: int = LMAX_SIGNAL) -> Cost:
-    """What :func:`run_study` costs: per signal its radiance SH (K × 3 float64, K = (lmax+1)²)
+    """What `run_study` costs: per signal its radiance SH (K × 3 float64, K = (lmax+1)²)
     and two copies of its non-zero irradiance coefficients (even l and l = 1)."""
     k = num_coeffs(lmax)
     nonzero = 3 + sum(2 * l + 1 for l in range(0, lmax + 1, 2))

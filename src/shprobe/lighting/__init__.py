@@ -1,9 +1,10 @@
-"""Layer 3, lighting: the coefficient core (:mod:`.coeffs`, :mod:`.document`), projection
-(R&H eq. 10, :mod:`.projection`), irradiance and the quadratic form (eq. 7, 11–13,
-:mod:`.irradiance`), the brute-force reference and error report (:mod:`.reference`), lighting
-design (§3.3, :mod:`.design`) and its one edit language (:mod:`.edits`), windows and the
-non-negativity certificate (:mod:`.windows`), engine export / import (:mod:`.export`) and the
-one lighting resolver (:mod:`.source`). Imports only ``probes``, ``sh`` and the base modules.
+"""Layer 3, lighting: the coefficient core (`shprobe.lighting.coeffs`, `shprobe.lighting.document`),
+projection (R&H eq. 10, `shprobe.lighting.projection`), irradiance and the quadratic form (eq. 7,
+11–13, `shprobe.lighting.irradiance`), the brute-force reference and
+error report (`shprobe.lighting.reference`), lighting design (§3.3, `shprobe.lighting.design`) and
+its one edit language (`shprobe.lighting.edits`), windows and the non-negativity certificate
+(`shprobe.lighting.windows`), engine export / import (`shprobe.lighting.export`) and the one
+lighting resolver (`shprobe.lighting.source`). Imports only ``probes``, ``sh`` and the base modules.
 """
 
 from .coeffs import RH_CONSTANTS, RH_LABELS, as_coeffs, labels, pad_coeffs

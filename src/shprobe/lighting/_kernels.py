@@ -229,7 +229,7 @@ def latlong_exact_into(nx, ny, nz, ct, st, cx, cz, pre, e):  # pragma: no cover 
 
 @numba.njit(cache=True)
 def latlong_exact(nrm, ct, st, cx, cz, pre, out):  # pragma: no cover - compiled
-    """:func:`latlong_exact_into` for normals (T, 3) → out (T, C): serially (small batches) …"""
+    """`latlong_exact_into` for normals (T, 3) → out (T, C): serially (small batches) …"""
     for i in range(nrm.shape[0]):
         latlong_exact_into(nrm[i, 0], nrm[i, 1], nrm[i, 2], ct, st, cx, cz, pre, out[i])
 

@@ -103,7 +103,8 @@ def project_samples(xp: Any, dirs: Any, values: Any, weights: Any, lmax: int) ->
 
 
 def window_factors(xp: Any, kind: str, lmax: int, strength: Any) -> Any:
-    """The four windows of :func:`shprobe.lighting.windows.window_factors` with a strength of
+    """The four windows of
+    [`shprobe.lighting.windows.window_factors`][shprobe.lighting.window_factors] with a strength of
     ``xp`` (differentiable in it), (lmax+1,)."""
     lmax = check_lmax(lmax)
     dt = _xp.float_dtype(xp, strength)

@@ -2,7 +2,8 @@
 constants and basis normalisations, Condon–Shortley signs, padding to a degree.
 
 Every function of the lighting layer and above that takes coefficients goes through
-:func:`as_coeffs`; the coefficient document (JSON) is :mod:`shprobe.lighting.document`.
+[`as_coeffs`][shprobe.lighting.as_coeffs]; the coefficient document (JSON) is
+`shprobe.lighting.document`.
 """
 
 from __future__ import annotations
@@ -36,7 +37,18 @@ RH_LABELS = ("L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22")
 
 
 def labels(lmax: int) -> list[str]:
-    """``L{l}{m}`` for every flat index k = l(l+1)+m up to ``lmax`` (R&H Fig. 2 names)."""
+    """``L{l}{m}`` for every flat index k = l(l+1)+m up to ``lmax`` (R&H Fig. 2 names).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    list of str
+        One label per flat index.
+    """
     return [f"L{l}{m}" for l in range(check_lmax(lmax) + 1) for m in range(-l, l + 1)]
 
 
@@ -46,6 +58,22 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
 
     Refuses, with one line naming ``where`` (a file, when the data came from one), anything
     that is not a real numeric array of that shape, and (``finite``) NaN or infinity.
+
+    Parameters
+    ----------
+    coeffs
+        Coefficients, (K, C) or (K,).
+    where
+        The file they came from, named in the error.
+    what
+        What they are, named in the error.
+    finite
+        Refuse NaN and infinity.
+
+    Returns
+    -------
+    ndarray of shape (K, C), float64
+        A checked copy.
     """
     if isinstance(coeffs, (str, bytes, dict)) or coeffs is None:
         raise ShprobeError(f"{what} must be a numeric array, got {type(coeffs).__name__}",
@@ -71,8 +99,8 @@ def as_coeffs(coeffs: Any, where: Any = None, what: str = "coefficients",
 
 
 def as_rgb(coeffs: Any, where: Any = None, what: str = "lighting") -> NDArray[np.float64]:
-    """Lighting coefficients as (K, 3) RGB: :func:`as_coeffs`, one channel (or (K,)) repeated
-    to three; any other channel count refused in one line naming ``where``."""
+    """Lighting coefficients as (K, 3) RGB: [`as_coeffs`][shprobe.lighting.as_coeffs], one channel
+    (or (K,)) repeated to three; any other channel count refused in one line naming ``where``."""
     c = as_coeffs(coeffs, where, what)
     if c.shape[1] == 1:
         return np.repeat(c, 3, axis=1)
@@ -101,7 +129,20 @@ def coeff_lmax(coeffs: ArrayLike) -> int:
 
 
 def pad_coeffs(coeffs: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """Coefficients padded with zeros (or truncated) to degree ``lmax``, (K', C)."""
+    """Coefficients padded with zeros (or truncated) to degree ``lmax``, (K', C).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) coefficients.
+    lmax
+        The degree wanted.
+
+    Returns
+    -------
+    ndarray of shape (K', C)
+        The coefficients zero-padded or truncated, K' = (lmax + 1)².
+    """
     c = as_coeffs(coeffs)
     out = np.zeros((num_coeffs(check_lmax(lmax)), c.shape[1]))
     k = min(out.shape[0], c.shape[0])
@@ -135,7 +176,7 @@ RH_CONSTANTS: tuple[float, float, float, float, float] = _rh_constants()
 
 def basis_constants() -> NDArray[np.float64]:
     """K_k of the R&H basis polynomials for k = 0..8 (y_k = K_k · poly_k, R&H eq. 3), exact
-    (the registry's, :func:`shprobe.sh.registry.basis_constants`)."""
+    (the registry's, `shprobe.sh.registry.basis_constants`)."""
     from ..sh.registry import basis_constants as constants
 
     return constants(2)

@@ -4,7 +4,7 @@ lights (directional, cone, hemisphere), blending and rotation, and the edit pipe
 
 All functions take lighting coefficients L_lm of shape (K, C) (or (K,)) and return new arrays;
 nothing is modified in place. Windows and the non-negativity certificate are
-:mod:`shprobe.lighting.windows`.
+`shprobe.lighting.windows`.
 """
 
 from __future__ import annotations
@@ -161,7 +161,7 @@ def rotate_lighting(coeffs: ArrayLike, rotation: ArrayLike) -> NDArray[np.float6
 
 @dataclass(frozen=True)
 class Edited:
-    """Result of :func:`edit_lighting`: the coefficients and what the window step did."""
+    """Result of `edit_lighting`: the coefficients and what the window step did."""
 
     coeffs: NDArray[np.float64]
     window: str | None = None
@@ -204,7 +204,7 @@ MAX_EDITED = 1e30
 
 def _bounded(fn: Callable[..., Edited]) -> Callable[..., Edited]:
     """Run an edit with floating-point overflow silenced (no warnings on the terminal) and
-    refuse, in one line, a result that overflowed or left :data:`MAX_EDITED`."""
+    refuse, in one line, a result that overflowed or left `MAX_EDITED`."""
     @functools.wraps(fn)
     def run(*args: Any, **kwargs: Any) -> Edited:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -221,10 +221,10 @@ def _bounded(fn: Callable[..., Edited]) -> Callable[..., Edited]:
 @_bounded
 def edit_lighting(base: ArrayLike | None, spec: EditSpec,
                   blends: BlendResolver | None = None) -> Edited:
-    """Apply the edits of ``spec`` (:class:`~shprobe.lighting.edits.EditSpec`) to ``base``
+    """Apply the edits of ``spec`` ([`EditSpec`][shprobe.lighting.EditSpec]) to ``base``
     (L_lm, or None: start from darkness) at the spec's degree (the base is cut or zero-padded
     and scaled by the spec's weight; the spec refuses an edit above its degree). ``blends``
-    gives the coefficients of a blend (default :func:`shprobe.lighting.source.blend_lighting`:
+    gives the coefficients of a blend (default `shprobe.lighting.source.blend_lighting`:
     presets and files)."""
     from .windows import apply_window, auto_window, window_bias, window_factors
 

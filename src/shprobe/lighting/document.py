@@ -26,6 +26,20 @@ def coeffs_document(coeffs: ArrayLike, source: str | None = None, layout: str | 
 
     Keys: shprobe_version, source, layout, lmax, convention, labels, coefficients `[k][rgb]`,
     irradiance_coefficients `[k][rgb]` (Â_l L_lm) and, for lmax ≥ 2, M `[rgb][4][4]` (eq. 11–12).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    source
+        What they came from.
+    layout
+        The source image's layout.
+
+    Returns
+    -------
+    dict
+        The JSON-able document.
     """
     c = as_coeffs(coeffs)
     if c.shape[1] == 1:
@@ -70,7 +84,17 @@ def read_coeffs_json(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Coefficients (K, C) from a shprobe JSON document (``shprobe prefilter --format json``).
 
     Other formats (Condon–Shortley JSON, three.js, glTF, shaders, cmgen) are refused here:
-    :func:`shprobe.import_coeffs` reads every format and converts it.
+    [`shprobe.import_coeffs`][shprobe.lighting.import_coeffs] reads every format and converts it.
+
+    Parameters
+    ----------
+    path
+        A shprobe JSON document.
+
+    Returns
+    -------
+    ndarray of shape (K, C)
+        The lighting coefficients it holds.
     """
     p = os.fspath(path)
     return coeffs_from_document(parse_json(read_text(p, "text file"), p), p)

@@ -1,6 +1,6 @@
-"""The values of the lighting-edit language (:mod:`shprobe.lighting.edits`): numbers, vectors,
+"""The values of the lighting-edit language (`shprobe.lighting.edits`): numbers, vectors,
 colours, (l, m) keys and lists, read alike from command-line text and from JSON, each checked
-(finite, at most :data:`MAX_VALUE` in size, the right count) with one-line errors."""
+(finite, at most `MAX_VALUE` in size, the right count) with one-line errors."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ Floats = tuple[float, ...]
 
 
 def number(v: Any, what: str) -> float:
-    """One finite number of at most :data:`MAX_VALUE` in size (JSON number or text)."""
+    """One finite number of at most `MAX_VALUE` in size (JSON number or text)."""
     if isinstance(v, bool) or not isinstance(v, int | float | str | np.floating | np.integer):
         raise ShprobeError(f"{what} must be a number, got {shown(v)}")
     try:

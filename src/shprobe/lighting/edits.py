@@ -1,13 +1,14 @@
-"""The lighting-edit language: one :class:`EditSpec` that ``shprobe edit`` / ``render`` read
-from their options (:meth:`EditSpec.from_text`), the viewer reads from its edit-state JSON
-(:meth:`EditSpec.from_json`), and both write back (:meth:`EditSpec.to_text`: the equivalent
-command-line arguments; :meth:`EditSpec.to_json`). :func:`shprobe.lighting.design.edit_lighting`
-applies it, in this order: blend, lights, set/scale/negate coefficients, then bands, rotate,
-window.
+"""The lighting-edit language: one [`EditSpec`][shprobe.lighting.EditSpec] that ``shprobe edit`` /
+``render`` read from their options ([`EditSpec.from_text`][shprobe.lighting.EditSpec.from_text]),
+the viewer reads from its edit-state JSON
+([`EditSpec.from_json`][shprobe.lighting.EditSpec.from_json]), and both write back
+([`EditSpec.to_text`][shprobe.lighting.EditSpec.to_text]: the equivalent command-line arguments;
+[`EditSpec.to_json`][shprobe.lighting.EditSpec.to_json]). `shprobe.lighting.design.edit_lighting`
+applies it, in this order: blend, lights, set/scale/negate coefficients, then bands, rotate, window.
 
-Every number is checked when a spec is made (finite, and at most :data:`MAX_VALUE` in size:
+Every number is checked when a spec is made (finite, and at most `MAX_VALUE` in size:
 a weight of 1e308 would overflow the lighting), every (l, m) against the spec's ``lmax``; a bad
-value is one :class:`~shprobe.errors.ShprobeError` line naming the option or key.
+value is one [`ShprobeError`][shprobe.errors.ShprobeError] line naming the option or key.
 """
 
 from __future__ import annotations
@@ -81,7 +82,7 @@ class Rotation:
     values: Floats
 
     def matrix(self) -> NDArray[np.float64]:
-        """The 3×3 rotation matrix (:mod:`shprobe.sh.rotation`)."""
+        """The 3×3 rotation matrix (`shprobe.sh.rotation`)."""
         from ..sh.rotation import from_axis_angle, from_euler_zyz, from_quaternion, one_rotation
 
         v = self.values
@@ -136,13 +137,36 @@ class Rotation:
 
 @dataclass(frozen=True)
 class EditSpec:
-    """Lighting edits at degree ``lmax`` (the result's), in the order
-    :func:`~shprobe.lighting.design.edit_lighting` applies them: the source × ``weight``,
-    ``blends``, lights (``directional``: (direction, rgb irradiance); ``cones``: (axis,
-    aperture in degrees, rgb radiance); ``sky``: (sky rgb, ground rgb, up)), ``sets`` /
-    ``scales`` ((l, m), value or factor), ``negates`` (l, m), ``set_bands`` / ``scale_bands``
-    (l, value or factor), ``negate_bands``, ``rotations``, ``window`` (None, 'auto' or
-    (kind, strength)). Colours and values are 1 or 3 numbers. Checked when made."""
+    """Lighting edits at degree ``lmax`` (the result's), in the order `edit_lighting` applies
+    them. Colours and values are 1 or 3 numbers. Checked when made.
+
+    Parameters
+    ----------
+    lmax
+        The result's degree.
+    weight
+        The source's factor.
+    blends
+        Other lightings added, each with its weight.
+    directional
+        Lights as (direction, rgb irradiance).
+    cones
+        Lights as (axis, aperture in degrees, rgb radiance).
+    sky
+        (sky rgb, ground rgb, up), or None.
+    sets, scales
+        ((l, m), value or factor): one coefficient set or scaled.
+    negates
+        (l, m) of coefficients negated.
+    set_bands, scale_bands
+        (l, value or factor): a whole band set or scaled.
+    negate_bands
+        Bands negated.
+    rotations
+        Rotations applied in order.
+    window
+        None, 'auto' or (kind, strength).
+    """
 
     lmax: int = 2
     weight: float = 1.0
@@ -191,7 +215,19 @@ class EditSpec:
     @classmethod
     def from_text(cls, args: Sequence[str]) -> EditSpec:
         """The spec of ``shprobe edit``'s edit options given as arguments (``['--lmax', '4',
-        '--scale-band', '1=0.5', ...]``); :meth:`from_options` reads each option."""
+        '--scale-band', '1=0.5', ...]``); [`from_options`][shprobe.lighting.EditSpec.from_options]
+        reads each option.
+
+        Parameters
+        ----------
+        args
+            ``shprobe edit``'s edit options as command-line arguments.
+
+        Returns
+        -------
+        EditSpec
+            The spec.
+        """
         opts: dict[str, Any] = {}
         it = iter(args)
         for a in it:
@@ -214,7 +250,18 @@ class EditSpec:
         """The spec of the CLI's edit options by name (click's parameter names without the
         dashes: ``lmax``, ``weight``, ``blend``, ``directional``, ``cone``, ``sky``, ``set``,
         ``scale``, ``negate``, ``set_band``, ``scale_band``, ``negate_band``, ``rotate``,
-        ``window``); repeatable options take a sequence of their text values."""
+        ``window``); repeatable options take a sequence of their text values.
+
+        Parameters
+        ----------
+        opts
+            The edit options by name.
+
+        Returns
+        -------
+        EditSpec
+            The spec.
+        """
         def many(k: str) -> list[str]:
             v = opts.get(k) or ()
             return [v] if isinstance(v, str) else [str(x) for x in v]
@@ -287,6 +334,18 @@ class EditSpec:
         ``set_band``: {"l": rgb}; ``negate``: ["l,m"]; ``negate_band``: [l]; ``rotation``:
         null | {"axis": xyz, "degrees": d} | {"euler": [a,b,g]} | {"quat": [w,x,y,z]} | a list
         of these; ``window``: null | "none" | "auto" | "KIND:STRENGTH".
+
+        Parameters
+        ----------
+        doc
+            The edit-state JSON object.
+        max_lmax
+            The largest ``lmax`` accepted.
+
+        Returns
+        -------
+        EditSpec
+            The spec (a one-line error for anything malformed).
         """
         from ..probes.presets import PRESETS
 
@@ -363,7 +422,18 @@ class EditSpec:
     # -- writing ----------------------------------------------------------------
     def to_text(self, probe_names: Mapping[str, str] | None = None) -> list[str]:
         """The ``shprobe edit`` arguments doing the same edits (after the source);
-        ``probe_names`` gives the file of each blended probe id."""
+        ``probe_names`` gives the file of each blended probe id.
+
+        Parameters
+        ----------
+        probe_names
+            The file of each blended probe id.
+
+        Returns
+        -------
+        list of str
+            The ``shprobe edit`` arguments.
+        """
         a = ["--lmax", str(self.lmax)]
         if self.weight != 1.0:
             a += ["--weight", num_text(self.weight)]
@@ -387,8 +457,15 @@ class EditSpec:
         return a
 
     def to_json(self) -> dict[str, Any]:
-        """The edit-state JSON object of this spec (:meth:`from_json` reads it back; a 'file'
-        blend has no JSON form and is refused)."""
+        """The edit-state JSON object of this spec
+        ([`from_json`][shprobe.lighting.EditSpec.from_json] reads it back; a 'file' blend has no
+        JSON form and is refused).
+
+        Returns
+        -------
+        dict
+            The edit-state JSON object.
+        """
         if any(b.kind == "file" for b in self.blends):
             raise ShprobeError("a blend of a file has no edit-state form (the viewer blends "
                                "presets and the probes it loaded)")
@@ -417,14 +494,26 @@ class EditSpec:
 
     # -- views ------------------------------------------------------------------
     def rotation_matrix(self) -> NDArray[np.float64]:
-        """All the rotations as one 3×3 matrix (applied in order: R = Rₙ ⋯ R₁)."""
+        """All the rotations as one 3×3 matrix (applied in order: R = Rₙ ⋯ R₁).
+
+        Returns
+        -------
+        ndarray of shape (3, 3)
+            R = Rₙ ⋯ R₁.
+        """
         R = np.eye(3)
         for r in self.rotations:
             R = r.matrix() @ R
         return R
 
     def unrotated(self) -> EditSpec:
-        """The edits before the rotation (no rotation, no window)."""
+        """The edits before the rotation (no rotation, no window).
+
+        Returns
+        -------
+        EditSpec
+            The spec without its rotations and window.
+        """
         return replace(self, rotations=(), window=None)
 
     def with_lmax(self, lmax: int) -> EditSpec:

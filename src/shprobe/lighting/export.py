@@ -42,7 +42,7 @@ cs-phase   L_lm with Condon–Shortley signs, L^CS_lm = (−1)^m L_lm, index l(l
            order and signs of google/spherical-harmonics (``GetIndex``, ``EvalSH``), any lmax.
 ========== ================================================================================
 
-:func:`import_coeffs` reads every one of them back into shprobe's L_lm.
+[`import_coeffs`][shprobe.lighting.import_coeffs] reads every one of them back into shprobe's L_lm.
 """
 
 from __future__ import annotations
@@ -172,8 +172,24 @@ def _shader(L9: NDArray, fmt: str, source: str | None) -> str:
 
 
 def export_coeffs(coeffs: ArrayLike, fmt: str, source: str | None = None) -> str:
-    """Text of ``coeffs`` (L_lm, (K, C) or (K,)) in format ``fmt`` (one of :data:`FORMATS`;
-    see the module doc for what each stores). ``source`` is named in the output."""
+    """Text of ``coeffs`` (L_lm, (K, C) or (K,)) in format ``fmt`` (one of
+    [`FORMATS`][shprobe.lighting.FORMATS]; see the module doc for what each stores). ``source`` is
+    named in the output.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) or (K,) lighting coefficients L_lm.
+    fmt
+        One of [`FORMATS`][shprobe.lighting.FORMATS].
+    source
+        What the coefficients came from, named in the output.
+
+    Returns
+    -------
+    str
+        The exported text.
+    """
     c = as_coeffs(coeffs)
     if fmt not in FORMATS:
         raise ShprobeError(f"unknown export format {fmt!r}; choose from {', '.join(FORMATS)}")
@@ -423,7 +439,18 @@ def _parse_json(doc: Any, where: Any) -> tuple[NDArray[np.float64], str]:
 
 def import_coeffs(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Read lighting coefficients L_lm (K, C) back from any export format (detected from the
-    file's content), or from a NumPy ``.npy`` / ``.npz`` array (:func:`read_coeffs_array`)."""
+    file's content), or from a NumPy ``.npy`` / ``.npz`` array (`read_coeffs_array`).
+
+    Parameters
+    ----------
+    path
+        A file in any export format, or a ``.npy`` / ``.npz`` array.
+
+    Returns
+    -------
+    ndarray of shape (K, C)
+        The lighting coefficients L_lm in shprobe's convention.
+    """
     p = os.fspath(path)
     if p.lower().endswith((".npy", ".npz")):
         return read_coeffs_array(p)

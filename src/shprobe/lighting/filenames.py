@@ -10,7 +10,7 @@ the viewer's downloads, so that the same export has the same name wherever it is
   by their file name alone, the degree left out): two different edits get different names, the
   same edit the same name, wherever it is made.
 * ``lmax<N>``: the degree of the result; ``<suffix>`` the format's
-  (:data:`shprobe.lighting.export.SUFFIX`).
+  (`shprobe.lighting.export.SUFFIX`).
 
 Only ``[A-Za-z0-9._-]`` reach the name (anything else becomes ``-``): it is safe in every file
 system, shell and HTTP header.
@@ -35,9 +35,9 @@ MAX_STEM = 48
 
 
 def source_stem(source: str | None) -> str:
-    """The ``<source>`` part: the lighting's name as :func:`~shprobe.lighting.source.
-    resolve_lighting` and the viewer give it (a path, ``preset:NAME``, six cube faces as
-    ``FIRST … LAST (cube faces)``), reduced to a file-name stem."""
+    """The ``<source>`` part: the lighting's name as `resolve_lighting` and the viewer give it (a
+    path, ``preset:NAME``, six cube faces as ``FIRST … LAST (cube faces)``), reduced to a file-name
+    stem."""
     s = (source or "").strip()
     if not s:
         return "darkness"

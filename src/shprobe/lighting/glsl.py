@@ -1,14 +1,15 @@
 """GLSL for per-pixel SH irradiance at any degree: E(n) = Σ_lm Â_l L_lm y_lm(n) (R&H 2001 eq. 7).
 
-:mod:`.export` writes the l ≤ 2 shaders (the quadratic form, R&H eq. 11–13). Above l = 2 there is
-no 4×4 form; :func:`glsl_irradiance` emits a GLSL ES 3.0 function that evaluates the basis in the
-page's fragment shader by the library's own recurrence (:func:`shprobe.sh.basis.sh_basis_numpy`:
-(x + iy)ᵐ for the azimuth, the normalised associated-Legendre recurrence in z with the
-coefficients of :func:`~shprobe.sh.indexing.recurrence_tables`), unrolled to ``lmax``, in shprobe's
-conventions: real SH, R&H signs (no Condon–Shortley phase; y_1,−1 ∝ y, y_1,0 ∝ z, y_1,1 ∝ x),
-index k = l(l+1)+m, world +Y up. Its data are the irradiance coefficients E_lm = Â_l L_lm
-(:func:`~shprobe.lighting.irradiance.irradiance_coeffs`), baked in as constants or left as a
-``uniform vec3 SHPROBE_E[K]`` for a viewer to set (:func:`glsl_uniform_values`).
+`shprobe.lighting.export` writes the l ≤ 2 shaders (the quadratic form, R&H eq. 11–13). Above l = 2
+there is no 4×4 form; `glsl_irradiance` emits a GLSL ES 3.0 function that evaluates the basis in the
+page's fragment shader by the library's own recurrence
+([`shprobe.sh.basis.sh_basis_numpy`][shprobe.sh.sh_basis_numpy]: (x + iy)ᵐ for the azimuth, the
+normalised associated-Legendre recurrence in z with the coefficients of
+[`recurrence_tables`][shprobe.sh.recurrence_tables]), unrolled to ``lmax``, in shprobe's
+conventions: real SH, R&H signs (no Condon–Shortley phase; y_1,−1 ∝ y, y_1,0 ∝ z, y_1,1 ∝ x), index
+k = l(l+1)+m, world +Y up. Its data are the irradiance coefficients E_lm = Â_l L_lm
+([`irradiance_coeffs`][shprobe.lighting.irradiance_coeffs]), baked in as constants or left as a
+``uniform vec3 SHPROBE_E[K]`` for a viewer to set (`glsl_uniform_values`).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ def glsl_irradiance(lmax: int, coeffs: ArrayLike | None = None,
     world-space normal ``n``, summed to degree ``lmax``.
 
     ``coeffs`` None: declares ``uniform vec3 SHPROBE_E[K]`` (K = (lmax+1)², E_lm = Â_l L_lm,
-    see :func:`glsl_uniform_values`; unset degrees read 0); else lighting coefficients L_lm
+    see `glsl_uniform_values`; unset degrees read 0); else lighting coefficients L_lm
     (K', 3) whose E_lm are baked in as a constant array (truncated / zero-padded to lmax).
     """
     lmax = check_lmax(lmax, 16)

@@ -2,14 +2,17 @@
 E(n) for any lmax, the matrix M (eq. 11–12), the polynomial (eq. 13), the quadratic form as
 shading uses it, and irradiance maps on any layout.
 
-Normals, the one policy of every function here and of :func:`shprobe.lighting.reference.
-reference_irradiance`: a normal is a direction, so it is normalised first (a non-unit n gives
-the irradiance of n/|n|); a zero or non-finite normal has no direction and is refused.
-Coefficients holding NaN or infinity are refused likewise (one :class:`ShprobeError`).
+Normals, the one policy of every function here and of
+[`shprobe.lighting.reference.reference_irradiance`][shprobe.lighting.reference_irradiance]: a normal
+is a direction, so it is normalised first (a non-unit n gives the irradiance of n/|n|); a zero or
+non-finite normal has no direction and is refused. Coefficients holding NaN or infinity are refused
+likewise (one [`ShprobeError`][shprobe.errors.ShprobeError]).
 
-:func:`irradiance`, :func:`irradiance_matrix` and :func:`irradiance_quadratic` also take torch
-tensors and JAX arrays (``shprobe.lighting._xp``): same kind, device and dtype, differentiable
-in coefficients and normals.
+[`irradiance`][shprobe.lighting.irradiance.irradiance],
+[`irradiance_matrix`][shprobe.lighting.irradiance_matrix] and
+[`irradiance_quadratic`][shprobe.lighting.irradiance_quadratic] also take torch tensors and JAX
+arrays (``shprobe.lighting._xp``): same kind, device and dtype, differentiable in coefficients and
+normals.
 """
 
 from __future__ import annotations
@@ -42,7 +45,18 @@ __all__ = [
 
 
 def irradiance_coeffs(coeffs: ArrayLike) -> NDArray[np.float64]:
-    """E_lm = Â_l L_lm (R&H eq. 7), same shape as ``coeffs``."""
+    """E_lm = Â_l L_lm (R&H eq. 7), same shape as ``coeffs``.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+
+    Returns
+    -------
+    ndarray
+        E_lm, shaped like ``coeffs``.
+    """
     c = check_coeffs(coeffs)
     lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
     return convolve(c, clamped_cosine_factors(lmax))
@@ -52,6 +66,18 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
     """E(n) = Σ_lm Â_l L_lm y_lm(n) (R&H eq. 7), any lmax.
 
     ``coeffs`` (K, C) or (K,); ``normals`` (..., 3) unit vectors → (..., C) or (...,).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) or (K,) lighting coefficients L_lm, any lmax.
+    normals
+        (..., 3) normals (normalised here; zero or non-finite ones are refused).
+
+    Returns
+    -------
+    ndarray of shape (..., C) or (...,)
+        The irradiance E(n).
     """
     xp = _xp.namespace(coeffs, normals)
     if xp is not None:
@@ -76,7 +102,7 @@ def unit_normals(normals: ArrayLike) -> NDArray[np.float64]:
 
 
 def _finite(c: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The coefficients' policy (as :func:`~shprobe.lighting.coeffs.as_coeffs`): NaN or
+    """The coefficients' policy (as [`as_coeffs`][shprobe.lighting.as_coeffs]): NaN or
     infinity is refused."""
     if not np.isfinite(c).all():
         raise ShprobeError("coefficients contain NaN or infinity")
@@ -97,6 +123,16 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
 
     Uses L_lm for l ≤ 2 (higher bands are ignored). Our signs and order are R&H's, so M is
     their matrix verbatim.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) lighting coefficients; the l ≤ 2 ones are used.
+
+    Returns
+    -------
+    ndarray of shape (..., C, 4, 4)
+        M per channel, E(n) = nᵀ M n with n = (x, y, z, 1).
     """
     xp = _xp.namespace(coeffs)
     if xp is not None:
@@ -115,7 +151,20 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
 
 
 def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
-    """E = nᵀ M n with n = (x, y, z, 1) (R&H eq. 11); ``m`` (C, 4, 4) → (..., C)."""
+    """E = nᵀ M n with n = (x, y, z, 1) (R&H eq. 11); ``m`` (C, 4, 4) → (..., C).
+
+    Parameters
+    ----------
+    m
+        (C, 4, 4) matrices of [`irradiance_matrix`][shprobe.lighting.irradiance_matrix].
+    normals
+        (..., 3) normals.
+
+    Returns
+    -------
+    ndarray of shape (..., C)
+        E = nᵀ M n.
+    """
     mm = np.asarray(m, dtype=np.float64)
     if mm.shape[-2:] != (4, 4):
         raise ShprobeError(f"M must have shape (..., 4, 4), got {mm.shape}")
@@ -125,7 +174,20 @@ def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float
 
 
 def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
-    """The expanded polynomial of R&H eq. 13 → (..., C)."""
+    """The expanded polynomial of R&H eq. 13 → (..., C).
+
+    Parameters
+    ----------
+    coeffs
+        (9, C) (or more) lighting coefficients; the l ≤ 2 ones are used.
+    normals
+        (..., 3) normals.
+
+    Returns
+    -------
+    ndarray of shape (..., C)
+        E(n) by the expanded polynomial of R&H eq. 13.
+    """
     xp = _xp.namespace(coeffs, normals)
     if xp is not None:
         from . import _xp as lx
@@ -147,6 +209,20 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
     ``size`` as in ``Layout.grid_shape`` (lat-long H or (W, H); angular / mirror ball N; cube
     face N). ``layout='angular'`` gives the view of R&H Fig. 3 (centre +Z, rim −Z). Pixels
     outside an angular disc are 0.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients L_lm.
+    layout
+        The layout's name or object ('latlong', 'angular', 'mirrorball', 'cube').
+    size
+        As in ``Layout.grid_shape``: lat-long H or (W, H); angular / mirror ball N; cube face N.
+
+    Returns
+    -------
+    Env
+        The irradiance map E(n) on the layout's grid.
     """
     lay = get_layout(layout)
     grid = lay.grid_shape(size)
@@ -165,8 +241,19 @@ def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",
 
 def quadratic_form(coeffs: ArrayLike) -> NDArray[np.float64]:
     """M of R&H eq. 11–12 per channel, (C, 4, 4), E(n) = nᵀMn with n = (x, y, z, 1):
-    :func:`irradiance_matrix` of the coefficients zero-padded to lmax 2 (so lmax 0 and 1 are
-    accepted; lmax > 2 is refused rather than truncated)."""
+    [`irradiance_matrix`][shprobe.lighting.irradiance_matrix] of the coefficients zero-padded to
+    lmax 2 (so lmax 0 and 1 are accepted; lmax > 2 is refused rather than truncated).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients, lmax ≤ 2.
+
+    Returns
+    -------
+    ndarray of shape (C, 4, 4)
+        M per channel.
+    """
     return irradiance_matrix(nine(coeffs))
 
 
@@ -179,6 +266,20 @@ def shade_irradiance(coeffs: ArrayLike, normals: ArrayLike,
     for 1-D coefficients). For lmax ≤ 2 the quadratic polynomial of eq. 11–13 is evaluated by
     a numba kernel (one pass over the normals, each normalised on the fly); higher lmax uses
     the SH basis.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) or (K,) lighting coefficients.
+    normals
+        (..., 3) normals (normalised on the fly).
+    dtype
+        The result's float type.
+
+    Returns
+    -------
+    ndarray of shape (..., C) or (...,)
+        E(n).
     """
     one = np.ndim(coeffs) == 1
     c = as_coeffs(coeffs, finite=False)

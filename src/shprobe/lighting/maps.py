@@ -2,12 +2,14 @@
 differentiable when the arrays are torch tensors or JAX arrays (one implementation written
 against the array API; NumPy arrays work the same way, in float64).
 
-- :func:`project_latlong` — (..., H, W, C) lat-long radiance → (..., K, C) lighting
-  coefficients with the exact pixel solid angles (R&H 2001 eq. 10), equal to
-  :func:`shprobe.lighting.projection.project` of the same image;
-- :func:`project_cube` — (..., 6, N, N, C) cube faces (shprobe's face order and orientation,
-  :class:`shprobe.probes.layouts.Cube`) → (..., K, C), exact texel solid angles;
-- :func:`latlong_radiance`, :func:`latlong_irradiance` — (..., K, C) coefficients → the
+- [`project_latlong`][shprobe.lighting.maps.project_latlong] — (..., H, W, C) lat-long radiance →
+  (..., K, C) lighting coefficients with the exact pixel solid angles (R&H 2001 eq. 10), equal to
+  [`shprobe.lighting.projection.project`][shprobe.lighting.project] of the same image;
+- [`project_cube`][shprobe.lighting.maps.project_cube] — (..., 6, N, N, C) cube faces (shprobe's
+  face order and orientation, [`shprobe.probes.layouts.Cube`][shprobe.probes.layouts.Cube]) → (...,
+  K, C), exact texel solid angles;
+- [`latlong_radiance`][shprobe.lighting.maps.latlong_radiance],
+  [`latlong_irradiance`][shprobe.lighting.maps.latlong_irradiance] — (..., K, C) coefficients → the
   (..., H, W, C) lat-long map of L(ω) or of E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7).
 
 The lat-long transforms are separable (as ``project``'s): the rows of a lat-long map are
@@ -74,8 +76,21 @@ def _table(xp: Any, t: NDArray[np.float64], like: Any, dt: Any) -> Any:
 
 def project_latlong(radiance: Any, lmax: int = 2) -> Any:
     """Lighting coefficients (..., K, C) of lat-long radiance maps (..., H, W, C), W = 2H,
-    row 0 = +Y (the :class:`~shprobe.probes.layouts.LatLong` layout), with exact solid
-    angles: L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10)."""
+    row 0 = +Y (the [`LatLong`][shprobe.probes.layouts.LatLong] layout), with exact solid
+    angles: L_lm = Σ_pixels L(ω) y_lm(ω) dω (R&H eq. 10).
+
+    Parameters
+    ----------
+    radiance
+        (..., H, W, C) lat-long maps, W = 2H (NumPy, torch or JAX).
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    array of shape (..., K, C)
+        The lighting coefficients, of the input's kind.
+    """
     lmax = check_lmax(lmax)
     xp, rad, dt = _setup(radiance, "radiance values")
     if rad.ndim < 3:
@@ -95,8 +110,22 @@ def project_latlong(radiance: Any, lmax: int = 2) -> Any:
 def latlong_radiance(coeffs: Any, size: int = 64) -> Any:
     """The lat-long map (..., H, W, C) of L(ω) = Σ L_lm y_lm(ω) from coefficients
     (..., K, C) (or (K,) → (H, W)), H = ``size``, W = 2H, pixel centres as
-    :class:`~shprobe.probes.layouts.LatLong`; the adjoint of :func:`project_latlong`'s
-    transform without the solid angles."""
+    [`LatLong`][shprobe.probes.layouts.LatLong]; the adjoint of
+    [`project_latlong`][shprobe.lighting.maps.project_latlong]'s transform without the solid
+    angles.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+    size
+        H; W = 2H.
+
+    Returns
+    -------
+    array of shape (..., H, W, C) or (H, W)
+        L(ω) at the pixel centres.
+    """
     xp, c, dt = _setup(coeffs, "coefficients")
     if c.ndim == 0:
         raise ShprobeError("coefficients must be (..., K, C) or (K,)")
@@ -119,7 +148,20 @@ def latlong_radiance(coeffs: Any, size: int = 64) -> Any:
 
 def latlong_irradiance(coeffs: Any, size: int = 64) -> Any:
     """The lat-long map of irradiance E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7, not divided by
-    π) from lighting coefficients (..., K, C) or (K,)."""
+    π) from lighting coefficients (..., K, C) or (K,).
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) lighting coefficients.
+    size
+        H; W = 2H.
+
+    Returns
+    -------
+    array of shape (..., H, W, C) or (H, W)
+        E(n) at the pixel centres.
+    """
     xp, c, dt = _setup(coeffs, "coefficients")
     if c.ndim == 0:
         raise ShprobeError("coefficients must be (..., K, C) or (K,)")
@@ -142,8 +184,22 @@ def _cube_table(n: int, lmax: int) -> NDArray[np.float64]:
 
 def project_cube(radiance: Any, lmax: int = 2) -> Any:
     """Lighting coefficients (..., K, C) of cube maps (..., 6, N, N, C) — faces +X −X +Y −Y
-    +Z −Z as :class:`~shprobe.probes.layouts.Cube` orders and orients them — with the exact
-    texel solid angles (the sum of :func:`shprobe.lighting.projection.project`)."""
+    +Z −Z as [`Cube`][shprobe.probes.layouts.Cube] orders and orients them — with the exact
+    texel solid angles (the sum of
+    [`shprobe.lighting.projection.project`][shprobe.lighting.project]).
+
+    Parameters
+    ----------
+    radiance
+        (..., 6, N, N, C) cube maps (NumPy, torch or JAX).
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    array of shape (..., K, C)
+        The lighting coefficients, of the input's kind.
+    """
     lmax = check_lmax(lmax)
     xp, rad, dt = _setup(radiance, "radiance values")
     if rad.ndim < 4 or rad.shape[-4] != 6 or rad.shape[-3] != rad.shape[-2]:

@@ -1,13 +1,14 @@
 """Projection onto SH (R&H 2001 eq. 10): lighting coefficients from an environment map or from
 weighted samples.
 
-- :func:`project` — L_lm = Σ_pixels L(ω) y_lm(ω) dω, any lmax. Lat-long maps use their
-  separability (thesis §4.2): per row a cos/sin(mψ) matrix product over the columns, then the
-  normalised associated Legendre functions in θ per row. The rows of a lat-long map are circles
+- [`project`][shprobe.lighting.project] — L_lm = Σ_pixels L(ω) y_lm(ω) dω, any lmax. Lat-long maps
+  use their separability (thesis §4.2): per row a cos/sin(mψ) matrix product over the columns, then
+  the normalised associated Legendre functions in θ per row. The rows of a lat-long map are circles
   about +Y, so the sum is done in the frame ω' = (z, x, y) whose pole is +Y and turned back by
   one fixed per-band rotation. Other layouts sum over their samples (one numba pass).
-- :func:`project_samples` — Σ_s v_s y(d_s) w_s for any samples, no (S, K) temporary.
-- :func:`project_file` — the same sum streamed from an image file a block of rows at a time
+- [`project_samples`][shprobe.lighting.project_samples] — Σ_s v_s y(d_s) w_s for any samples, no (S,
+  K) temporary.
+- `project_file` — the same sum streamed from an image file a block of rows at a time
   (lat-long and cube crosses / strips), so memory does not grow with the image.
 """
 
@@ -79,7 +80,8 @@ def _from_pole_y(cp: NDArray[np.float64]) -> NDArray[np.float64]:
 
     c' are the coefficients of f∘Q⁻¹, so c = rotate(c', Q⁻¹). Up to lmax 12 the per-band D is
     built here by exact quadrature (independent of shprobe.sh.rotation); above, by the Wigner
-    recurrence of :func:`shprobe.sh.rotation.rotate`, which needs no (nodes × K) table.
+    recurrence of [`shprobe.sh.rotation.rotate`][shprobe.sh.rotation.rotate], which needs no (nodes
+    × K) table.
     """
     lmax = lmax_of(cp.shape[0])
     if lmax > 12:
@@ -155,7 +157,7 @@ def _latlong_threads(work: int) -> int:
 def _project_latlong(rad: NDArray[np.float32], lmax: int, threads: int | None = None
                      ) -> NDArray[np.float64]:
     """The separable transform: per row Σ_ψ L cos/sin(mψ) (one BLAS product per row; the rows
-    split over ``threads`` threads — default :func:`_latlong_threads`: one below
+    split over ``threads`` threads — default `_latlong_threads`: one below
     ``LATLONG_THREAD_MIN_WORK`` multiply-adds, else the idle cores), then Σ_θ with the row weights
     dω_row Λ_l|m|(θ_row), one batched product over m."""
     h, w = rad.shape[:2]
@@ -194,6 +196,22 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
     angles; default 4π/S, i.e. uniform random samples). A numba kernel, no (S, K) temporary.
     Torch tensors and JAX arrays take the array-API path (``shprobe.lighting._xp``, one
     (S, K) basis table): same kind, device and dtype, differentiable in all three arrays.
+
+    Parameters
+    ----------
+    dirs
+        (S, 3) unit directions.
+    values
+        (S, C) or (S,) sample values.
+    weights
+        (S,) weights (e.g. solid angles); default 4π/S, as for uniform random samples.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (K, C) or (K,)
+        Σ_s values_s y_lm(dirs_s) weights_s.
     """
     from ..sh import _xp
 
@@ -244,6 +262,18 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
     machine's cores, then the normalised Legendre functions in θ); other layouts run one numba
     pass over the pixels with the layout's (cached) direction and solid-angle tables, skipping
     pixels with dω = 0.
+
+    Parameters
+    ----------
+    env
+        The environment map (`load_env`, `procedural_env`, `env_from_function`).
+    lmax
+        The highest degree of the projection.
+
+    Returns
+    -------
+    ndarray of shape (K, 3), float64
+        The lighting coefficients L_lm, K = (lmax + 1)².
     """
     lmax = check_lmax(lmax)
     if not isinstance(env, Env):
@@ -269,7 +299,8 @@ def project(env: Env, lmax: int = 2) -> NDArray[np.float64]:
 
 
 def projection_bytes(grid: tuple[int, ...], layout: str, lmax: int, channels: int = 3) -> float:
-    """Estimated working memory of :func:`project` beyond the image itself, in bytes."""
+    """Estimated working memory of [`project`][shprobe.lighting.project] beyond the image itself, in
+    bytes."""
     K, M = (lmax + 1) ** 2, 2 * lmax + 1
     if layout == "latlong":
         h, w = grid[:2]
@@ -281,7 +312,18 @@ def projection_bytes(grid: tuple[int, ...], layout: str, lmax: int, channels: in
 
 
 def total_intensity(env: Env) -> NDArray[np.float64]:
-    """∫ L dω per channel, (3,)."""
+    """∫ L dω per channel, (3,).
+
+    Parameters
+    ----------
+    env
+        The environment map.
+
+    Returns
+    -------
+    ndarray of shape (3,)
+        ∫ L dω per channel.
+    """
     dw = env.solid_angles()
     rad = env.radiance.reshape(-1, env.radiance.shape[-1]).astype(np.float64)
     return dw.reshape(-1) @ rad
@@ -292,7 +334,7 @@ def total_intensity(env: Env) -> NDArray[np.float64]:
 
 @dataclass(frozen=True)
 class FileProjection:
-    """Result of :func:`project_file`: ``coeffs`` (K, 3) float64, the ``layout`` name, the
+    """Result of `project_file`: ``coeffs`` (K, 3) float64, the ``layout`` name, the
     image file's ``width`` × ``height`` and whether it was ``streamed`` (False: the layout
     has no streaming path and the image was read whole)."""
 
@@ -311,20 +353,21 @@ def project_file(path: str | os.PathLike[str], lmax: int = 2, layout: str | None
                  clamp: bool = False, block_bytes: int | None = None,
                  on_block: Callable[[int, NDArray[np.float32]], None] | None = None
                  ) -> FileProjection:
-    """:func:`project` of an image file, streamed: the file is read a block of rows at a time
-    (:class:`shprobe.probes.streaming.ImageRows`) and each block's share of R&H eq. 10 is added
-    up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
+    """[`project`][shprobe.lighting.project] of an image file, streamed: the file is read a block of
+    rows at a time (`shprobe.probes.streaming.ImageRows`) and each block's share of R&H eq. 10 is
+    added up, so peak memory is one block (16 MB by default) plus the small tables, whatever the
     image size. Equal to ``project(load_env(path, layout), lmax)`` to float rounding. This is
     shprobe's streaming entry point, the equivalent of a lazy ``load_env`` for projection
     (``shprobe prefilter`` takes it for big probes, ``shprobe batch`` always).
 
     Radiance files are decoded and reduced in one pass (each scanline's Σ_ψ L cos/sin(mψ)
-    while it is in cache, :meth:`~shprobe.probes.streaming.ImageRows.row_sums`), in float32 as
-    :func:`project`'s matrix product but in another order: equal to it to float32 rounding.
+    while it is in cache, `row_sums`), in float32 as
+    [`project`][shprobe.lighting.project]'s matrix product but in another order: equal to it to
+    float32 rounding.
 
-    Lat-long maps use the separable sum of :func:`project` (the same cached tables, one row
-    block at a time); cube crosses and strips sum each face's rows as they pass (directions
-    and exact texel solid angles made per block). Angular maps and mirror balls have no
+    Lat-long maps use the separable sum of [`project`][shprobe.lighting.project] (the same cached
+    tables, one row block at a time); cube crosses and strips sum each face's rows as they pass
+    (directions and exact texel solid angles made per block). Angular maps and mirror balls have no
     streaming path: the image is read whole (``streamed=False``). ``on_block(y0, block)`` sees
     every decoded block of image rows (e.g. to build a thumbnail in the same pass).
     """
@@ -370,8 +413,8 @@ def _stream_latlong(im: Any, lmax: int, on_block) -> NDArray[np.float64]:
 def cube_face_rows(face: int, n: int, j0: int, j1: int
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Directions ``(j1−j0, N, 3)`` and exact solid angles ``(j1−j0, N)`` of texel rows
-    j0..j1 of one cube face: :meth:`Cube.pixel_directions` and :meth:`Cube.solid_angles`
-    (same formulas, see :mod:`shprobe.probes.layouts`) for a band of rows only."""
+    j0..j1 of one cube face: `Cube.pixel_directions` and `Cube.solid_angles`
+    (same formulas, see `shprobe.probes.layouts`) for a band of rows only."""
     c = -1.0 + 2.0 * (np.arange(n) + 0.5) / n
     tc = c[j0:j1]
     u = 1.0 / np.sqrt(1.0 + c[None, :] ** 2 + tc[:, None] ** 2)

@@ -1,8 +1,10 @@
 """The brute-force reference and R&H's error report.
 
-- :func:`reference_irradiance` — Σ_pixels L max(0, n·ω) dω, O(T·S), numba, chunked.
-- :func:`reference_irradiance_map` — the same on the grid of any layout.
-- :func:`error_report` — R&H's metric (§3.1): |E_SH − E_ref| as a fraction of ∫L dω.
+- [`reference_irradiance`][shprobe.lighting.reference_irradiance] — Σ_pixels L max(0, n·ω) dω,
+  O(T·S), numba, chunked.
+- `reference_irradiance_map` — the same on the grid of any layout.
+- [`error_report`][shprobe.lighting.error_report] — R&H's metric (§3.1): |E_SH − E_ref| as a
+  fraction of ∫L dω.
 """
 
 from __future__ import annotations
@@ -39,10 +41,10 @@ MAP_CHUNK = 1 << 16
 
 def reference_cost(env: Env, n_normals: int, subdivide: int = 1,
                    chunk: int = 1 << 18) -> Cost:
-    """What :func:`reference_irradiance` of ``n_normals`` normals costs: the time from the
-    number of normal–sample products, the bytes from its tables (the normals and the result,
-    one chunk of samples, and for layouts other than lat-long the k²-times larger pixel
-    tables its memory check refuses on)."""
+    """What [`reference_irradiance`][shprobe.lighting.reference_irradiance] of ``n_normals`` normals
+    costs: the time from the number of normal–sample products, the bytes from its tables (the
+    normals and the result, one chunk of samples, and for layouts other than lat-long the k²-times
+    larger pixel tables its memory check refuses on)."""
     k = int(subdivide)
     pixels = int(np.prod(env.grid))
     pairs = reference_pairs(env, n_normals, k)
@@ -99,8 +101,8 @@ def check_env(env: Any, what: str = "env") -> Env:
 
 
 def reference_pairs(env: Env, normals: int, subdivide: int = 1) -> float:
-    """Normal × sample products of :func:`reference_irradiance` at ``normals`` normals: the
-    (sub-)samples times the normals, plus the making of each sample."""
+    """Normal × sample products of [`reference_irradiance`][shprobe.lighting.reference_irradiance]
+    at ``normals`` normals: the (sub-)samples times the normals, plus the making of each sample."""
     samples = float(np.prod(env.grid, dtype=np.float64)) * float(subdivide) ** 2
     return samples * (float(normals) + SAMPLE_COST)
 
@@ -115,9 +117,27 @@ def reference_irradiance(env: Env, normals: ArrayLike, chunk: int = 1 << 18,
     angles, constant radiance) to check convergence; lat-long builds them chunk by chunk, the
     other layouts build their k²-times larger pixel tables whole (memory O(k²·S)).
     ``progress`` gets one stage counting the normal–sample pairs, advanced every ~2²³ pairs
-    (:mod:`shprobe.progress`); :func:`reference_cost` estimates the time and memory. Normals
-    follow :mod:`shprobe.lighting.irradiance`'s policy (normalised; zero or non-finite
-    refused).
+    (`shprobe.progress`); `reference_cost` estimates the time and memory. Normals
+    follow `shprobe.lighting.irradiance`'s policy (normalised; zero
+    or non-finite refused).
+
+    Parameters
+    ----------
+    env
+        The environment map.
+    normals
+        (..., 3) normals.
+    chunk
+        Samples fed to the kernel at a time (bounds memory).
+    subdivide
+        k: every pixel split into k×k sub-pixels.
+    progress
+        Told about the normal–sample pairs done.
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        The exact irradiance Σ_pixels L(ω) max(0, n·ω) dω.
     """
     from ._kernels import brute_kernel as kern  # numba, imported lazily
 
@@ -153,10 +173,11 @@ class _Exact:
     report's grid and its refinement (many small batches).
 
     Lat-long maps: the lit pixels of a row are one cyclic run of columns, so the sum is read off
-    per-row prefix sums of L dω, L dω ω_x, L dω ω_z (:func:`._kernels.latlong_exact_into`):
-    O(H) per normal instead of O(H·W), the same pixels and products re-associated (exact to
-    rounding; checked against :func:`reference_irradiance` in the tests), 72 bytes per pixel
-    kept, 120 at the peak of the build (the weighted radiance and one product beside them).
+    per-row prefix sums of L dω, L dω ω_x, L dω ω_z
+    (`shprobe.lighting._kernels.latlong_exact_into`): O(H) per normal instead of O(H·W), the same
+    pixels and products re-associated (exact to rounding; checked against
+    [`reference_irradiance`][shprobe.lighting.reference_irradiance] in the tests), 72 bytes per
+    pixel kept, 120 at the peak of the build (the weighted radiance and one product beside them).
     Other layouts: the brute-force sum, serially (48 bytes per sample, built on first use).
     """
 
@@ -244,16 +265,37 @@ class ErrorRow:
     ``mean_rel``: mean |ΔE| / E_ref over normals with E_ref > 0; ``smape``: mean
     2|ΔE| / (|E_SH| + |E_ref|).
 
-    The max is the worst case on the sphere, found by refinement (:func:`error_report`):
-    ``max_normal`` / ``max_channel`` where it occurs, ``max_tol`` the stated tolerance (the
-    last refinement level changed it by ``max_change`` < ``max_tol``), ``grid_max_frac`` the
-    plain sample max over the grid. Both are attained values (the exact error at a normal), so
-    both are lower bounds of the true worst case; the refined one is never below the grid's,
-    and no finer sampling near it is expected to beat it by more than ``max_tol`` (a numerical
-    statement, checked against dense brute-force patches, not a proof). A finer grid's max is
-    no substitute: a grid straddles any ridge narrower than its spacing, whatever the spacing.
-    ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and N×N/2 grids
-    (NaN for given normals): the mean's stated accuracy.
+    The max is the worst case on the sphere, found by refinement
+    ([`error_report`][shprobe.lighting.error_report]): ``max_normal`` / ``max_channel`` where it
+    occurs, ``max_tol`` the stated tolerance (the last refinement level changed it by ``max_change``
+    < ``max_tol``), ``grid_max_frac`` the plain sample max over the grid. Both are attained values
+    (the exact error at a normal), so both are lower bounds of the true worst case; the refined one
+    is never below the grid's, and no finer sampling near it is expected to beat it by more than
+    ``max_tol`` (a numerical statement, checked against dense brute-force patches, not a proof). A
+    finer grid's max is no substitute: a grid straddles any ridge narrower than its spacing,
+    whatever the spacing. ``mean_change``: |mean(N) − mean(N/2)| of the quadrature over the 2N×N and
+    N×N/2 grids (NaN for given normals): the mean's stated accuracy.
+
+    Attributes
+    ----------
+    lmax
+        The SH order measured.
+    mean_frac, max_frac
+        Mean and max |E_SH − E_ref| / ∫L dω.
+    mean_rel
+        Mean |ΔE| / E_ref over normals with E_ref > 0.
+    smape
+        Mean 2|ΔE| / (|E_SH| + |E_ref|).
+    max_normal, max_channel
+        Where the max occurs.
+    max_tol
+        The max's stated tolerance.
+    max_change
+        The last refinement level's change of the max.
+    grid_max_frac
+        The plain sample max over the grid.
+    mean_change
+        |mean(N) − mean(N/2)|: the mean's stated accuracy (NaN for given normals).
     """
 
     lmax: int
@@ -280,7 +322,19 @@ class ErrorRow:
 
 @dataclass(frozen=True)
 class ErrorReport:
-    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of grid normals."""
+    """Per-lmax error rows, the total intensity ∫L dω (3,) and the number of grid normals.
+
+    Attributes
+    ----------
+    rows
+        One [`ErrorRow`][shprobe.lighting.ErrorRow] per lmax.
+    total_intensity
+        (3,) ∫L dω per channel.
+    n_normals
+        The normals measured at.
+    refined
+        Whether the max was refined on the whole sphere.
+    """
 
     rows: tuple[ErrorRow, ...]
     total_intensity: NDArray[np.float64]
@@ -323,7 +377,8 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
                  progress: Progress | None = None, normal_grid: int = 32,
                  refine: bool | None = None,
                  tol: float = MAX_TOL) -> ErrorReport:
-    """R&H's error metric (§3.1) for each lmax: SH irradiance vs :func:`reference_irradiance`.
+    """R&H's error metric (§3.1) for each lmax: SH irradiance vs
+    [`reference_irradiance`][shprobe.lighting.reference_irradiance].
 
     ``normals`` default: the pixel centres of a (2N)×N lat-long grid, N = ``normal_grid``,
     weighted by their solid angles (given normals are weighted equally). ``reference`` may
@@ -332,14 +387,38 @@ def error_report(env: Env, lmax_values: tuple[int, ...] = (1, 2, 3, 4),
     ``refine`` (default: True for the grid, False for given normals): the max is the worst case
     on the whole sphere, not over the samples — from the grid's 4 worst, well-separated normals,
     a compass search of max_c |E_SH − E_ref|(n) / ∫L_c with the exact E_ref at every
-    candidate (:func:`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
+    candidate (`shprobe.lighting.sphere_search.refine_max`), until a halving of the step
     changes the max by less than ``tol`` (a fraction of ∫L dω). The mean stays the grid
     quadrature; with the default grid its accuracy is reported as |mean(N) − mean(N/2)|.
 
-    E_ref here is the sum of :func:`reference_irradiance` (the same pixels, re-associated)
-    taken per row of a lat-long map from prefix sums (:class:`_Exact`: O(H) per normal, so the
-    refinement's thousands of evaluations cost tens of milliseconds); other layouts sum pixel
-    by pixel.
+    E_ref here is the sum of [`reference_irradiance`][shprobe.lighting.reference_irradiance] (the
+    same pixels, re-associated) taken per row of a lat-long map from prefix sums (`_Exact`: O(H) per
+    normal, so the refinement's thousands of evaluations cost tens of milliseconds); other layouts
+    sum pixel by pixel.
+
+    Parameters
+    ----------
+    env
+        The environment map.
+    lmax_values
+        The degrees to report.
+    normals
+        (N, 3) normals to measure at (weighted equally); default the lat-long grid.
+    reference
+        A precomputed E_ref at those normals.
+    progress
+        Told about each step (`shprobe.progress`).
+    normal_grid
+        N of the default (2N)×N grid of normals.
+    refine
+        Refine the max on the whole sphere (default: for the grid, not for given normals).
+    tol
+        The refinement's tolerance, a fraction of ∫L dω.
+
+    Returns
+    -------
+    ErrorReport
+        One row per lmax: mean and max |ΔE| / ∫L dω, mean relative error, sMAPE.
     """
     from .sphere_search import refine_max
 
@@ -412,9 +491,11 @@ def _spacing(n: NDArray[np.float64]) -> float:
 def reference_irradiance_map(env: Env, layout: str | Layout = "latlong",
                              size: int | tuple[int, int] = 128,
                              progress: Progress | None = None) -> Env:
-    """The brute-force irradiance map: :func:`reference_irradiance` at every pixel of a grid of
-    any layout (``size`` as in :func:`shprobe.lighting.irradiance.irradiance_map`) → Env;
-    pixels outside a disc layout are 0."""
+    """The brute-force irradiance map:
+    [`reference_irradiance`][shprobe.lighting.reference_irradiance] at every pixel of a grid of any
+    layout (``size`` as in
+    [`shprobe.lighting.irradiance.irradiance_map`][shprobe.lighting.irradiance_map]) → Env; pixels
+    outside a disc layout are 0."""
     check_env(env)
     lay = get_layout(layout)
     grid = lay.grid_shape(size)

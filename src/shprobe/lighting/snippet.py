@@ -1,12 +1,12 @@
-"""A lighting edit as Python: the code that reproduces an :class:`~shprobe.lighting.edits.EditSpec`
+"""A lighting edit as Python: the code that reproduces an [`EditSpec`][shprobe.lighting.EditSpec]
 applied to a source with shprobe's public API — the viewer's "Copy as Python", beside the
 equivalent ``shprobe edit`` command.
 
 The code resolves the source as ``shprobe edit`` does
-(:func:`~shprobe.lighting.source.resolve_lighting`: a probe projected to the edit's degree, at
+(`resolve_lighting`: a probe projected to the edit's degree, at
 least 2, R&H 2001 eq. 10; presets and coefficient files as they are), builds the spec with its
 fields written out (every number by ``repr``, so it round-trips exactly) and applies it with the
-one edit pipeline (:func:`~shprobe.lighting.design.edit_lighting`): it gives the same
+one edit pipeline (`edit_lighting`): it gives the same
 coefficients as the command and the viewer, to the last bit. Blended probes are named by their
 file (``probe_names``); the paths are as the caller gave them.
 """
@@ -28,7 +28,7 @@ __all__ = ["SnippetSource", "python_snippet"]
 @dataclass(frozen=True)
 class SnippetSource:
     """Where the snippet's lighting comes from: ``name`` as
-    :func:`~shprobe.lighting.source.resolve_lighting` names a source (a probe or coefficient
+    `resolve_lighting` names a source (a probe or coefficient
     file's path, ``preset:NAME``; None: darkness); ``image`` whether a file is a probe image
     (None: by its extension, as ``--blend`` decides); ``layout`` the probe's layout (None:
     detected); ``code`` a Python expression of the base coefficients at degree ``{lmax}``

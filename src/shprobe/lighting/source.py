@@ -1,6 +1,6 @@
 """Where the lighting comes from: one resolver for a probe image (or six cube faces), an R&H
 preset, a coefficient file in any export format, or an analytic cone light. Every command, the
-viewer and the batch call :func:`resolve_lighting`."""
+viewer and the batch call `resolve_lighting`."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ __all__ = ["STREAM_ABOVE_BYTES", "Lighting", "SourceChoiceError", "blend_lightin
 
 
 class SourceChoiceError(ShprobeError):
-    """The lighting source was not given as :func:`resolve_lighting` needs it: ``given`` lists
+    """The lighting source was not given as `resolve_lighting` needs it: ``given`` lists
     what was given ('a probe', 'a preset', ...); ``need_env`` is True when a probe image was
     needed and something else was given. Commands reword it with their option names."""
 
@@ -86,9 +86,9 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
     normalisation: total power 4π) at ``lmax`` (default 2). ``need_env`` refuses sources
     without a probe image.
 
-    A lat-long or cube probe whose decoded image would pass :data:`STREAM_ABOVE_BYTES` is
-    projected block by block straight from the file (:func:`~shprobe.lighting.projection.
-    project_file`, bounded memory) unless ``need_env`` asks for the image itself.
+    A lat-long or cube probe whose decoded image would pass `STREAM_ABOVE_BYTES` is
+    projected block by block straight from the file (`project_file`, bounded memory) unless
+    ``need_env`` asks for the image itself.
     """
     given = [n for n, v in (("a probe", probe), ("a preset", preset),
                             ("a coefficient file", coeffs), ("a cone light", cone))
@@ -135,15 +135,16 @@ def resolve_lighting(probe: ProbeArg | None = None, preset: str | None = None,
 
 def read_coeff_file(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """Lighting coefficients L_lm (K, 3) from a file: any export format, or an .npy / .npz of
-    L_lm (K, 3) or (K,) (:func:`~shprobe.lighting.export.import_coeffs`, which reads the arrays
-    through the checked :func:`shprobe.files.load_npz`). One channel is repeated to RGB."""
+    L_lm (K, 3) or (K,) ([`import_coeffs`][shprobe.lighting.import_coeffs], which reads the arrays
+    through the checked [`shprobe.files.load_npz`][shprobe.files.load_npz]). One channel is repeated
+    to RGB."""
     p = os.fspath(path)
     return as_rgb(import_coeffs(p), p)
 
 
 def blend_lighting(blend: Any, lmax: int, layout: str | None = None,
                    clamp: bool = False) -> NDArray[np.float64]:
-    """The coefficients of a :class:`~shprobe.lighting.edits.Blend` at ``lmax``, as
+    """The coefficients of a `Blend` at ``lmax``, as
     ``shprobe edit --blend`` reads them: a preset, a probe image (projected to ``lmax`` in
     ``layout``) or a coefficient file (cut or zero-padded by the edit)."""
     from ..probes.images import READ_EXTENSIONS

@@ -1,7 +1,7 @@
 """The maximum of a function on the unit sphere, by refinement from a grid.
 
 A sampled maximum depends on the grid: the worst normal of a 2048-point grid is not the worst
-normal. :func:`refine_max` starts from the best grid points (spread apart, one per bump) and runs
+normal. `refine_max` starts from the best grid points (spread apart, one per bump) and runs
 a batched compass search in each start's tangent plane — 8 moves of angle h plus the best point
 of a quadratic fitted to those 9 values, move while one improves, then halve h — recording the
 global maximum after every level of h. It stops when a level changes the maximum by less than
@@ -111,7 +111,7 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
                tol: float, starts: int = 4, min_levels: int = 2,
                max_levels: int = 40, polish: bool = True) -> SphereMax:
     """Maximise ``f`` ((M, 3) unit vectors → (M,)) on the sphere from grid ``points`` (N, 3)
-    with known ``values`` (N,): ``starts`` seeds by :func:`pick_starts` (2·``step`` apart),
+    with known ``values`` (N,): ``starts`` seeds by `pick_starts` (2·``step`` apart),
     compass search from h = ``step`` (about the grid spacing), halving h per level.
 
     Each compass move also fits a quadratic to the 9 values around a start and tries the

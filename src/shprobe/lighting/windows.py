@@ -8,8 +8,9 @@ Windows (factors w_l multiplying band l, ``strength`` s ≥ 0, s = 0 is no windo
 * ``laplacian`` w_l = 1 / (1 + s · l²(l + 1)²)  (Sloan 2008, "Stupid SH tricks": the g that
   minimises ‖f − g‖² + λ‖Δg‖², with λ = s).
 
-Non-negativity certificate (:func:`min_irradiance`): for lmax ≤ 2, E(n) = nᵀAn + 2bᵀn + c on
-|n| = 1 (R&H eq. 11 split into blocks). For any μ below the smallest eigenvalue λ₁ of A,
+Non-negativity certificate ([`min_irradiance`][shprobe.lighting.min_irradiance]): for lmax ≤ 2, E(n)
+= nᵀAn + 2bᵀn + c on |n| = 1 (R&H eq. 11 split into blocks). For any μ below the smallest eigenvalue
+λ₁ of A,
 
     E(n) = nᵀ(A − μI)n + 2bᵀn + c + μ ≥ d(μ) = c + μ − bᵀ(A − μI)⁻¹b,
 
@@ -60,7 +61,7 @@ __all__ = [
 
 def parse_window(text: object) -> WindowSpec:
     """The one window grammar: None, '' or 'none' → None; 'auto'; 'KIND:STRENGTH' (KIND one of
-    :data:`WINDOWS`, STRENGTH a finite number ≥ 0) → (kind, strength)."""
+    [`WINDOWS`][shprobe.lighting.WINDOWS], STRENGTH a finite number ≥ 0) → (kind, strength)."""
     if text is None:
         return None
     if not isinstance(text, str):
@@ -83,7 +84,7 @@ def parse_window(text: object) -> WindowSpec:
 
 
 def window_text(spec: WindowSpec) -> str:
-    """:func:`parse_window`'s text of a window choice ('none', 'auto' or 'KIND:STRENGTH')."""
+    """`parse_window`'s text of a window choice ('none', 'auto' or 'KIND:STRENGTH')."""
     if spec is None:
         return "none"
     if isinstance(spec, str):
@@ -97,7 +98,22 @@ def window_text(spec: WindowSpec) -> str:
 def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]:
     """Window factors w_l, l = 0..lmax (see the module doc for the four kinds); w_0 = 1.
     A torch tensor or JAX array ``strength`` gives factors of that kind, differentiable in
-    it (``shprobe.lighting._xp``)."""
+    it (``shprobe.lighting._xp``).
+
+    Parameters
+    ----------
+    kind
+        One of ``WINDOWS``.
+    lmax
+        The highest degree.
+    strength
+        The window's strength (a torch tensor or JAX array makes the factors one).
+
+    Returns
+    -------
+    ndarray of shape (lmax + 1,)
+        w_0 … w_lmax, w_0 = 1.
+    """
     from ..sh import _xp
 
     xp = _xp.namespace(strength)
@@ -127,7 +143,20 @@ def window_factors(kind: str, lmax: int, strength: float) -> NDArray[np.float64]
 
 
 def apply_window(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.float64]:
-    """L_lm · w_l."""
+    """L_lm · w_l.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    factors
+        (lmax + 1,) window factors w_l.
+
+    Returns
+    -------
+    ndarray of shape (K, C)
+        L_lm · w_l.
+    """
     return np.asarray(convolve(as_coeffs(coeffs), factors), dtype=np.float64)
 
 
@@ -244,9 +273,21 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
 
     lmax ≤ 2: exact, by the trust-region dual of nᵀMn (R&H eq. 11) — see the module doc.
     lmax > 2: numerical — a Fibonacci grid of ``grid`` points, then refinement from the 8
-    best well-separated grid points (:func:`shprobe.lighting.sphere_search.refine_max`: compass
+    best well-separated grid points (`shprobe.lighting.sphere_search.refine_max`: compass
     search on the sphere, exact SH sums) until a halving of the step moves the minimum by less
     than ``MIN_TOL`` × the mean irradiance E₀₀Y₀₀ (reported as ``tolerance``).
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    grid
+        Points of the Fibonacci grid searched first when lmax > 2.
+
+    Returns
+    -------
+    IrradianceMinimum
+        The minimum per channel, where it is and how it was found (exact for lmax ≤ 2).
     """
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
@@ -280,9 +321,9 @@ def min_irradiance(coeffs: ArrayLike, grid: int = 20000) -> IrradianceMinimum:
 
 @dataclass
 class WindowChoice:
-    """Result of :func:`auto_window`: the window kind and strength chosen, its factors, the
-    minimum irradiance before and after, and the bias (relative L2 change of E) it costs.
-    ``kind`` is ``"none"`` when the lighting is already non-negative."""
+    """Result of [`auto_window`][shprobe.lighting.auto_window]: the window kind and strength chosen,
+    its factors, the minimum irradiance before and after, and the bias (relative L2 change of E) it
+    costs. ``kind`` is ``"none"`` when the lighting is already non-negative."""
 
     kind: str
     strength: float
@@ -316,8 +357,21 @@ def _threshold(c: NDArray, kind: str, lmax: int, ok) -> float | None:
 
 def auto_window(coeffs: ArrayLike, kinds: Sequence[str] = WINDOWS) -> WindowChoice:
     """The mildest window making E(n) ≥ 0 on the whole sphere: for each kind the smallest
-    strength whose windowed lighting passes :func:`min_irradiance` (for lmax ≤ 2 the certified
-    lower bound must be ≥ 0), then the kind with the least :func:`window_bias`."""
+    strength whose windowed lighting passes [`min_irradiance`][shprobe.lighting.min_irradiance] (for
+    lmax ≤ 2 the certified lower bound must be ≥ 0), then the kind with the least `window_bias`.
+
+    Parameters
+    ----------
+    coeffs
+        (K, C) lighting coefficients.
+    kinds
+        The window kinds to try.
+
+    Returns
+    -------
+    WindowChoice
+        The chosen kind and strength (none when E ≥ 0 already).
+    """
     c = as_coeffs(coeffs)
     lmax = lmax_of(c.shape[0])
     before = min_irradiance(c)

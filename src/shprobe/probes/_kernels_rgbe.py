@@ -120,11 +120,11 @@ def decode_rgbe(buf, pos, out, scale):  # pragma: no cover - compiled
 def rgbe_row_sums(buf, pos, sums, weights, scale):  # pragma: no cover - compiled
     """Decode scanlines from ``buf[pos:]`` and reduce each at once, while it is in cache:
     ``sums[y, m, c]`` = Σ_x ``weights[m, x]`` · L(y, x, c), L = (m + 0.5) · 2^(e − 136) as
-    :func:`decode_rgbe` makes it (float32, exact), products and sums in float32 as a float32
+    `decode_rgbe` makes it (float32, exact), products and sums in float32 as a float32
     matrix product makes them (any order: fastmath, SIMD lanes). ``sums`` (rows, M, 3)
     float64, ``weights`` (M, W) float32.
 
-    Returns (status, rows done, position after the last whole row) as :func:`decode_rgbe`.
+    Returns (status, rows done, position after the last whole row) as `decode_rgbe`.
     """
     h, nm, w = sums.shape[0], weights.shape[0], weights.shape[1]
     row = np.zeros((w, 4), dtype=np.uint8)

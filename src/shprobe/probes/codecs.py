@@ -9,9 +9,10 @@ Everything goes through OpenImageIO except two small formats it gets wrong or on
   unflipped, so shprobe reads and writes PFM itself (``PF`` RGB / ``Pf`` grey, either
   endianness from the sign of the scale, rows flipped to top-down).
 
-C libraries print their errors on file descriptor 2 (libpng does): :func:`c_stderr` catches
-them so a corrupt file is one line naming it. The front door is :mod:`.images`
-(``read_image``/``write_image``); :mod:`.streaming` reads big files a block of rows at a time.
+C libraries print their errors on file descriptor 2 (libpng does): `c_stderr` catches
+them so a corrupt file is one line naming it. The front door is `shprobe.probes.images`
+(``read_image``/``write_image``); `shprobe.probes.streaming` reads big files a block of rows at a
+time.
 """
 
 from __future__ import annotations
@@ -40,9 +41,9 @@ def check_declared_size(p: Path, width: int, height: int, channels: int, min_byt
                         have: int | None = None, whole: bool = True) -> None:
     """Believe an image header only as far as the file and the memory allow: the pixel data
     cannot be shorter than ``min_bytes`` (a lower bound for the format), and decoding it to
-    float32 (with the copies reading makes) must fit :func:`shprobe.limits.check_memory` —
-    both checked before anything is allocated (the memory only when the image is read
-    ``whole``)."""
+    float32 (with the copies reading makes) must fit
+    [`shprobe.limits.check_memory`][shprobe.limits.check_memory] — both checked before anything is
+    allocated (the memory only when the image is read ``whole``)."""
     have = p.stat().st_size if have is None else have
     if have < min_bytes:
         raise ShprobeError(f"header declares {width}x{height} pixels but the file holds only "
@@ -126,7 +127,7 @@ _EXIF_EXPOSURE = "Exif:ExposureBiasValue"
 
 
 def exposure_metadata(exposure: float, colour_space: str) -> dict[str, str | float]:
-    """The attributes :func:`write_oiio` records for a picture written at ``exposure`` stops in
+    """The attributes `write_oiio` records for a picture written at ``exposure`` stops in
     ``colour_space`` (an OpenImageIO name: "sRGB" for 8-bit pictures, "lin_rec709" for linear
     files)."""
     from .._version import __version__
@@ -136,7 +137,7 @@ def exposure_metadata(exposure: float, colour_space: str) -> dict[str, str | flo
 
 
 def read_exposure(path: str | os.PathLike[str]) -> float | None:
-    """The exposure (EV) shprobe recorded in an image's metadata (:func:`exposure_metadata`),
+    """The exposure (EV) shprobe recorded in an image's metadata (`exposure_metadata`),
     or None when the file carries none (a photo, or a format without metadata such as PFM and
     Radiance .hdr)."""
     p = Path(path)
@@ -293,9 +294,9 @@ def rgbe_row_sums(buf: NDArray[np.uint8], pos: int, sums: NDArray[np.float64],
 def read_rgbe(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     """Decode a Radiance RGBE file (flat, old-style and new-style RLE) to ``(H, W, 3)``:
     (m + 0.5) · 2^(e − 136), as Radiance's colr_color. Images up to
-    :data:`~shprobe.probes.rgbe_numpy.RGBE_NUMPY_MAX_PIXELS` are decoded by NumPy (no compiled
-    kernel to start: :mod:`.rgbe_numpy`), larger ones and what NumPy declines by one compiled
-    pass per scanline; the two agree bit for bit."""
+    `RGBE_NUMPY_MAX_PIXELS` are decoded by NumPy (no compiled
+    kernel to start: `shprobe.probes.rgbe_numpy`), larger ones and what NumPy declines by one
+    compiled pass per scanline; the two agree bit for bit."""
     from . import rgbe_numpy
 
     p = Path(path)

@@ -1,8 +1,8 @@
 """Procedural environments (the built-in default data of ``shprobe demo``).
 
-:func:`procedural_env` is a deterministic lat-long map (world +Y up): a sky gradient, a small
-bright sun, a dim ground and three coloured "windows" on the horizon — enough structure to give
-every l ≤ 2 coefficient a visible value.
+[`procedural_env`][shprobe.probes.environments.procedural_env] is a deterministic lat-long map
+(world +Y up): a sky gradient, a small bright sun, a dim ground and three coloured "windows" on the
+horizon — enough structure to give every l ≤ 2 coefficient a visible value.
 """
 
 from __future__ import annotations
@@ -29,7 +29,18 @@ _WINDOWS = (
 
 
 def procedural_radiance(dirs: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Radiance (..., 3) of the procedural environment in unit directions (..., 3)."""
+    """Radiance (..., 3) of the procedural environment in unit directions (..., 3).
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        The procedural sky's radiance.
+    """
     d = np.asarray(dirs, dtype=np.float64)
     y = d[..., 1:2]
     up = np.clip(y, 0.0, 1.0)
@@ -54,7 +65,18 @@ def procedural_radiance(dirs: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def procedural_env(width: int = 256, height: int = 128) -> Env:
     """The procedural environment as a lat-long Env of ``width`` × ``height`` (W = 2H),
-    each pixel the mean of 2×2 sub-samples."""
+    each pixel the mean of 2×2 sub-samples.
+
+    Parameters
+    ----------
+    width, height
+        The lat-long size (W = 2H).
+
+    Returns
+    -------
+    Env
+        The procedural sky as a lat-long map.
+    """
     if width != 2 * height or height < 2:
         raise ShprobeError(f"procedural_env needs W = 2H ≥ 4, got {width}x{height}")
     lay = LatLong()

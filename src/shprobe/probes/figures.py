@@ -2,11 +2,11 @@
 colour bar on signed and error panels and a legend where colours encode sign — the one helper
 every command uses for its pictures (matplotlib, Agg, no pyplot state).
 
-Three kinds of panel (:class:`Panel`):
+Three kinds of panel ([`Panel`][shprobe.probes.figures.Panel]):
 
 ``radiance``
-    linear RGB (H, W, 3), tone-mapped as every shprobe PNG is (:func:`shprobe.probes.images.
-    tonemap`: × 2^exposure, clamp, sRGB); the title line gives the units and the exposure.
+    linear RGB (H, W, 3), tone-mapped as every shprobe PNG is (`shprobe.probes.images.tonemap`: ×
+    2^exposure, clamp, sRGB); the title line gives the units and the exposure.
 ``signed``
     a scalar image (H, W) in R&H 2001 Fig. 4 colours: positive green, negative blue, black at
     0, linear in the value over ±``scale``; a colour bar shows the scale and the figure gets a
@@ -15,10 +15,10 @@ Three kinds of panel (:class:`Panel`):
     a non-negative scalar image (H, W) with a sequential colour map from 0 to ``scale`` and a
     colour bar in the panel's units.
 
-Exposure rule (:func:`exposure_for`): the exposure in stops that maps the ``percentile``-th
-percentile of the per-pixel largest channel to display white, rounded down to 1/10 stop and
-lowered further while more than (100 − percentile) % of the pixels would show as 255. (To be
-unified with the tone map in :mod:`shprobe.probes.images`.)
+Exposure rule ([`exposure_for`][shprobe.probes.figures.exposure_for]): the exposure in stops that
+maps the ``percentile``-th percentile of the per-pixel largest channel to display white, rounded
+down to 1/10 stop and lowered further while more than (100 − percentile) % of the pixels would show
+as 255. (To be unified with the tone map in `shprobe.probes.images`.)
 
 A written figure is an 8-bit RGB PNG whose ``shprobe:panels`` text chunk lists each panel's
 title and its image and title boxes in pixels (x0, y0, x1, y1), so tests and tools can find
@@ -61,7 +61,22 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
     rounded down to 0.1 stop, then lowered by 0.1 stop while more than (100 − percentile) %
     of the pixels would reach 8-bit 255 (ties in flat regions). ``mask``
     (boolean, the image's leading shape) picks the pixels that count (e.g. an object's). An
-    all-zero image gives 0."""
+    all-zero image gives 0.
+
+    Parameters
+    ----------
+    values
+        (..., 3) linear RGB.
+    percentile
+        The percentile mapped to display white.
+    mask
+        The pixels that count.
+
+    Returns
+    -------
+    float
+        The exposure, stops.
+    """
     v = np.asarray(values, dtype=np.float64)
     if v.ndim >= 1 and v.shape[-1] in (3, 4):
         v = v[..., :3].max(axis=-1)
@@ -86,7 +101,20 @@ def exposure_for(values: ArrayLike, percentile: float = 99.0,
 
 def clipped_fraction(values: ArrayLike, exposure: float) -> float:
     """Fraction of pixels of a linear RGB image ``(..., 3)`` with a channel that reaches
-    display white (8-bit 255) at ``exposure`` (stops)."""
+    display white (8-bit 255) at ``exposure`` (stops).
+
+    Parameters
+    ----------
+    values
+        (..., 3) linear RGB.
+    exposure
+        Stops.
+
+    Returns
+    -------
+    float
+        The fraction of pixels with a channel at display white.
+    """
     v = np.asarray(values, dtype=np.float64)
     m = v[..., :3].max(axis=-1) * 2.0 ** exposure
     return float((m >= _WHITE).mean()) if m.size else 0.0
@@ -96,8 +124,24 @@ def clipped_fraction(values: ArrayLike, exposure: float) -> float:
 class Panel:
     """One labelled panel: ``image`` (H, W, 3) linear RGB for ``kind='radiance'``, (H, W) for
     'signed' / 'error'; ``title`` (one line); ``units`` (shown under the title and on the
-    colour bar); ``exposure`` in stops for radiance panels (None: :func:`exposure_for` of this
-    panel); ``scale``: the value at the ends of the colour bar (None: the panel's max |value|).
+    colour bar); ``exposure`` in stops for radiance panels (None:
+    [`exposure_for`][shprobe.probes.figures.exposure_for] of this panel); ``scale``: the value at
+    the ends of the colour bar (None: the panel's max |value|).
+
+    Parameters
+    ----------
+    image
+        (H, W, 3) linear RGB for "radiance", (H, W) for "signed" / "error".
+    title
+        One line.
+    kind
+        "radiance", "signed" or "error".
+    units
+        Shown under the title and on the colour bar.
+    exposure
+        Stops, for a radiance panel (None: automatic).
+    scale
+        The value at the ends of the colour bar (None: the panel's max |value|).
     """
 
     image: ArrayLike
@@ -114,7 +158,17 @@ class Panel:
 
 @dataclass
 class PanelBox:
-    """Where a panel landed on the page, in pixels (x0, y0, x1, y1; y down)."""
+    """Where a panel landed on the page, in pixels (x0, y0, x1, y1; y down).
+
+    Attributes
+    ----------
+    title, kind
+        The panel's title and kind.
+    image_box, title_box
+        (x0, y0, x1, y1) of its image and its title, pixels, y down.
+    colorbar_box
+        Its colour bar's box, or None.
+    """
 
     title: str
     kind: str
@@ -125,7 +179,21 @@ class PanelBox:
 
 @dataclass
 class Figure:
-    """A rendered figure: ``pixels`` (H, W, 3) uint8 and the panel boxes."""
+    """A rendered figure: ``pixels`` (H, W, 3) uint8 and the panel boxes.
+
+    Attributes
+    ----------
+    pixels
+        (H, W, 3) uint8 page.
+    panels
+        Each panel's title, kind and boxes.
+    title
+        The page's title.
+    legend
+        Whether the sign legend is shown.
+    path
+        The file once saved.
+    """
 
     pixels: NDArray[np.uint8]
     panels: list[PanelBox]
@@ -140,12 +208,31 @@ class Figure:
                 + (f", {self.path}" if self.path else "") + ")")
 
     def metadata(self) -> str:
-        """The ``shprobe:panels`` JSON of a written PNG."""
+        """The ``shprobe:panels`` JSON of a written PNG.
+
+        Returns
+        -------
+        str
+            The JSON.
+        """
         return json.dumps({"title": self.title, "legend": self.legend,
                            "panels": [p.__dict__ for p in self.panels]})
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> Path:
-        """Write the PNG (atomically; refuses to replace without ``overwrite``)."""
+        """Write the PNG (atomically; refuses to replace without ``overwrite``).
+
+        Parameters
+        ----------
+        path
+            The PNG file.
+        overwrite
+            Replace an existing file.
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
         from PIL import Image
         from PIL.PngImagePlugin import PngInfo
 
@@ -162,7 +249,13 @@ class Figure:
         return p
 
     def png_bytes(self) -> bytes:
-        """The PNG as bytes (for inlining, e.g. in an HTML report)."""
+        """The PNG as bytes (for inlining, e.g. in an HTML report).
+
+        Returns
+        -------
+        bytes
+            The PNG.
+        """
         import io
 
         from PIL import Image
@@ -173,7 +266,19 @@ class Figure:
 
 
 def read_panels(path: str | os.PathLike[str]) -> dict:
-    """The ``shprobe:panels`` metadata of a figure written by :meth:`Figure.save`."""
+    """The ``shprobe:panels`` metadata of a figure written by
+    [`Figure.save`][shprobe.probes.figures.Figure.save].
+
+    Parameters
+    ----------
+    path
+        A figure's PNG.
+
+    Returns
+    -------
+    dict
+        Its title, legend and panels (titles, kinds, boxes, exposures).
+    """
     from PIL import Image
 
     with Image.open(path) as im:
@@ -235,6 +340,26 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     least 160 and at most 512); images are scaled to it, nearest-neighbour when enlarged.
     ``shared_colorbar``: the scalar panels share one scale (give each the same ``scale``) and
     one colour bar at the right of the page instead of one each.
+
+    Parameters
+    ----------
+    panels
+        A flat list of panels, or a list of rows; None leaves a cell empty.
+    title
+        A line over the page.
+    columns
+        Panels per row of a flat list.
+    legend
+        Show the green = positive / blue = negative legend (default: when a panel is signed).
+    display_width
+        Pixels per panel image.
+    shared_colorbar
+        One colour bar for all scalar panels.
+
+    Returns
+    -------
+    Figure
+        The rendered page with its panels' boxes.
     """
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -274,9 +399,9 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
     def axes(x0: float, y0: float, w: float, h: float):  # pixel box, y down
         return fig.add_axes((x0 / W, 1 - (y0 + h) / H, w / W, h / H))
 
-    if title:
-        fig.text(_MARGIN / W, 1 - (_MARGIN + 2) / H, title, ha="left", va="top",
-                 fontsize=_FONT + 1.5, weight="bold")
+    if title:  # on the page: a long title is set smaller rather than cut by the edge
+        _fit(fig.text(_MARGIN / W, 1 - (_MARGIN + 2) / H, title, ha="left", va="top",
+                      fontsize=_FONT + 1.5, weight="bold"), W - 2 * _MARGIN)
     boxes = []
     shared_drawn = False
     for i, j, p in cells:
@@ -338,7 +463,25 @@ def figure(panels: Sequence[Panel | None] | Sequence[Sequence[Panel | None]],
 
 def write_figure(path: str | os.PathLike[str], panels, overwrite: bool = False,
                  **kwargs) -> Figure:
-    """:func:`figure` then :meth:`Figure.save`; returns the Figure (``path`` set)."""
+    """[`figure`][shprobe.probes.figures.figure] then
+    [`Figure.save`][shprobe.probes.figures.Figure.save]; returns the Figure (``path`` set).
+
+    Parameters
+    ----------
+    path
+        The output PNG.
+    panels
+        As for [`figure`][shprobe.probes.figures.figure].
+    overwrite
+        Replace an existing file.
+    **kwargs
+        The other arguments of [`figure`][shprobe.probes.figures.figure].
+
+    Returns
+    -------
+    Figure
+        The figure, ``path`` set.
+    """
     fig = figure(panels, **kwargs)
     fig.save(path, overwrite)
     return fig

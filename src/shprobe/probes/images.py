@@ -1,11 +1,12 @@
 """Image I/O: HDR/EXR/PFM/TIFF/PNG/JPEG in, EXR/HDR/PFM/PNG/JPEG/TIFF out.
 
 ``read_image`` returns linear RGB ``(H, W, 3) float32`` with row 0 at the top. 8/16-bit images
-(PNG, JPEG, integer TIFF) are decoded from sRGB to linear and an :class:`LDRWarning` is issued:
-display-referred pixels are not radiance. NaN, Inf or negative pixels are an error naming the
-file, unless ``clamp=True`` (NaN → 0, −∞/negatives → 0, +∞ → the largest finite value).
-The formats themselves are in :mod:`.codecs`, the tone map in :mod:`.tonemap`, streamed reading
-in :mod:`.streaming`.
+(PNG, JPEG, integer TIFF) are decoded from sRGB to linear and an
+[`LDRWarning`][shprobe.probes.images.LDRWarning] is issued: display-referred pixels are not
+radiance. NaN, Inf or negative pixels are an error naming the file, unless ``clamp=True`` (NaN → 0,
+−∞/negatives → 0, +∞ → the largest finite value). The formats themselves are in
+`shprobe.probes.codecs`, the tone map in `shprobe.probes.tonemap`, streamed reading in
+`shprobe.probes.streaming`.
 """
 
 from __future__ import annotations
@@ -47,8 +48,20 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
 
     Grey images are repeated to 3 channels; a 4th (alpha) channel and any beyond are dropped
     (colour is read as stored, not multiplied by alpha).
-    Raises :class:`ShprobeError` naming the file for a missing, empty, truncated, corrupt or
-    unknown file, and for NaN/Inf/negative pixels unless ``clamp``.
+    Raises [`ShprobeError`][shprobe.errors.ShprobeError] naming the file for a missing, empty,
+    truncated, corrupt or unknown file, and for NaN/Inf/negative pixels unless ``clamp``.
+
+    Parameters
+    ----------
+    path
+        The image file (.hdr, .exr, .pfm, .tif, .png, .jpg …).
+    clamp
+        Clamp NaN, infinite and negative pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3), float32
+        Linear RGB, row 0 at the top.
     """
     p = Path(path)
     ext = p.suffix.lower()
@@ -75,7 +88,15 @@ def read_image(path: str | os.PathLike[str], clamp: bool = False) -> NDArray[np.
 
 
 def check_readable(p: Path, ext: str) -> None:
-    """One line for an unknown extension, a missing file, a folder or an empty file."""
+    """One line for an unknown extension, a missing file, a folder or an empty file.
+
+    Parameters
+    ----------
+    p
+        The file.
+    ext
+        Its extension.
+    """
     if ext not in READ_EXTENSIONS:
         raise ShprobeError(
             f"unknown image extension {ext or '(none)'!r}; expected one of "
@@ -103,7 +124,22 @@ def to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
                  clamp: bool = False) -> NDArray[np.float32]:
-    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``.
+
+    Parameters
+    ----------
+    img
+        The image.
+    path
+        Its file, named in the error.
+    clamp
+        Clamp bad pixels to 0 instead of refusing them.
+
+    Returns
+    -------
+    ndarray
+        The image (clamped when asked).
+    """
     if img.size == 0:
         return img
     lo, hi = img.min(), img.max()  # fast path: two reductions, no temporaries
@@ -129,8 +165,22 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
 
 
 def check_image_output(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
-    """Refuse, before any work, an output :func:`write_image` cannot write or may not replace:
-    an unknown extension, an existing file (unless ``overwrite``), a missing folder."""
+    """Refuse, before any work, an output [`write_image`][shprobe.probes.images.write_image] cannot
+    write or may not replace: an unknown extension, an existing file (unless ``overwrite``), a
+    missing folder.
+
+    Parameters
+    ----------
+    path
+        The output file.
+    overwrite
+        An existing file may be replaced.
+
+    Returns
+    -------
+    Path
+        The path, checked.
+    """
     p = Path(path)
     ext = p.suffix.lower()
     if ext not in WRITE_EXTENSIONS:
@@ -146,13 +196,31 @@ def write_image(path: str | os.PathLike[str], rgb: ArrayLike, overwrite: bool = 
 
     ``.exr`` (float, or half with ``half=True``), ``.hdr`` (RGBE), ``.pfm`` and ``.tif`` are
     linear and ignore ``exposure``; ``.png`` and ``.jpg`` are tone-mapped with
-    :func:`~shprobe.probes.tonemap.tonemap` (exposure in stops). The picture carries its
+    `tonemap` (exposure in stops). The picture carries its
     exposure and colour space in its metadata (PNG text chunks, EXR/TIFF/JPEG attributes:
-    :func:`~shprobe.probes.codecs.exposure_metadata`: the stops applied, 0 for linear files;
+    `exposure_metadata`: the stops applied, 0 for linear files;
     ``oiio:ColorSpace`` sRGB or linear Rec. 709), so a reader such as ``shprobe fit`` can
-    undo it (:func:`~shprobe.probes.codecs.read_exposure`). An existing file is replaced only
+    undo it (`read_exposure`). An existing file is replaced only
     with ``overwrite=True``. NaN or Inf values are refused; ``.hdr`` (RGBE, unsigned) stores
     negative values as 0.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    rgb
+        (H, W, 3) linear RGB or (H, W) grey.
+    overwrite
+        Replace an existing file.
+    exposure
+        Stops applied before tone mapping (PNG / JPEG only).
+    half
+        Write half floats (EXR).
+
+    Returns
+    -------
+    Path
+        The file written.
     """
     p = check_image_output(path, overwrite)
     ext = p.suffix.lower()

@@ -62,7 +62,18 @@ _ALIASES = {"gracecathedral": "grace", "eucalyptusgrove": "eucalyptus", "stpeter
 
 
 def get_preset(name: str) -> NDArray[np.float64]:
-    """The (9, 3) lighting coefficients L_lm of an R&H Fig. 2 environment (a fresh copy)."""
+    """The (9, 3) lighting coefficients L_lm of an R&H Fig. 2 environment (a fresh copy).
+
+    Parameters
+    ----------
+    name
+        An R&H Fig. 2 environment's name (``PRESETS``).
+
+    Returns
+    -------
+    ndarray of shape (9, 3)
+        Its lighting coefficients L_lm (a fresh copy).
+    """
     key = "".join(ch for ch in str(name).lower() if ch.isalnum())
     key = _ALIASES.get(key, key)
     if key not in _TABLES:

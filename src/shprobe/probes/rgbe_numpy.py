@@ -1,9 +1,9 @@
 """The NumPy decoder of whole Radiance RGBE images: no compiled kernel, so no start-up cost.
 
-The compiled decoder (:mod:`._kernels_rgbe`) is about 5× faster per pixel, but its first call
-in a process costs 0.6–0.9 s (numba's import, the scipy.linalg it imports and its typing
+The compiled decoder (`shprobe.probes._kernels_rgbe`) is about 5× faster per pixel, but its first
+call in a process costs 0.6–0.9 s (numba's import, the scipy.linalg it imports and its typing
 set-up) against 0.1–0.15 s for NumPy to decode a whole 2048×1024 probe.
-:func:`shprobe.probes.codecs.read_rgbe` takes this path for images up to
+`shprobe.probes.codecs.read_rgbe` takes this path for images up to
 ``RGBE_NUMPY_MAX_PIXELS`` and the compiled one above (and for whatever this one declines). Both
 give (m + 0.5) · 2^(e − 136), bit for bit.
 
@@ -72,9 +72,9 @@ def rgbe_to_float(rgbe: NDArray[np.uint8], out: NDArray[np.float32] | None = Non
 
 def decode_rgbe_numpy(body: NDArray[np.uint8], out: NDArray[np.float32]) -> bool:
     """Decode the pixel data ``body`` into ``out`` (rows, W, 3) float32 in file order
-    (:func:`rgbe_to_float`). False (``out`` partly written) where the data is not flat or
+    (`rgbe_to_float`). False (``out`` partly written) where the data is not flat or
     new-style RLE throughout, is truncated or corrupt, or needs more than
-    :data:`MAX_PACKETS` packets in a scanline."""
+    `MAX_PACKETS` packets in a scanline."""
     h, w = out.shape[:2]
     if body.size >= 4 and 8 <= w < 32768 and body[0] == 2 and body[1] == 2 \
             and body[2] < 128:

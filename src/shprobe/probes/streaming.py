@@ -36,17 +36,17 @@ class ImageRows:
 
     ``with ImageRows(path) as im:`` gives ``im.width`` and ``im.height`` from the header
     alone; ``for y0, block in im.blocks():`` yields ``(y0, (rows, W, 3) float32)`` top to
-    bottom, decoded exactly as :func:`read_image` decodes the whole image (RGBE half step,
-    sRGB → linear for 8/16-bit files with one :class:`LDRWarning`, grey → RGB, alpha dropped,
-    NaN/Inf/negative refused unless ``clamp``). OpenImageIO reads scanline and tiled files a
-    block at a time (tiled files a row of tiles at a time); PFM is memory-mapped. Peak memory
-    is one block (``block_bytes``, default 16 MB) plus the reader's own buffers, whatever the
-    image size.
+    bottom, decoded exactly as [`read_image`][shprobe.probes.images.read_image] decodes the whole
+    image (RGBE half step, sRGB → linear for 8/16-bit files with one
+    [`LDRWarning`][shprobe.probes.images.LDRWarning], grey → RGB, alpha dropped, NaN/Inf/negative
+    refused unless ``clamp``). OpenImageIO reads scanline and tiled files a block at a time (tiled
+    files a row of tiles at a time); PFM is memory-mapped. Peak memory is one block
+    (``block_bytes``, default 16 MB) plus the reader's own buffers, whatever the image size.
 
     Two cases are not bounded: Radiance files that OpenImageIO refuses (old-style RLE) are
-    decoded whole by :func:`read_rgbe` and handed out in blocks; and with ``clamp`` a +Inf
+    decoded whole by `read_rgbe` and handed out in blocks; and with ``clamp`` a +Inf
     pixel becomes the largest finite value *of its block* (the whole image's in
-    :func:`read_image`).
+    [`read_image`][shprobe.probes.images.read_image]).
     """
 
     def __init__(self, path: str | os.PathLike[str], clamp: bool = False,
@@ -196,11 +196,11 @@ class ImageRows:
     def row_sums(self, weights: ArrayLike) -> Iterator[tuple[int, NDArray[np.float64]]]:
         """Yield ``(y0, sums)`` top to bottom, ``sums`` ``(rows, M, 3) float64`` with
         ``sums[r, m, c]`` = Σ_x ``weights[m, x]`` · pixel(y0 + r, x, c): what
-        ``np.matmul(weights[None], block)`` gives for each block of :meth:`blocks` (weights
+        ``np.matmul(weights[None], block)`` gives for each block of `blocks` (weights
         ``(M, W)``, used as float32). Radiance files streamed by shprobe's decoder are decoded
         and summed in one compiled pass, each scanline while it is in cache (no block of
         floats is written; float32 products and sums, as the matrix product); other files go through
-        :meth:`blocks` and one float32 matrix product per row."""
+        `blocks` and one float32 matrix product per row."""
         w32 = np.ascontiguousarray(weights, dtype=np.float32)
         if w32.ndim != 2 or w32.shape[1] != self.width:
             raise ValueError(f"weights must be (M, {self.width}), got {w32.shape}")

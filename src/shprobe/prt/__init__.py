@@ -3,18 +3,19 @@ interreflected diffuse transfer, baked per vertex and relit at run time with any
 
 Modules, in the order a bake runs them:
 
-- :mod:`.geometry`: the flattened scene a bake works on (meshes, ground plane, albedo, hash);
-- :mod:`.directions`: the seeded direction sets and the ray origins;
-- :mod:`.hemisphere`: the adaptive hemisphere quadrature of the contact's vertices;
-- :mod:`.trace`: one traced bake (visibility, the bounce gather, the bounces);
-- :mod:`.criteria`: where a baked transfer needs more vertices or directions;
-- :mod:`.subdivide`: splitting marked edges, conforming;
-- :mod:`.settings`: :class:`Refinement` and its named instances, QUICK (default) and ACCURATE;
-- :mod:`.refine`: the refined bake, a driver of named stages over the three above;
-- :mod:`.baking`: the public :func:`bake` and its time/memory estimate;
-- :mod:`.transfer`: the :class:`Transfer` result, .npz I/O, radiance scale;
-- :mod:`.relighting`: rotation of the lighting and the per-vertex dot product;
-- :mod:`.view`: pictures and turntables of relit transfer.
+- `shprobe.prt.geometry`: the flattened scene a bake works on (meshes, ground plane, albedo, hash);
+- `shprobe.prt.directions`: the seeded direction sets and the ray origins;
+- `shprobe.prt.hemisphere`: the adaptive hemisphere quadrature of the contact's vertices;
+- `shprobe.prt.trace`: one traced bake (visibility, the bounce gather, the bounces);
+- `shprobe.prt.criteria`: where a baked transfer needs more vertices or directions;
+- `shprobe.prt.subdivide`: splitting marked edges, conforming;
+- `shprobe.prt.settings`: [`Refinement`][shprobe.prt.Refinement] and its named instances, QUICK
+  (default) and ACCURATE;
+- `shprobe.prt.refine`: the refined bake, a driver of named stages over the three above;
+- `shprobe.prt.baking`: the public [`bake`][shprobe.prt.bake] and its time/memory estimate;
+- `shprobe.prt.transfer`: the [`Transfer`][shprobe.prt.Transfer] result, .npz I/O, radiance scale;
+- `shprobe.prt.relighting`: rotation of the lighting and the per-vertex dot product;
+- `shprobe.prt.view`: pictures and turntables of relit transfer.
 
 One bake serves every model up to the one baked; the model, degree and lighting are picked at
 run time.

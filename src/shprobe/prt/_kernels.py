@@ -1,5 +1,6 @@
 """Numba kernels of the PRT bake (compiled once, cached on disk; ``nogil`` so that the bake's
-worker threads run them in parallel). Imported lazily by :mod:`.bake`."""
+worker threads run them in parallel). Imported lazily by
+[`shprobe.prt.baking.bake`][shprobe.prt.bake]."""
 
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
 """Baking per-vertex transfer vectors (Lisle & Huang 2007 §4; Sloan et al. 2002 §5): the public
 entry, and its estimate of time and memory.
 
-Three diffuse models, all with the radiance scale of :mod:`shprobe.prt.transfer`
+Three diffuse models, all with the radiance scale of `shprobe.prt.transfer`
 (transfer · L = exit radiance): unshadowed (analytic, b_lm = Â_l y_lm(n) ρ/π, LH eq. 9–10),
-shadowed and interreflected (ray traced, :mod:`.trace`). A traced bake with a ground plane is
-refined where the transfer varies fast (:mod:`.refine`), by default with
-:data:`~.settings.QUICK`; :data:`~.settings.ACCURATE` is the opt-in accurate contact.
+shadowed and interreflected (ray traced, `shprobe.prt.trace`). A traced bake with a ground plane is
+refined where the transfer varies fast (`shprobe.prt.refine`), by default with
+[`QUICK`][shprobe.prt.QUICK]; [`ACCURATE`][shprobe.prt.ACCURATE] is the opt-in accurate contact.
 
 One bake serves every model up to the one baked (run-time switching, LH §4): the unshadowed
 transfer is analytic in the stored normals; an interreflected bake keeps its bounce-0 (shadowed)
@@ -36,27 +36,27 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
          mesh_albedo: Any = None, refine: Refinement | str | bool | None = None) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
-    scene: a mesh path, a trimesh object, a list of them, or a :class:`BakeScene`
-    (:func:`load_scene`: the way to a ground albedo or resolution of one's own). albedo: one
-    value for every mesh (a number or r,g,b); mesh_albedo: one entry per mesh (number, r,g,b or
-    per-vertex values); ground: add a ground plane (:func:`load_scene`). mode: 'unshadowed' |
-    'shadowed' | 'interreflected' — the most complete model baked: a shadowed bake also gives
-    unshadowed, an interreflected bake also gives shadowed and any fewer bounces
-    (:meth:`Transfer.select`). lmax: degree baked (any lower degree can be used later).
-    samples: ray directions per vertex over the whole sphere (about half are traced).
-    bounces: interreflection bounces (interreflected only). seed: an integer >= 0, picks the
-    random rotation of the direction set. threads: workers for ray casting, kernels and bounce
-    products (default: all cores; :mod:`.trace`). progress: a
-    :class:`~shprobe.progress.Progress` reporter (stages "k/N: what", countable).
+    scene: a mesh path, a trimesh object, a list of them, or a [`BakeScene`][shprobe.prt.BakeScene]
+    ([`load_scene`][shprobe.prt.load_scene]: the way to a ground albedo or resolution of one's own).
+    albedo: one value for every mesh (a number or r,g,b); mesh_albedo: one entry per mesh (number,
+    r,g,b or per-vertex values); ground: add a ground plane
+    ([`load_scene`][shprobe.prt.load_scene]). mode: 'unshadowed' | 'shadowed' | 'interreflected' —
+    the most complete model baked: a shadowed bake also gives unshadowed, an interreflected bake
+    also gives shadowed and any fewer bounces ([`Transfer.select`][shprobe.prt.Transfer.select]).
+    lmax: degree baked (any lower degree can be used later). samples: ray directions per vertex over
+    the whole sphere (about half are traced). bounces: interreflection bounces (interreflected
+    only). seed: an integer >= 0, picks the random rotation of the direction set. threads: workers
+    for ray casting, kernels and bounce products (default: all cores; `shprobe.prt.trace`).
+    progress: a [`Progress`][shprobe.progress.Progress] reporter (stages "k/N: what", countable).
 
     refine: adaptive refinement of the scene where the transfer varies fast
-    (:mod:`.refine`): a :class:`~.settings.Refinement` (:data:`~.settings.QUICK`,
-    :data:`~.settings.ACCURATE`) or its name, True (QUICK) or False. Default (None): QUICK
-    for a traced bake with ``ground=True``, else none (a :class:`BakeScene` that holds a
-    ground is refined when asked: its ground is refined like every mesh).
+    (`shprobe.prt.refine`): a [`Refinement`][shprobe.prt.Refinement] ([`QUICK`][shprobe.prt.QUICK],
+    [`ACCURATE`][shprobe.prt.ACCURATE]) or its name, True (QUICK) or False. Default (None): QUICK
+    for a traced bake with ``ground=True``, else none (a [`BakeScene`][shprobe.prt.BakeScene] that
+    holds a ground is refined when asked: its ground is refined like every mesh).
 
-    Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
-    is coloured) is the baked model, with transfer · L = exit radiance
+    Returns a [`Transfer`][shprobe.prt.Transfer]; its ``transfer`` ((V, K) float32, or (V, K, 3)
+    when the albedo is coloured) is the baked model, with transfer · L = exit radiance
     ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
     """
     if mode not in MODES:
@@ -73,8 +73,9 @@ def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
 
 @dataclass(frozen=True)
 class BakeEstimate(Cost):
-    """What a bake is expected to cost on this machine (:class:`shprobe.limits.Cost`: seconds
-    and peak bytes) and the ``vertices`` of its final geometry."""
+    """What a bake is expected to cost on this machine
+    ([`shprobe.limits.Cost`][shprobe.limits.Cost]: seconds and peak bytes) and the ``vertices`` of
+    its final geometry."""
 
     vertices: int = 0
 
@@ -101,9 +102,9 @@ def estimate_bake(scene: BakeScene, mode: str = "shadowed", lmax: int = 4,
                   samples: int = 1024, bounces: int = 2,
                   refine: Refinement | None = None, threads: int | None = None) -> BakeEstimate:
     """The time and peak memory of ``bake(scene, mode, lmax, samples, bounces, refine=...)``
-    on this machine: time from the measured cost per input vertex and sample (:data:`COST`,
+    on this machine: time from the measured cost per input vertex and sample (`COST`,
     scaled by the degree and the threads), memory from the bake's own memory model
-    (:func:`.trace.bake_bytes`, the one its memory check uses) at the final vertex count."""
+    (`shprobe.prt.trace.bake_bytes`, the one its memory check uses) at the final vertex count."""
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
     lmax = check_lmax(lmax)

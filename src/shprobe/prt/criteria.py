@@ -1,13 +1,13 @@
 """Refinement criteria: where a baked transfer needs more vertices or more directions.
 
 Per-vertex transfer is interpolated linearly over each triangle, both when relighting and when
-a bounce gathers the previous bounce at a ray's hit point (:mod:`.trace`). Where it varies
+a bounce gathers the previous bounce at a ray's hit point (`shprobe.prt.trace`). Where it varies
 within a triangle much faster than linearly (the contact of an object with the ground) the
 interpolated light is wrong however many rays are traced. These measures say where:
 
-- jumps (:func:`transfer_jumps`): ‖T_b(a) − T_b(c)‖ / s_b across each edge, layer by layer
+- jumps (`transfer_jumps`): ‖T_b(a) − T_b(c)‖ / s_b across each edge, layer by layer
   (the shadowed transfer and each bounce increment), s_b the 90th percentile of ‖T_b‖;
-- gather criterion (:func:`gather_importance`, :func:`gather_errors`): bounce b+1 at a vertex v
+- gather criterion (`gather_importance`, `gather_errors`): bounce b+1 at a vertex v
   is ρ_v/π Σ_c G[v, c] T_b(c) (LH §4), G holding each blocked ray's cosine-weighted solid angle
   times the barycentric weights of its hit. A vertex close to a surface leans on a few of its
   vertices, where a linear interpolant of a fast-varying transfer is far off although the jump
@@ -17,11 +17,11 @@ interpolated light is wrong however many rays are traced. These measures say whe
   of the edge's own level are the driving bake's noise, which the gather averages, and count
   zero. This is the irradiance-caching argument in matrix form: a triangle matters in
   proportion to the solid angle it fills as seen from its closest gatherer;
-- picks (:func:`gather_picks`): the vertices whose value carries more than a threshold of a
+- picks (`gather_picks`): the vertices whose value carries more than a threshold of a
   contact vertex's exit radiance in a bounce, ρ_v/π G[v, c] ‖T_0(c)‖ / ‖T(v)‖, then (second
   round) of a contact vertex or a first-round pick by their cumulative transfer: their own
   quadrature error, shared and never averaged, would be the contact's;
-- post-pass (:func:`post_split_marks`): among the vertices the contact leans on, the edges
+- post-pass (`post_split_marks`): among the vertices the contact leans on, the edges
   where the final shadowed transfer jumps (the slot-lit ground's direct decays as about
   1/distance from the slot: convex, so a linear interpolant overestimates it on every
   triangle).
@@ -69,7 +69,7 @@ def gather_importance(t: Transfer, blocks: GatherBlocks,
                       floor: float = GATHER_FLOOR) -> NDArray[np.float64]:
     """Per vertex c: the largest share of any gathering vertex's exit transfer that passes
     through c's barycentric weight in a bounce, max_v ρ_v/π G[v, c] / ‖T(v)‖ (module doc, gather
-    criterion), with G the bake's gather matrix (``blocks``: :func:`.trace.trace_bake` with
+    criterion), with G the bake's gather matrix (``blocks``: `shprobe.prt.trace.trace_bake` with
     ``keep_gather``) and ‖T(v)‖ v's cumulative transfer, at least ``floor`` × its median over
     the scene (dimmer vertices are judged as if that bright)."""
     share = _exit_share(t.traced[-1], t.albedo, floor)
@@ -121,7 +121,7 @@ def gather_picks(direct: NDArray[np.float64], cumulative: NDArray[np.float64],
     ``thresholds[r]``, v over the seeds and the picks of the rounds before, T(c) c's
     ``direct`` layer in round 0 and its ``cumulative`` one after, ‖T(v)‖ v's cumulative
     transfer, at least ``floor`` × its median over the scene. Layers (V, K, C) with the albedo
-    applied (ρ/π T); ``blocks``: the gather matrix G as :func:`.trace.trace_bake`'s
+    applied (ρ/π T); ``blocks``: the gather matrix G as `shprobe.prt.trace.trace_bake`'s
     (vertex indices, CSR rows). Returns the picked vertices (not the seeds), sorted."""
     share = _exit_share(cumulative, albedo, floor)
     chosen = np.asarray(seeds, dtype=bool).copy()
@@ -135,8 +135,8 @@ def _leaned_on(share: NDArray[np.float64], blocks: GatherBlocks,
                gatherers: NDArray[np.bool_], level: NDArray[np.float64] | None
                ) -> NDArray[np.float64]:
     """Per vertex c: max over the ``gatherers`` v of share[v] G[v, c] level[c] (the share of v's
-    exit transfer that c's value carries in a bounce; :func:`gather_picks`; ``level`` None:
-    1, :func:`gather_importance`)."""
+    exit transfer that c's value carries in a bounce; `gather_picks`; ``level`` None:
+    1, `gather_importance`)."""
     from scipy.sparse import diags
 
     imp = np.zeros(len(gatherers))
@@ -156,11 +156,11 @@ def post_split_marks(traced0: NDArray[np.float64], edges: NDArray[np.int64],
                      gatherers: NDArray[np.bool_], jump: float, share_tol: float = 2e-4,
                      floor: float = GATHER_FLOOR) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """The post-pass's edges (module doc, post-pass): an edge is marked where both ends carry more
-    than ``share_tol`` of a gatherer's exit transfer (:func:`gather_picks`' measure, with
+    than ``share_tol`` of a gatherer's exit transfer (`gather_picks`' measure, with
     max(‖T_0(c)‖, ‖T(c)‖) as c's level; ``gatherers``: the contact's dense vertices and the
     picks) and the final bake's shadowed transfer ``traced0`` (V, K, C) jumps across it by more
     than ``jump`` of its brighter end (ends dimmer than 2 % of the median ‖T_0‖ count no jump).
-    ``direct``, ``cumulative``, ``blocks``, ``albedo``: as :func:`gather_picks`' from the final
+    ``direct``, ``cumulative``, ``blocks``, ``albedo``: as `gather_picks`' from the final
     bake. Returns (marked edges (E,), the vertices that qualify (V,))."""
     share = _exit_share(cumulative, albedo, floor)
     hit = _leaned_on(share, blocks, gatherers,

@@ -1,6 +1,6 @@
 """Where a bake's rays start and where they go: the seeded spherical-Fibonacci direction set,
 its rotated copies (one per vertex, by a hash of its index), and the ray origins offset from
-each vertex along its normal by the one rule of :mod:`shprobe.scene.raycast`.
+each vertex along its normal by the one rule of `shprobe.scene.raycast`.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def ray_origins(sc: BakeScene, caster: RayCaster, rows: NDArray[np.int64]
                 ) -> tuple[float, NDArray[np.float32]]:
     """The ray-origin offset ε and the origins of the vertices ``rows`` (float32, the caster's
     frame; row i belongs to vertex rows[i]), offset by the one rule
-    (:meth:`~shprobe.scene.raycast.RayCaster.offset_points`: a step that would cross another
+    ([`offset_points`][shprobe.scene.RayCaster.offset_points]: a step that would cross another
     surface, as at a vertex touching the ground, is put back)."""
     diag = float(np.linalg.norm(np.ptp(sc.vertices, axis=0)))
     eps = OFFSET_FRACTION * max(diag, 1e-12)
@@ -86,8 +86,8 @@ def ray_source(sc: BakeScene, caster: RayCaster, rows: NDArray[np.int64], sample
                seed: int, sets: int = 1
                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64], RaySource]:
     """The vertex rays of a bake for the vertices ``rows``: returns the direction set (N, 3),
-    the rotations and set of each row (:func:`rotated_direction_sets`) and the
-    :data:`RaySource` ``rays(i0, i1)`` of rows[i0:i1] (only directions with n·ω > 0)."""
+    the rotations and set of each row (`rotated_direction_sets`) and the
+    `RaySource` ``rays(i0, i1)`` of rows[i0:i1] (only directions with n·ω > 0)."""
     dirs = sample_directions(samples, seed)
     rots, sid = rotated_direction_sets(rows, sets, seed)
     dirs32 = np.ascontiguousarray((dirs @ rots.transpose(0, 2, 1)).astype(np.float32))

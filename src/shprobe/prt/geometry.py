@@ -1,8 +1,8 @@
 """The geometry a PRT bake works on: one or more meshes, an optional ground plane, diffuse
 albedo per vertex.
 
-A :class:`BakeScene` is that geometry flattened: every mesh's vertices, normals and faces
-concatenated (the ground plane's last), the albedo ρ per vertex (RGB), and a hash of the
+A [`BakeScene`][shprobe.prt.BakeScene] is that geometry flattened: every mesh's vertices, normals
+and faces concatenated (the ground plane's last), the albedo ρ per vertex (RGB), and a hash of the
 geometry so that a bake is never reused for another mesh (Lisle & Huang 2007 §4: scene
 switchable at run time). (The ``shprobe.scene`` layer holds meshes, cameras and the renderer.)
 """
@@ -32,7 +32,7 @@ class BakeScene:
     """Flattened scene geometry.
 
     vertices (V, 3), normals (V, 3) unit, faces (F, 3) int64 into vertices, albedo (V, 3) diffuse
-    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see :func:`mesh_hash`),
+    reflectance ρ per vertex, mesh_hash: SHA-256 of vertices and faces (see `mesh_hash`),
     n_ground: how many of the last vertices are the ground plane's (0: no ground).
     """
 
@@ -122,8 +122,8 @@ def _one_value(albedo: Any, what: str) -> Any:
 def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
                ground_albedo: Any = None, ground_size: float = 3.0,
                ground_resolution: int = 64, mesh_albedo: Sequence[Any] | None = None) -> BakeScene:
-    """Build a :class:`BakeScene` from a mesh path, a trimesh object, a BakeScene, or a list of
-    them.
+    """Build a [`BakeScene`][shprobe.prt.BakeScene] from a mesh path, a trimesh object, a BakeScene,
+    or a list of them.
 
     Albedo (diffuse reflectance ρ in [0, 1]), two unambiguous ways:
 
@@ -133,10 +133,11 @@ def load_scene(scene: Any, albedo: Any = None, ground: bool = False,
       per-vertex values (V_i,), (V_i, 1) or (V_i, 3).
 
     Default (neither, or a None entry): the mesh's own colour when it has one (texture at the
-    vertex UVs, vertex, face or material colours: :func:`shprobe.scene.mesh.mesh_vertex_albedo`),
-    else ρ = 0.8. ground: add a square plane under
-    the scene (at the lowest y of the meshes, ``ground_size`` times the larger horizontal
-    extent, normal +Y) with ``ground_albedo`` (a number or RGB; default ``albedo``, else 0.8).
+    vertex UVs, vertex, face or material colours:
+    [`shprobe.scene.mesh.mesh_vertex_albedo`][shprobe.scene.mesh_vertex_albedo]), else ρ = 0.8.
+    ground: add a square plane under the scene (at the lowest y of the meshes, ``ground_size`` times
+    the larger horizontal extent, normal +Y) with ``ground_albedo`` (a number or RGB; default
+    ``albedo``, else 0.8).
     """
     _one_value(albedo, "albedo")
     _one_value(ground_albedo, "ground_albedo")

@@ -4,7 +4,7 @@ A vertex lit through a slot — the ground under an object's belly — sees the 
 and the error of a fixed direction set there is the error at the band's edges: v4612 under the
 bunny needs about half a million Fibonacci directions for 0.1 % (docs/prt.md, "why these
 defaults"). Here the directions are the cells of a quadtree on the unit square, mapped to the
-hemisphere about the vertex's normal by an equal-area map (:func:`equal_area_hemisphere`:
+hemisphere about the vertex's normal by an equal-area map (`equal_area_hemisphere`:
 every cell of level l holds 2π / (G·2^l)² sr), and rays are spent where visibility changes:
 
 1. level 0: the G × G cell centres, each vertex the grid turned by its own angle about its
@@ -15,7 +15,7 @@ every cell of level l holds 2π / (G·2^l)² sr), and rays are spent where visib
    cell's weight is its finest cells' solid angle times its own cos θ (the midpoint rule).
 
 The transfer's rows are then the bake's sums (LH §4) over these weighted directions:
-T_0 = Σ_escaping w y(ω) and the gather matrix Σ_front-hits w β (:mod:`shprobe.prt.trace`).
+T_0 = Σ_escaping w y(ω) and the gather matrix Σ_front-hits w β (`shprobe.prt.trace`).
 Cell centres, not jittered points: the midpoint rule over the smooth rest (cos θ y(ω) on a cell)
 is exact to O(1/G²), where a jittered point adds noise of O(1/G). A feature thinner than a
 level-0 cell that no centre hits is missed (a sky sliver below the grid's resolution): G sets
@@ -102,7 +102,7 @@ def trace_adaptive(sc: BakeScene, caster: RayCaster, rows: NDArray[np.int64],
     """The unscaled shadowed rows Σ_escaping w y(ω) (len(rows), K) of the vertices ``rows`` by
     the adaptive quadrature of the module doc (``grid`` G cells per side, ``levels`` of
     refinement), their gather matrix's CSR blocks (vertex indices, (n, V) rows of Σ w β over
-    front-face hits; [] without ``gather``) as :func:`shprobe.prt.trace.trace_rows` returns them,
+    front-face hits; [] without ``gather``) as `shprobe.prt.trace.trace_rows` returns them,
     and the number of rays traced. ``origins``: the rows' ray origins (float32, the caster's
     frame); ``fnormals``: the scene's face normals (float32) when the gather is wanted, else
     None."""

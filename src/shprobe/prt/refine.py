@@ -1,25 +1,25 @@
-"""The refined bake: a driver of named stages over :mod:`.trace`, :mod:`.criteria` and
-:mod:`.subdivide`, set by one :class:`~.settings.Refinement`.
+"""The refined bake: a driver of named stages over `shprobe.prt.trace`, `shprobe.prt.criteria` and
+`shprobe.prt.subdivide`, set by one [`Refinement`][shprobe.prt.Refinement].
 
 1. **subdivision rounds**: bake the scene with a quarter of the samples (at least 64; enough
-   to see where the transfer jumps), mark the edges where :func:`~.criteria.transfer_jumps`
-   exceeds ``tol`` or (interreflected, with bounces) :func:`~.criteria.gather_errors` exceeds
+   to see where the transfer jumps), mark the edges where `transfer_jumps`
+   exceeds ``tol`` or (interreflected, with bounces) `gather_errors` exceeds
    ``gather_tol``, longer than ``min_edge_fraction`` of the diagonal; split them
-   (:mod:`.subdivide`) and repeat until none is marked or ``max_rounds`` is reached;
+   (`shprobe.prt.subdivide`) and repeat until none is marked or ``max_rounds`` is reached;
 2. **final bake** of the final geometry with the full samples, the input scene's vertices that
    the refinement touched (the contact, where visibility is intricate and the light dim)
    traced with ``dense_factor`` × the samples on ``dense_quadrature``; with ``dense_picks``
-   the vertices the contact's bounces lean on (:func:`~.criteria.gather_picks`) traced so
+   the vertices the contact's bounces lean on (`gather_picks`) traced so
    too. The new vertices keep the samples: they support the interpolation, and the gathers
    that read them average their noise over many rays;
 3. **post-pass** (``post_jump``): the final bake only screens (its picks found, not traced);
    among the vertices the contact leans on, the edges where the shadowed transfer jumps by
-   more than ``post_jump`` are split (:func:`~.criteria.post_split_marks`) and the scene is
+   more than ``post_jump`` are split (`post_split_marks`) and the scene is
    baked once more, the picks traced, the new vertices between two leaned-on ones on their own
    adaptive grid at ``post_dense`` × the samples.
 
 Every bake has the same seed, so the result is deterministic. The result is an ordinary
-:class:`~.transfer.Transfer` over the refined geometry (input vertices first); its metadata
+[`Transfer`][shprobe.prt.Transfer] over the refined geometry (input vertices first); its metadata
 records the refinement (settings, rounds, the hash of the unrefined scene).
 """
 
@@ -86,7 +86,7 @@ class _Job:
 @dataclass
 class _Geometry:
     """The scene as the rounds leave it: ``raw`` its unnormalised interpolated normals
-    (:func:`~.subdivide.split_closed`), ``touched`` (V,) the vertices of split edges."""
+    (`split_closed`), ``touched`` (V,) the vertices of split edges."""
 
     scene: BakeScene
     raw: NDArray[np.float64]
@@ -113,7 +113,7 @@ class _Geometry:
 
 
 class _Picker:
-    """The ``pick`` of a final bake (:func:`~.criteria.gather_picks` seeded by the contact)
+    """The ``pick`` of a final bake (`gather_picks` seeded by the contact)
     and what it saw, which the post-pass reads. ``trace`` False: the bake only screens."""
 
     def __init__(self, seeds: NDArray[np.bool_], thresholds: tuple[float, ...], floor: float,
@@ -158,10 +158,10 @@ def bake_count(settings: Refinement) -> int:
 def bake_refined(scene: BakeScene, settings: Refinement, mode: str = "interreflected",
                  lmax: int = 4, samples: int = 1024, bounces: int = 2, seed: int = 0,
                  threads: int | None = None, progress: Progress | None = None) -> Transfer:
-    """Bake ``scene`` (:func:`~.geometry.load_scene`; its ground plane, if any, is refined
+    """Bake ``scene`` ([`load_scene`][shprobe.prt.load_scene]; its ground plane, if any, is refined
     like every mesh) with adaptive refinement by ``settings`` (module doc). Other arguments as
-    :func:`~.trace.trace_bake`. The returned transfer's ``metadata['refine']`` holds the
-    settings and the rounds (:class:`RefineRound` as dicts)."""
+    `trace_bake`. The returned transfer's ``metadata['refine']`` holds the
+    settings and the rounds (`RefineRound` as dicts)."""
     if mode not in ("shadowed", "interreflected"):
         raise ShprobeError(f"refinement needs a traced bake (shadowed or interreflected), not "
                            f"{mode!r}")

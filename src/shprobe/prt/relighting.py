@@ -35,13 +35,15 @@ def relight(transfer: Transfer | ArrayLike, coeffs: ArrayLike, rotation: ArrayLi
             bounces: int | None = None) -> NDArray[np.float32]:
     """Per-vertex exit radiance (V, 3) = transfer · rotate(L, R⁻¹), per channel (LH §4).
 
-    transfer: a :class:`Transfer` or a (V, K) / (V, K, 3) transfer array. coeffs: lighting L_lm
+    transfer: a [`Transfer`][shprobe.prt.Transfer] or a (V, K) / (V, K, 3) transfer array. coeffs:
+    lighting L_lm
     (K', 3) or (K',) (grey). rotation: 3×3 rotation of the scene relative to the lighting (None:
     none). lmax: degree to use (default: the smaller of the transfer's and the lighting's) — the
     first (lmax+1)² transfer columns, no re-bake. mode, bounces: the model, picked at run time
-    from a :class:`Transfer` (:meth:`Transfer.select`: 'unshadowed' always, 'shadowed' when the
-    bake cast rays, 'interreflected' with at most the baked bounces; default the baked model).
-    For the unshadowed model with albedo ρ the result is ρ/π · E(n) (R&H eq. 7).
+    from a [`Transfer`][shprobe.prt.Transfer] ([`Transfer.select`][shprobe.prt.Transfer.select]:
+    'unshadowed' always, 'shadowed' when the bake cast rays, 'interreflected' with at most the baked
+    bounces; default the baked model). For the unshadowed model with albedo ρ the result is ρ/π ·
+    E(n) (R&H eq. 7).
     """
     if isinstance(transfer, Transfer):
         lt = transfer.lmax

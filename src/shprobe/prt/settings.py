@@ -1,13 +1,13 @@
 """How a traced bake with a ground refines its scene: one frozen settings type,
-:class:`Refinement`, and its two named instances.
+[`Refinement`][shprobe.prt.Refinement], and its two named instances.
 
-- :data:`QUICK`: the default of every traced bake with a ground. The scene is split where the
-  transfer jumps or where a close gatherer leans on a coarse triangle, and the contact's
+- [`QUICK`][shprobe.prt.QUICK]: the default of every traced bake with a ground. The scene is split
+  where the transfer jumps or where a close gatherer leans on a coarse triangle, and the contact's
   vertices trace 8× the directions.
-- :data:`ACCURATE`: opt-in (``shprobe prt bake --accurate-contact``). The contact traced on
-  the adaptive hemisphere grid (32×), the vertices its bounces lean on picked and traced so too,
-  a post-pass that splits among them once more, and 256 rotated direction sets. It brings the
-  contact's worst error from 2.4–17× to 1.2–2.8× the open vertices' noise on the bunny, at
+- [`ACCURATE`][shprobe.prt.ACCURATE]: opt-in (``shprobe prt bake --accurate-contact``). The contact
+  traced on the adaptive hemisphere grid (32×), the vertices its bounces lean on picked and traced
+  so too, a post-pass that splits among them once more, and 256 rotated direction sets. It brings
+  the contact's worst error from 2.4–17× to 1.2–2.8× the open vertices' noise on the bunny, at
   about 10× the bake time (docs/prt.md, "why these defaults").
 """
 
@@ -27,22 +27,22 @@ __all__ = ["ACCURATE", "QUICK", "REFINEMENTS", "Refinement", "as_refinement"]
 
 @dataclass(frozen=True)
 class Refinement:
-    """Settings of a refined bake (:func:`shprobe.prt.refine.bake_refined`).
+    """Settings of a refined bake (`shprobe.prt.refine.bake_refined`).
 
     Splitting: ``tol`` on the relative jump of a transfer layer across an edge
-    (:func:`~.criteria.transfer_jumps`); ``gather_tol`` on an edge's estimated share of a
+    (`transfer_jumps`); ``gather_tol`` on an edge's estimated share of a
     gathering vertex's exit transfer that its interpolation gets wrong, with jumps below
     ``gather_gate`` of the edge's level counted as noise and gatherers dimmer than
-    ``gather_floor`` × the median judged as if that bright (:func:`~.criteria.gather_errors`;
+    ``gather_floor`` × the median judged as if that bright (`gather_errors`;
     interreflected bakes with bounces); edges shorter than ``min_edge_fraction`` × the scene's
     diagonal are not split; at most ``max_rounds`` re-bakes and ``max_vertices`` vertices.
 
     Final bake: the input vertices the refinement touched trace ``dense_factor`` × the samples
     on ``dense_quadrature`` (``"fibonacci"`` or ``"adaptive"``, refined ``adaptive_levels``
     times); ``direction_sets`` rotated copies of the direction set, one per vertex by a hash;
-    ``dense_picks``: the thresholds of :func:`~.criteria.gather_picks`, one per round (empty:
+    ``dense_picks``: the thresholds of `gather_picks`, one per round (empty:
     no picks); ``post_jump`` (None: no post-pass) and ``post_share``: the post-pass of
-    :func:`~.criteria.post_split_marks`, its new vertices between two leaned-on ones traced
+    `post_split_marks`, its new vertices between two leaned-on ones traced
     at ``post_dense`` × the samples.
     """
 
@@ -114,8 +114,9 @@ REFINEMENTS = {r.name: r for r in (QUICK, ACCURATE)}
 
 
 def as_refinement(value: Any, default: Refinement = QUICK) -> Refinement | None:
-    """``refine`` as given to :func:`shprobe.prt.bake`: a :class:`Refinement`, a name of
-    :data:`REFINEMENTS`, True (``default``) or False / None (none)."""
+    """``refine`` as given to [`shprobe.prt.bake`][shprobe.prt.bake]: a
+    [`Refinement`][shprobe.prt.Refinement], a name of [`REFINEMENTS`][shprobe.prt.REFINEMENTS], True
+    (``default``) or False / None (none)."""
     if isinstance(value, Refinement):
         return value
     if value is None or value is False or value is np.False_:

@@ -39,7 +39,7 @@ def split_edges(scene: BakeScene, marked: NDArray[np.bool_], edges: NDArray[np.i
 def split_closed(scene: BakeScene, sel: NDArray[np.int64], edges: NDArray[np.int64],
            face_edges: NDArray[np.int64], raw: NDArray[np.float64] | None = None
            ) -> tuple[BakeScene, NDArray[np.float64]]:
-    """:func:`split_edges` of the closed edge set ``sel`` (:func:`closed_edges`), and the
+    """`split_edges` of the closed edge set ``sel`` (`closed_edges`), and the
     unnormalised normals of the result: ``raw`` (default: the scene's normals) holds, for
     every vertex, the barycentric interpolation of its input triangle's vertex normals (an
     input vertex: its own), so a midpoint's is the mean of its ends' and the scene's normal
@@ -79,7 +79,7 @@ def split_closed(scene: BakeScene, sel: NDArray[np.int64], edges: NDArray[np.int
 
 
 def closed_edges(marked: NDArray[np.bool_], face_edges: NDArray[np.int64]) -> NDArray:
-    """The edge indices :func:`split_edges` splits (marked, closed), in its order."""
+    """The edge indices `split_edges` splits (marked, closed), in its order."""
     m = marked.copy()
     while True:
         cnt = m[face_edges].sum(1)

@@ -3,14 +3,14 @@ vertex by Embree occlusion rays, and for an interreflected bake the bounce gathe
 the bounces.
 
 - shadowed: ρ/π Σ_j V(ω_j) max(0, n·ω_j) y(ω_j) 4π/N over the N directions of
-  :mod:`.directions` (only those with n·ω > 0 are traced);
+  `shprobe.prt.directions` (only those with n·ω > 0 are traced);
 - interreflected: the shadowed term plus k bounces; bounce b gathers, along every blocked ray
   that hits a front face, the previous bounce's transfer interpolated barycentrically over the
   hit triangle: T_b(v) = ρ_v/π Σ_j max(0, n·ω_j) T_{b−1}(hit_j) 4π/N. Back-face hits block
   light but send none.
 
-Some vertices (:class:`DenseVertices`, chosen by :mod:`.refine`) may trace more directions than
-the rest, as Fibonacci directions or on the adaptive grid of :mod:`.hemisphere`; a ``pick``
+Some vertices (`DenseVertices`, chosen by `shprobe.prt.refine`) may trace more directions than
+the rest, as Fibonacci directions or on the adaptive grid of `shprobe.prt.hemisphere`; a ``pick``
 callback may name more vertices to trace so once the first pass is done.
 
 Threads: ``threads`` workers run the ray casting (Embree queries from embreex, which releases the
@@ -66,7 +66,7 @@ class DenseVertices:
     """Vertices traced with ``samples`` directions instead of the bake's: ``mask`` (V,) bool,
     on ``quadrature`` (``"fibonacci"``: their own seeded Fibonacci set; ``"adaptive"``: an
     equal-area grid of √(samples/2) cells a side refined ``levels`` times where visibility
-    changes, :mod:`.hemisphere`). ``extra`` (V,) bool: more vertices on the same quadrature
+    changes, `shprobe.prt.hemisphere`). ``extra`` (V,) bool: more vertices on the same quadrature
     with ``extra_samples`` directions (those of ``mask`` keep theirs)."""
 
     mask: NDArray[np.bool_]
@@ -94,11 +94,11 @@ def check_threads(threads: Any) -> int:
 
 def bake_bytes(n_vertices: int, lmax: int, samples: int, layers: int, channels: int = 1,
                threads: int = 1, extra: float = 0.0) -> float:
-    """Bytes a traced bake holds (the cost model of :func:`trace_bake`'s memory check and of
-    :func:`shprobe.prt.baking.estimate_bake`): the stored layers (float32), the float64 running
-    sums, one worker block of SH rows per thread, for an interreflected bake (``layers`` > 1)
-    the gather matrix (:data:`GATHER_BYTES_PER_RAY` per upward direction), and ``extra`` (the
-    picks' sums, the adaptive grids)."""
+    """Bytes a traced bake holds (the cost model of `trace_bake`'s memory check and of
+    [`shprobe.prt.baking.estimate_bake`][shprobe.prt.estimate_bake]): the stored layers (float32),
+    the float64 running sums, one worker block of SH rows per thread, for an interreflected bake
+    (``layers`` > 1) the gather matrix (`GATHER_BYTES_PER_RAY` per upward direction), and ``extra``
+    (the picks' sums, the adaptive grids)."""
     cells = float(n_vertices) * num_coeffs(lmax) * channels
     gather = GATHER_BYTES_PER_RAY * 0.5 * samples * n_vertices if layers > 1 else 0.0
     return (4.0 * cells * layers + 16.0 * cells * (layers > 0)
@@ -128,16 +128,16 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
                seed: int = 0, threads: int | None = None, progress: Progress | None = None, *,
                dense: DenseVertices | None = None, sets: int = 1, pick: PickFn | None = None,
                keep_gather: bool = False) -> tuple[Transfer, GatherBlocks | None]:
-    """Bake ``sc`` once (module doc) and return the :class:`Transfer` and, with
+    """Bake ``sc`` once (module doc) and return the [`Transfer`][shprobe.prt.Transfer] and, with
     ``keep_gather`` (an interreflected bake), the bounce gather matrix G as its blocks: bounce
-    b+1 = ρ/π · G @ bounce b (:mod:`.refine` reads where each vertex gathers from).
+    b+1 = ρ/π · G @ bounce b (`shprobe.prt.refine` reads where each vertex gathers from).
 
     ``sets`` > 1: each vertex traces one of that many rotated copies of the direction set
-    (:func:`~.directions.rotated_direction_sets`). ``pick`` (an interreflected bake with dense
+    (`rotated_direction_sets`). ``pick`` (an interreflected bake with dense
     vertices): once every vertex is traced, called as ``pick(direct, cumulative, blocks,
     albedo)`` with the layers (V, K, C) and the gather blocks; the vertices it returns are
     traced again as the dense ones are, their rows of T_0 and of the gather matrix replaced,
-    before the bounces (the other vertices' rays are kept; :func:`.criteria.gather_picks`).
+    before the bounces (the other vertices' rays are kept; `shprobe.prt.criteria.gather_picks`).
     """
     if mode not in MODES:
         raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
@@ -280,7 +280,7 @@ def trace_rows(sc: BakeScene, caster: RayCaster, lmax: int, samples: int, seed: 
     matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather).
     ``fnormals``: the scene's face normals (float32) when the gather is wanted (its hits on
     front faces), else None. ``sets`` > 1: each vertex traces one of that many rotated copies of
-    the direction set (:func:`~.directions.rotated_direction_sets`)."""
+    the direction set (`rotated_direction_sets`)."""
     from scipy.sparse import coo_matrix
 
     from ._kernels import add_visible

@@ -13,8 +13,8 @@ Run-time model switching (LH §4): one bake serves
 every model up to what it traced. The unshadowed transfer is analytic in the stored normals and
 albedo (LH eq. 9) and is never stored; a ray-traced bake stores the shadowed transfer (bounce 0)
 and, for an interreflected bake, the cumulative transfer after each bounce, so
-:meth:`Transfer.select` picks unshadowed, shadowed or interreflected with any number of bounces
-up to the baked one, without re-baking.
+[`Transfer.select`][shprobe.prt.Transfer.select] picks unshadowed, shadowed or interreflected with
+any number of bounces up to the baked one, without re-baking.
 """
 
 from __future__ import annotations
@@ -102,7 +102,8 @@ class Transfer:
 
     @property
     def mode(self) -> str:
-        """The most complete model baked (the default of :meth:`select`)."""
+        """The most complete model baked (the default of
+        [`select`][shprobe.prt.Transfer.select])."""
         return str(self.metadata.get("mode", ""))
 
     @property
@@ -210,8 +211,8 @@ _ARRAYS = {1: ("transfer",), 2: ("traced", "bounce_counts")}
 
 def load_transfer(path: str | os.PathLike[str], scene: Any = None) -> Transfer:
     """Read a transfer .npz (format 2, or format 1 with only its baked model); with ``scene``
-    (anything :func:`load_scene` takes: the mesh path(s) or object(s) given to
-    :func:`~shprobe.prt.bake`; the ground plane is added again when the bake had one) refuse a
+    (anything [`load_scene`][shprobe.prt.load_scene] takes: the mesh path(s) or object(s) given to
+    [`bake`][shprobe.prt.bake]; the ground plane is added again when the bake had one) refuse a
     file baked for another mesh (hash mismatch).
     """
     p = Path(path)
@@ -298,7 +299,7 @@ MAX_VERTICES = 50_000_000
 def _check_headers(heads: dict[str, tuple[tuple[int, ...], np.dtype, bool]], p: Path) -> None:
     """Refuse, from the .npy headers alone (nothing inflated), a transfer whose arrays do not
     fit together (a member declaring more rows than the mesh has, as a zip bomb does) or
-    declare more than :data:`MAX_VERTICES` rows; the memory check follows in ``load_npz``."""
+    declare more than `MAX_VERTICES` rows; the memory check follows in ``load_npz``."""
     shapes = {k: h[0] for k, h in heads.items()}
     v = shapes.get("vertices")
     if v is None or len(v) != 2:

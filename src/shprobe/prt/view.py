@@ -22,7 +22,7 @@ def frame_radiance(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | 
     """Per-vertex radiance (V, 3) of the scene turned by ``rotation`` under the lighting turned
     by ``light_rotation``: in the scene's frame the lighting is rotate(L, R_s⁻¹ R_l), i.e.
     ``relight`` with scene rotation R_l⁻¹ R_s (LH eq. 4–5). mode, bounces: the model, picked
-    at run time (:meth:`Transfer.select`)."""
+    at run time ([`Transfer.select`][shprobe.prt.Transfer.select])."""
     rs = np.eye(3) if rotation is None else one_rotation(rotation)
     rl = np.eye(3) if light_rotation is None else one_rotation(light_rotation)
     return relight(transfer, coeffs, rotation=rl.T @ rs, lmax=lmax, mode=mode, bounces=bounces)
@@ -37,7 +37,8 @@ def render_frame(transfer: Transfer, coeffs: ArrayLike, rotation: ArrayLike | No
 
     Lighting turned by R_l and scene by R_s: in the scene's frame the lighting is
     rotate(L, R_s⁻¹ R_l), i.e. ``relight`` with scene rotation R_l⁻¹ R_s. Returns the renderer's
-    RenderResult. mode, bounces: the model, picked at run time (:meth:`Transfer.select`).
+    RenderResult. mode, bounces: the model, picked at run time
+    ([`Transfer.select`][shprobe.prt.Transfer.select]).
     """
     import trimesh
 

@@ -1,5 +1,5 @@
 """Layer 5, report: one self-contained HTML page about a light probe (images inlined, no
-network) — what a pipeline TD attaches to a ticket. See :mod:`.probe`."""
+network) — what a pipeline TD attaches to a ticket. See `shprobe.report.probe`."""
 
 from .probe import ProbeReport, probe_report, write_report
 

@@ -3,16 +3,17 @@ script, no network) with
 
 - the probe (tone-mapped, lat-long view) and its total intensity ∫L dω;
 - its irradiance map E/π from the 9 coefficients (R&H 2001 eq. 7) beside the exact one (the
-  hemispherical integral, :func:`shprobe.lighting.reference.reference_irradiance_map`) and
+  hemispherical integral, `shprobe.lighting.reference.reference_irradiance_map`) and
   the map of their difference as a fraction of ∫L dω, with the error table (R&H §3.1) for
   lmax 1..4 on the same normals;
 - the coefficient table in the layout of R&H Fig. 2 and the matrices M of eq. 11–12;
-- the non-negativity certificate of E (:func:`shprobe.lighting.windows.min_irradiance`) and
-  the window ``auto`` chooses (:func:`shprobe.lighting.windows.auto_window`);
+- the non-negativity certificate of E
+  ([`shprobe.lighting.windows.min_irradiance`][shprobe.lighting.min_irradiance]) and the window
+  ``auto`` chooses ([`shprobe.lighting.windows.auto_window`][shprobe.lighting.auto_window]);
 - the nine irradiance basis images of a mesh (R&H Fig. 4) and a render of it under the probe
   (beside one with the auto window when E goes negative).
 
-Every picture is a labelled figure (:mod:`shprobe.probes.figures`).
+Every picture is a labelled figure (`shprobe.probes.figures`).
 """
 
 from __future__ import annotations
@@ -42,7 +43,25 @@ MAX_RENDER = 2048
 
 @dataclass
 class ProbeReport:
-    """The page (``html``) and what it shows."""
+    """The page (``html``) and what it shows.
+
+    Attributes
+    ----------
+    html
+        The self-contained page.
+    source
+        The probe's name.
+    coeffs
+        (K, 3) its lighting coefficients.
+    errors
+        The error table ([`ErrorReport`][shprobe.lighting.ErrorReport]).
+    minimum
+        The certified minimum irradiance.
+    window
+        The window ``auto`` picks.
+    figures
+        The page's figures by name.
+    """
 
     html: str
     source: str
@@ -117,8 +136,9 @@ def _check_probe(env: Env, map_height: int) -> None:
 
 def check_map_cost(pixels: float, map_height: int, where: Any = None) -> None:
     """Refuse an exact irradiance map of 2N² normals (N = ``map_height``) over a probe of
-    ``pixels`` pixels beyond the brute-force limit (:func:`shprobe.limits.check_pairs`); the
-    CLI calls it with the size in the file's header, before the probe is read."""
+    ``pixels`` pixels beyond the brute-force limit
+    ([`shprobe.limits.check_pairs`][shprobe.limits.check_pairs]); the CLI calls it with the size in
+    the file's header, before the probe is read."""
     from ..lighting.reference import SAMPLE_COST
     from ..limits import check_pairs
 
@@ -136,7 +156,27 @@ def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
     ``mesh_name``: its name on the page. ``map_height``: rows of the lat-long irradiance maps
     (2N × N normals; the exact map and the error table use the same normals). ``render_size``:
     side of the basis images and the render. ``progress`` gets the job's
-    :data:`REPORT_STAGES` stages "k/N: …" (the brute-force integral counted inside its stage).
+    `REPORT_STAGES` stages "k/N: …" (the brute-force integral counted inside its stage).
+
+    Parameters
+    ----------
+    env
+        The probe.
+    mesh
+        A trimesh mesh for the basis images and the render; None for the unit sphere.
+    mesh_name
+        The mesh's name on the page.
+    map_height
+        Rows of the lat-long irradiance maps.
+    render_size
+        Side of the basis images and the render, pixels.
+    progress
+        Told about each stage.
+
+    Returns
+    -------
+    ProbeReport
+        The page's content; [`write_report`][shprobe.report.write_report] writes it.
     """
     h = int(map_height)
     if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
@@ -155,7 +195,7 @@ REPORT_STAGES = 7
 
 def _build(env: Env, mesh: Any, mesh_name: str | None, h: int, r: int, say: Steps,
            progress: Progress | None) -> ProbeReport:
-    """:func:`probe_report`'s work, one stage after the other."""
+    """[`probe_report`][shprobe.report.probe_report]'s work, one stage after the other."""
     from .._version import __version__
     from ..lighting.irradiance import irradiance_map, irradiance_matrix
     from ..lighting.projection import project, total_intensity
@@ -309,7 +349,22 @@ normals). Error as a fraction of the total intensity ∫L dω, R&amp;H 2001 §3.
 
 def write_report(path: str | os.PathLike[str], report: ProbeReport,
                  overwrite: bool = False) -> Path:
-    """Write the page atomically (:func:`shprobe.files.write_text`)."""
+    """Write the page atomically ([`shprobe.files.write_text`][shprobe.files.write_text]).
+
+    Parameters
+    ----------
+    path
+        The HTML file.
+    report
+        The report of [`probe_report`][shprobe.report.probe_report].
+    overwrite
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     from ..files import write_text
 
     p = Path(path)

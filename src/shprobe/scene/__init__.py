@@ -1,12 +1,17 @@
 """Layer 4, scene: camera, meshes and materials, the one ray caster, and diffuse rendering.
 
-* :mod:`.camera` — :class:`Camera` (orbiting pinhole / orthographic camera, primary rays).
-* :mod:`.mesh` — :func:`load_mesh` (the one loader and its ``process=`` policy), albedo from
-  materials and textures, :func:`sphere_mesh`, :func:`mesh_hash`, the packaged Stanford bunny
-  (:func:`packaged_bunny`, :func:`bunny_path`; ``"bunny"`` wherever a mesh path is taken).
-* :mod:`.raycast` — :class:`RayCaster` (Embree via embreex: first hits and occlusion).
-* :mod:`.render` — :func:`render`, :func:`render_vertex_colors`, :class:`RenderResult`,
-  :func:`basis_images`.
+* `shprobe.scene.camera` — [`Camera`][shprobe.scene.Camera] (orbiting pinhole / orthographic camera,
+  primary rays).
+* `shprobe.scene.mesh` — [`load_mesh`][shprobe.scene.load_mesh] (the one loader and its ``process=``
+  policy), albedo from materials and textures, [`sphere_mesh`][shprobe.scene.sphere_mesh],
+  [`mesh_hash`][shprobe.prt.mesh_hash], the packaged Stanford bunny
+  ([`packaged_bunny`][shprobe.scene.packaged_bunny], [`bunny_path`][shprobe.scene.bunny_path];
+  ``"bunny"`` wherever a mesh path is taken).
+* `shprobe.scene.raycast` — [`RayCaster`][shprobe.scene.RayCaster] (Embree via embreex: first hits
+  and occlusion).
+* `shprobe.scene.render` — [`render`][shprobe.scene.render.render],
+  [`render_vertex_colors`][shprobe.scene.render_vertex_colors],
+  [`RenderResult`][shprobe.scene.RenderResult], [`basis_images`][shprobe.scene.basis_images].
 """
 
 from __future__ import annotations

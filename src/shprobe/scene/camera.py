@@ -35,6 +35,25 @@ class Camera:
     sphere with ``margin`` (1.0 = the sphere just touches the nearer image edge). For the
     orthographic camera ``distance`` only places the ray origins; ``ortho_height`` (the
     world-space height of the view) defaults to the fit.
+
+    Parameters
+    ----------
+    width, height
+        The image's size, pixels.
+    projection
+        "perspective" or "orthographic".
+    azimuth, elevation
+        The orbit's angles, degrees.
+    fov
+        The perspective camera's vertical field of view, degrees.
+    distance
+        From the target (default: fitted to the object).
+    target
+        The point looked at (default: the object's centre).
+    margin
+        The fit's margin (1.0: the bounding sphere touches the nearer image edge).
+    ortho_height
+        The orthographic view's world-space height (default: fitted).
     """
 
     width: int = 512
@@ -74,7 +93,13 @@ class Camera:
         return self.width / self.height
 
     def basis(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """(forward, right, up) unit vectors of the camera in world space."""
+        """(forward, right, up) unit vectors of the camera in world space.
+
+        Returns
+        -------
+        tuple of ndarray
+            forward, right and up, each (3,).
+        """
         az, el = np.radians(self.azimuth), np.radians(self.elevation)
         back = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
         fwd = -back
@@ -86,7 +111,18 @@ class Camera:
         return fwd, right, up / np.linalg.norm(up)
 
     def framing(self, center: ArrayLike, radius: float) -> tuple[NDArray, float, float]:
-        """(target, distance, half height of the view at the target) for a bounding sphere."""
+        """(target, distance, half height of the view at the target) for a bounding sphere.
+
+        Parameters
+        ----------
+        center, radius
+            The bounding sphere.
+
+        Returns
+        -------
+        tuple
+            (target, distance, half height of the view at the target).
+        """
         c = np.asarray(self.target if self.target is not None else center, dtype=np.float64)
         r = float(radius) * self.margin
         t = np.tan(np.radians(self.fov) / 2.0)
@@ -105,7 +141,18 @@ class Camera:
 
     def rays(self, center: ArrayLike, radius: float) -> tuple[NDArray, NDArray]:
         """Primary rays through pixel centres, (H·W, 3) origins and unit directions, row-major
-        with row 0 at the top of the image."""
+        with row 0 at the top of the image.
+
+        Parameters
+        ----------
+        center, radius
+            The bounding sphere framed.
+
+        Returns
+        -------
+        tuple of ndarray
+            Origins and unit directions, each (H·W, 3), row 0 at the top.
+        """
         w, h = int(self.width), int(self.height)
         # rays, hits, normals, shading and the image: about 256 bytes a pixel, planned first
         check_memory(256.0 * w * h, f"rendering {w}x{h} pixels")

@@ -7,11 +7,12 @@ normals apart), so smooth vertex normals are shared across what the file stored 
 copies; a multi-part file (glTF scene) is flattened with its graph transforms and concatenated.
 Meshes given as objects are used as they are (only flattened when they are a scene).
 
-The packaged bunny (:func:`bunny_path`, :func:`packaged_bunny`): a 4,968-face copy of the
-Stanford bunny in the package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its
-terms in ``bunny-LICENSE.txt`` beside it). The name :data:`BUNNY` (``"bunny"``) stands for it
-wherever a mesh path is taken (:func:`load_mesh`, hence ``--mesh bunny``) unless a file of that
-name exists: a mesh file always has an extension, which names its format.
+The packaged bunny ([`bunny_path`][shprobe.scene.bunny_path],
+[`packaged_bunny`][shprobe.scene.packaged_bunny]): a 4,968-face copy of the Stanford bunny in the
+package data (``scene/data/bunny.obj``, made by tools/make_bunny.py; its terms in
+``bunny-LICENSE.txt`` beside it). The name `BUNNY` (``"bunny"``) stands for it wherever a mesh path
+is taken ([`load_mesh`][shprobe.scene.load_mesh], hence ``--mesh bunny``) unless a file of that name
+exists: a mesh file always has an extension, which names its format.
 
 Colours: 8-bit vertex / face colours and texture images are sRGB and are decoded to linear
 reflectance; material colours (glTF ``baseColorFactor``, OBJ ``Kd``) are already linear.
@@ -61,18 +62,30 @@ BUNNY = "bunny"
 
 def bunny_path() -> Path:
     """The packaged Stanford bunny (OBJ, 2,503 vertices, 4,968 faces, +Y up, metres; terms in
-    ``bunny-LICENSE.txt`` beside it)."""
+    ``bunny-LICENSE.txt`` beside it).
+
+    Returns
+    -------
+    Path
+        The packaged bunny's OBJ file.
+    """
     return Path(str(resources.files("shprobe.scene") / "data" / "bunny.obj"))
 
 
 def packaged_bunny() -> trimesh.Trimesh:
-    """The packaged Stanford bunny, loaded by :func:`load_mesh`."""
+    """The packaged Stanford bunny, loaded by [`load_mesh`][shprobe.scene.load_mesh].
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The 4,968-face Stanford bunny of the package data.
+    """
     return load_mesh(bunny_path())
 
 
 def mesh_file(path: str | os.PathLike[str]) -> str:
-    """The file a mesh argument names: :func:`bunny_path` for :data:`BUNNY` (when no file of
-    that name exists), else the path itself."""
+    """The file a mesh argument names: [`bunny_path`][shprobe.scene.bunny_path] for `BUNNY` (when no
+    file of that name exists), else the path itself."""
     p = os.fspath(path)
     return str(bunny_path()) if p == BUNNY and not os.path.exists(p) else p
 
@@ -82,10 +95,20 @@ def mesh_file(path: str | os.PathLike[str]) -> str:
 
 def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
     """Load OBJ / PLY / glTF / GLB (anything trimesh reads) as one triangle mesh; ``"bunny"``
-    is the packaged bunny (:func:`mesh_file`).
+    is the packaged bunny (`mesh_file`).
 
     A scene is flattened (its graph transforms applied) and concatenated. Bad or empty files
-    raise a one-line :class:`ShprobeError` naming the file.
+    raise a one-line [`ShprobeError`][shprobe.errors.ShprobeError] naming the file.
+
+    Parameters
+    ----------
+    path
+        An OBJ, PLY, glTF or GLB file, or "bunny" for the packaged bunny.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        One triangle mesh (a scene flattened and concatenated).
     """
     import trimesh
 
@@ -136,7 +159,19 @@ def _flatten(obj: Any, where: Any = None) -> trimesh.Trimesh:
 
 
 def as_mesh(item: Any) -> trimesh.Trimesh:
-    """A Trimesh from a path (:func:`load_mesh`) or a trimesh object (scenes flattened)."""
+    """A Trimesh from a path ([`load_mesh`][shprobe.scene.load_mesh]) or a trimesh object (scenes
+    flattened).
+
+    Parameters
+    ----------
+    item
+        A mesh path or a trimesh object.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        One triangle mesh.
+    """
     import trimesh
 
     if isinstance(item, str | os.PathLike):
@@ -147,7 +182,20 @@ def as_mesh(item: Any) -> trimesh.Trimesh:
 
 
 def sphere_mesh(subdivisions: int = 5, radius: float = 1.0) -> trimesh.Trimesh:
-    """A finely tessellated sphere (icosphere) with exact vertex normals."""
+    """A finely tessellated sphere (icosphere) with exact vertex normals.
+
+    Parameters
+    ----------
+    subdivisions
+        Icosphere subdivisions.
+    radius
+        The sphere's radius.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        The sphere with exact vertex normals.
+    """
     import trimesh
 
     m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
@@ -157,7 +205,18 @@ def sphere_mesh(subdivisions: int = 5, radius: float = 1.0) -> trimesh.Trimesh:
 
 def bounding_sphere(mesh: trimesh.Trimesh | None) -> tuple[NDArray[np.float64], float]:
     """(centre of the bounding box, radius of the sphere about it holding every vertex); the
-    unit sphere for None."""
+    unit sphere for None.
+
+    Parameters
+    ----------
+    mesh
+        A mesh, or None for the unit sphere.
+
+    Returns
+    -------
+    tuple
+        (centre (3,), radius).
+    """
     if mesh is None:
         return np.zeros(3), 1.0
     v = np.asarray(mesh.vertices, dtype=np.float64)
@@ -174,6 +233,18 @@ def mesh_hash(vertices: ArrayLike, faces: ArrayLike) -> str:
     float32 so that the hash ignores float64 noise below what a mesh file stores; any moved
     vertex or changed face gives another hash. Baked files (PRT transfer, H-basis bakes) keep
     it so that they are never used with another mesh.
+
+    Parameters
+    ----------
+    vertices
+        (V, 3) positions.
+    faces
+        (F, 3) vertex indices.
+
+    Returns
+    -------
+    str
+        The SHA-256, hex.
     """
     h = hashlib.sha256()
     v = np.ascontiguousarray(np.asarray(vertices, dtype="<f4"))
@@ -190,7 +261,18 @@ def mesh_hash(vertices: ArrayLike, faces: ArrayLike) -> str:
 
 def mesh_uvs(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
     """Per-vertex texture coordinates (V, 2), or None when the mesh has none (or not one per
-    vertex)."""
+    vertex).
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+
+    Returns
+    -------
+    ndarray of shape (V, 2), or None
+        Its per-vertex texture coordinates.
+    """
     uv = getattr(getattr(mesh, "visual", None), "uv", None)
     if uv is None or len(uv) != len(mesh.vertices):
         return None
@@ -250,7 +332,18 @@ def mesh_vertex_albedo(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
     """A mesh's own albedo per vertex (V, 3), linear, for per-vertex shading (PRT): its
     texture sampled at the vertex UVs (× glTF ``baseColorFactor``), else its vertex colours,
     else its face colours averaged over each vertex's faces, else its material colour (glTF
-    ``baseColorFactor`` / OBJ ``Kd``); None when it has none of them."""
+    ``baseColorFactor`` / OBJ ``Kd``); None when it has none of them.
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+
+    Returns
+    -------
+    ndarray of shape (V, 3), or None
+        Its own linear albedo per vertex.
+    """
     nv = len(mesh.vertices)
     tex = mesh_texture(mesh)
     if tex is not None and len(tex[0]) == nv:
@@ -272,7 +365,20 @@ def mesh_vertex_albedo(mesh: trimesh.Trimesh) -> NDArray[np.float64] | None:
 def sample_texture(tex: ArrayLike, uv: ArrayLike) -> NDArray[np.floating]:
     """Bilinear lookup (H, W, C) at uv (..., 2): u wraps around, v (0 at the bottom row of the
     image) is clamped to the edge texels. The layouts' bilinear lookup at pixel coordinates
-    (u mod 1)·W, (1 − v mod 1)·H; float32 out (float64 for a float64 texture)."""
+    (u mod 1)·W, (1 − v mod 1)·H; float32 out (float64 for a float64 texture).
+
+    Parameters
+    ----------
+    tex
+        (H, W, C) texture.
+    uv
+        (..., 2) texture coordinates.
+
+    Returns
+    -------
+    ndarray of shape (..., C)
+        The bilinear lookups.
+    """
     t = np.asarray(tex)
     uv = np.asarray(uv, dtype=np.float64)
     h, w = t.shape[:2]

@@ -4,15 +4,15 @@ batches — first hits for cameras and PRT interreflection, occlusion for PRT sh
 Precision: Embree works in float32. The mesh is stored in a local frame — translated to its
 bounding-box centre and scaled to unit extent — so that float32 resolves the same fraction of
 the mesh wherever it sits and whatever its units (a mesh at x = 10⁶ keeps its detail).
-:meth:`RayCaster.local` maps world points into that frame; directions only change length,
-and hits are reported as (face, u, v), which the frame does not change.
+[`RayCaster.local`][shprobe.scene.RayCaster.local] maps world points into that frame; directions
+only change length, and hits are reported as (face, u, v), which the frame does not change.
 
-Ray origins (:meth:`RayCaster.offset_points`): rays leave a surface point from a copy moved a
-small distance along its normal, so that they do not hit the surface they leave. Where that step
-crosses *another* surface — a mesh vertex touching the ground, whose downward normal would put
-the origin under the ground, where it sees the open sky — the origin is put back on the point's
-side of the surface crossed, a hundredth of the step from it. The bake
-(:mod:`shprobe.prt.directions`) and the independent reference of the tests use this one rule.
+Ray origins ([`RayCaster.offset_points`][shprobe.scene.RayCaster.offset_points]): rays leave a
+surface point from a copy moved a small distance along its normal, so that they do not hit the
+surface they leave. Where that step crosses *another* surface — a mesh vertex touching the ground,
+whose downward normal would put the origin under the ground, where it sees the open sky — the origin
+is put back on the point's side of the surface crossed, a hundredth of the step from it. The bake
+(`shprobe.prt.directions`) and the independent reference of the tests use this one rule.
 
 Threads: the BVH is committed in the constructor, so that concurrent queries only read it;
 embreex releases the GIL while Embree traces, so worker threads run queries in parallel.
@@ -39,8 +39,15 @@ class RayCaster:
     """Embree scene over one triangle mesh: ``vertices`` (V, 3), ``faces`` (F, 3) indices.
 
     Queries take world-space ray origins and directions (N, 3); the ``*_local`` variants take
-    float32 origins already mapped by :meth:`local` (hot loops map their points once and reuse
-    them for many rays).
+    float32 origins already mapped by [`local`][shprobe.scene.RayCaster.local] (hot loops map their
+    points once and reuse them for many rays).
+
+    Parameters
+    ----------
+    vertices
+        (V, 3) positions.
+    faces
+        (F, 3) vertex indices.
     """
 
     def __init__(self, vertices: ArrayLike, faces: ArrayLike) -> None:
@@ -75,11 +82,33 @@ class RayCaster:
 
     @classmethod
     def from_mesh(cls, mesh: trimesh.Trimesh) -> RayCaster:
-        """A caster over a trimesh mesh's vertices and faces."""
+        """A caster over a trimesh mesh's vertices and faces.
+
+        Parameters
+        ----------
+        mesh
+            A trimesh mesh.
+
+        Returns
+        -------
+        RayCaster
+            The caster.
+        """
         return cls(mesh.vertices, mesh.faces)
 
     def local(self, points: ArrayLike) -> NDArray[np.float32]:
-        """World points (..., 3) → the caster's frame, float32 (N, 3) C-contiguous."""
+        """World points (..., 3) → the caster's frame, float32 (N, 3) C-contiguous.
+
+        Parameters
+        ----------
+        points
+            (..., 3) world points.
+
+        Returns
+        -------
+        ndarray of shape (N, 3), float32
+            The points in the caster's frame.
+        """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         return np.ascontiguousarray((p - self.center) * self.scale, dtype=np.float32)
 
@@ -95,6 +124,22 @@ class RayCaster:
         The point's own part is left out of the test (its own surface passes through p, and a
         ray cast towards p cannot tell it from another surface through p, as at a vertex
         touching the ground); parts are the connected components of the faces' vertices.
+
+        Parameters
+        ----------
+        points
+            (N, 3) surface points.
+        normals
+            (N, 3) unit normals there.
+        offset
+            The step along the normal.
+        faces
+            (N,) a face each point lies on (−1: none).
+
+        Returns
+        -------
+        tuple of ndarray
+            The ray origins (N, 3) and which of them were put back (N,).
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
@@ -131,8 +176,9 @@ class RayCaster:
     @cached_property
     def face_normals(self) -> NDArray[np.float64]:
         """Unit geometric normals (F, 3) of the faces (counter-clockwise winding = front);
-        zero for degenerate faces (made on first use: :meth:`offset_points`, where an origin
-        crossed another surface, and the grid bake's probe tracer)."""
+        zero for degenerate faces (made on first use:
+        [`offset_points`][shprobe.scene.RayCaster.offset_points], where an origin crossed another
+        surface, and the grid bake's probe tracer)."""
         fv = self._vertices[self._faces]
         return unit_vectors(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), zero="keep")
 
@@ -173,16 +219,50 @@ class RayCaster:
 
     def first_hit(self, origins: ArrayLike, dirs: ArrayLike
                   ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.float32]]:
-        """Closest hit of each ray: (face index or −1, u, v), hit = (1−u−v)p0 + u p1 + v p2."""
+        """Closest hit of each ray: (face index or −1, u, v), hit = (1−u−v)p0 + u p1 + v p2.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) world-space rays.
+
+        Returns
+        -------
+        tuple of ndarray
+            Face index (−1 for a miss), u, v, each (N,).
+        """
         return self.first_hit_local(self.local(origins), self._dirs(dirs))
 
     def occluded(self, origins: ArrayLike, dirs: ArrayLike) -> NDArray[np.bool_]:
-        """True where the ray hits anything (any-hit query)."""
+        """True where the ray hits anything (any-hit query).
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) world-space rays.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            Whether each ray hits anything.
+        """
         return self.occluded_local(self.local(origins), self._dirs(dirs))
 
     def first_hit_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                         ) -> tuple[NDArray[np.int32], NDArray[np.float32], NDArray[np.float32]]:
-        """:meth:`first_hit` for float32 (N, 3) origins in the local frame."""
+        """[`first_hit`][shprobe.scene.RayCaster.first_hit] for float32 (N, 3) origins in the local
+        frame.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) float32 rays, origins in the local frame.
+
+        Returns
+        -------
+        tuple of ndarray
+            Face index (−1 for a miss), u, v, each (N,).
+        """
         if len(origins) == 0:
             return np.empty(0, np.int32), np.empty(0, np.float32), np.empty(0, np.float32)
         r = self._scene.run(origins, dirs, output=1)
@@ -190,7 +270,19 @@ class RayCaster:
 
     def occluded_local(self, origins: NDArray[np.float32], dirs: NDArray[np.float32]
                        ) -> NDArray[np.bool_]:
-        """:meth:`occluded` for float32 (N, 3) origins in the local frame."""
+        """[`occluded`][shprobe.scene.RayCaster.occluded] for float32 (N, 3) origins in the local
+        frame.
+
+        Parameters
+        ----------
+        origins, dirs
+            (N, 3) float32 rays, origins in the local frame.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            Whether each ray hits anything.
+        """
         if len(origins) == 0:
             return np.empty(0, bool)
         return self._scene.run(origins, dirs, query="OCCLUDED") != -1

@@ -1,18 +1,20 @@
 """Rendering diffuse objects from SH lighting (R&H 2001 §3.2): primary rays through the one
-ray caster (:mod:`.raycast`), per-pixel and per-vertex shading, basis images.
+ray caster (`shprobe.scene.raycast`), per-pixel and per-vertex shading, basis images.
 
 Outgoing radiance of a diffuse surface of albedo ρ is ρ E(n) / π with the irradiance
 E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7); for lmax ≤ 2 it is evaluated as the quadratic form
-nᵀ M n of eq. 11–12 (:func:`shprobe.lighting.irradiance.shade_irradiance`). Two shading modes:
+nᵀ M n of eq. 11–12
+([`shprobe.lighting.irradiance.shade_irradiance`][shprobe.lighting.shade_irradiance]). Two shading
+modes:
 
 * ``"pixel"``: the normal is interpolated (barycentric, then normalised) at every pixel and
   E is evaluated there;
 * ``"vertex"``: E is evaluated at the vertices and the radiance is interpolated across the
   triangles — the procedural shader of R&H §3.2.
 
-Tone mapping (PNG output): :func:`shprobe.probes.tonemap.tonemap` — ``exposure`` stops
+Tone mapping (PNG output): `shprobe.probes.tonemap.tonemap` — ``exposure`` stops
 (× 2^exposure), clamp to [0, 1], sRGB transfer curve, 8 bits. EXR output is linear radiance,
-untouched. Camera frame: see :mod:`.camera`.
+untouched. Camera frame: see `shprobe.scene.camera`.
 """
 
 from __future__ import annotations
@@ -60,7 +62,23 @@ __all__ = [
 
 @dataclass
 class Hits:
-    """First hits of the primary rays (flat over pixels; miss → face −1)."""
+    """First hits of the primary rays (flat over pixels; miss → face −1).
+
+    Attributes
+    ----------
+    face
+        (P,) triangle index, −1 for a miss.
+    bary
+        (P, 3) barycentric weights.
+    position
+        (P, 3) hit points.
+    geo_normal
+        (P, 3) the triangles' normals.
+    normal
+        (P, 3) interpolated shading normals.
+    directions
+        (P, 3) the rays' directions.
+    """
 
     face: NDArray[np.int64]  # (P,) triangle index, -1 where the ray misses
     bary: NDArray[np.float32]  # (P, 3) barycentric weights of the face's 3 vertices
@@ -72,10 +90,27 @@ class Hits:
 
 def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None = None,
           frame: tuple[ArrayLike, float] | None = None) -> Hits:
-    """Cast the camera's primary rays through :class:`RayCaster` (built here unless
-    ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
+    """Cast the camera's primary rays through [`RayCaster`][shprobe.scene.RayCaster] (built here
+    unless ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
     origin when ``mesh`` is None. The camera frames ``frame`` = (centre, radius) — by default
-    the mesh's bounding sphere."""
+    the mesh's bounding sphere.
+
+    Parameters
+    ----------
+    mesh
+        A mesh, or None for the analytic unit sphere.
+    camera
+        The camera.
+    caster
+        A ray caster already built over this mesh.
+    frame
+        (centre, radius) the camera frames (default: the mesh's bounding sphere).
+
+    Returns
+    -------
+    Hits
+        Per pixel: hit or not, face, barycentrics, position and normal.
+    """
     center, radius = bounding_sphere(mesh) if frame is None else frame
     origins, dirs = camera.rays(center, radius)
     P = origins.shape[0]
@@ -139,6 +174,31 @@ class RenderResult:
     ``layers``: further named per-pixel images (H, W, ...) a renderer produces beside the
     radiance (e.g. the H-basis normal-mapped render's irradiance per basis and its
     tangent-space normals); ``info``: scalars about the render (e.g. error figures).
+
+    Attributes
+    ----------
+    image
+        (H, W, C) linear radiance, background included.
+    radiance
+        The same with the background 0.
+    mask
+        (H, W) True where the object is hit.
+    normals
+        (H, W, 3) unit shading normals (0 on the background).
+    irradiance
+        (H, W, C) E at each pixel.
+    face
+        (H, W) triangle index (−1 on the background).
+    bary
+        (H, W, 3) barycentric weights.
+    camera
+        The camera.
+    mode
+        "pixel" or "vertex".
+    info
+        Scalars about the render.
+    layers
+        Further named per-pixel images.
     """
 
     image: NDArray[np.float32]
@@ -160,12 +220,33 @@ class RenderResult:
                 f"{int(self.mask.sum())} pixels hit{extra})")
 
     def tonemapped(self, exposure: float = 0.0) -> NDArray[np.uint8]:
-        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see :func:`tonemap`)."""
+        """8-bit sRGB image: × 2^exposure, clamp, sRGB curve (see `tonemap`).
+
+        Parameters
+        ----------
+        exposure
+            Stops.
+
+        Returns
+        -------
+        ndarray of shape (H, W, 3), uint8
+            The sRGB image.
+        """
         return tonemap(self.image, exposure)
 
     def save(self, path: str | os.PathLike[str], exposure: float = 0.0,
              overwrite: bool = False) -> None:
-        """PNG/JPEG (tone-mapped) or EXR/HDR/PFM (linear), by the file's suffix."""
+        """PNG/JPEG (tone-mapped) or EXR/HDR/PFM (linear), by the file's suffix.
+
+        Parameters
+        ----------
+        path
+            The output file; its suffix picks the format.
+        exposure
+            Stops (PNG / JPEG only).
+        overwrite
+            Replace an existing file.
+        """
         save_image(path, self.image, exposure=exposure, overwrite=overwrite)
 
 
@@ -240,6 +321,26 @@ def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | Non
     colour, glTF ``baseColorFactor`` or OBJ ``Kd``; else 1), a scalar or (C,) colour, or
     (V, C) per-vertex values (linear). ``background``: None (black), a colour, an Env / object
     with ``sample(dirs)``, a callable, or a lat-long array. Radiance = ρ E(n) / π.
+
+    Parameters
+    ----------
+    mesh
+        A trimesh mesh, or None for the analytic unit sphere.
+    coeffs
+        (K, C) or (K,) lighting coefficients L_lm.
+    camera
+        The camera (default: ``Camera()``, framing the object).
+    mode
+        "pixel" (E per pixel) or "vertex" (E at the vertices, radiance interpolated).
+    albedo
+        None (the mesh's own), a scalar or (C,) colour, or (V, C) per-vertex values (linear).
+    background
+        None (black), a colour, or an Env seen behind the object.
+
+    Returns
+    -------
+    RenderResult
+        The image, its radiance, mask, normals and irradiance per pixel.
     """
     camera = camera or Camera()
     if mode not in ("pixel", "vertex"):
@@ -269,9 +370,34 @@ def render_result(hits: Hits, radiance: NDArray, irradiance: NDArray, camera: Ca
                   background: Any = None, normals: NDArray | None = None,
                   layers: dict[str, NDArray] | None = None,
                   info: dict[str, Any] | None = None) -> RenderResult:
-    """A :class:`RenderResult` from flat per-pixel buffers (P, ...) of ``hits`` (radiance and
-    irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals; ``layers``
-    (P, ...) each), with ``background`` filled in where the rays missed."""
+    """A [`RenderResult`][shprobe.scene.RenderResult] from flat per-pixel buffers (P, ...) of
+    ``hits`` (radiance and irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals;
+    ``layers`` (P, ...) each), with ``background`` filled in where the rays missed.
+
+    Parameters
+    ----------
+    hits
+        The rays' hits.
+    radiance, irradiance
+        (P, C) per hit pixel.
+    camera
+        The camera.
+    mode
+        "pixel" or "vertex".
+    background
+        None (black), a colour or an Env.
+    normals
+        (P, 3) shading normals (default: the hits').
+    layers
+        Further (P, ...) per-pixel buffers.
+    info
+        Scalars about the render.
+
+    Returns
+    -------
+    RenderResult
+        The full-frame images.
+    """
     hit = hits.face >= 0
     img = radiance.copy()
     if background is not None:
@@ -292,7 +418,26 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
     """Render per-vertex outgoing radiance (V, C), interpolated barycentrically across the
     triangles (e.g. the result of PRT relighting). No shading is applied; ``irradiance`` in the
     result is 0 and ``radiance``/``image`` hold the interpolated values. ``frame``: the sphere
-    the camera frames (see :func:`trace`)."""
+    the camera frames (see [`trace`][shprobe.scene.trace]).
+
+    Parameters
+    ----------
+    mesh
+        The mesh.
+    vertex_radiance
+        (V, C) outgoing radiance per vertex.
+    camera
+        The camera (default: ``Camera()``).
+    background
+        None (black), a colour or an Env.
+    frame
+        (centre, radius) of the sphere the camera frames.
+
+    Returns
+    -------
+    RenderResult
+        The interpolated radiance; ``irradiance`` is 0.
+    """
     camera = camera or Camera()
     vr = np.asarray(vertex_radiance, dtype=np.float32)
     if vr.ndim == 1:
@@ -319,6 +464,24 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
 
     Rendering is linear in L, so for any lighting (K, C) the relighting identity
     image_c = Σ_k L_kc · basis_k holds (to float32 rounding) in both shading modes.
+
+    Parameters
+    ----------
+    mesh
+        A mesh, or None for the unit sphere.
+    camera
+        The camera (default: ``Camera()``).
+    lmax
+        The highest degree (K = (lmax + 1)² images).
+    mode
+        "pixel" or "vertex".
+    albedo
+        As in [`render`][shprobe.scene.render.render].
+
+    Returns
+    -------
+    RenderResult
+        ``image`` (H, W, K): channel k is the object under the lighting e_k.
     """
     from ..sh import num_coeffs
 
@@ -328,7 +491,20 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
 
 def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
     """Σ_k L_kc · basis_k: an image (H, W, C) from basis images (H, W, K) and lighting
-    (K, C)."""
+    (K, C).
+
+    Parameters
+    ----------
+    basis
+        (H, W, K) basis images.
+    coeffs
+        (K, C) lighting coefficients.
+
+    Returns
+    -------
+    ndarray of shape (H, W, C), float32
+        The relit image.
+    """
     b = np.asarray(basis, dtype=np.float32)
     c = np.asarray(coeffs, dtype=np.float32)
     if c.ndim == 1:
@@ -340,7 +516,20 @@ def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
 
 def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.float32]:
     """R&H Fig. 4 colouring of a signed image (H, W): positive green, negative blue, linear,
-    divided by ``scale`` (default: its own max |value|)."""
+    divided by ``scale`` (default: its own max |value|).
+
+    Parameters
+    ----------
+    values
+        (H, W) signed image.
+    scale
+        The value shown at full intensity (default: its max |value|).
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3), float32
+        Positive green, negative blue.
+    """
     v = np.asarray(values, dtype=np.float32)
     s = float(np.abs(v).max()) if scale is None else float(scale)
     v = v / (s if s > 0 else 1.0)
@@ -352,11 +541,23 @@ def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.fl
 
 def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
                overwrite: bool = False) -> None:
-    """Write a render with :func:`shprobe.probes.images.write_image`: ``.png`` tone-mapped by
-    :func:`tonemap` (× 2^exposure, clamp, sRGB, 8 bits), ``.exr``/``.hdr``/``.pfm`` linear.
-    Radiance is never negative: where a truncated SH irradiance dips below zero (per-vertex
-    shading interpolates it unclamped) the file holds 0, so that shprobe's readers (``fit``)
-    accept what ``render`` writes."""
+    """Write a render with [`shprobe.probes.images.write_image`][shprobe.probes.images.write_image]:
+    ``.png`` tone-mapped by `tonemap` (× 2^exposure, clamp, sRGB, 8 bits),
+    ``.exr``/``.hdr``/``.pfm`` linear. Radiance is never negative: where a truncated SH irradiance
+    dips below zero (per-vertex shading interpolates it unclamped) the file holds 0, so that
+    shprobe's readers (``fit``) accept what ``render`` writes.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    image
+        (H, W, C) linear radiance.
+    exposure
+        Stops applied before tone mapping (PNG only).
+    overwrite
+        Replace an existing file.
+    """
     from ..probes.images import write_image
 
     write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),

@@ -1,5 +1,5 @@
-"""numba kernel for :func:`shprobe.sh.sh_basis` above the unrolled degrees (imported lazily;
-compiled once, cached on disk).
+"""numba kernel for [`shprobe.sh.sh_basis`][shprobe.sh.sh_basis] above the unrolled degrees
+(imported lazily; compiled once, cached on disk).
 
 Same normalised recurrence as ``shprobe.sh.sh_basis_numpy`` (see the ``shprobe.sh`` module
 docstring), run per direction with the result written straight into the output row, shaped

@@ -1,4 +1,4 @@
-"""numba kernels for :mod:`shprobe.sh.rotation` (imported lazily: ``import shprobe`` stays fast).
+"""numba kernels for `shprobe.sh.rotation` (imported lazily: ``import shprobe`` stays fast).
 
 Real-basis Wigner matrices in shprobe's basis (R&H signs), Lisle & Huang 2007 §2.2.
 
@@ -307,7 +307,7 @@ _C2 = np.sqrt(15.0 / (16.0 * np.pi))
 
 @nb.njit(cache=True)
 def rotate_low_batch(Rs, coeffs, lmax):
-    """Closed form for lmax ≤ 2 (same contract as :func:`rotate_batch`).
+    """Closed form for lmax ≤ 2 (same contract as `rotate_batch`).
 
     l = 1: the coefficients of a·u turn like a → R a (rows (y, z, x)). l = 2: the band is the
     quadratic form uᵀAu with A = Σ a_m S_m symmetric traceless; f∘R⁻¹ has A' = R A Rᵀ, whose

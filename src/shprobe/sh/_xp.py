@@ -2,12 +2,12 @@
 public functions, one implementation written against the array API standard (via
 ``array-api-compat``), differentiable by whatever autodiff the namespace has.
 
-The public functions dispatch at their top: :func:`namespace` returns ``None`` for NumPy
+The public functions dispatch at their top: `namespace` returns ``None`` for NumPy
 input (lists, numbers, ``np.ndarray``), which keeps the numba path untouched, and the
 array-API namespace otherwise. Nothing here imports torch, JAX or array-api-compat until an
 array of theirs arrives, so ``import shprobe`` stays light.
 
-The basis is the normalised recurrence of :mod:`shprobe.sh.basis` (Lisle & Huang 2007 §2.1)
+The basis is the normalised recurrence of `shprobe.sh.basis` (Lisle & Huang 2007 §2.1)
 written with whole-array operations: P̄_lm(z) by the interior recurrence, (x + iy)^m by the
 algebraic edge recurrence, so y_lm is a polynomial in (x, y, z) and its gradient is exact
 everywhere (no θ, φ, no division).
@@ -97,7 +97,8 @@ def host_float(x: Any) -> float:
 
 
 def check_finite(xp: Any, x: Any, what: str) -> None:
-    """One :class:`ShprobeError` for NaN or infinity (skipped while JAX traces)."""
+    """One [`ShprobeError`][shprobe.errors.ShprobeError] for NaN or infinity (skipped while JAX
+    traces)."""
     if is_tracing(x):
         return
     if not bool(xp.all(xp.isfinite(x))):
@@ -106,7 +107,7 @@ def check_finite(xp: Any, x: Any, what: str) -> None:
 
 def unit_vectors(xp: Any, d: Any, what: str = "direction") -> Any:
     """Unit vectors (..., 3) without overflow (scaled by the largest component first); zero
-    and non-finite vectors refused (the policy of :func:`shprobe.sh.rotation.unit_vectors`)."""
+    and non-finite vectors refused (the policy of `shprobe.sh.rotation.unit_vectors`)."""
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"{what} must have shape (..., 3), got {tuple(d.shape)}")
     check_finite(xp, d, what + "s")

@@ -1,4 +1,4 @@
-"""The array-API path of :mod:`shprobe.sh.rotation`: rotation matrices from quaternions and
+"""The array-API path of `shprobe.sh.rotation`: rotation matrices from quaternions and
 ZYZ Euler angles, real-basis Wigner matrices and the rotation of coefficients, differentiable
 in every argument.
 
@@ -8,7 +8,7 @@ and differentiable for every rotation (no Euler angles, no gimbal lock). D^1 is 
 shprobe's l = 1 order (y, z, x). Each band is three matrix products with constant tables:
 D^l = (U₀ P₀ + U₊ P₊ + U₋ P₋) · diag(1/√den_n), where P_i (i = −1, 0, 1) are D^(l−1) with
 its edge columns mixed by row i of D^1 (IR's function P) and the U hold IR's u, v, w weights
-and index shifts. For lmax ≤ 2, :func:`rotate` uses the closed forms of the NumPy path (l = 1:
+and index shifts. For lmax ≤ 2, `rotate` uses the closed forms of the NumPy path (l = 1:
 a → R a; l = 2: the traceless quadratic form A → R A Rᵀ).
 """
 
@@ -161,7 +161,7 @@ def wigner_blocks(xp: Any, R: Any, lmax: int) -> list[Any]:
 
 
 def wigner_d(xp: Any, rotation: Any, lmax: int) -> Any:
-    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy :func:`wigner_d`)."""
+    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy `wigner_d`)."""
     R = as_matrix(xp, rotation)
     blocks = wigner_blocks(xp, R, lmax)
     batch = tuple(R.shape[:-2])
@@ -197,7 +197,7 @@ def _rotate_band2(xp: Any, R: Any, a: Any) -> Any:
 
 def rotate(xp: Any, coeffs: Any, rotation: Any) -> Any:
     """Coefficients of f∘R⁻¹ for (..., K, C) or (K,) coefficients and a batch of rotations
-    (the NumPy :func:`rotate`'s semantics; leading axes broadcast)."""
+    (the NumPy `rotate`'s semantics; leading axes broadcast)."""
     if hasattr(rotation, "as_matrix") and not hasattr(rotation, "dtype"):
         rotation = np.asarray(rotation.as_matrix(), dtype=np.float64)  # scipy Rotation
     dt = _xp.float_dtype(xp, coeffs, rotation)

@@ -63,7 +63,21 @@ def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
 
 
 def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
-    """Reference numpy implementation of :func:`sh_basis` (vectorised over directions)."""
+    """Reference numpy implementation of [`sh_basis`][shprobe.sh.sh_basis] (vectorised over
+    directions).
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (..., (lmax + 1)²)
+        y_lm at the directions, as [`sh_basis`][shprobe.sh.sh_basis].
+    """
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     out_dtype = d.dtype
@@ -91,11 +105,23 @@ def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
 
 
 def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """Independent (slow) evaluation of :func:`sh_basis` for checks and benchmarks.
+    """Independent (slow) evaluation of [`sh_basis`][shprobe.sh.sh_basis] for checks and benchmarks.
 
     scipy.special.sph_harm_y (complex, with the Condon–Shortley phase) turned real with R&H
     signs: y_l0 = Y_l0, y_lm = √2 (−1)^m Re Y_lm, y_l,−m = √2 (−1)^m Im Y_lm (m > 0). θ is
     taken as atan2(√(x²+y²), z), which stays accurate near the poles.
+
+    Parameters
+    ----------
+    dirs
+        (..., 3) unit directions.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (..., (lmax + 1)²), float64
+        y_lm at the directions, from SciPy's complex harmonics.
     """
     from scipy.special import sph_harm_y
 
@@ -195,14 +221,15 @@ def sh_basis(
     loop over column-packed tables (``shprobe.sh._kernels``); both in the output's precision
     (float32 output up to ``F32_ARITHMETIC_LMAX`` is computed in float32: within (l + 1)
     float32 epsilons of the band's scale √((2l+1)/4π), tested to l = 64), with streaming
-    stores into a caller's ``out`` of ≥ ``STREAM_MIN_BYTES``. :func:`sh_basis_numpy` is the
-    vectorised numpy reference of the same recurrence.
+    stores into a caller's ``out`` of ≥ ``STREAM_MIN_BYTES``.
+    [`sh_basis_numpy`][shprobe.sh.sh_basis_numpy] is the vectorised numpy reference of the same
+    recurrence.
 
     Bad directions, the one policy: NaN or infinite components are refused
-    (:class:`ShprobeError`); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction,
-    one BLAS pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
-    such as (1e200, 1e200, 0), are normalised first without overflow
-    (:func:`shprobe.sh.rotation.unit_vectors`).
+    ([`ShprobeError`][shprobe.errors.ShprobeError]); directions near unit length (Σ|d|² ≤
+    ``NEAR_UNIT`` per direction, one BLAS pass) are used as given, bit for bit; larger ones, or ones
+    whose squares overflow such as (1e200, 1e200, 0), are normalised first without overflow
+    (`shprobe.sh.rotation.unit_vectors`).
 
     Torch tensors, JAX arrays (and CuPy) take the array-API path (``shprobe.sh._xp``): the
     same recurrence in whole-array operations, differentiable, same device and dtype

@@ -1,5 +1,5 @@
 """SH conventions: shprobe's own, and converters to/from Condon–Shortley phase and 4π
-normalisation (entries of the one registry, :mod:`shprobe.sh.registry`, which has the others:
+normalisation (entries of the one registry, `shprobe.sh.registry`, which has the others:
 3DGS, glTF, kaolin, e3nn, three.js, Filament, Unity).
 
 shprobe (everywhere): real orthonormal SH with the signs of Ramamoorthi & Hanrahan 2001
@@ -19,7 +19,7 @@ with P_l^m *without* the (−1)^m phase and ∫ y_lm² = 1. Other conventions:
   √(4π) (−1)^m y_lm with ``csphase=-1``; coefficients a^4π = a / √(4π) (times (−1)^m for
   ``csphase=-1``). pyshtools 'ortho' is shprobe's basis (times (−1)^m with ``csphase=-1``).
   pyshtools stores real coefficients as ``cilm[i, l, m]``, i = 0 for cos (m ≥ 0), i = 1 for
-  sin (the y_l,−m coefficient); see :func:`to_shtools` / :func:`from_shtools`.
+  sin (the y_l,−m coefficient); see `to_shtools` / `from_shtools`.
 """
 
 from __future__ import annotations

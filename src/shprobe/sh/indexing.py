@@ -1,8 +1,8 @@
 """The bookkeeping of the SH maths: flat indices k = l(l+1)+m, degrees, the checks of a degree
 argument, the recurrence tables of the basis (Lisle & Huang 2007 §2.1) and unit vectors.
 
-Below :mod:`.basis`, :mod:`.rotation` and the array-API path (:mod:`._xp`), which all use it, so
-that none of them needs another.
+Below `shprobe.sh.basis`, `shprobe.sh.rotation` and the array-API path (`shprobe.sh._xp`), which all
+use it, so that none of them needs another.
 """
 
 from __future__ import annotations
@@ -21,7 +21,18 @@ LMAX_LIMIT = 1024
 
 
 def num_coeffs(lmax: int) -> int:
-    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``."""
+    """K = (lmax + 1)², the number of coefficients up to degree ``lmax``.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+
+    Returns
+    -------
+    int
+        (lmax + 1)².
+    """
     return (lmax + 1) ** 2
 
 
@@ -30,7 +41,18 @@ def sh_index(l: int, m: int) -> int: ...
 @overload
 def sh_index(l: ArrayLike, m: ArrayLike) -> NDArray[np.int64]: ...
 def sh_index(l, m):
-    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast)."""
+    """Flat index k = l(l+1) + m; integers, or integer arrays (broadcast).
+
+    Parameters
+    ----------
+    l, m
+        Degree and order, |m| ≤ l (integers or integer arrays, broadcast).
+
+    Returns
+    -------
+    int or ndarray of int64
+        k = l(l + 1) + m.
+    """
     if np.ndim(l) == 0 and np.ndim(m) == 0:
         l, m = int(l), int(m)
         if l < 0 or abs(m) > l:
@@ -50,7 +72,19 @@ def sh_lm(k: int) -> tuple[int, int]: ...
 @overload
 def sh_lm(k: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]: ...
 def sh_lm(k):
-    """Inverse of :func:`sh_index`: (l, m) of flat index ``k`` (an integer or integer array)."""
+    """Inverse of [`sh_index`][shprobe.sh.sh_index]: (l, m) of flat index ``k`` (an integer or
+    integer array).
+
+    Parameters
+    ----------
+    k
+        A flat index ≥ 0, or an integer array of them.
+
+    Returns
+    -------
+    tuple
+        (l, m), integers or int64 arrays.
+    """
     ka = np.asarray(k, dtype=np.int64)
     if (ka < 0).any():
         raise ShprobeError(f"flat SH index must be >= 0, got {k}")
@@ -64,7 +98,18 @@ def sh_lm(k):
 
 
 def lmax_of(n_coeffs: int) -> int:
-    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square."""
+    """lmax such that (lmax+1)² = ``n_coeffs``; error if ``n_coeffs`` is not a square.
+
+    Parameters
+    ----------
+    n_coeffs
+        A number of coefficients K.
+
+    Returns
+    -------
+    int
+        The degree whose (lmax + 1)² is K; a one-line ShprobeError when K is not a square.
+    """
     l = math.isqrt(max(int(n_coeffs), 0)) - 1
     if l < 0 or (l + 1) ** 2 != n_coeffs:
         raise ShprobeError(f"{n_coeffs} coefficients is not (lmax+1)² for any lmax")
@@ -72,13 +117,38 @@ def lmax_of(n_coeffs: int) -> int:
 
 
 def degrees(lmax: int) -> NDArray[np.int64]:
-    """Degree l of every flat index up to ``lmax`` (length K)."""
+    """Degree l of every flat index up to ``lmax`` (length K).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (K,), int64
+        l of each flat index k.
+    """
     return np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
 
 
 def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
     """Validate a degree argument: an integer (or integral number) in 0..``limit``; anything
-    else (None, NaN, inf, 2.5, a string, an array) is one :class:`ShprobeError`."""
+    else (None, NaN, inf, 2.5, a string, an array) is one
+    [`ShprobeError`][shprobe.errors.ShprobeError].
+
+    Parameters
+    ----------
+    lmax
+        The degree given.
+    limit
+        The largest degree allowed.
+
+    Returns
+    -------
+    int
+        The degree as an int.
+    """
     try:
         ok = not isinstance(lmax, bool | str | bytes) and float(lmax) == int(lmax)
     except (TypeError, ValueError, OverflowError):
@@ -93,7 +163,18 @@ def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
 
 @lru_cache(maxsize=64)
 def recurrence_tables(lmax: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m]."""
+    """a_lm and b_lm of the normalised interior recurrence, shape (lmax+1, lmax+1) [l, m].
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    tuple of ndarray, each of shape (lmax + 1, lmax + 1)
+        a_lm and b_lm, indexed [l, m].
+    """
     a = np.zeros((lmax + 1, lmax + 1))
     b = np.zeros((lmax + 1, lmax + 1))
     for m in range(lmax + 1):

@@ -1,8 +1,8 @@
-"""The one registry of SH coefficient conventions: :func:`convert` between any two, on NumPy
-arrays and on array-API arrays (torch, JAX: differentiable, same kind back).
+"""The one registry of SH coefficient conventions: [`convert`][shprobe.sh.registry.convert] between
+any two, on NumPy arrays and on array-API arrays (torch, JAX: differentiable, same kind back).
 
 Every convention is a linear map T from shprobe's coefficients (real orthonormal SH, R&H
-signs, k = l(l+1)+m, see :mod:`shprobe.sh.conventions`) to its own: a per-coefficient factor
+signs, k = l(l+1)+m, see `shprobe.sh.conventions`) to its own: a per-coefficient factor
 (``diagonal``) or a block matrix (``matrix``, e.g. a relabelling of the axes).
 ``convert(c, from_=a, to=b)`` applies T_b T_a⁻¹ along the K axis of (..., K, C) or (K,)
 coefficients. The registry converts the *basis* (signs, scale, axis order, baked-in
@@ -32,7 +32,23 @@ __all__ = ["CONVENTIONS", "Convention", "convention", "convention_matrix", "conv
 class Convention:
     """One entry: ``name``, who uses it (``users``), what it stores (``doc``), its largest
     degree (``lmax``, None for any) and the map from shprobe's coefficients: ``diagonal(lmax)``
-    → (K,) factors, or ``matrix(lmax)`` → (K, K)."""
+    → (K,) factors, or ``matrix(lmax)`` → (K, K).
+
+    Parameters
+    ----------
+    name
+        The convention's name in ``CONVENTIONS``.
+    users
+        Who stores coefficients this way.
+    doc
+        What it stores.
+    lmax
+        Its largest degree (None for any).
+    diagonal
+        lmax → (K,) factors, for a per-coefficient map.
+    matrix
+        lmax → (K, K), for a block map.
+    """
 
     name: str
     users: str
@@ -156,7 +172,18 @@ CONVENTIONS: dict[str, Convention] = {c.name: c for c in (
 
 
 def convention(name: str) -> Convention:
-    """The registry entry ``name`` (one line listing the names for an unknown one)."""
+    """The registry entry ``name`` (one line listing the names for an unknown one).
+
+    Parameters
+    ----------
+    name
+        A name of ``CONVENTIONS``.
+
+    Returns
+    -------
+    Convention
+        The registry's entry.
+    """
     try:
         return CONVENTIONS[name]
     except (KeyError, TypeError):
@@ -183,15 +210,42 @@ def _map(name: str, lmax: int, inverse: bool) -> tuple[bool, NDArray[np.float64]
 
 
 def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
-    """The (K, K) matrix T of convention ``name`` (from shprobe's coefficients to its own)."""
+    """The (K, K) matrix T of convention ``name`` (from shprobe's coefficients to its own).
+
+    Parameters
+    ----------
+    name
+        A name of ``CONVENTIONS``.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (K, K)
+        T, from shprobe's coefficients to the convention's.
+    """
     diag, t = _map(name, lmax, False)
     return np.diag(t) if diag else t.copy()
 
 
 def convert(coeffs: Any, from_: str = "shprobe", to: str = "shprobe") -> Any:
     """Coefficients (..., K, C) or (K,) in convention ``from_`` → convention ``to`` (names in
-    :data:`CONVENTIONS`). NumPy in: float64 out (float32 stays float32); torch / JAX in: the
-    same kind, device and dtype, differentiable."""
+    [`CONVENTIONS`][shprobe.sh.registry.CONVENTIONS]). NumPy in: float64 out (float32 stays
+    float32); torch / JAX in: the same kind, device and dtype, differentiable.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients in convention ``from_``.
+    from_, to
+        Convention names (``CONVENTIONS``); "shprobe" is this package's.
+
+    Returns
+    -------
+    ndarray or tensor
+        The coefficients in convention ``to``: float64 for NumPy input (float32 stays
+        float32), the same kind, device and dtype for torch / JAX.
+    """
     xp = _xp.namespace(coeffs)
     if xp is None:
         c = np.asarray(coeffs)

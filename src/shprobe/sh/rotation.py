@@ -7,7 +7,8 @@ frame instead (express a fixed function in rotated coordinates), pass Rᵀ.
 
 Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quaternions in
 (w, x, y, z) order (scalar first), or anything with an ``.as_matrix()`` method (e.g.
-``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through :func:`from_euler_zyz`.
+``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through
+[`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz].
 
 The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
 z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
@@ -17,8 +18,8 @@ it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is o
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
 angles are never formed: cos/sin of α, β, γ are read algebraically from R, and α is taken
 from the residual Ry(β)ᵀ Rz(γ)ᵀ R, so that gimbal lock (β ≈ 0 or π) is harmless.
-For lmax ≤ 2, :func:`rotate` uses a closed form instead (l = 1: a → R a; l = 2: the band as a
-traceless quadratic form A → R A Rᵀ), tested against the recurrence.
+For lmax ≤ 2, [`rotate`][shprobe.sh.rotation.rotate] uses a closed form instead (l = 1: a → R a; l =
+2: the band as a traceless quadratic form A → R A Rᵀ), tested against the recurrence.
 """
 
 from __future__ import annotations
@@ -44,7 +45,20 @@ WIGNER_D_MAX_BYTES = 2 << 30
 
 def from_axis_angle(axis: ArrayLike, degrees: Any) -> NDArray[np.float64]:
     """Rotation matrix turning by ``degrees`` (right-handed) about ``axis`` (Rodrigues):
-    R = I + sin t K + (1 − cos t) K², K the cross-product matrix of the unit axis."""
+    R = I + sin t K + (1 − cos t) K², K the cross-product matrix of the unit axis.
+
+    Parameters
+    ----------
+    axis
+        The axis (normalised here).
+    degrees
+        The angle, degrees, right-handed.
+
+    Returns
+    -------
+    ndarray of shape (3, 3)
+        The rotation matrix.
+    """
     a = unit_vectors(axis, "rotation axis")
     try:
         t = np.radians(np.asarray(degrees, dtype=np.float64))
@@ -64,6 +78,16 @@ def from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
 
     The quaternion is normalised first; q and −q give the same rotation. A torch tensor or
     JAX array gives the same kind (differentiable in q).
+
+    Parameters
+    ----------
+    q
+        (..., 4) quaternions in (w, x, y, z) order (normalised here).
+
+    Returns
+    -------
+    ndarray of shape (..., 3, 3)
+        The rotation matrices.
     """
     xp = _xp.namespace(q)
     if xp is not None:
@@ -110,6 +134,16 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
     Rz(t) = [[c, −s, 0], [s, c, 0], [0, 0, 1]] and Ry(t) = [[c, 0, s], [0, 1, 0], [−s, 0, c]]
     (right-handed, counter-clockwise looking down the axis). Torch tensors or JAX arrays
     give the same kind (differentiable in the angles).
+
+    Parameters
+    ----------
+    alpha, beta, gamma
+        The ZYZ angles in radians (α applied first); they broadcast.
+
+    Returns
+    -------
+    ndarray of shape (..., 3, 3)
+        R = Rz(γ) Ry(β) Rz(α).
     """
     xp = _xp.namespace(alpha, beta, gamma)
     if xp is not None:
@@ -122,8 +156,19 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
 
 def as_matrix(rotation: Any) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) float64 from matrices, (w, x, y, z) quaternions (..., 4) or
-    objects with ``.as_matrix()``. Raises :class:`ShprobeError` for anything that is not a
-    proper rotation (orthogonal to :data:`ORTHO_TOL`, det +1).
+    objects with ``.as_matrix()``. Raises [`ShprobeError`][shprobe.errors.ShprobeError] for anything
+    that is not a proper rotation (orthogonal to `ORTHO_TOL`, det +1).
+
+    Parameters
+    ----------
+    rotation
+        (..., 3, 3) matrices, (..., 4) quaternions (w, x, y, z), or an object with
+        ``.as_matrix()``.
+
+    Returns
+    -------
+    ndarray of shape (..., 3, 3), float64
+        The checked rotation matrices.
     """
     R = _matrices(rotation)
     if not np.all(np.isfinite(R)):
@@ -136,7 +181,18 @@ def as_matrix(rotation: Any) -> NDArray[np.float64]:
 
 
 def one_rotation(rotation: Any) -> NDArray[np.float64]:
-    """One checked 3×3 rotation (matrix, (w, x, y, z) quaternion or scipy ``Rotation``)."""
+    """One checked 3×3 rotation (matrix, (w, x, y, z) quaternion or scipy ``Rotation``).
+
+    Parameters
+    ----------
+    rotation
+        A matrix, a (w, x, y, z) quaternion or a scipy ``Rotation``.
+
+    Returns
+    -------
+    ndarray of shape (3, 3)
+        The checked rotation matrix.
+    """
     r = as_matrix(rotation)
     if r.shape != (3, 3):
         raise ShprobeError(f"need one rotation, got shape {r.shape}")
@@ -226,10 +282,24 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     ``D @ a`` are the coefficients of f∘R⁻¹ when ``a`` are those of f. Each block is
     orthogonal, D(R₁R₂) = D(R₁) D(R₂) and D(Rᵀ) = D(R)ᵀ. Batched over the rotations'
     leading axes. ``rotation``: (..., 3, 3) matrices, (..., 4) unit quaternions (w, x, y, z),
-    or a scipy ``Rotation``; ZYZ Euler angles through :func:`from_euler_zyz`. The dense result
-    is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and
-    JAX arrays take the array-API path (the Ivanic–Ruedenberg recurrence,
-    ``shprobe.sh._xp_rotation``), differentiable in the rotation.
+    or a scipy ``Rotation``; ZYZ Euler angles through
+    [`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz]. The dense result is limited to
+    ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and JAX arrays take the
+    array-API path (the Ivanic–Ruedenberg recurrence, ``shprobe.sh._xp_rotation``), differentiable
+    in the rotation.
+
+    Parameters
+    ----------
+    rotation
+        (..., 3, 3) rotation matrices, (..., 4) unit quaternions (w, x, y, z) or a scipy
+        ``Rotation``.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (..., K, K)
+        The block-diagonal real Wigner matrices D(R), K = (lmax + 1)².
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
     xp = _xp.namespace(rotation)
@@ -263,14 +333,28 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
 
     ``coeffs`` is (..., K, C) (or (K,) for one channel) and ``rotation`` is one rotation or a
     batch: (..., 3, 3) matrices, (..., 4) unit quaternions in **scalar-first (w, x, y, z)**
-    order (:func:`from_quaternion`), or a ``scipy.spatial.transform.Rotation`` (taken through
-    its ``as_matrix()``, so no order question arises); the leading axes of both broadcast.
-    Beware: scipy's ``Rotation.as_quat()`` is scalar-LAST (x, y, z, w) — pass the Rotation
-    itself, or ``np.roll(q, 1, axis=-1)``. float32 coefficients stay float32 (the arithmetic
-    is float64). NaN or infinite coefficients are refused (:class:`ShprobeError`).
+    order ([`from_quaternion`][shprobe.sh.rotation.from_quaternion]), or a
+    ``scipy.spatial.transform.Rotation`` (taken through its ``as_matrix()``, so no order question
+    arises); the leading axes of both broadcast. Beware: scipy's ``Rotation.as_quat()`` is
+    scalar-LAST (x, y, z, w) — pass the Rotation itself, or ``np.roll(q, 1, axis=-1)``. float32
+    coefficients stay float32 (the arithmetic is float64). NaN or infinite coefficients are refused
+    ([`ShprobeError`][shprobe.errors.ShprobeError]).
 
     Torch tensors and JAX arrays (coefficients, rotation or both) take the array-API path
     (``shprobe.sh._xp_rotation``): same kind, device and dtype, differentiable in both.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients of f.
+    rotation
+        One rotation or a batch: (..., 3, 3) matrices, (..., 4) scalar-first quaternions
+        (w, x, y, z), or a scipy ``Rotation``; leading axes broadcast with ``coeffs``'.
+
+    Returns
+    -------
+    ndarray
+        The coefficients of f∘R⁻¹, shaped like ``coeffs`` (with the broadcast leading axes).
     """
     xp = _xp.namespace(coeffs, rotation)
     if xp is not None:
@@ -334,14 +418,36 @@ def rotate(coeffs: ArrayLike, rotation: Any) -> NDArray[np.floating]:
 def z_mirror_signs(lmax: int) -> NDArray[np.float64]:
     """The coefficients of f(x, y, −z) are those of f times these signs ((lmax+1)²,): −1
     where y_lm is odd in z, i.e. l + |m| odd (y_lm ∝ P_l^|m|(z) × a function of x and y, and
-    P_l^|m| has the parity of l − |m|). The frame change of left-handed engines."""
+    P_l^|m| has the parity of l − |m|). The frame change of left-handed engines.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape ((lmax + 1)²,)
+        ±1 per coefficient.
+    """
     l, m = sh_lm(np.arange(num_coeffs(check_lmax(lmax))))
     return np.where((l + np.abs(m)) % 2 == 1, -1.0, 1.0)
 
 
 def frame_from_normal(normals: ArrayLike) -> NDArray[np.float64]:
     """Right-handed frames (..., 3, 3), columns (t, b, n), from unit normals alone (Duff et
-    al. 2017). Continuous except at n = (0, 0, −1)."""
+    al. 2017). Continuous except at n = (0, 0, −1).
+
+    Parameters
+    ----------
+    normals
+        (..., 3) unit normals.
+
+    Returns
+    -------
+    ndarray of shape (..., 3, 3)
+        Frames with columns (t, b, n).
+    """
     n = unit_vectors(normals, "normals", zero="keep")
     x, y, z = n[..., 0], n[..., 1], n[..., 2]
     sign = np.where(z >= 0, 1.0, -1.0)

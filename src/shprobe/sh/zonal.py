@@ -25,6 +25,19 @@ def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
     with l!/(2^l ((l/2)!)²) built by the ratio (l+1)/(l+2) so nothing overflows.
     ``like``: a torch tensor or JAX array whose kind, device and floating dtype the factors
     take (default: NumPy float64).
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+    like
+        A torch tensor or JAX array whose kind, device and floating dtype the factors take;
+        None for NumPy float64.
+
+    Returns
+    -------
+    ndarray of shape (lmax + 1,)
+        Â_0 … Â_lmax.
     """
     xp = _xp.namespace(like)
     if xp is not None:
@@ -48,6 +61,19 @@ def convolve(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.floating]:
     ``factors = clamped_cosine_factors(lmax)`` this turns lighting L_lm into irradiance
     coefficients E_lm = Â_l L_lm (R&H eq. 7). Torch tensors and JAX arrays (either
     argument) give that kind, differentiable in both.
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) or (K,) coefficients.
+    factors
+        Per-band factors, at least lmax + 1 of them (e.g. Â_l or a window's w_l).
+
+    Returns
+    -------
+    ndarray
+        The coefficients with band l multiplied by ``factors[l]``, shaped like ``coeffs``; a
+        torch tensor or JAX array when either argument is one.
     """
     xp = _xp.namespace(coeffs, factors)
     if xp is not None:
@@ -70,6 +96,16 @@ def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
     H_0 = 1, H_1 = 2/3, H_l = 0 for odd l ≥ 3, H_{2n+2} = (½ − n)/(2 + n) H_{2n}. By LH eq. 9
     the clamped cosine about n has coefficients π H_l y_lm(n); comparing with R&H eq. 7–8
     (Â_l = √(4π/(2l+1)) A_l, A_l its zonal coefficient) gives Â_l = π H_l.
+
+    Parameters
+    ----------
+    lmax
+        The highest degree, ≥ 0.
+
+    Returns
+    -------
+    ndarray of shape (lmax + 1,)
+        H_0 … H_lmax.
     """
     lmax = check_lmax(lmax)
     h = np.zeros(lmax + 1)
@@ -82,7 +118,20 @@ def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
 
 
 def legendre_polynomials(z: ArrayLike, lmax: int) -> NDArray[np.float64]:
-    """P_l(z) for l = 0..lmax, shape (*z.shape, lmax+1), by Bonnet's recurrence."""
+    """P_l(z) for l = 0..lmax, shape (*z.shape, lmax+1), by Bonnet's recurrence.
+
+    Parameters
+    ----------
+    z
+        Arguments in [−1, 1], any shape.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (*z.shape, lmax + 1)
+        P_0(z) … P_lmax(z).
+    """
     z = np.asarray(z, dtype=np.float64)
     p = np.empty((*z.shape, lmax + 1))
     p[..., 0] = 1.0
@@ -106,6 +155,22 @@ def legendre_moments(
     outside: put the ends at h's discontinuities so the quadrature converges spectrally.
     ``n_quad`` nodes (default max(2·lmax + 16, 64)); exact when h is a polynomial of degree
     < 2·n_quad − lmax.
+
+    Parameters
+    ----------
+    h
+        Maps an array of z in [−1, 1] to values of the same shape (called once, on all nodes).
+    lmax
+        The highest degree.
+    n_quad
+        Gauss–Legendre nodes (default max(2·lmax + 16, 64)).
+    interval
+        The part [a, b] of [−1, 1] outside which h vanishes.
+
+    Returns
+    -------
+    ndarray of shape (lmax + 1,)
+        2π ∫ h(z) P_l(z) dz for each l.
     """
     lmax = check_lmax(lmax)
     a, b = (float(t) for t in interval)
@@ -134,9 +199,22 @@ def _unit_axis(axis: ArrayLike) -> NDArray[np.float64]:
 def zonal_from_moments(moments: ArrayLike, axis: ArrayLike) -> NDArray[np.floating]:
     """b_lm = moments_l · y_lm(axis) (LH eq. 7), shape (..., K) for axes (..., 3).
 
-    ``moments`` (lmax+1,) are 2π∫h P_l (see :func:`legendre_moments`); the axis is normalised.
-    Multiply by a colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis
-    gives float32 coefficients (computed in float64).
+    ``moments`` (lmax+1,) are 2π∫h P_l (see
+    [`legendre_moments`][shprobe.sh.zonal.legendre_moments]); the axis is normalised. Multiply by a
+    colour, ``b[..., None] * rgb``, for (..., K, C) lighting. A float32 axis gives float32
+    coefficients (computed in float64).
+
+    Parameters
+    ----------
+    moments
+        (lmax + 1,) moments 2π∫h P_l.
+    axis
+        (..., 3) axes (normalised here).
+
+    Returns
+    -------
+    ndarray of shape (..., K)
+        b_lm = moments_l · y_lm(axis); float32 for a float32 axis.
     """
     from .basis import sh_basis
 
@@ -156,7 +234,26 @@ def zonal_coeffs(
     interval: tuple[float, float] = (-1.0, 1.0),
 ) -> NDArray[np.floating]:
     """SH coefficients (..., K) of f(u) = h(u·n) about axis n (LH Prop. 3.2); float32 for a
-    float32 axis."""
+    float32 axis.
+
+    Parameters
+    ----------
+    h
+        The profile: maps an array of u·n in [−1, 1] to values of the same shape.
+    axis
+        (..., 3) axes n (normalised here).
+    lmax
+        The highest degree.
+    n_quad
+        Gauss–Legendre nodes (default max(2·lmax + 16, 64)).
+    interval
+        The part [a, b] of [−1, 1] outside which h vanishes (ends at its discontinuities).
+
+    Returns
+    -------
+    ndarray of shape (..., K)
+        The coefficients, K = (lmax + 1)²; float32 for a float32 axis.
+    """
     return zonal_from_moments(legendre_moments(h, lmax, n_quad, interval), axis)
 
 
@@ -165,6 +262,18 @@ def window_moments(aperture: float, lmax: int) -> NDArray[np.float64]:
 
     These are the moments 2π∫h P_l of LH's circular window h = 2/(1−cos ζ) on the cap
     z > cos ζ (total power ∫ L_f = 4π for every aperture ζ, in radians, 0 < ζ ≤ π).
+
+    Parameters
+    ----------
+    aperture
+        The window's angular radius ζ, radians, 0 < ζ ≤ π.
+    lmax
+        The highest degree.
+
+    Returns
+    -------
+    ndarray of shape (lmax + 1,)
+        The moments 4π f_l(cos ζ).
     """
     lmax = check_lmax(lmax)
     zeta = float(aperture)
@@ -194,6 +303,24 @@ def circular_window(
     L = power / (2π(1 − cos ζ)) inside the cap (= 2/(1 − cos ζ) for power 4π), so
     ∫ L dω = power. With ``radiance`` (a number or a colour (C,)) the window instead has
     that constant radiance inside the cap. Returns (..., K), or (..., K, C) for a colour.
+
+    Parameters
+    ----------
+    axis
+        (..., 3) window centres (normalised here).
+    aperture
+        The angular radius ζ, radians.
+    lmax
+        The highest degree.
+    power
+        The total power ∫L dω (default 4π, LH's normalisation); ignored with ``radiance``.
+    radiance
+        A constant radiance inside the cap: a number, or a colour (C,).
+
+    Returns
+    -------
+    ndarray of shape (..., K) or (..., K, C)
+        The window's SH coefficients; (..., K, C) for a colour ``radiance``.
     """
     mom = window_moments(aperture, lmax)
     if radiance is None:

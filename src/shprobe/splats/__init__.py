@@ -2,8 +2,8 @@
 written and transformed (rotation, mirror, uniform scale, translation, frame changes) with
 every SH band moved exactly; the renderer's SH convention and converters to shprobe's.
 
-In memory (:class:`Splats`) splats keep the reference trainer's parametrisation, frame and
-SH convention (:mod:`shprobe.splats.conventions`); docs/splats.md has the details.
+In memory ([`Splats`][shprobe.splats.Splats]) splats keep the reference trainer's parametrisation,
+frame and SH convention (`shprobe.splats.conventions`); docs/splats.md has the details.
 """
 
 from .cloud import Splats, concatenate

@@ -22,8 +22,23 @@ class Splats:
     ``positions`` (N, 3); ``log_scales`` (N, 3), or (N, 2) for 2D Gaussian splats (surfels);
     ``rotations`` (N, 4) quaternions (w, x, y, z), not necessarily normalised (the renderer
     normalises); ``opacity`` (N,) logits; ``sh`` (N, K, 3) the renderer's SH coefficients
-    (CS phase, :mod:`shprobe.splats.conventions`), k = 0 the DC term ``f_dc``, K = (degree+1)²;
+    (CS phase, `shprobe.splats.conventions`), k = 0 the DC term ``f_dc``, K = (degree+1)²;
     ``normals`` (N, 3) or None (the trainer writes zeros). All float32.
+
+    Parameters
+    ----------
+    positions
+        (N, 3).
+    log_scales
+        (N, 3), or (N, 2) for 2D Gaussian splats.
+    rotations
+        (N, 4) quaternions (w, x, y, z).
+    opacity
+        (N,) logits.
+    sh
+        (N, K, 3) the renderer's SH coefficients, k = 0 the DC term.
+    normals
+        (N, 3) or None.
     """
 
     positions: NDArray[np.float32]
@@ -69,13 +84,35 @@ class Splats:
         return f"Splats({self.count} {kind} splats, SH degree {self.degree})"
 
     def take(self, index) -> Splats:
-        """The splats selected by ``index`` (a slice, mask or index array)."""
+        """The splats selected by ``index`` (a slice, mask or index array).
+
+        Parameters
+        ----------
+        index
+            A slice, boolean mask or index array.
+
+        Returns
+        -------
+        Splats
+            The selected splats.
+        """
         return Splats(self.positions[index], self.log_scales[index], self.rotations[index],
                       self.opacity[index], self.sh[index],
                       None if self.normals is None else self.normals[index])
 
     def truncated(self, degree: int) -> Splats:
-        """The same splats with SH bands above ``degree`` dropped."""
+        """The same splats with SH bands above ``degree`` dropped.
+
+        Parameters
+        ----------
+        degree
+            The highest SH degree kept.
+
+        Returns
+        -------
+        Splats
+            The splats with the higher bands dropped.
+        """
         if not 0 <= degree <= self.degree:
             raise ShprobeError(f"SH degree {degree} must be between 0 and the data's "
                                f"{self.degree}")
@@ -84,7 +121,15 @@ class Splats:
 
     def check_finite(self, where=None, offset: int = 0) -> None:
         """Refuse non-finite values, naming the first splat (numbered from ``offset``) and
-        attribute."""
+        attribute.
+
+        Parameters
+        ----------
+        where
+            The file, named in the error.
+        offset
+            The number of the first splat.
+        """
         for name in ("positions", "log_scales", "rotations", "opacity", "sh", "normals"):
             a = getattr(self, name)
             if a is None:
@@ -97,7 +142,18 @@ class Splats:
 
 
 def concatenate(parts: list[Splats]) -> Splats:
-    """One :class:`Splats` from several of the same layout."""
+    """One [`Splats`][shprobe.splats.Splats] from several of the same layout.
+
+    Parameters
+    ----------
+    parts
+        Splats of the same layout (SH degree and attributes).
+
+    Returns
+    -------
+    Splats
+        All of them, in order.
+    """
     if not parts:
         raise ShprobeError("no splats")
     normals = None if parts[0].normals is None else np.concatenate([p.normals for p in parts])

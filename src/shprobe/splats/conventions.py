@@ -7,9 +7,9 @@ diff-gaussian-rasterization) evaluates, per splat and colour channel,
 
 with real SH constants that carry the Condon–Shortley phase (``-C1·y·sh[1] + C1·z·sh[2] −
 C1·x·sh[3]``, C1 = 0.4886025119029199, …): Y^CS_lm = (−1)^|m| y_lm in shprobe's basis (R&H
-signs, :mod:`shprobe.sh.conventions`). So a file's coefficients convert to shprobe's by the
+signs, `shprobe.sh.conventions`). So a file's coefficients convert to shprobe's by the
 same sign flip, a_lm = (−1)^|m| sh_lm, through the one registry
-(:func:`shprobe.sh.conventions.from_condon_shortley`). The DC term is ``f_dc``; the +0.5 is a
+(`shprobe.sh.conventions.from_condon_shortley`). The DC term is ``f_dc``; the +0.5 is a
 bias of the renderer, not a coefficient: the coefficient of the constant 0.5 would be
 0.5 / C0. SPZ and glTF ``KHR_gaussian_splatting`` store the same coefficients.
 """
@@ -34,28 +34,86 @@ __all__ = ["DC_BIAS", "MAX_DEGREE", "SH_C0", "colour_to_dc", "dc_to_colour", "fr
 
 def to_shprobe(sh: ArrayLike) -> NDArray[np.floating]:
     """Splat-file SH (..., K, C) (CS phase, as the renderer evaluates them) → shprobe's
-    coefficients of the same function without the bias: a_lm = (−1)^|m| sh_lm."""
+    coefficients of the same function without the bias: a_lm = (−1)^|m| sh_lm.
+
+    Parameters
+    ----------
+    sh
+        (..., K, C) SH as a splat file stores them.
+
+    Returns
+    -------
+    ndarray of shape (..., K, C)
+        shprobe's coefficients, a_lm = (−1)^|m| sh_lm.
+    """
     return from_condon_shortley(sh)
 
 
 def from_shprobe(coeffs: ArrayLike) -> NDArray[np.floating]:
-    """shprobe coefficients (..., K, C) → splat-file SH (the same involution)."""
+    """shprobe coefficients (..., K, C) → splat-file SH (the same involution).
+
+    Parameters
+    ----------
+    coeffs
+        (..., K, C) shprobe coefficients.
+
+    Returns
+    -------
+    ndarray of shape (..., K, C)
+        The splat file's SH (Condon–Shortley phase).
+    """
     return to_condon_shortley(coeffs)
 
 
 def dc_to_colour(dc: ArrayLike) -> NDArray[np.floating]:
-    """The view-independent colour of ``f_dc``: C0·dc + 0.5 (before the renderer's clamp)."""
+    """The view-independent colour of ``f_dc``: C0·dc + 0.5 (before the renderer's clamp).
+
+    Parameters
+    ----------
+    dc
+        (..., 3) ``f_dc`` values.
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        C0·dc + 0.5.
+    """
     return np.asarray(dc) * SH_C0 + DC_BIAS
 
 
 def colour_to_dc(colour: ArrayLike) -> NDArray[np.floating]:
-    """``f_dc`` of a view-independent colour (the inverse of :func:`dc_to_colour`)."""
+    """``f_dc`` of a view-independent colour (the inverse of
+    [`dc_to_colour`][shprobe.splats.dc_to_colour]).
+
+    Parameters
+    ----------
+    colour
+        (..., 3) view-independent colours.
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        ``f_dc`` = (colour − 0.5) / C0.
+    """
     return (np.asarray(colour) - DC_BIAS) / SH_C0
 
 
 def view_colour(sh: ArrayLike, directions: ArrayLike) -> NDArray[np.float64]:
     """The renderer's colour max(0, Σ sh_k Y^CS_k(d) + 0.5) of splats with SH ``sh`` (N, K, C)
-    seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis."""
+    seen along unit ``directions`` (N, 3), camera → splat; evaluated with shprobe's basis.
+
+    Parameters
+    ----------
+    sh
+        (N, K, C) the splats' SH.
+    directions
+        (N, 3) unit directions, camera → splat.
+
+    Returns
+    -------
+    ndarray of shape (N, C)
+        The colour the renderer shows.
+    """
     from ..sh.basis import sh_basis_numpy
     from ..sh.indexing import lmax_of
 

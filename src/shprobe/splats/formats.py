@@ -1,11 +1,12 @@
 """Splat files by name: read, write, transform (streamed PLY → PLY) and summarise.
 
-Formats by suffix: ``.ply`` (3DGS / 2DGS, :mod:`.ply`), ``.spz`` (:mod:`.spz`), ``.glb``
-(``KHR_gaussian_splatting``, :mod:`.gltf`). In memory splats are always in the trainer PLY's
-frame and SH convention; the SPZ and glTF modules convert their frames at the edge.
-A PLY → PLY transform runs in chunks of :data:`shprobe.splats.ply.CHUNK` splats, so its memory
+Formats by suffix: ``.ply`` (3DGS / 2DGS, `shprobe.splats.ply`), ``.spz`` (`shprobe.splats.spz`),
+``.glb`` (``KHR_gaussian_splatting``, `shprobe.splats.gltf`). In memory splats are always in the
+trainer PLY's frame and SH convention; the SPZ and glTF modules convert their frames at the edge.
+A PLY → PLY transform runs in chunks of `shprobe.splats.ply.CHUNK` splats, so its memory
 does not grow with the file; SPZ and glTF are columnar and compressed, so reading or writing
-them holds the whole scene (checked against :func:`shprobe.limits.check_memory` first).
+them holds the whole scene (checked against
+[`shprobe.limits.check_memory`][shprobe.limits.check_memory] first).
 """
 
 from __future__ import annotations
@@ -30,7 +31,18 @@ BYTES_PER_SPLAT = 1024
 
 
 def format_of(path: str | os.PathLike[str]) -> str:
-    """'.ply', '.spz' or '.glb' from the file name; one line otherwise."""
+    """'.ply', '.spz' or '.glb' from the file name; one line otherwise.
+
+    Parameters
+    ----------
+    path
+        A splat file's name.
+
+    Returns
+    -------
+    str
+        '.ply', '.spz' or '.glb'.
+    """
     suffix = Path(path).suffix.lower()
     if suffix not in FORMATS:
         raise ShprobeError(f"unknown splat format {suffix or '(no suffix)'!r}: use "
@@ -51,7 +63,20 @@ def _chunks(layout: ply.PlyLayout, progress: Progress | None,
 
 
 def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Splats:
-    """A whole splat file in memory (PLY, SPZ or glb), checked finite."""
+    """A whole splat file in memory (PLY, SPZ or glb), checked finite.
+
+    Parameters
+    ----------
+    path
+        A PLY, SPZ or glb splat file.
+    progress
+        Told about the splats read.
+
+    Returns
+    -------
+    Splats
+        The splats, checked finite.
+    """
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)
@@ -66,7 +91,24 @@ def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Spla
 def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
           progress: Progress | None = None) -> Path:
     """Write splats (PLY in the trainer's layout, SPZ or glb) atomically; non-finite values
-    are refused before anything is written."""
+    are refused before anything is written.
+
+    Parameters
+    ----------
+    path
+        The output file; its suffix picks the format.
+    splats
+        The splats.
+    overwrite
+        Replace an existing file.
+    progress
+        Told about the splats written.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     kind = format_of(path)
     splats.check_finite(os.fspath(path))
     from ..files import atomic_output
@@ -89,8 +131,17 @@ def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
 
 @dataclass(frozen=True)
 class TransformSettings:
-    """What ``transform_file`` does: the similarity, an optional SH degree to truncate to,
-    whether an existing output may be replaced."""
+    """What [`transform_file`][shprobe.splats.transform_file] does.
+
+    Parameters
+    ----------
+    similarity
+        The move: rotation or reflection, uniform scale and translation.
+    sh_degree
+        The SH degree to truncate to (None: keep the file's).
+    overwrite
+        An existing output may be replaced.
+    """
 
     similarity: Similarity = field(default_factory=Similarity.identity)
     sh_degree: int | None = None
@@ -99,6 +150,18 @@ class TransformSettings:
 
 @dataclass(frozen=True)
 class TransformResult:
+    """What [`transform_file`][shprobe.splats.transform_file] did.
+
+    Attributes
+    ----------
+    count
+        Splats written.
+    degree_in, degree_out
+        The SH degree read and written.
+    path
+        The file written.
+    """
+
     count: int
     degree_in: int
     degree_out: int
@@ -156,7 +219,24 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                    ) -> TransformResult:
     """Read ``src``, move every splat by ``settings.similarity`` (SH included), truncate the
     SH if asked, write ``dst`` (any format to any). PLY → PLY is streamed in chunks, keeping
-    properties the transform does not know (they are carried through unchanged)."""
+    properties the transform does not know (they are carried through unchanged).
+
+    Parameters
+    ----------
+    src
+        The splat file read (PLY, SPZ or glb).
+    dst
+        The splat file written (any of the three).
+    settings
+        The similarity, the SH degree to keep and whether to overwrite.
+    progress
+        Told about the splats done.
+
+    Returns
+    -------
+    TransformResult
+        The count, the SH degree in and out, the path written.
+    """
     from ..files import atomic_output, check_output_path
 
     check_output_path(dst, settings.overwrite)
@@ -187,7 +267,23 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
 @dataclass(frozen=True)
 class SplatInfo:
     """What ``shprobe splat info`` prints: count, SH degree, kind, bounds of the positions and
-    the energy of each SH band (mean over splats of Σ_m Σ_rgb coefficient², band 0 = f_dc)."""
+    the energy of each SH band (mean over splats of Σ_m Σ_rgb coefficient², band 0 = f_dc).
+
+    Attributes
+    ----------
+    path, format
+        The file and its format.
+    count
+        Splats.
+    degree
+        SH degree.
+    kind
+        "3DGS" or "2DGS".
+    bounds_min, bounds_max
+        The positions' bounding box.
+    band_energy
+        Per SH band, the mean over splats of Σ_m Σ_rgb coefficient².
+    """
 
     path: str
     format: str
@@ -213,7 +309,20 @@ def _bands(degree: int) -> np.ndarray:
 
 
 def info(path: str | os.PathLike[str], progress: Progress | None = None) -> SplatInfo:
-    """Summarise a splat file (a PLY is streamed)."""
+    """Summarise a splat file (a PLY is streamed).
+
+    Parameters
+    ----------
+    path
+        A splat file.
+    progress
+        Told about the splats read.
+
+    Returns
+    -------
+    SplatInfo
+        Its format, count, SH degree and bounds.
+    """
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)

@@ -11,7 +11,7 @@ laid out as PlayCanvas splat-transform writes them.
 
 glTF's frame is +Y up, +Z forward, +X left (LUF); the trainer's PLY is RDF. Reading returns
 splats in the PLY's frame and writing expects them there: the conversion is the 180° turn
-about z (:func:`shprobe.splats.transform.frame`), SH included.
+about z ([`shprobe.splats.transform.frame`][shprobe.splats.frame]), SH included.
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ def encode(s: Splats, generator: str = "shprobe") -> bytes:
 
 
 def write(path: str | os.PathLike[str], s: Splats, overwrite: bool = False) -> None:
-    """Write a .glb through :mod:`shprobe.files` (temporary file renamed into place)."""
+    """Write a .glb through `shprobe.files` (temporary file renamed into place)."""
     from ..files import atomic_output
 
     data = encode(s)

@@ -145,7 +145,7 @@ def read_layout(path: str | os.PathLike[str]) -> PlyLayout:
 
 
 def records(layout: PlyLayout, chunk: int | None = None) -> Iterator[np.ndarray]:
-    """The vertex records, ``chunk`` (default :data:`CHUNK`) at a time (structured arrays,
+    """The vertex records, ``chunk`` (default `CHUNK`) at a time (structured arrays,
     native byte order)."""
     chunk = CHUNK if chunk is None else chunk
     with open(layout.path, "rb") as f:
@@ -168,7 +168,7 @@ def _stack(rec: np.ndarray, names: list[str]) -> np.ndarray:
 
 
 def to_splats(rec: np.ndarray, layout: PlyLayout) -> Splats:
-    """Records → :class:`Splats` (f_rest un-interleaved to (N, K, 3))."""
+    """Records → [`Splats`][shprobe.splats.Splats] (f_rest un-interleaved to (N, K, 3))."""
     k = (layout.degree + 1) ** 2
     sh = np.empty((rec.shape[0], k, 3), dtype=np.float32)
     for c in range(3):
@@ -210,8 +210,8 @@ def trainer_dtype(degree: int, scales: int = 3) -> np.dtype:
 
 
 def from_splats(s: Splats, dtype: np.dtype, extra: np.ndarray | None = None) -> np.ndarray:
-    """:class:`Splats` → records of ``dtype``; properties not in the splats come from
-    ``extra`` (the input records) where it has them, else zero."""
+    """[`Splats`][shprobe.splats.Splats] → records of ``dtype``; properties not in the splats come
+    from ``extra`` (the input records) where it has them, else zero."""
     out = np.zeros(s.count, dtype=dtype)
     names = set(dtype.names)
     if extra is not None:
@@ -268,7 +268,8 @@ def first_non_finite(a: np.ndarray, names, where, offset: int = 0) -> None:
 
 def transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     """Move the splats of an (N, F) float32 record matrix in place (the fast path of
-    :func:`shprobe.splats.transform.apply` for all-float layouts: one GEMM for the SH)."""
+    [`shprobe.splats.transform.apply`][shprobe.splats.apply] for all-float layouts: one GEMM for the
+    SH)."""
     from .transform import X180, quat_from_matrix, quat_multiply, sh_matrix
 
     q = np.asarray(sim.linear, dtype=np.float64)

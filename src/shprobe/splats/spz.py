@@ -12,8 +12,9 @@ order (reading it needs the ``zstandard`` package).
 
 SPZ stores its data in an RUB frame (x Right, y Up, z Back); the reference trainer's PLY is
 RDF. Reading returns the splats in the PLY's frame and writing expects them there: the
-conversion between the two is the 180° turn about x (:func:`shprobe.splats.transform.frame`),
-SH included, as the spz library's own ``from``/``to`` coordinate options do.
+conversion between the two is the 180° turn about x
+([`shprobe.splats.transform.frame`][shprobe.splats.frame]), SH included, as the spz library's own
+``from``/``to`` coordinate options do.
 """
 
 from __future__ import annotations
@@ -246,7 +247,7 @@ def pack(s: Splats) -> bytes:
 
 
 def write(path: str | os.PathLike[str], s: Splats, overwrite: bool = False) -> None:
-    """Write an SPZ (version 3, gzip; all SH at 8 bits) through :mod:`shprobe.files`."""
+    """Write an SPZ (version 3, gzip; all SH at 8 bits) through `shprobe.files`."""
     from ..files import atomic_output
 
     data = gzip.compress(pack(s), compresslevel=6)

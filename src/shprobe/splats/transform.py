@@ -44,7 +44,17 @@ _LETTERS = {"R": (1, 0, 0), "L": (-1, 0, 0), "U": (0, 1, 0), "D": (0, -1, 0),
 
 @dataclass(frozen=True)
 class Similarity:
-    """x ↦ scale · linear · x + translation; ``linear`` orthogonal (det ±1), ``scale`` > 0."""
+    """x ↦ scale · linear · x + translation; ``linear`` orthogonal (det ±1), ``scale`` > 0.
+
+    Parameters
+    ----------
+    linear
+        (3, 3) orthogonal (det ±1).
+    scale
+        Uniform scale, > 0.
+    translation
+        (3,) offset.
+    """
 
     linear: NDArray[np.float64]
     scale: float = 1.0
@@ -68,7 +78,18 @@ class Similarity:
         return m
 
     def then(self, other: Similarity) -> Similarity:
-        """This transform followed by ``other``."""
+        """This transform followed by ``other``.
+
+        Parameters
+        ----------
+        other
+            The transform applied after this one.
+
+        Returns
+        -------
+        Similarity
+            The composition.
+        """
         return Similarity(other.linear @ self.linear, other.scale * self.scale,
                           other.scale * other.linear @ self.translation + other.translation)
 
@@ -79,7 +100,18 @@ class Similarity:
     @classmethod
     def from_matrix(cls, matrix: ArrayLike) -> Similarity:
         """A 4×4 (or 3×4) matrix that must be a similarity: shear and non-uniform scale are
-        refused in one line (they would turn the SH lobes into no SH of the same degree)."""
+        refused in one line (they would turn the SH lobes into no SH of the same degree).
+
+        Parameters
+        ----------
+        matrix
+            A 4×4 or 3×4 similarity matrix.
+
+        Returns
+        -------
+        Similarity
+            The similarity (shear and non-uniform scale refused).
+        """
         try:
             m = np.asarray(matrix, dtype=np.float64)
         except (TypeError, ValueError):
@@ -108,13 +140,37 @@ class Similarity:
 
 
 def rotation(matrix: ArrayLike) -> Similarity:
-    """A rotation (checked by :func:`shprobe.sh.rotation.one_rotation`)."""
+    """A rotation (checked by
+    [`shprobe.sh.rotation.one_rotation`][shprobe.sh.rotation.one_rotation]).
+
+    Parameters
+    ----------
+    matrix
+        A 3×3 rotation, (w, x, y, z) quaternion or scipy ``Rotation``.
+
+    Returns
+    -------
+    Similarity
+        The rotation.
+    """
     from ..sh.rotation import one_rotation
 
     return Similarity(one_rotation(matrix))
 
 
 def translation(offset: ArrayLike) -> Similarity:
+    """A translation by ``offset``: positions move, SH (directions) do not.
+
+    Parameters
+    ----------
+    offset
+        (3,) the displacement, finite.
+
+    Returns
+    -------
+    Similarity
+        x ↦ x + offset.
+    """
     t = np.asarray(offset, dtype=np.float64).reshape(3)
     if not np.all(np.isfinite(t)):
         raise ShprobeError("translation must be finite")
@@ -122,6 +178,18 @@ def translation(offset: ArrayLike) -> Similarity:
 
 
 def uniform_scale(factor: float) -> Similarity:
+    """A uniform scale about the origin: positions and splat scales grow, SH do not change.
+
+    Parameters
+    ----------
+    factor
+        The scale, finite and positive.
+
+    Returns
+    -------
+    Similarity
+        x ↦ factor · x.
+    """
     s = float(factor)
     if not (np.isfinite(s) and s > 0):
         raise ShprobeError(f"scale must be a finite positive number, got {factor!r}")
@@ -129,7 +197,18 @@ def uniform_scale(factor: float) -> Similarity:
 
 
 def mirror(axis: str) -> Similarity:
-    """The reflection x ↦ −x (or y, z) through the plane of the other two axes."""
+    """The reflection x ↦ −x (or y, z) through the plane of the other two axes.
+
+    Parameters
+    ----------
+    axis
+        "x", "y" or "z".
+
+    Returns
+    -------
+    Similarity
+        The reflection.
+    """
     i = "xyz".find(str(axis).strip().lower())
     if i < 0 or len(str(axis).strip()) != 1:
         raise ShprobeError(f"mirror axis must be x, y or z, got {axis!r}")
@@ -151,7 +230,19 @@ def _frame_axes(name: str) -> NDArray[np.float64]:
 
 def frame(source: str, target: str) -> Similarity:
     """Re-express a scene given in frame ``source`` in frame ``target`` (names of
-    :data:`FRAMES` or axis letters), e.g. ``frame("colmap", "gltf")`` = 180° about z."""
+    [`FRAMES`][shprobe.splats.FRAMES] or axis letters), e.g. ``frame("colmap", "gltf")`` = 180°
+    about z.
+
+    Parameters
+    ----------
+    source, target
+        Frame names of ``FRAMES`` or axis letters.
+
+    Returns
+    -------
+    Similarity
+        The change of frame.
+    """
     return Similarity(_frame_axes(target).T @ _frame_axes(source))
 
 
@@ -187,7 +278,20 @@ def _sh_matrix_cached(key: bytes, degree: int) -> NDArray[np.float64]:
 def sh_matrix(linear: ArrayLike, degree: int) -> NDArray[np.float64]:
     """(K, K) matrix M mapping a splat's SH (renderer's CS-phase convention, K = (degree+1)²)
     under the orthogonal map ``linear``: sh' = M @ sh, so that the colour seen from Q·d after
-    equals the colour seen from d before."""
+    equals the colour seen from d before.
+
+    Parameters
+    ----------
+    linear
+        (3, 3) orthogonal map (a rotation or a reflection).
+    degree
+        The SH degree, K = (degree + 1)².
+
+    Returns
+    -------
+    ndarray of shape (K, K)
+        M with sh' = M @ sh.
+    """
     q = np.ascontiguousarray(linear, dtype=np.float64)
     if q.shape != (3, 3) or not np.allclose(q @ q.T, np.eye(3), atol=1e-6):
         raise ShprobeError("the SH of splats transform only under an orthogonal 3×3 map")
@@ -238,7 +342,20 @@ X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
-    """The splats moved by ``sim`` (see the module docstring), every SH band included."""
+    """The splats moved by ``sim`` (see the module docstring), every SH band included.
+
+    Parameters
+    ----------
+    splats
+        The splats.
+    sim
+        The similarity.
+
+    Returns
+    -------
+    Splats
+        The moved splats, every SH band turned with them.
+    """
     q = np.asarray(sim.linear, dtype=np.float64)
     mirror_ = np.linalg.det(q) < 0
     proper = -q if mirror_ else q

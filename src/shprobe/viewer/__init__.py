@@ -1,10 +1,11 @@
 """Layer: the viewer (``shprobe view``), a local web application over the library: a Starlette
-app (:mod:`.app`, its routes :mod:`.handlers`) serving a page that draws with three.js
-(installed from npm by ``tools/vendor_js.sh``, shipped as package data) and a model whose
-numbers all come from the library: the session (:mod:`.session`) with its sources
-(:mod:`.source`), uploads (:mod:`.uploads`), file loader (:mod:`.loader`), designs
-(:mod:`.design`, the library's edit language), views (:mod:`.views`), and what goes over the
-wire (:mod:`.wire`, :mod:`.payloads`). See docs/viewer.md.
+app (`shprobe.viewer.app`, its routes `shprobe.viewer.handlers`) serving a page that draws with
+three.js (installed from npm by ``tools/vendor_js.sh``, shipped as package data) and a model whose
+numbers all come from the library: the session (`shprobe.viewer.session`) with its sources
+(`shprobe.viewer.source`), uploads (`shprobe.viewer.uploads`), file loader
+(`shprobe.viewer.loader`), designs (`shprobe.viewer.design`, the library's edit language), views
+(`shprobe.viewer.views`), and what goes over the wire (`shprobe.viewer.wire`,
+`shprobe.viewer.payloads`). See docs/viewer.md.
 """
 
 import secrets

@@ -1,4 +1,4 @@
-"""The viewer's ASGI application (Starlette): a thin HTTP shell over :mod:`.session`.
+"""The viewer's ASGI application (Starlette): a thin HTTP shell over `shprobe.viewer.session`.
 
 Security: every request must carry the session token (``?token=`` once — the page then holds it
 in a same-site cookie — or the ``X-Shprobe-Token`` header), as Jupyter does; the Host header must
@@ -6,8 +6,8 @@ name the address the server was started on and an Origin, when sent, must be tha
 (no DNS rebinding, no cross-site requests). The server opens only the files named on the
 command line and the uploads it stored itself; no path from the page is ever opened.
 
-The handlers are :class:`.handlers.Handlers` (and ``/api/snippet`` here: the page's "Copy as
-Python", :func:`python_text`); heavy work (decoding, projection, the brute-force
+The handlers are `shprobe.viewer.handlers.Handlers` (and ``/api/snippet`` here: the page's "Copy as
+Python", `python_text`); heavy work (decoding, projection, the brute-force
 reference) runs in worker threads off the event loop.
 """
 
@@ -109,7 +109,7 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
                check_host: bool = True, grid: Any = None) -> Starlette:
     """The viewer app for ``session``. ``port`` is the port it will listen on (for the Host
     check; ``check_host=False`` accepts any Host, e.g. ``--host 0.0.0.0``). ``grid`` (a
-    :class:`.grid.GridView`; session None): the grid page and its routes instead."""
+    `shprobe.viewer.grid.GridView`; session None): the grid page and its routes instead."""
     static = static_dir()
     index = (static / "index.html").read_text()
     h = Handlers(session, index, _csp(index), token, COOKIE.format(port=port))
@@ -135,7 +135,7 @@ PROCEDURAL = ("procedural sky", "shprobe.project(shprobe.procedural_env(256, 128
 
 def python_text(session: Session, spec: EditSpec) -> str:
     """The page's "Copy as Python": ``spec`` applied to the session's source, as library code
-    (:func:`shprobe.lighting.snippet.python_snippet`)."""
+    (`shprobe.lighting.snippet.python_snippet`)."""
     from ..lighting.snippet import SnippetSource, python_snippet
 
     src = session.source
@@ -152,7 +152,7 @@ async def _snippet(h: Handlers, req: Request) -> Response:
 
 def make_server(app: ASGIApp) -> Any:
     """The uvicorn server of the viewer: h11 reading request heads of up to
-    :data:`MAX_HEAD` bytes (so that a long one is answered, 414, not reset)."""
+    `MAX_HEAD` bytes (so that a long one is answered, 414, not reset)."""
     import uvicorn
 
     return uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,

@@ -1,8 +1,8 @@
 """The page's lighting design: the edit-state JSON read as the library's
-:class:`~shprobe.lighting.edits.EditSpec` (:func:`read_state`, the one check of what the page
-sends) and applied by the library's edit pipeline — exactly (:func:`design_coeffs`, what
+[`EditSpec`][shprobe.lighting.EditSpec] (`read_state`, the one check of what the page
+sends) and applied by the library's edit pipeline — exactly (`design_coeffs`, what
 exports use) or, during a drag, from a cache of everything the rotation does not change
-(:class:`Designer`)."""
+(`Designer`)."""
 
 from __future__ import annotations
 
@@ -31,15 +31,15 @@ Base = Callable[[int], NDArray[np.float64]]
 
 def read_state(doc: Any) -> EditSpec:
     """The page's edit state (parsed JSON) as a spec, checked once: one-line
-    :class:`~shprobe.errors.ShprobeError` on anything malformed
-    (:meth:`EditSpec.from_json`, degrees up to :data:`DESIGN_LMAX`)."""
+    [`ShprobeError`][shprobe.errors.ShprobeError] on anything malformed
+    ([`EditSpec.from_json`][shprobe.lighting.EditSpec.from_json], degrees up to `DESIGN_LMAX`)."""
     return EditSpec.from_json(doc, max_lmax=DESIGN_LMAX)
 
 
 def design_coeffs(base: NDArray[np.float64] | None, spec: EditSpec, blends: Blends
                   ) -> tuple[NDArray[np.float64], str | None]:
     """(L_lm (K, 3), window description): ``spec`` applied to ``base`` by the library's edit
-    pipeline (:func:`~shprobe.lighting.design.edit_lighting`), as ``shprobe edit`` applies
+    pipeline (`edit_lighting`), as ``shprobe edit`` applies
     it — so an export from the page equals the CLI's file."""
     from ..lighting.design import edit_lighting
 
@@ -72,7 +72,7 @@ def _auto_desc(ch: Any) -> str:
 class Designer:
     """The page's designs, fast during a drag: everything but the rotation is cached per
     (source, spec without rotation) — the edits before it, the window factors (``auto``:
-    chosen on the unrotated lighting) and :func:`~shprobe.lighting.windows.min_irradiance`,
+    chosen on the unrotated lighting) and [`min_irradiance`][shprobe.lighting.min_irradiance],
     all invariant under rotation — so a drag step is one Wigner rotation."""
 
     KEEP = 64

@@ -2,9 +2,9 @@
 
 The page draws what the library computes: each probe as a small sphere lit by its own SH (its
 irradiance coefficients E_lm = Â_l L_lm, R&H 2001 eq. 7, summed per pixel by the library's
-generated GLSL, :func:`~shprobe.lighting.glsl.glsl_irradiance`), the volume's box, the scene the
+generated GLSL, `glsl_irradiance`), the volume's box, the scene the
 grid was baked from (optional), and an object moved through the volume, lit per vertex by
-:meth:`ProbeGrid.irradiance <shprobe.grids.grid.ProbeGrid.irradiance>` at its vertices — with
+[`ProbeGrid.irradiance`][shprobe.grids.ProbeGrid.irradiance] at its vertices — with
 leak control (visibility-aware weights, where the grid has depth data) or plain trilinear, as
 the page's toggle asks. Every body is bounded before it is read; a bad request is one line,
 ``{"error": ...}``, status 400.
@@ -44,7 +44,8 @@ _EXPOSURE_NORMALS = 512
 
 class Placement:
     """Where the object stands: its bounding sphere's centre at ``position`` (3,), its radius
-    ``size``; ``leak_control`` as :meth:`ProbeGrid.irradiance` takes it."""
+    ``size``; ``leak_control`` as [`ProbeGrid.irradiance`][shprobe.grids.ProbeGrid.irradiance] takes
+    it."""
 
     __slots__ = ("leak_control", "position", "size")
 
@@ -123,7 +124,7 @@ class GridView:
 
     def probe_irradiance_coeffs(self) -> NDArray[np.float64]:
         """E_lm = Â_l L_lm (N, K, 3) of every probe (flat index (ix·NY + iy)·NZ + iz, as
-        :func:`~shprobe.grids.grid.plain_weights` numbers them)."""
+        [`plain_weights`][shprobe.grids.plain_weights] numbers them)."""
         from ..lighting.irradiance import irradiance_coeffs
 
         g = self.grid
@@ -142,7 +143,7 @@ class GridView:
         return float(max(np.max(e), 0.0))
 
     def payload(self) -> bytes:
-        """The page's data in one :func:`pack_binary` message (made once)."""
+        """The page's data in one `pack_binary` message (made once)."""
         with self._lock:
             if self._payload is None:
                 self._payload = self._make_payload()
@@ -178,8 +179,8 @@ class GridView:
 
     def shade(self, placement: Placement) -> tuple[NDArray[np.float64], bool]:
         """Irradiance E (V, 3) at the object's vertices placed by ``placement``
-        (:meth:`ProbeGrid.irradiance`) and whether leak control was applied (it needs the
-        grid's depth data)."""
+        ([`ProbeGrid.irradiance`][shprobe.grids.ProbeGrid.irradiance]) and whether leak control was
+        applied (it needs the grid's depth data)."""
         e = self.grid.irradiance(placement.place(self.local), self.normals,
                                  leak_control=placement.leak_control)
         return e, placement.leak_control and self.grid.depth is not None
@@ -235,7 +236,7 @@ def load_grid_view(grid_path: str, mesh_path: str | None = None,
                    scene_path: str | None = None) -> GridView:
     """Read what ``shprobe view --grid`` shows: the grid file, the object (``mesh_path``; the
     viewer's default mesh where none is given) and the scene (``scene_path``, optional: a mesh
-    file or a reference scene's name, :func:`~shprobe.grids.scenes.named_scene`). A bad file
+    file or a reference scene's name, `named_scene`). A bad file
     is one line naming it."""
     from ..grids.scenes import named_scene
     from ..scene import load_mesh

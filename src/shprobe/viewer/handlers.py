@@ -1,7 +1,7 @@
 """The viewer's HTTP handlers: one method per route, each a thin shell over the session.
 
-Every body is bounded before it is read: an edit state by :data:`MAX_STATE` and checked once,
-at the edge, by the library's schema (:func:`~shprobe.viewer.design.read_state`); an upload by
+Every body is bounded before it is read: an edit state by `MAX_STATE` and checked once,
+at the edge, by the library's schema (`read_state`); an upload by
 its declared length and streamed into a file of the session's upload folder, never held whole.
 A bad request is one line, ``{"error": ...}``, status 400 (413 over a size limit); nothing a
 client sends or breaks off gives a traceback.
@@ -125,9 +125,9 @@ async def receive(req: Request, path: Path, name: str) -> None:
 
 
 def api(fn: Callable[[Handlers, Request], Awaitable[Response]]) -> Callable[..., Any]:
-    """A handler's errors as one-line answers: :class:`ShprobeError` 400 (or its status), a
-    client gone silence, anything else 500 (logged in one line: a library bug must not take
-    the server down)."""
+    """A handler's errors as one-line answers: [`ShprobeError`][shprobe.errors.ShprobeError] 400 (or
+    its status), a client gone silence, anything else 500 (logged in one line: a library bug must
+    not take the server down)."""
     async def wrapped(self: Handlers, req: Request) -> Response:
         try:
             return await fn(self, req)

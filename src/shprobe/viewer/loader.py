@@ -6,10 +6,10 @@ imported (both sides need them: imported once, shared by the fork), before the s
 imported or built, so that the loader's work starts at once on the second core. The probe is
 decoded and projected by NumPy alone (no compiled kernel to start: a 2048×1024 .hdr in about
 0.15 s); a mesh opened before needs no trimesh: its page arrays come from shprobe's on-disk
-cache (:func:`shprobe.viewer.payloads.cached_mesh_payload`). The children send the first
+cache (`shprobe.viewer.payloads.cached_mesh_payload`). The children send the first
 frame's data (the probe's lmax-2 coefficients, the page's mesh arrays) first; the Env, its
 higher coefficients and the background texture follow when the server asks
-(:meth:`shprobe.viewer.session.Session.fork_loader` takes them).
+(`shprobe.viewer.session.Session.fork_loader` takes them).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ __all__ = ["ENV_WAIT", "Go", "Loader", "default_mesh_path", "fork_loader", "mesh
 
 
 def default_mesh_path() -> Path | None:
-    """The packaged Stanford bunny (:func:`shprobe.scene.mesh.bunny_path`)."""
+    """The packaged Stanford bunny ([`shprobe.scene.mesh.bunny_path`][shprobe.scene.bunny_path])."""
     from ..scene.mesh import bunny_path
 
     return bunny_path()
@@ -33,7 +33,7 @@ def default_mesh_path() -> Path | None:
 
 def mesh_to_load(mesh: str | None, transfer: str | None) -> str | None:
     """The mesh file ``shprobe view`` loads: ``--mesh``; none with ``--transfer`` alone (the
-    transfer carries its geometry); else :func:`default_mesh_path`."""
+    transfer carries its geometry); else `default_mesh_path`."""
     if mesh or transfer:
         return mesh
     p = default_mesh_path()
@@ -91,7 +91,7 @@ class Go:
 
 class Loader(NamedTuple):
     """The forked loader: one (process, receiving pipe end) per file, the probe's first, and
-    the :class:`Go` that lets the probe's process send the Env (set when a view needs it:
+    the `Go` that lets the probe's process send the Env (set when a view needs it:
     until then the first frame has the two cores)."""
 
     child: list[tuple[Any, Any]]
@@ -99,7 +99,7 @@ class Loader(NamedTuple):
 
 
 def fork_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | None:
-    """Fork the loader of ``probe`` and ``mesh`` (:func:`_loader`; call before any thread
+    """Fork the loader of ``probe`` and ``mesh`` (`_loader`; call before any thread
     starts); ``None`` where there is nothing to load or no fork (not Linux)."""
     ctx = _fork_context()
     if ctx is None or not (probe or mesh):
@@ -135,10 +135,10 @@ def _fork_context() -> Any:
 
 def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | None,
             mesh_name: str | None, theirs: list[Any], go: Go | None = None) -> None:
-    """The process :func:`fork_loader` starts (``theirs``: the parent's pipe ends, closed
+    """The process `fork_loader` starts (``theirs``: the parent's pipe ends, closed
     here). A mesh whose page arrays are cached is sent from here at once; otherwise, given
     both files, it forks again, so that the probe and the mesh (trimesh) load on two cores
-    (:func:`_load_child`)."""
+    (`_load_child`)."""
     import signal
     import time
 
@@ -197,8 +197,8 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
                 then: tuple[Any, bytes, dict[str, float]] | None = None) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
     mesh arrays (or, given ``then``, the cached ones down their own pipe, read next), then —
-    once ``go`` is set, or :data:`ENV_WAIT` seconds later — the :class:`Env`, its
-    lmax-:data:`MAX_LMAX` coefficients and the background texture, each sent when ready
+    once ``go`` is set, or `ENV_WAIT` seconds later — the [`Env`][shprobe.probes.env.Env], its
+    lmax-`MAX_LMAX` coefficients and the background texture, each sent when ready
     (with wall-clock stamps); a failure is one ("error", line) message. Ends the process
     itself (``os._exit``, after reaping the process ``wait``): nothing of the parent's
     (threads, exit handlers, the CLI's signal handlers) runs here."""

@@ -1,6 +1,6 @@
-"""What the page draws, made once: the mesh's arrays (:func:`mesh_payload`, kept in shprobe's
-on-disk cache by :func:`cached_mesh_payload`) and the probe's background texture
-(:func:`background_payload`), each one :func:`~shprobe.viewer.wire.pack_binary` message."""
+"""What the page draws, made once: the mesh's arrays (`mesh_payload`, kept in shprobe's
+on-disk cache by `cached_mesh_payload`) and the probe's background texture
+(`background_payload`), each one `pack_binary` message."""
 
 from __future__ import annotations
 
@@ -29,10 +29,10 @@ GROUND_FRAMING = 1.6
 
 def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, Any]:
     """The page's two cameras for an object of bounding sphere (``center``, ``radius``):
-    ``camera`` the library's default :class:`~shprobe.scene.Camera` (512×512, elevation 0:
-    what the page's pixel reads compare with :func:`shprobe.scene.render`) and ``view`` the
-    orbit camera the page starts from (:data:`VIEW_AZIMUTH`, :data:`VIEW_ELEVATION`; on a
-    ``ground``, :data:`GROUND_FRAMING` times wider)."""
+    ``camera`` the library's default [`Camera`][shprobe.scene.Camera] (512×512, elevation 0:
+    what the page's pixel reads compare with `shprobe.scene.render`) and
+    ``view`` the orbit camera the page starts from (`VIEW_AZIMUTH`, `VIEW_ELEVATION`; on a
+    ``ground``, `GROUND_FRAMING` times wider)."""
     from ..scene import Camera
 
     wide = GROUND_FRAMING if ground else 1.0
@@ -42,10 +42,10 @@ def view_cameras(center: Any, radius: float, ground: bool = False) -> dict[str, 
 
 
 def ground_mask(vertices: Any, normals: Any, has_ground: bool) -> np.ndarray:
-    """The vertices of a PRT scene's ground plane (:func:`shprobe.prt.geometry.ground_plane`:
-    the plane y = const under the scene, normals exactly +Y), wherever they are in the list
-    (a refined bake splits the plane's triangles and appends their new vertices); all False
-    without one."""
+    """The vertices of a PRT scene's ground plane
+    ([`shprobe.prt.geometry.ground_plane`][shprobe.prt.ground_plane]: the plane y = const under the
+    scene, normals exactly +Y), wherever they are in the list (a refined bake splits the plane's
+    triangles and appends their new vertices); all False without one."""
     v, n = np.asarray(vertices), np.asarray(normals)
     if not has_ground or len(v) == 0:
         return np.zeros(len(v), dtype=bool)
@@ -56,7 +56,7 @@ def ground_mask(vertices: Any, normals: Any, has_ground: bool) -> np.ndarray:
 
 
 def mesh_payload(mesh: Any, name: str) -> bytes:
-    """What the page draws, in one :func:`pack_binary` message: positions, normals, albedo
+    """What the page draws, in one `pack_binary` message: positions, normals, albedo
     (V, 3) as the renderer reads them, faces, and the library camera framing the bounding
     sphere. ``mesh`` None: the renderer's analytic unit sphere (drawn as a fine icosphere)."""
     from ..scene import bounding_sphere, mesh_vertex_albedo, sphere_mesh
@@ -80,10 +80,10 @@ def cached_mesh_payload(path: str, name: str) -> bytes: ...
 @overload
 def cached_mesh_payload(path: str, name: str, make: bool) -> bytes | None: ...
 def cached_mesh_payload(path: str, name: str, make: bool = True) -> bytes | None:
-    """:func:`mesh_payload` of the mesh file ``path``, kept in shprobe's on-disk cache
-    (:func:`shprobe.files.read_cache`, kind ``viewer_mesh``) under the file's content and the
-    code that makes the payload, so that a mesh opened before — the default bunny, a user's
-    own model — reaches the page without importing trimesh (0.4 CPU-s on this machine, most
+    """`mesh_payload` of the mesh file ``path``, kept in shprobe's on-disk cache
+    ([`shprobe.files.read_cache`][shprobe.files.read_cache], kind ``viewer_mesh``) under the file's
+    content and the code that makes the payload, so that a mesh opened before — the default bunny, a
+    user's own model — reaches the page without importing trimesh (0.4 CPU-s on this machine, most
     of what the mesh costs the first frame). A bad file is never cached: it is read, and
     refused, each time. ``make=False``: None where it is not cached (nothing is read)."""
     from ..files import file_digest, read_cache, write_cache
@@ -107,7 +107,7 @@ def cached_mesh_payload(path: str, name: str, make: bool = True) -> bytes | None
 
 
 def _payload_code_stamp() -> str:
-    """Identifies the code behind :func:`mesh_payload` (this module, the wire format, the scene
+    """Identifies the code behind `mesh_payload` (this module, the wire format, the scene
     layer, trimesh, shprobe's version): any change of it, an edit or an upgrade, makes a new
     cache key. Read from the files' sizes and times, without importing trimesh."""
     import importlib.util
@@ -132,9 +132,9 @@ def _payload_code_stamp() -> str:
 
 
 def background_payload(env: Any) -> bytes:
-    """The probe resampled to a :data:`BACKGROUND_H` × 2·:data:`BACKGROUND_H` lat-long grid
-    (the library's directions and bilinear lookup, :meth:`Env.sample`; lat-long probes larger
-    than it box-filtered), RGBA half floats in a :func:`pack_binary` message."""
+    """The probe resampled to a `BACKGROUND_H` × 2·`BACKGROUND_H` lat-long grid
+    (the library's directions and bilinear lookup, [`Env.sample`][shprobe.probes.env.Env.sample];
+    lat-long probes larger than it box-filtered), RGBA half floats in a `pack_binary` message."""
     from ..probes.layouts import LatLong
 
     h = BACKGROUND_H

@@ -1,7 +1,8 @@
 """The viewer's session: what one ``shprobe view`` serves — the files named on the command line
-(read by the forked loader, :mod:`.loader`, or here), the files uploaded through the page
-(:mod:`.uploads`), the lighting source and the probes kept for blending, the mesh and the
-optional PRT transfer, and the page's designs (:mod:`.design`). No HTTP here (:mod:`.app`)."""
+(read by the forked loader, `shprobe.viewer.loader`, or here), the files uploaded through the page
+(`shprobe.viewer.uploads`), the lighting source and the probes kept for blending, the mesh and the
+optional PRT transfer, and the page's designs (`shprobe.viewer.design`). No HTTP here
+(`shprobe.viewer.app`)."""
 
 from __future__ import annotations
 
@@ -30,8 +31,8 @@ __all__ = ["Session", "Task"]
 @dataclass
 class Task:
     """A long library call running off the event loop, and its progress as the page polls
-    it: a :class:`shprobe.progress.Progress` reporter (``done`` is the fraction of the stage
-    under way)."""
+    it: a [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter (``done`` is the
+    fraction of the stage under way)."""
 
     done: float = 0.0
     status: str = "idle"  # idle | running | done | error
@@ -90,7 +91,7 @@ class Session:
             self.load()
 
     def stamp(self, name: str, t: float | None = None, first: bool = False) -> None:
-        """Record stage ``name`` at ``t`` (now) in :attr:`stamps`, when timing is on
+        """Record stage ``name`` at ``t`` (now) in `stamps`, when timing is on
         (``first``: only if not recorded yet)."""
         if self.stamps is not None and not (first and name in self.stamps):
             import time
@@ -102,15 +103,15 @@ class Session:
 
     def fork_loader(self) -> None:
         """Start loading the probe and the mesh named on the command line in a forked
-        process (:func:`shprobe.viewer.loader.fork_loader`; ``shprobe view`` calls it before
-        any thread starts and before the server is imported): :meth:`load` then takes the
+        process (`shprobe.viewer.loader.fork_loader`; ``shprobe view`` calls it before
+        any thread starts and before the server is imported): `load` then takes the
         lmax-2 coefficients and the page's mesh arrays from it (the first frame needs no
-        more); the :class:`Env` (compare, H-basis, lmax > 2), its coefficients at
-        :data:`~shprobe.viewer.source.MAX_LMAX` and the background texture follow in a
+        more); the [`Env`][shprobe.probes.env.Env] (compare, H-basis, lmax > 2), its coefficients at
+        `MAX_LMAX` and the background texture follow in a
         thread. The trimesh object is loaded in this process only when a view needs it
-        (:attr:`mesh`); the Env is sent when a view first needs it (:attr:`Source.env` sets
+        (`mesh`); the Env is sent when a view first needs it (`Source.env` sets
         the loader's ``go``), so that until then the first frame has the cores. Without a
-        fork (not Linux, or nothing to load) :meth:`load` reads the files itself."""
+        fork (not Linux, or nothing to load) `load` reads the files itself."""
         loader = fork_loader(self._args[0], self.layout, self._mesh_arg())
         if loader is not None:
             self.stamp("load_start")
@@ -118,7 +119,7 @@ class Session:
 
     def load(self) -> None:
         """Read the files named on the command line (probe and mesh in parallel, or from the
-        process :meth:`fork_loader` started); sets :attr:`ready`, and :attr:`error` when one
+        process `fork_loader` started); sets `ready`, and `error` when one
         of them is bad (then re-raised)."""
         probe, preset, _, transfer = self._args
         mesh_path = self._mesh_arg()
@@ -174,8 +175,8 @@ class Session:
         self.ready.set()
 
     def _load_forked(self, probe: str | None, mesh_path: str | None) -> None:
-        """:meth:`load`'s probe and mesh from the forked processes
-        (:func:`~shprobe.viewer.loader._load_child`)."""
+        """`load`'s probe and mesh from the forked processes
+        (`_load_child`)."""
         name = os.path.basename(mesh_path) if mesh_path else None
         src: Source | None = None
         try:
@@ -261,17 +262,17 @@ class Session:
 
     # designs ----------------------------------------------------------------
     def design(self, spec: EditSpec) -> Designed:
-        """The page's design of ``spec`` (fast during a drag: :class:`Designer`); exports use
-        :meth:`design_exact`."""
+        """The page's design of ``spec`` (fast during a drag: `Designer`); exports use
+        `design_exact`."""
         return self._designer.design(self.source, self.base, spec, self.blend_coeffs)
 
     def design_exact(self, spec: EditSpec) -> tuple[NDArray[np.float64], str | None]:
         """(L_lm, window description) of ``spec`` by the CLI's exact sequence of operations
-        (:func:`~shprobe.viewer.design.design_coeffs`)."""
+        (`design_coeffs`)."""
         return design_coeffs(self.base(spec.lmax), spec, self.blend_coeffs)
 
     def hbasis(self, spec: EditSpec) -> tuple[bytes, dict[str, float]]:
-        """The H-basis panel (:func:`~shprobe.viewer.views.hbasis_panel`) for ``spec`` at
+        """The H-basis panel (`hbasis_panel`) for ``spec`` at
         lmax 4; with an H-basis bake loaded, its per-vertex coefficients under the lighting
         they were baked for (``spec`` does not apply: a bake holds its lighting)."""
         bk = self.hbasis_bake
@@ -305,9 +306,9 @@ class Session:
         return pid
 
     def _trim_probes(self, keep: Source | None = None) -> None:
-        """A probe that is only a blend source now (not :attr:`source`, not ``keep``) keeps
+        """A probe that is only a blend source now (not `source`, not ``keep``) keeps
         its coefficients at every degree a design can ask for and lets its decoded image go
-        (in a thread: up to :data:`DESIGN_LMAX` + 1 projections), so that uploads do not pile
+        (in a thread: up to `DESIGN_LMAX` + 1 projections), so that uploads do not pile
         up images in memory: at most the source's and the latest upload's are held."""
         current = self._source
         old = [src for _, (_, src) in self._probe_items()
@@ -340,7 +341,7 @@ class Session:
         return blend_lighting(blend, lmax)
 
     def probe_coeffs(self, pid: str, lmax: int) -> NDArray[np.float64]:
-        """A registered probe projected to ``lmax`` (:meth:`Source.coeffs_at`)."""
+        """A registered probe projected to ``lmax`` (`Source.coeffs_at`)."""
         with self.lock:
             hit = self.probes.get(pid)
         if hit is None:
@@ -395,7 +396,7 @@ class Session:
         self.transfer_name = name or os.path.basename(path)
 
     def _read_hbasis(self, path: str, name: str | None = None) -> None:
-        """Read a ``shprobe hbasis bake`` file (:func:`~shprobe.hbasis.bakefile.load_bake`);
+        """Read a ``shprobe hbasis bake`` file (`load_bake`);
         a PRT transfer given instead is named as one."""
         from ..hbasis.bakefile import is_bake, load_bake
 
@@ -444,7 +445,7 @@ class Session:
         return Source(f"{self.hbasis_name} (baked lighting)", L[: (DESIGN_LMAX + 1) ** 2])
 
     def mesh_bytes(self) -> bytes:
-        """The page's mesh (:func:`mesh_payload`), made once per mesh (under the mesh lock: an
+        """The page's mesh (`mesh_payload`), made once per mesh (under the mesh lock: an
         upload meanwhile waits, so the payload cached is always the current mesh's)."""
         with self._mesh_lock:
             if self._mesh_bytes is None:
@@ -473,7 +474,7 @@ class Session:
 
     # pictures ---------------------------------------------------------------
     def background_bytes(self) -> bytes | None:
-        """The source's background texture (:func:`background_payload`), None for a preset."""
+        """The source's background texture (`background_payload`), None for a preset."""
         src = self.source
         env = src.env  # first: a probe still loading brings its background with it
         if src.background is None:

@@ -1,6 +1,6 @@
 """A lighting source of the viewer: its coefficients at the degrees the page asks for, and its
-probe image, which may still be on its way from the loader process (:class:`Source`); the
-sources a session makes (:func:`load_probe` and the others)."""
+probe image, which may still be on its way from the loader process (`Source`); the
+sources a session makes (`load_probe` and the others)."""
 
 from __future__ import annotations
 
@@ -22,11 +22,11 @@ MAX_LMAX = 4
 class Source:
     """A lighting source: its name (as ``shprobe`` commands give it), the probe (None for
     presets) and its coefficients: ``coeffs2`` at lmax 2, the base ``shprobe edit`` starts
-    from, and :attr:`coeffs` at :data:`MAX_LMAX`, projected on first use (projecting to a
+    from, and `coeffs` at `MAX_LMAX`, projected on first use (projecting to a
     higher degree changes the low coefficients in the last bits, so both are kept).
 
-    ``pending=True``: a probe whose :class:`Env` is still on its way from the loader process
-    (the lmax-2 coefficients came first, for the first frame); :attr:`env` waits for it."""
+    ``pending=True``: a probe whose [`Env`][shprobe.probes.env.Env] is still on its way from the
+    loader process (the lmax-2 coefficients came first, for the first frame); `env` waits for it."""
 
     def __init__(self, name: str, coeffs2: NDArray[np.float64], env: Any = None,
                  pending: bool = False) -> None:
@@ -50,7 +50,7 @@ class Source:
     @property
     def env(self) -> Any:
         """The probe (None for presets); waits for one still being loaded; a one-line
-        :class:`ShprobeError` when its loading failed."""
+        [`ShprobeError`][shprobe.errors.ShprobeError] when its loading failed."""
         if not self._arrived.is_set() and self.request is not None:
             self.request()
         self._arrived.wait()
@@ -61,7 +61,7 @@ class Source:
     def arrive(self, env: Any, coeffs: NDArray[np.float64] | None = None,
                background: bytes | None = None, error: str | None = None) -> None:
         """The pending probe (None: its loading failed, ``error`` saying why), its
-        lmax-:data:`MAX_LMAX` coefficients and background texture, from the loader process."""
+        lmax-`MAX_LMAX` coefficients and background texture, from the loader process."""
         with self._lock:
             self._env = env
             self.error = error
@@ -74,7 +74,7 @@ class Source:
 
     @property
     def coeffs(self) -> NDArray[np.float64]:
-        """The coefficients at :data:`MAX_LMAX` (the compare view's)."""
+        """The coefficients at `MAX_LMAX` (the compare view's)."""
         env = self.env
         with self._lock:
             if self._coeffs is None:
@@ -86,8 +86,8 @@ class Source:
             return self._coeffs
 
     def coeffs_at(self, lmax: int) -> NDArray[np.float64]:
-        """The probe projected to exactly ``lmax`` (R&H eq. 10; cached): :attr:`coeffs2` at 2,
-        :attr:`coeffs` at :data:`MAX_LMAX` — as ``shprobe edit --blend FILE:W`` projects a
+        """The probe projected to exactly ``lmax`` (R&H eq. 10; cached): `coeffs2` at 2,
+        `coeffs` at `MAX_LMAX` — as ``shprobe edit --blend FILE:W`` projects a
         blended probe to the edit's degree."""
         if lmax == 2:
             return self.coeffs2
@@ -111,7 +111,7 @@ class Source:
         return c
 
     def keep_coeffs_only(self, lmax: int) -> None:
-        """Project to every degree 0…``lmax`` (cached, :meth:`coeffs_at`), then drop the
+        """Project to every degree 0…``lmax`` (cached, `coeffs_at`), then drop the
         probe image and background: what a blend source needs, without its memory."""
         try:
             for l in range(lmax + 1):
@@ -127,10 +127,11 @@ class Source:
 
 def load_probe(path: str | list[str], layout: str = "auto", name: str | None = None,
                mark: Callable[[str], None] | None = None) -> Source:
-    """A probe — one file, or six cube-face files +X −X +Y −Y +Z −Z — as a :class:`Source`,
-    read by the library's one resolver (:func:`shprobe.lighting.source.resolve_lighting`:
-    decoded, projected to lmax 2) and checked; one-line :class:`ShprobeError` naming the file
-    when it is bad. ``mark`` (a timing hook) is called with 'decoded' once the file is read."""
+    """A probe — one file, or six cube-face files +X −X +Y −Y +Z −Z — as a `Source`,
+    read by the library's one resolver (`shprobe.lighting.source.resolve_lighting`:
+    decoded, projected to lmax 2) and checked; one-line
+    [`ShprobeError`][shprobe.errors.ShprobeError] naming the file when it is bad. ``mark`` (a timing
+    hook) is called with 'decoded' once the file is read."""
     from ..lighting.source import resolve_lighting
 
     lit = resolve_lighting(path, layout=None if layout == "auto" else layout, lmax=2,
@@ -152,7 +153,7 @@ def load_probe(path: str | list[str], layout: str = "auto", name: str | None = N
 
 def coeffs_source(path: str, name: str) -> Source:
     """Coefficients in any format the library reads
-    (:func:`shprobe.lighting.source.resolve_lighting`) as a :class:`Source` named ``name``."""
+    (`shprobe.lighting.source.resolve_lighting`) as a `Source` named ``name``."""
     from ..lighting.source import resolve_lighting
 
     return Source(name, resolve_lighting(coeffs=path, lmax=None).coeffs)
@@ -165,7 +166,7 @@ def preset_source(name: str) -> Source:
 
 
 def env_source(env: Any, name: str) -> Source:
-    """A probe already in memory (the procedural sky) as a :class:`Source`."""
+    """A probe already in memory (the procedural sky) as a `Source`."""
     from ..lighting.projection import project
 
     return Source(name, np.asarray(project(env, 2), np.float64), env)

@@ -1,7 +1,7 @@
 """Files uploaded through the page: kept in a private temporary folder under names the server
 chooses (only a known extension of the user's name is kept; no path from the page is ever
-opened), bounded in size before they are read (:data:`MAX_UPLOAD` on the declared length and
-while streaming; an ``.npz`` by the inflated size of its arrays, :data:`MAX_INFLATED`)."""
+opened), bounded in size before they are read (`MAX_UPLOAD` on the declared length and
+while streaming; an ``.npz`` by the inflated size of its arrays, `MAX_INFLATED`)."""
 
 from __future__ import annotations
 
@@ -57,8 +57,9 @@ class Uploads:
 
     @staticmethod
     def check_npz(path: Path, name: str) -> None:
-        """Refuse an ``.npz`` whose arrays would inflate past :data:`MAX_INFLATED`, from the
-        headers of its members (:func:`shprobe.files.npz_headers`; nothing is inflated)."""
+        """Refuse an ``.npz`` whose arrays would inflate past `MAX_INFLATED`, from the
+        headers of its members ([`shprobe.files.npz_headers`][shprobe.files.npz_headers]; nothing is
+        inflated)."""
         import numpy as np
 
         from ..files import npz_headers
@@ -74,7 +75,7 @@ class Uploads:
                                f"{_mib(MAX_INFLATED)} an upload may hold")
 
     def split(self, path: Path, most: int = 6) -> tuple[list[str], list[str]]:
-        """The files of a multi-file upload (:func:`~shprobe.viewer.wire.unpack_files`) at
+        """The files of a multi-file upload (`unpack_files`) at
         ``path``, each stored as a probe upload; → (paths, shown names) in the page's order."""
         size = path.stat().st_size
         paths, names = [], []
@@ -94,7 +95,7 @@ class Uploads:
 
 
 class _Limited:
-    """The next ``n`` bytes of a file, for :func:`shutil.copyfileobj`."""
+    """The next ``n`` bytes of a file, for `shutil.copyfileobj`."""
 
     def __init__(self, f, n: int) -> None:
         self.f, self.left = f, n

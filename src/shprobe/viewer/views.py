@@ -1,6 +1,6 @@
 """The viewer's computed views, all from the library: the compare view (brute-force and SH
-irradiance, R&H's error per degree: :func:`compare_data`) and the H-basis normal-mapping panel
-(:func:`hbasis_panel`)."""
+irradiance, R&H's error per degree: `compare_data`) and the H-basis normal-mapping panel
+(`hbasis_panel`)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def compare_data(src: Source, progress: Progress | None = None) -> dict[str, Any
     """The compare view's numbers and lookup textures, all from the library: the brute-force
     irradiance (``reference_irradiance``) and the SH irradiance of every lmax 1..N
     (``irradiance``) on the normals of ``error_report`` (a (2N)×N lat-long grid, N =
-    :data:`NORMAL_GRID`), and R&H's error metric per lmax (``error_report``, §3.1)."""
+    `NORMAL_GRID`), and R&H's error metric per lmax (``error_report``, §3.1)."""
     from ..lighting.irradiance import irradiance
     from ..lighting.projection import total_intensity
     from ..lighting.reference import error_report, reference_irradiance
@@ -66,9 +66,9 @@ def hbasis_panel(L: NDArray[np.float64], env: Any, rotation: NDArray[np.float64]
     (box-filtered to 64×128 and turned by ``rotation``; the other edits are not applied to
     it) or, without a probe, the lighting's own SH expansion.
 
-    → (one :func:`~shprobe.viewer.wire.pack_binary` message, relative RMS per basis). The
+    → (one `pack_binary` message, relative RMS per basis). The
     message holds each panel as linear E/π (H, W, 3) float32 (``reference``, ``H6``, ``H4``,
-    ``SH9``), the exposure that shows them (:func:`~shprobe.probes.tonemap.auto_exposure` of
+    ``SH9``), the exposure that shows them (`auto_exposure` of
     the reference), and each basis's error map ``err_<basis>`` (H, W): |E_basis − E_ref| as a
     fraction of ∫L dω, the largest over R, G, B — the compare view's metric (R&H §3.1, the
     unit of ``shprobe error``) — with its maximum and the mask of hit pixels."""

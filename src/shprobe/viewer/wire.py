@@ -1,5 +1,5 @@
-"""The viewer's wire format: the binary messages the page reads (:func:`pack_binary`), the
-several files of one upload (:func:`unpack_files`) and the camera as the page needs it."""
+"""The viewer's wire format: the binary messages the page reads (`pack_binary`), the
+several files of one upload (`unpack_files`) and the camera as the page needs it."""
 
 from __future__ import annotations
 
@@ -59,7 +59,8 @@ def unpack_files(f: BinaryIO, size: int, most: int = 6) -> list[tuple[str, int, 
 
 
 def camera_json(cam: Any, center: NDArray, radius: float) -> dict[str, Any]:
-    """The library camera (:class:`shprobe.scene.render.Camera`) as the page needs it."""
+    """The library camera ([`shprobe.scene.render.Camera`][shprobe.scene.Camera]) as the page needs
+    it."""
     c, d, _ = cam.framing(center, radius)
     fwd, _, up = cam.basis()
     eye = c - d * fwd

@@ -11,8 +11,9 @@ Lat-long (equirectangular), image W × H with W = 2H (``latlong``)
     Row 0 = +Y, u = 0 (and 1) → +Z, u = 0.25 → −X, u = 0.5 → −Z, u = 0.75 → +X (the convention
     of Debevec's lat-long probes and ``shared/probes``). Exact pixel solid angle, the same in a
     row: (2π/W)(cos θ_top − cos θ_bottom). Row and column helpers for separable sums:
-    :meth:`LatLong.row_cos_theta`, :meth:`LatLong.row_solid_angle`,
-    :meth:`LatLong.column_azimuth`.
+    [`LatLong.row_cos_theta`][shprobe.probes.layouts.LatLong.row_cos_theta],
+    [`LatLong.row_solid_angle`][shprobe.probes.layouts.LatLong.row_solid_angle],
+    [`LatLong.column_azimuth`][shprobe.probes.layouts.LatLong.column_azimuth].
 
 Angular map (Debevec light probe; R&H 2001 Fig. 3 caption), square N × N (``angular``)
     Normalised image coordinates a = 2u − 1 (right = +), b = 1 − 2v (up = +), r = √(a²+b²),
@@ -50,12 +51,15 @@ A(a, b) = atan2(ab, √(a² + b² + 1)): Ω = A(a0,b0) − A(a0,b1) − A(a1,b0)
 Files: horizontal cross 4:3 (row 1: −X +Z +X −Z, +Y above and −Y below +Z), vertical cross
 3:4 (+Y, then −X +Z +X, then −Y, then −Z turned by 180°), strips 6:1 and 1:6 in face order.
 
-Auto-detection (:func:`detect_layout`): 2:1 → latlong, square → angular, 4:3 / 3:4 → cube
-cross, 6:1 / 1:6 → cube strip; the mirror ball only when asked for.
+Auto-detection ([`detect_layout`][shprobe.probes.layouts.detect_layout]): 2:1 → latlong, square →
+angular, 4:3 / 3:4 → cube cross, 6:1 / 1:6 → cube strip; the mirror ball only when asked for.
 
-The modules: :mod:`.base` (the ``Layout`` interface), :mod:`.latlong`, :mod:`.disc` (angular
-map, mirror ball), :mod:`.cube`; this module holds the registry (:func:`get_layout`,
-:func:`detect_layout`). Images in a layout are :class:`shprobe.probes.env.Env`.
+The modules: `shprobe.probes.layouts.base` (the ``Layout`` interface),
+`shprobe.probes.layouts.latlong`, `shprobe.probes.layouts.disc` (angular map, mirror ball),
+`shprobe.probes.layouts.cube`; this module holds the registry
+([`get_layout`][shprobe.probes.layouts.get_layout],
+[`detect_layout`][shprobe.probes.layouts.detect_layout]). Images in a layout are
+[`shprobe.probes.env.Env`][shprobe.probes.env.Env].
 """
 
 from __future__ import annotations
@@ -77,7 +81,18 @@ LAYOUTS: dict[str, Layout] = {
 
 
 def get_layout(name: str | Layout) -> Layout:
-    """The layout object of a name (or the object itself)."""
+    """The layout object of a name (or the object itself).
+
+    Parameters
+    ----------
+    name
+        A layout's name ('latlong', 'angular', 'mirrorball', 'cube') or a Layout.
+
+    Returns
+    -------
+    Layout
+        The layout object.
+    """
     if isinstance(name, Layout):
         return name
     key = str(name).lower().replace("-", "").replace("_", "")
@@ -92,7 +107,20 @@ def get_layout(name: str | Layout) -> Layout:
 
 def detect_layout(image_shape: Sequence[int], path: str | os.PathLike[str] | None = None) -> str:
     """Layout name from an image shape (H, W[, C]): 2:1 → latlong, square → angular,
-    4:3 / 3:4 / 6:1 / 1:6 → cube."""
+    4:3 / 3:4 / 6:1 / 1:6 → cube.
+
+    Parameters
+    ----------
+    image_shape
+        (H, W[, C]).
+    path
+        The file, named in the error when no layout fits.
+
+    Returns
+    -------
+    str
+        The layout's name.
+    """
     h, w = int(image_shape[0]), int(image_shape[1])
     if h <= 0 or w <= 0:
         raise ShprobeError("image has zero size", path)

@@ -1,4 +1,4 @@
-"""numba kernel of :mod:`shprobe.probes.layouts`: the disc layouts' pixel tables (imported lazily).
+"""numba kernel of `shprobe.probes.layouts`: the disc layouts' pixel tables (imported lazily).
 
 The solid angles and directions of an n × n disc image, computed on one quadrant (rows and
 columns ``< (n+1)//2``: a ≤ 0, b ≥ 0) and mirrored (the tables are symmetric in a and in b).
@@ -97,7 +97,7 @@ def disc_tables(kind, n, omega_exact, tq, wq, t16, w16, t6, w6):
     """(solid angles (n, n), directions (n, n, 3)) of a disc layout.
 
     Interior pixels: tensor Gauss (``tq``, ``wq`` on [0, 1]) of the Jacobian, unless
-    ``omega_exact`` (n × n) is given; rim pixels: :func:`_rim` with 16 nodes; rim pixels whose
+    ``omega_exact`` (n × n) is given; rim pixels: `_rim` with 16 nodes; rim pixels whose
     centre is outside the disc look along their mean direction (6 nodes). Pixels outside the
     disc: 0 and (0, 0, 0).
     """

@@ -22,35 +22,118 @@ class Layout:
     name: str = ""
 
     def grid_shape(self, size: int | tuple[int, int]) -> tuple[int, ...]:
-        """Grid for a size argument (see each layout)."""
+        """Grid for a size argument (see each layout).
+
+        Parameters
+        ----------
+        size
+            The layout's size argument.
+
+        Returns
+        -------
+        tuple of int
+            The grid's shape.
+        """
         raise NotImplementedError
 
     def check_grid(self, grid_shape: Sequence[int], path: str | os.PathLike[str] | None = None
                    ) -> tuple[int, ...]:
-        """Validate a grid shape for this layout (wrong aspect → ShprobeError)."""
+        """Validate a grid shape for this layout (wrong aspect → ShprobeError).
+
+        Parameters
+        ----------
+        grid_shape
+            A grid shape.
+        path
+            The file, named in the error.
+
+        Returns
+        -------
+        tuple of int
+            The shape, checked.
+        """
         raise NotImplementedError
 
     def pixel_directions(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
         """Unit vectors of the pixel centres, ``(*grid, 3)`` (zero vectors where invalid).
-        Disc layouts return a cached read-only array: copy before writing."""
+        Disc layouts return a cached read-only array: copy before writing.
+
+        Parameters
+        ----------
+        grid_shape
+            The grid's shape.
+
+        Returns
+        -------
+        ndarray of shape (*grid, 3)
+            The pixel centres' directions.
+        """
         raise NotImplementedError
 
     def solid_angles(self, grid_shape: Sequence[int]) -> NDArray[np.float64]:
         """Exact solid angle of each pixel, ``(*grid,)``; 0 where invalid; sums to 4π.
-        Disc layouts return a cached read-only array: copy before writing."""
+        Disc layouts return a cached read-only array: copy before writing.
+
+        Parameters
+        ----------
+        grid_shape
+            The grid's shape.
+
+        Returns
+        -------
+        ndarray of shape (*grid,)
+            Each pixel's solid angle.
+        """
         raise NotImplementedError
 
     def valid_mask(self, grid_shape: Sequence[int]) -> NDArray[np.bool_]:
-        """Pixels that see some direction (solid angle > 0)."""
+        """Pixels that see some direction (solid angle > 0).
+
+        Parameters
+        ----------
+        grid_shape
+            The grid's shape.
+
+        Returns
+        -------
+        ndarray of bool, shape (*grid,)
+            The pixels that see a direction.
+        """
         return self.solid_angles(grid_shape) > 0
 
     def direction_to_pixel(self, dirs: ArrayLike, grid_shape: Sequence[int]) -> NDArray:
         """Continuous pixel coordinates (x = column, y = row; pixel (i, j) centre at
-        (i+0.5, j+0.5)) of directions ``(..., 3)`` → ``(..., 2)``; cube maps: (face, x, y)."""
+        (i+0.5, j+0.5)) of directions ``(..., 3)`` → ``(..., 2)``; cube maps: (face, x, y).
+
+        Parameters
+        ----------
+        dirs
+            (..., 3) directions.
+        grid_shape
+            The grid's shape.
+
+        Returns
+        -------
+        ndarray of shape (..., 2) or (..., 3)
+            Continuous pixel coordinates (cube maps: face, x, y).
+        """
         raise NotImplementedError
 
     def sample(self, radiance: ArrayLike, dirs: ArrayLike) -> NDArray[np.float32]:
-        """Bilinear lookup of a map ``(*grid, C)`` in directions ``(..., 3)`` → ``(..., C)``."""
+        """Bilinear lookup of a map ``(*grid, C)`` in directions ``(..., 3)`` → ``(..., C)``.
+
+        Parameters
+        ----------
+        radiance
+            (*grid, C) map.
+        dirs
+            (..., 3) directions.
+
+        Returns
+        -------
+        ndarray of shape (..., C), float32
+            The bilinear lookups.
+        """
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -58,8 +141,8 @@ class Layout:
 
 
 def unit(dirs: ArrayLike) -> NDArray[np.float64]:
-    """Directions as unit vectors (zero vectors stay zero): :func:`shprobe.sh.rotation.
-    unit_vectors`, the one normalisation."""
+    """Directions as unit vectors (zero vectors stay zero): `shprobe.sh.rotation.unit_vectors`, the
+    one normalisation."""
     from ...sh.rotation import unit_vectors
 
     return unit_vectors(dirs, "directions", zero="keep")

@@ -1,5 +1,5 @@
 """The cube-map layout: six faces (OpenGL / DirectX orientation), exact texel solid angles, and
-the file arrangements (crosses and strips). Conventions: :mod:`shprobe.probes.layouts`."""
+the file arrangements (crosses and strips). Conventions: `shprobe.probes.layouts`."""
 
 from __future__ import annotations
 
@@ -38,7 +38,20 @@ CUBE_ARRANGEMENTS: dict[str, tuple[tuple[int, int], tuple[tuple[int, int, bool],
 
 def cube_arrangement(image_shape: Sequence[int], path=None) -> str:
     """Which cube arrangement an (H, W) image is: hcross 4:3, vcross 3:4, hstrip 6:1,
-    vstrip 1:6."""
+    vstrip 1:6.
+
+    Parameters
+    ----------
+    image_shape
+        (H, W[, C]).
+    path
+        The file, named in the error.
+
+    Returns
+    -------
+    str
+        'hcross', 'vcross', 'hstrip' or 'vstrip'.
+    """
     h, w = int(image_shape[0]), int(image_shape[1])
     if h <= 0 or w <= 0:
         raise ShprobeError("image has zero size", path)
@@ -121,7 +134,20 @@ class Cube(Layout):
 
     # files ------------------------------------------------------------------
     def image_to_grid(self, img: NDArray[np.float32], path=None) -> NDArray[np.float32]:
-        """Cut a cross or strip image (H, W, C) into faces (6, N, N, C)."""
+        """Cut a cross or strip image (H, W, C) into faces (6, N, N, C).
+
+        Parameters
+        ----------
+        img
+            (H, W, C) cross or strip.
+        path
+            The file, named in errors.
+
+        Returns
+        -------
+        ndarray of shape (6, N, N, C)
+            The faces.
+        """
         name = cube_arrangement(img.shape, path)
         (fw, _), pos = CUBE_ARRANGEMENTS[name]
         n = img.shape[1] // fw
@@ -132,7 +158,20 @@ class Cube(Layout):
         return faces
 
     def grid_to_image(self, faces: ArrayLike, arrangement: str = "hcross") -> NDArray[np.float32]:
-        """Lay faces (6, N, N, C) out as ``arrangement`` (unused areas black)."""
+        """Lay faces (6, N, N, C) out as ``arrangement`` (unused areas black).
+
+        Parameters
+        ----------
+        faces
+            (6, N, N, C) faces.
+        arrangement
+            'hcross', 'vcross', 'hstrip' or 'vstrip'.
+
+        Returns
+        -------
+        ndarray
+            The laid-out image.
+        """
         faces = np.asarray(faces, dtype=np.float32)
         if arrangement not in CUBE_ARRANGEMENTS:
             raise ShprobeError(f"unknown cube arrangement {arrangement!r}; choose one of "

@@ -1,6 +1,6 @@
 """The disc layouts: the angular map (Debevec light probe) and the mirror ball, with exact pixel
 solid angles (Gauss quadrature; the mirror ball in closed form). Conventions:
-:mod:`shprobe.probes.layouts`."""
+`shprobe.probes.layouts`."""
 
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def _disc_tables(layout: _Disc, n: int) -> tuple[NDArray[np.float64], NDArray[np
     grows) and, for pixels cut by the rim, a quadrature clipped to the disc. Directions are
     the pixel centres', except rim pixels whose centre lies outside the disc, which look along
     their mean direction. Pixels outside the disc: 0 and (0, 0, 0). One quadrant is computed
-    and mirrored (numba, :func:`shprobe.probes.layouts._kernels.disc_tables`).
+    and mirrored (numba, `shprobe.probes.layouts._kernels.disc_tables`).
     """
     from ._kernels import disc_tables  # numba, imported lazily
 

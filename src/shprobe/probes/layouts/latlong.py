@@ -1,5 +1,5 @@
 """The lat-long (equirectangular) layout: exact per-row solid angles, separable row and column
-helpers (conventions: :mod:`shprobe.probes.layouts`)."""
+helpers (conventions: `shprobe.probes.layouts`)."""
 
 from __future__ import annotations
 
@@ -35,35 +35,101 @@ class LatLong(Layout):
     # separable structure ----------------------------------------------------
     @staticmethod
     def row_theta(h: int) -> NDArray[np.float64]:
-        """Polar angle θ (from +Y) of each row centre, ``(H,)``: π (j + 0.5) / H."""
+        """Polar angle θ (from +Y) of each row centre, ``(H,)``: π (j + 0.5) / H.
+
+        Parameters
+        ----------
+        h
+            Rows.
+
+        Returns
+        -------
+        ndarray of shape (H,)
+            θ of each row centre.
+        """
         return np.pi * (np.arange(h) + 0.5) / h
 
     @staticmethod
     def row_cos_theta(h: int) -> NDArray[np.float64]:
-        """cos θ = ω_y of each row centre, ``(H,)``."""
+        """cos θ = ω_y of each row centre, ``(H,)``.
+
+        Parameters
+        ----------
+        h
+            Rows.
+
+        Returns
+        -------
+        ndarray of shape (H,)
+            cos θ of each row centre.
+        """
         return np.cos(LatLong.row_theta(h))
 
     @staticmethod
     def row_sin_theta(h: int) -> NDArray[np.float64]:
-        """sin θ of each row centre, ``(H,)``."""
+        """sin θ of each row centre, ``(H,)``.
+
+        Parameters
+        ----------
+        h
+            Rows.
+
+        Returns
+        -------
+        ndarray of shape (H,)
+            sin θ of each row centre.
+        """
         return np.sin(LatLong.row_theta(h))
 
     @staticmethod
     def row_solid_angle(h: int, w: int) -> NDArray[np.float64]:
         """Exact solid angle of ONE pixel in each row, ``(H,)``:
-        (2π/W)(cos θ_top − cos θ_bottom), θ_top = π j/H. Sums (× W) to 4π."""
+        (2π/W)(cos θ_top − cos θ_bottom), θ_top = π j/H. Sums (× W) to 4π.
+
+        Parameters
+        ----------
+        h, w
+            Rows and columns.
+
+        Returns
+        -------
+        ndarray of shape (H,)
+            One pixel's solid angle in each row.
+        """
         edges = np.cos(np.pi * np.arange(h + 1) / h)
         return (2.0 * np.pi / w) * (edges[:-1] - edges[1:])
 
     @staticmethod
     def column_azimuth(w: int) -> NDArray[np.float64]:
         """Azimuth ψ = 2π u of each column centre, ``(W,)``; ω = (−sin ψ sin θ, cos θ,
-        cos ψ sin θ)."""
+        cos ψ sin θ).
+
+        Parameters
+        ----------
+        w
+            Columns.
+
+        Returns
+        -------
+        ndarray of shape (W,)
+            ψ of each column centre.
+        """
         return 2.0 * np.pi * (np.arange(w) + 0.5) / w
 
     @staticmethod
     def column_xz(w: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(ω_x, ω_z) / sin θ of each column centre: (−sin ψ, cos ψ), each ``(W,)``."""
+        """(ω_x, ω_z) / sin θ of each column centre: (−sin ψ, cos ψ), each ``(W,)``.
+
+        Parameters
+        ----------
+        w
+            Columns.
+
+        Returns
+        -------
+        tuple of ndarray, each (W,)
+            −sin ψ and cos ψ.
+        """
         psi = LatLong.column_azimuth(w)
         return -np.sin(psi), np.cos(psi)
 
