@@ -21,7 +21,7 @@ from .loader import fork_loader, mesh_to_load
 from .payloads import background_payload, ground_mask, mesh_payload, view_cameras
 from .source import Source, env_source, load_probe, preset_source
 from .uploads import Uploads
-from .views import hbasis_panel
+from .views import hbasis_panel, is_rotation_only
 from .wire import pack_binary
 
 __all__ = ["Session", "Task"]
@@ -281,8 +281,11 @@ class Session:
                 hit = self._hbasis_made = (bk, hbasis_panel(bk.lighting, None, np.eye(3),
                                                             self.mesh, baked=bk))
             return hit[1]
-        L, _ = self.design_exact(spec.with_lmax(4))
-        return hbasis_panel(L, self.source.env, spec.rotation_matrix(), self.mesh)
+        spec4 = spec.with_lmax(4)
+        L, _ = self.design_exact(spec4)
+        # the probe itself (turned) where the design is the probe turned; else the edited SH
+        env = self.source.env if is_rotation_only(spec4) else None
+        return hbasis_panel(L, env, spec.rotation_matrix(), self.mesh)
 
     @property
     def source(self) -> Source:

@@ -495,7 +495,7 @@ async function updateHBasis() {  // the library's render (server), after each se
       hbLast = r;
       $('hblabel').innerHTML = r.head.baked
         ? `H-basis bake <code>${api.init.hbasis ? api.init.hbasis.name : ''}</code> (<code>shprobe hbasis bake</code>): its per-vertex coefficients under the lighting they were baked for (edits do not apply: bake again), as <code>shprobe hbasis render MESH FILE.npz</code>; E/π of a white surface with a procedural bump`
-        : 'Irradiance normal mapping (Habel &amp; Wimmer 2010, as <code>shprobe hbasis render</code>): E/π of a white surface with a procedural bump, per-vertex bases baked from the current lighting (lmax 4, edits and rotation applied) against the exact E(n′); recomputed by the library after each edit';
+        : `Irradiance normal mapping (Habel &amp; Wimmer 2010, as <code>shprobe hbasis render</code>): E/π of a white surface with a procedural bump, per-vertex bases baked from the current lighting (lmax 4, edits and rotation applied) against ${r.head.reference === 'brute force over the probe' ? 'the exact E(n′), brute force over the probe (turned)' : 'E(n′) of the edited lighting\'s SH expansion'}; recomputed by the library after each edit`;
       api.hbasisErrMax = drawHBasis(r, Number($('exposure').value));
       api.hbasis = r.head.rel_rms; api.hbasisHead = r.head;
       setStatus('');
