@@ -28,8 +28,8 @@ from ..errors import ShprobeError
 from ..grids import ProbeGrid, load_grid
 from .wire import pack_binary
 
-__all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "GridView", "Placement", "load_grid_view",
-           "parse_placement"]
+__all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "PAGE_MAX", "GridView", "Placement", "check_viewable",
+           "load_grid_view", "parse_placement"]
 
 #: most probes the page draws (each a sphere of ~100 vertices)
 MAX_VIEW_PROBES = 16384
@@ -85,6 +85,52 @@ def parse_placement(body: Any, grid: ProbeGrid) -> Placement:
     return Placement(p, float(size), leak)
 
 
+#: largest magnitude of a position or coefficient the page is sent: it draws in 32-bit floats
+#: (about ±3.4e38), and sums of a few products of them must stay finite
+PAGE_MAX = 1e30
+
+
+def check_viewable(grid: ProbeGrid, name: str) -> None:
+    """Refuse, in one line naming the file, a grid the page cannot draw or shade: a depth
+    array that is not (NX, NY, NZ, D, D, 2), a ``normal_bias`` that is not a number in
+    [0, 0.5], bounds or coefficients beyond :data:`PAGE_MAX` (non-finite once sent as the
+    page's 32-bit floats).
+
+    Parameters
+    ----------
+    grid : ProbeGrid
+        The grid as read by ``load_grid``.
+    name : str
+        The file's name, for the message.
+
+    Raises
+    ------
+    ShprobeError
+        When the grid cannot be shown.
+    """
+    d = grid.depth
+    if d is not None:
+        shape = np.shape(d)
+        if len(shape) != 6 or shape[3] != shape[4] or shape[3] < 2 or shape[5] != 2:
+            raise ShprobeError(f"grid depth has shape {tuple(shape)}, not (NX, NY, NZ, D, D, 2) "
+                               "(mean and mean-square distance per octahedral texel)", name)
+    bias = grid.meta.get("normal_bias")
+    if bias is not None and (isinstance(bias, bool) or not isinstance(bias, int | float)
+                             or not 0.0 <= float(bias) <= 0.5):
+        shown = repr(bias)[:40]
+        raise ShprobeError(f"grid meta normal_bias must be a number in [0, 0.5], got {shown}",
+                           name)
+    lo, hi = grid.bounds
+    if np.max(np.abs(grid.bounds)) > PAGE_MAX or not np.all(np.isfinite(hi - lo)):
+        raise ShprobeError(f"grid bounds beyond ±{PAGE_MAX:g} cannot be drawn (the page "
+                           "draws in 32-bit floats)", name)
+    for what, a in (("coefficients", grid.coeffs), ("positions", grid.positions)):
+        if a is not None and (not np.all(np.isfinite(a))
+                              or float(np.max(np.abs(a), initial=0.0)) > PAGE_MAX):
+            raise ShprobeError(f"grid {what} beyond ±{PAGE_MAX:g} cannot be shown (the page "
+                               "draws in 32-bit floats)", name)
+
+
 class GridView:
     """Everything one ``shprobe view --grid`` serves: the grid, the object moved through it
     (``obj`` a trimesh mesh, None: the unit sphere) and the scene it was baked from (None:
@@ -98,6 +144,7 @@ class GridView:
         if n > MAX_VIEW_PROBES:
             raise ShprobeError(f"the grid has {n} probes; the viewer draws at most "
                                f"{MAX_VIEW_PROBES}", name)
+        check_viewable(grid, name)
         self.grid, self.name = grid, name
         m = obj if obj is not None else sphere_mesh(4)
         if len(m.vertices) > MAX_OBJECT_VERTICES:
@@ -257,8 +304,11 @@ def _json_safe(meta: dict[str, Any]) -> dict[str, Any]:
     """The grid's bake settings as the page shows them (scalars and short lists only)."""
     out: dict[str, Any] = {}
     for k, v in meta.items():
+        if isinstance(v, float) and not np.isfinite(v):
+            continue  # JSON has no NaN or ∞
         if isinstance(v, str | int | float | bool) or v is None:
             out[str(k)] = v if not isinstance(v, str) else v[:200]
         elif isinstance(v, list | tuple) and len(v) <= 16:
-            out[str(k)] = [x for x in v if isinstance(x, str | int | float | bool)]
+            out[str(k)] = [x for x in v if isinstance(x, str | int | bool)
+                           or (isinstance(x, float) and np.isfinite(x))]
     return out

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import threading
 from collections.abc import Awaitable, Callable
 from pathlib import Path
@@ -392,8 +393,10 @@ class Handlers:
     @api
     async def transfer(self, req: Request) -> Response:
         mode = req.query_params.get("mode") or None
+        if mode is not None and not re.fullmatch(r"[a-z]{1,20}", mode):
+            raise Refused(f"mode must be a PRT mode name, got {mode[:20]!r}")
         b = req.query_params.get("bounces")
-        if b not in (None, "") and not (b.isdigit() and len(b) <= 4):
+        if b not in (None, "") and not re.fullmatch(r"[0-9]{1,4}", b):  # ASCII: not "①"
             raise Refused(f"bounces must be a small integer, got {b[:20]!r}")
         bounces = None if b in (None, "") else int(b)
         data = await to_thread.run_sync(self.session.transfer_bytes, mode, bounces)
