@@ -33,8 +33,9 @@ def read_state(doc: Any) -> EditSpec:
     """The page's edit state (parsed JSON) as a spec, checked once: one-line
     :class:`~shprobe.errors.ShprobeError` on anything malformed
     (:meth:`EditSpec.from_json`, degrees up to :data:`DESIGN_LMAX`)."""
+    spec = EditSpec.from_json(doc, max_lmax=DESIGN_LMAX)  # unknown keys, ranges: first
     _no_text_numbers(doc)
-    return EditSpec.from_json(doc, max_lmax=DESIGN_LMAX)
+    return spec
 
 
 #: where the edit-state JSON holds text: the window, a blend's preset or probe, an "l,m" to

@@ -38,6 +38,8 @@ MAX_OBJECT_VERTICES = 1 << 20
 #: largest shading request body (bytes): a position, a size and a flag
 MAX_SHADE = 4096
 _log = logging.getLogger("shprobe.viewer")
+#: the object's vertices lit at each place :meth:`GridView.leak_spot` tries (thinned to this)
+_SPOT_VERTICES = 96
 #: normals over which the brightest probe irradiance is found (the page's default exposure)
 _EXPOSURE_NORMALS = 512
 
@@ -158,15 +160,68 @@ class GridView:
         self.faces = np.asarray(m.faces)
         self.obj_name, self.scene, self.scene_name = obj_name, scene, scene_name
         self._payload: bytes | None = None
+        self._defaults: dict[str, Any] | None = None
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ what the page draws
     def defaults(self) -> dict[str, Any]:
-        """The object's first placement: the volume's centre, radius half the smallest
-        cell."""
+        """The object's first placement, radius half the smallest cell: on a grid with depth
+        data, where leak control changes its lighting most (:meth:`leak_spot`: the first view
+        shows what the toggle does), else the volume's centre.
+
+        Returns
+        -------
+        dict
+            ``position`` (3 numbers), ``size`` and ``leak_control``, as the shading request
+            takes them.
+        """
+        if self._defaults is None:
+            lo, hi = self.grid.bounds
+            size = 0.5 * float(np.min(self.grid.spacing))
+            pos = 0.5 * (lo + hi) if self.grid.depth is None else self.leak_spot(size)
+            self._defaults = {"position": [float(x) for x in pos], "size": size,
+                              "leak_control": True}
+        return dict(self._defaults)
+
+    def leak_spot(self, size: float, per_axis: int = 8) -> NDArray[np.float64]:
+        """Where an object of radius ``size`` is lit most differently with leak control on
+        and off: over a lattice of ``per_axis``³ places inside the volume (the object kept
+        inside it), the largest mean |E_on − E_off| (summed over R, G, B) over its vertices
+        (at most about :data:`_SPOT_VERTICES` of them), E from :meth:`ProbeGrid.irradiance`,
+        among the places where both settings light it at least a tenth as brightly as the
+        brightest place: inside a closed room lit from outside, where leak control gives
+        black and plain trilinear a dim leak, the difference cannot be seen.
+
+        Parameters
+        ----------
+        size : float
+            The object's radius.
+        per_axis : int
+            Lattice places along each axis.
+
+        Returns
+        -------
+        ndarray (3,)
+            The chosen centre.
+        """
         lo, hi = self.grid.bounds
-        return {"position": (0.5 * (lo + hi)).tolist(),
-                "size": 0.5 * float(np.min(self.grid.spacing)), "leak_control": True}
+        m = np.minimum(size, 0.49 * (hi - lo))  # the object inside the volume
+        t = (np.arange(per_axis) + 0.5) / per_axis
+        axes = [lo[a] + m[a] + t * (hi[a] - lo[a] - 2 * m[a]) for a in range(3)]
+        c = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 1, 3)
+        step = max(1, len(self.local) // _SPOT_VERTICES)  # the object's own vertices, thinned
+        loc, d = self.local[::step], self.normals[::step]
+        pts = (c + size * loc).reshape(-1, 3)
+        nrm = np.broadcast_to(d, (len(c), *d.shape)).reshape(-1, 3)
+        on = self.grid.irradiance(pts, nrm, leak_control=True)
+        off = self.grid.irradiance(pts, nrm, leak_control=False)
+        on_m = on.sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        off_m = off.sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        score = np.abs(on - off).sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        # both lit enough to be seen: a closed room that leaks a little light with leak
+        # control off is still black on the screen (a tenth of the brightest place at least)
+        seen = np.minimum(on_m, off_m) >= 0.1 * float(np.max(np.maximum(on_m, off_m)))
+        return c[int(np.argmax(np.where(seen, score, -1.0) if seen.any() else score)), 0]
 
     def probe_irradiance_coeffs(self) -> NDArray[np.float64]:
         """E_lm = Â_l L_lm (N, K, 3) of every probe (flat index (ix·NY + iy)·NZ + iz, as
@@ -231,6 +286,15 @@ class GridView:
                                  leak_control=placement.leak_control)
         return e, placement.leak_control and self.grid.depth is not None
 
+    def other_mean(self, placement: Placement) -> NDArray[np.float64] | None:
+        """The object's mean irradiance (3,) with the other leak-control setting (None
+        without depth data: both are plain trilinear), so that the page shows both."""
+        if self.grid.depth is None:
+            return None
+        e = self.grid.irradiance(placement.place(self.local), self.normals,
+                                 leak_control=not placement.leak_control)
+        return e.mean(axis=0)
+
     # ------------------------------------------------------------------ HTTP
     def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:
         """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint."""
@@ -264,6 +328,8 @@ class GridView:
                                    self.grid)
             t = time.perf_counter()
             e, leak = await to_thread.run_sync(self.shade, spec)
+            ms = 1e3 * (time.perf_counter() - t)
+            other = await to_thread.run_sync(self.other_mean, spec)
         except ClientDisconnect:
             return Response(status_code=400)
         except ShprobeError as err:
@@ -272,10 +338,13 @@ class GridView:
             line = str(err).splitlines()[0] if str(err) else type(err).__name__
             _log.error("POST /api/grid/shade: %s: %s", type(err).__name__, line)
             return JSONResponse({"error": line}, 500)
-        ms = 1e3 * (time.perf_counter() - t)
-        return Response(pack_binary({"leak_control": leak, "mean": e.mean(axis=0).tolist(),
-                                     "ms": ms}, {"irradiance": e}),
-                        media_type="application/octet-stream")
+        head = {"leak_control": leak, "mean": e.mean(axis=0).tolist(), "ms": ms,
+                "mean_other": None if other is None else other.tolist()}
+        try:
+            data = pack_binary(head, {"irradiance": e})
+        except ShprobeError as err:
+            return JSONResponse({"error": str(err).splitlines()[0]}, 400)
+        return Response(data, media_type="application/octet-stream")
 
 
 def load_grid_view(grid_path: str, mesh_path: str | None = None,
