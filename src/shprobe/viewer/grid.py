@@ -26,6 +26,7 @@ from starlette.routing import Route
 
 from ..errors import ShprobeError
 from ..grids import ProbeGrid, load_grid
+from .web import csp_of, page_response, read_json, static_dir
 from .wire import pack_binary
 
 __all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "PAGE_MAX", "GridView", "Placement", "check_viewable",
@@ -296,11 +297,19 @@ class GridView:
         return e.mean(axis=0)
 
     # ------------------------------------------------------------------ HTTP
-    def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:
-        """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint."""
-        from .app import static_dir
-        from .handlers import page_response
+    def routes(self, token: str, cookie: str) -> list[Route]:
+        """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint.
 
+        Parameters
+        ----------
+        token, cookie : str
+            The server's token and the name of its cookie.
+
+        Returns
+        -------
+        list of Route
+            The page's routes (the app adds the static files).
+        """
         html = (static_dir() / "grid.html").read_text()
         csp = csp_of(html)
 
@@ -320,8 +329,6 @@ class GridView:
     async def _shade(self, req: Request) -> Response:
         from anyio import to_thread
         from starlette.requests import ClientDisconnect
-
-        from .handlers import read_json
 
         try:
             spec = parse_placement(await read_json(req, MAX_SHADE, "shading request"),

@@ -116,6 +116,25 @@ class Session:
             self.stamp("load_start")
             self._child, self._go = loader
 
+    def start(self) -> None:
+        """Start reading the files named on the command line: the forked loader
+        (:meth:`fork_loader`), then :meth:`load` in a thread; :meth:`wait` waits for it."""
+        self.fork_loader()  # before any thread starts
+        threading.Thread(target=self._load_quietly, daemon=True).start()
+
+    def _load_quietly(self) -> None:
+        try:
+            self.load()
+        except BaseException:  # kept in self.error; wait() raises it
+            pass
+
+    def wait(self) -> None:
+        """Wait until the files named on the command line are read; their one-line error,
+        if any, is raised."""
+        self.ready.wait()
+        if self.error is not None:
+            raise self.error
+
     def load(self) -> None:
         """Read the files named on the command line (probe and mesh in parallel, or from the
         process :meth:`fork_loader` started); sets :attr:`ready`, and :attr:`error` when one
