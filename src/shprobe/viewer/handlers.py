@@ -347,7 +347,7 @@ class Handlers:
 def _run_compare(task: Task, src: Any) -> None:
     """The compare view's numbers in a thread, its progress and outcome on ``task``."""
     try:
-        task.result = compare_data(src, task)
+        task.result = compare_data(src, task.progress)
         task.status, task.done = "done", 1.0
     except Exception as e:  # reported to the page, one line
         task.status, task.message = "error", one_line(e)
