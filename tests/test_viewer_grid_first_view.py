@@ -6,6 +6,8 @@ the volume's centre."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -62,3 +64,39 @@ def test_without_depth_the_centre():
     lo, hi = g.bounds
     assert np.allclose(view.defaults()["position"], 0.5 * (lo + hi))
     assert view.other_mean(parse_placement(view.defaults(), g)) is None
+
+
+def test_first_frame_in_the_browser_shows_both_settings(room, tmp_path):
+    """The page as opened: the object in view (not hidden behind a probe: the pixel at its
+    centre is lit, not the background), and its mean E with leak control on and off side by
+    side, as the library computes them."""
+    from .browser import chromium_page
+    from .test_viewer_grid import GridServed
+
+    r, g = room
+    view = GridView(g, "room.npz", scene=r.mesh(), scene_name="room")
+    served = GridServed(view)
+    try:
+        with chromium_page() as page:
+            page.set_viewport_size({"width": 1400, "height": 900})
+            page.goto(served.url)
+            page.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
+                                   "window.__shprobe.lastError)", timeout=90000)
+            assert page.evaluate("() => window.__shprobe.lastError") is None
+            page.screenshot(path=str(tmp_path / "grid_first_view.png"))
+            text = page.locator("#objmean").inner_text()
+            d = view.defaults()
+            on, off = _means(view, d["position"], d["size"])
+            print(text)
+            nums = [float(v) for v in re.findall(r"[-0-9.e+]+(?=[,)])", text)]
+            assert "leak control on" in text and "off (plain trilinear)" in text
+            np.testing.assert_allclose(nums, [*on, *off], rtol=5e-3)  # 3 digits shown
+            w, h = page.evaluate("() => window.__shprobe.canvasSize()")
+            assert w > 900  # the view fills the window beside the side column
+            o = page.evaluate("() => window.__shprobe.objectScreen()")
+            x, y = int(o["x"]), int(o["y"])
+            assert 0 <= x < w and 0 <= y < h
+            px = page.evaluate(f"() => window.__shprobe.readPixel({x}, {y})")
+            assert max(px[:3]) > 60, px  # lit, not the dark background
+    finally:
+        served.close()
