@@ -1,4 +1,4 @@
-"""One start-up for every page (``shprobe.viewer.serve.serve``): the designer page (a Session)
+"""One start-up for every page (``shprobe.viewer.serve``): the designer page (a Session)
 and the grid page (a GridView) start through the same call, a port in use is one line and no
 URL, and where no browser can be opened `shprobe view` says so in one line."""
 
@@ -12,9 +12,10 @@ import httpx
 import pytest
 
 from shprobe.errors import ShprobeError
+from shprobe.viewer import serve
 from shprobe.viewer.grid import GridView
-from shprobe.viewer.serve import listen, page_path, serve
 from shprobe.viewer.session import Session
+from shprobe.viewer.start import listen, page_path
 
 from .test_viewer_grid import make_grid
 

@@ -61,7 +61,7 @@ def register(group: click.Group) -> None:
         # viewer.serve then builds the server while they load and prints the URL only once
         # they are read (a start-up failure is one line and no URL)
         from .. import lighting  # noqa: F401
-        from ..viewer.serve import serve
+        from ..viewer import serve
         from ..viewer.session import Session
         from .serve import LOCAL_HOSTS, announce
 

@@ -16,8 +16,8 @@ def view_grid(grid: str | None, mesh: str | None, scene: str | None,
     if any(others):
         raise ShprobeError("--grid shows the grid's own lighting: give no PROBE, --preset, "
                            "--transfer or --hbasis with it")
+    from ..viewer import serve
     from ..viewer.grid import load_grid_view
-    from ..viewer.serve import serve
     from .serve import LOCAL_HOSTS, announce
 
     view = load_grid_view(grid, mesh, scene)

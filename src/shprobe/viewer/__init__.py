@@ -4,12 +4,15 @@ app (:mod:`.app`, its routes :mod:`.handlers`) serving a page that draws with th
 numbers all come from the library: the session (:mod:`.session`) with its sources
 (:mod:`.source`), uploads (:mod:`.uploads`), file loader (:mod:`.loader`), designs
 (:mod:`.design`, the library's edit language), views (:mod:`.views`), and what goes over the
-wire (:mod:`.wire`, :mod:`.payloads`). See docs/viewer.md.
+wire (:mod:`.wire`, :mod:`.payloads`). Every page starts through :func:`serve`
+(:mod:`.start`). See docs/viewer.md.
 """
 
 import secrets
 
-__all__ = ["new_token"]
+from .start import serve
+
+__all__ = ["new_token", "serve"]
 
 
 def new_token() -> str:

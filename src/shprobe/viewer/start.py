@@ -1,5 +1,5 @@
-"""One start-up for every page of the viewer: :func:`serve` takes a page's model — a
-:class:`~shprobe.viewer.session.Session` (the designer page) or a
+"""One start-up for every page of the viewer: :func:`serve` (``shprobe.viewer.serve``) takes
+a page's model — a :class:`~shprobe.viewer.session.Session` (the designer page) or a
 :class:`~shprobe.viewer.grid.GridView` (the grid page) — listens, starts the page's loading,
 builds the app while it loads, and runs the server once the page is ready; a start-up failure
 (a port in use, a bad file) is one line and no URL.
