@@ -109,3 +109,42 @@ def test_pack_binary_never_sends_a_non_finite_number():
     with pytest.raises(ShprobeError):
         pack_binary({}, {"e": np.array([np.nan], np.float32)})
     assert pack_binary({"x": 1.0}, {"e": np.array([3e38])})
+
+
+@pytest.mark.parametrize("version", ['"abc"', "1e400", "NaN", "null", "[1]", "{}"])
+def test_grid_meta_of_the_wrong_type_is_one_line(tmp_path, version):
+    """``view --grid`` of a grid whose meta.version is text, ∞, NaN, null, a list or an
+    object (and a meta nested 5,000 deep): one line naming the file, whatever the reader
+    makes of it."""
+    import json
+
+    from shprobe.viewer.grid import load_grid_view
+
+    g = make_grid(depth=True)
+    path = save_grid(tmp_path / "g.npz", g)
+    d = dict(np.load(path))
+    meta = json.loads(d["meta"].astype(np.uint8).tobytes())
+    text = json.dumps(meta).replace(f'"version": {json.dumps(meta["version"])}',
+                                    f'"version": {version}')
+    d["meta"] = np.frombuffer(text.encode(), np.uint8)
+    np.savez(tmp_path / "bad.npz", **d)
+    with pytest.raises(ShprobeError) as e:
+        load_grid_view(str(tmp_path / "bad.npz"))
+    print(version, "->", e.value)
+    assert "\n" not in str(e.value) and "bad.npz" in str(e.value)
+
+
+def test_grid_meta_nested_deep_is_one_line(tmp_path):
+    from shprobe.viewer.grid import load_grid_view
+
+    g = make_grid()
+    path = save_grid(tmp_path / "g.npz", g)
+    d = dict(np.load(path))
+    text = d["meta"].astype(np.uint8).tobytes().decode()
+    text = text[:-1] + ', "deep": ' + "[" * 5000 + "]" * 5000 + "}"
+    d["meta"] = np.frombuffer(text.encode(), np.uint8)
+    np.savez(tmp_path / "deep.npz", **d)
+    with pytest.raises(ShprobeError) as e:
+        load_grid_view(str(tmp_path / "deep.npz"))
+    print("deep ->", e.value)
+    assert "\n" not in str(e.value) and "deep.npz" in str(e.value)

@@ -364,7 +364,15 @@ def load_grid_view(grid_path: str, mesh_path: str | None = None,
     from ..scene import load_mesh
     from .loader import mesh_to_load
 
-    grid = load_grid(grid_path)
+    try:
+        grid = load_grid(grid_path)
+    except ShprobeError:
+        raise
+    except (ValueError, TypeError, KeyError, OverflowError, RecursionError) as e:
+        # a file the reader did not foresee (its meta's types): one line, not a traceback
+        raise ShprobeError(f"not a readable shprobe grid file ({type(e).__name__}: "
+                           f"{str(e).splitlines()[0][:80] if str(e) else 'bad data'})",
+                           grid_path) from None
     obj_path = mesh_to_load(mesh_path, None)
     obj = None if obj_path is None else load_mesh(obj_path)
     scene = None
