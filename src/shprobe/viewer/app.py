@@ -86,7 +86,9 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
                                  methods=["POST"]),
               Mount("/static", StaticFiles(directory=str(static)), name="static")]
     if grid is not None:  # `shprobe view --grid`: the grid page and its API, not the viewer's
-        routes = [*grid.routes(token, COOKIE.format(port=port)), routes[-1]]
+        from .gridhandlers import GridHandlers
+
+        routes = [*GridHandlers(grid, token, COOKIE.format(port=port)).routes(), routes[-1]]
     app = Starlette(routes=routes)
     hosts = None
     if check_host:

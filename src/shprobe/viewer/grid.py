@@ -1,4 +1,5 @@
-"""The grid view (``shprobe view --grid``): a probe grid (irradiance volume) in the page.
+"""The grid view (``shprobe view --grid``): a probe grid (irradiance volume) in the page — the
+page's model, as the session is the designer page's (its routes: :mod:`.gridhandlers`).
 
 The page draws what the library computes: each probe as a small sphere lit by its own SH (its
 irradiance coefficients E_lm = Â_l L_lm, R&H 2001 eq. 7, summed per pixel by the library's
@@ -15,18 +16,13 @@ from __future__ import annotations
 import logging
 import os
 import threading
-import time
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from starlette.requests import Request
-from starlette.responses import JSONResponse, Response
-from starlette.routing import Route
 
 from ..errors import ShprobeError
 from ..grids import ProbeGrid, load_grid
-from .web import csp_of, page_response, read_json, static_dir
 from .wire import pack_binary
 
 __all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "PAGE_MAX", "GridView", "Placement", "check_viewable",
@@ -295,63 +291,6 @@ class GridView:
         e = self.grid.irradiance(placement.place(self.local), self.normals,
                                  leak_control=not placement.leak_control)
         return e.mean(axis=0)
-
-    # ------------------------------------------------------------------ HTTP
-    def routes(self, token: str, cookie: str) -> list[Route]:
-        """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint.
-
-        Parameters
-        ----------
-        token, cookie : str
-            The server's token and the name of its cookie.
-
-        Returns
-        -------
-        list of Route
-            The page's routes (the app adds the static files).
-        """
-        html = (static_dir() / "grid.html").read_text()
-        csp = csp_of(html)
-
-        async def page(req: Request) -> Response:
-            return page_response(html, csp, cookie, token)
-
-        return [Route("/", page), Route("/grid", page),
-                Route("/api/grid", self._data), Route("/api/grid/shade", self._shade,
-                                                        methods=["POST"])]
-
-    async def _data(self, req: Request) -> Response:
-        from anyio import to_thread
-
-        data = await to_thread.run_sync(self.payload)
-        return Response(data, media_type="application/octet-stream")
-
-    async def _shade(self, req: Request) -> Response:
-        from anyio import to_thread
-        from starlette.requests import ClientDisconnect
-
-        try:
-            spec = parse_placement(await read_json(req, MAX_SHADE, "shading request"),
-                                   self.grid)
-            t = time.perf_counter()
-            e, leak = await to_thread.run_sync(self.shade, spec)
-            ms = 1e3 * (time.perf_counter() - t)
-            other = await to_thread.run_sync(self.other_mean, spec)
-        except ClientDisconnect:
-            return Response(status_code=400)
-        except ShprobeError as err:
-            return JSONResponse({"error": str(err).splitlines()[0]}, 400)
-        except Exception as err:  # a library bug: one line in the log, the server stays up
-            line = str(err).splitlines()[0] if str(err) else type(err).__name__
-            _log.error("POST /api/grid/shade: %s: %s", type(err).__name__, line)
-            return JSONResponse({"error": line}, 500)
-        head = {"leak_control": leak, "mean": e.mean(axis=0).tolist(), "ms": ms,
-                "mean_other": None if other is None else other.tolist()}
-        try:
-            data = pack_binary(head, {"irradiance": e})
-        except ShprobeError as err:
-            return JSONResponse({"error": str(err).splitlines()[0]}, 400)
-        return Response(data, media_type="application/octet-stream")
 
 
 def load_grid_view(grid_path: str, mesh_path: str | None = None,

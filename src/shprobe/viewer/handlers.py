@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from anyio import to_thread
-from starlette.requests import ClientDisconnect, Request
+from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
@@ -30,7 +30,7 @@ from .session import Session, Task
 from .source import MAX_LMAX
 from .uploads import MAX_UPLOAD, Uploads
 from .views import compare_data
-from .web import Refused, declared, error_response, one_line, page_response, read_json
+from .web import Refused, api, declared, error_response, one_line, page_response, read_json
 from .wire import pack_binary
 
 __all__ = ["MAX_STATE", "Handlers", "Refused", "page_response", "read_json"]
@@ -64,24 +64,6 @@ async def receive(req: Request, path: Path, name: str) -> None:
     except BaseException:
         path.unlink(missing_ok=True)
         raise
-
-
-def api(fn: Callable[[Handlers, Request], Awaitable[Response]]) -> Callable[..., Any]:
-    """A handler's errors as one-line answers: :class:`ShprobeError` 400 (or its status), a
-    client gone silence, anything else 500 (logged in one line: a library bug must not take
-    the server down)."""
-    async def wrapped(self: Handlers, req: Request) -> Response:
-        try:
-            return await fn(self, req)
-        except ClientDisconnect:
-            return Response(status_code=400)  # nobody reads it
-        except ShprobeError as e:
-            return error_response(e, getattr(e, "status", 400))
-        except Exception as e:
-            _log.error("%s %s: %s: %s", req.method, req.url.path, type(e).__name__, one_line(e))
-            return error_response(e, 500)
-    wrapped.__name__, wrapped.__doc__ = fn.__name__, fn.__doc__
-    return wrapped
 
 
 class Handlers:

@@ -7,18 +7,22 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import logging
 import re
+from collections.abc import Awaitable, Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from starlette.requests import Request
+from starlette.requests import ClientDisconnect, Request
 from starlette.responses import JSONResponse, Response
 
 from ..errors import ShprobeError
 
-__all__ = ["CSP", "Refused", "csp_of", "declared", "error_response", "one_line",
+__all__ = ["CSP", "Refused", "api", "csp_of", "declared", "error_response", "one_line",
            "page_response", "read_json", "size_text", "static_dir"]
+
+_log = logging.getLogger("shprobe.viewer")
 
 CSP = ("default-src 'self'; script-src 'self' {importmap}; style-src 'self'; "
        "img-src 'self' blob: data:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
@@ -156,3 +160,32 @@ async def read_json(req: Request, limit: int, what: str) -> Any:
         if len(body) > limit:
             raise Refused(f"{what}: over the {size_text(limit)} limit", 413)
     return parse_json(body.decode("utf-8", "replace") or "{}", what)
+
+
+def api(fn: Callable[[Any, Request], Awaitable[Response]]) -> Callable[..., Any]:
+    """A handler method's errors as one-line answers: :class:`ShprobeError` 400 (or its
+    status), a client gone silence, anything else 500 (logged in one line: a library bug must
+    not take the server down).
+
+    Parameters
+    ----------
+    fn : async method (self, request) -> Response
+        The handler.
+
+    Returns
+    -------
+    callable
+        The wrapped handler.
+    """
+    async def wrapped(self: Any, req: Request) -> Response:
+        try:
+            return await fn(self, req)
+        except ClientDisconnect:
+            return Response(status_code=400)  # nobody reads it
+        except ShprobeError as e:
+            return error_response(e, getattr(e, "status", 400))
+        except Exception as e:
+            _log.error("%s %s: %s: %s", req.method, req.url.path, type(e).__name__, one_line(e))
+            return error_response(e, 500)
+    wrapped.__name__, wrapped.__doc__ = fn.__name__, fn.__doc__
+    return wrapped
