@@ -10,7 +10,8 @@ markdown tables.
    URL printed once the files are read, the browser already running with its tab open and
    idle (as a user's is: :func:`browser_settled` waits out the new window's own start-up); the
    clock runs from just before the process starts until the page has drawn the lit bunny
-   (``window.__shprobe.firstFrameAt``). Numba's cache and the mesh payload cache are
+   (``window.__shprobe.firstFrameAt``; the URL carries ``&bench=1``, so the page waits for that
+   frame to be finished by reading a pixel back). Numba's cache and the mesh payload cache are
    warmed by one run first.
 2. A lighting drag: each pointer move on the probe is one ``/api/design`` call (the library's
    Wigner rotation, window and certificate) plus one frame; the time per move as the page sees
@@ -46,6 +47,11 @@ CHROMIUM = "/usr/bin/chromium"
 #: cost 0.3–0.4 CPU-s of the first frame here).
 FLAGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", "--use-angle=swiftshader-webgl", "--enable-unsafe-swiftshader"]
+
+
+#: the page's benchmark flag: it reads a pixel back after each frame it times, so that the
+#: times are of finished frames (a normal session never reads back: a GPU stall)
+BENCH = "&bench=1"
 
 
 def make_probe(folder: Path) -> Path:
@@ -150,7 +156,7 @@ def first_frame(browser, args: list[str], src: Path | None = None, cache: Path |
     p, url, t0 = start(args, src, cache)
     t_url = time.time() - t0
     try:
-        page.goto(url)
+        page.goto(url + BENCH)
         page.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
                                "window.__shprobe.lastError)", timeout=60000)
         err = page.evaluate("() => window.__shprobe.lastError")
@@ -200,7 +206,7 @@ def drag_times(browser, args: list[str], mode: str | None, steps: int = 40
     try:
         ctx = browser.new_context(viewport={"width": 1100, "height": 900})
         page = ctx.new_page()
-        page.goto(url)
+        page.goto(url + BENCH)
         page.wait_for_function("() => window.__shprobe && window.__shprobe.ready",
                                timeout=120000)
         if mode:

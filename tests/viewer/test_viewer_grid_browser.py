@@ -82,9 +82,10 @@ def test_probe_pixel_is_its_sh_irradiance(page, grid):
     order = [i for i in np.argsort([s["depth"] for s in scr]) if val[i] == 1 and not moved[i]]
     coeffs = grid.coeffs.reshape(n, 9, 3).astype(np.float64)
     checked = 0
+    w, h = page.evaluate("() => window.__shprobe.canvasSize()")
     for i in order[:3]:
         s = scr[i]
-        if not (0 <= s["x"] < 720 and 0 <= s["y"] < 540):
+        if not (0 <= s["x"] < w and 0 <= s["y"] < h):
             continue
         px = np.array(page.evaluate(f"() => window.__shprobe.readPixel({s['x']}, {s['y']})"))
         e = np.maximum(irradiance(coeffs[i], np.array(s["normal"])), 0.0)
@@ -94,6 +95,26 @@ def test_probe_pixel_is_its_sh_irradiance(page, grid):
     assert checked >= 2
     for box in ("#showscene", "#showbox", "#showobject"):
         page.check(box)
+
+
+def test_canvas_follows_the_window(page):
+    """The view fills the space left of the side column (no fixed 720×540 leaving a gap) and
+    its drawing buffer follows the canvas's size on the page, one pixel for one."""
+    size = page.viewport_size
+    try:
+        for width, height in ((1400, 900), (1000, 700)):
+            page.set_viewport_size({"width": width, "height": height})
+            page.wait_for_timeout(300)
+            box = page.locator("#view").bounding_box()
+            right = page.locator("#right").bounding_box()
+            w, h = page.evaluate("() => window.__shprobe.canvasSize()")
+            cw, ch = page.evaluate("() => [document.getElementById('view').clientWidth, "
+                                   "document.getElementById('view').clientHeight]")
+            assert (w, h) == (cw, ch)
+            assert right["x"] - (box["x"] + box["width"]) < 40  # no empty band between
+            assert box["width"] > 0.5 * width and box["height"] > 0.5 * height
+    finally:
+        page.set_viewport_size(size)
 
 
 def test_slider_moves_the_object_and_the_library_lights_it(page, grid):

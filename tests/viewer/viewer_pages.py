@@ -28,15 +28,20 @@ def serving(session: Any) -> Iterator[Served]:
 
 
 @contextlib.contextmanager
-def opened(served: Served, width: int = 1280, height: int = 800) -> Iterator[Any]:
+def opened(served: Served, width: int = 1280, height: int = 800,
+           extra_args: tuple[str, ...] = (), init_script: str | None = None) -> Iterator[Any]:
     """The viewer's page in headless Chromium at ``width`` × ``height``, loaded (ready or
-    failed); console errors in ``page.shprobe_console``."""
+    failed); console messages in ``page.shprobe_console``; ``extra_args``: more Chromium
+    flags (a later ``--use-angle`` wins over the default one); ``init_script``: JavaScript
+    run before the page's own scripts."""
     if not VENDOR.is_file():
         import pytest
 
         pytest.skip("three.js not vendored (run tools/vendor_js.sh)")
-    with chromium_page() as page:
+    with chromium_page(extra_args=extra_args) as page:
         page.set_viewport_size({"width": width, "height": height})
+        if init_script:
+            page.add_init_script(init_script)
         page.goto(served.url)
         page.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
                                "window.__shprobe.lastError)", timeout=90000)

@@ -1,5 +1,6 @@
 """What `shprobe view` says when its server is ready, for both of its pages: the warning of a
-non-local address, the URL with its token, the browser opened on it."""
+non-local address, the URL with its token, the browser opened on it (or, where none opens, a
+line saying so)."""
 
 from __future__ import annotations
 
@@ -12,15 +13,35 @@ import click
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 
-def announce(host: str, port: int, token: str, page: str, no_browser: bool) -> str:
-    """Print the page's URL (after a warning when ``host`` is reachable from elsewhere) and,
-    unless ``no_browser``, open it in the browser; returns the URL."""
+def announce(url: str, host: str, no_browser: bool) -> None:
+    """Print the page's ``url`` (after a warning when ``host`` is reachable from elsewhere)
+    and, unless ``no_browser``, open it in the browser.
+
+    Parameters
+    ----------
+    url : str
+        The page's URL with its token.
+    host : str
+        The address the server listens on.
+    no_browser : bool
+        Only print the URL.
+    """
     if host not in LOCAL_HOSTS:
         click.echo(f"warning: --host {host} makes the viewer reachable from other "
                    "machines; anyone with the URL's token can read what it serves", err=True)
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
-    url = f"http://{shown}:{port}{page}?token={token}"
     click.echo(f"shprobe view: {url}", nl=True)
     if not no_browser:
-        threading.Timer(0.3, lambda: webbrowser.open(url)).start()
-    return url
+        threading.Timer(0.3, _open_browser, args=(url,)).start()
+
+
+def _open_browser(url: str) -> None:
+    """Open ``url`` in the user's browser; say so in one line where none can be opened (a
+    machine without a desktop, an ssh session)."""
+    try:
+        opened = webbrowser.open(url)
+    except webbrowser.Error:
+        opened = False
+    if not opened:
+        click.echo("shprobe view: no web browser could be opened here: open the URL above in "
+                   "one (on another machine: ssh -L PORT:127.0.0.1:PORT, then the same URL)",
+                   err=True)

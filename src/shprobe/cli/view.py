@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import click
 
 from ..errors import ShprobeError
@@ -43,7 +41,6 @@ def register(group: click.Group) -> None:
         the URL with its access token once the files are read (a bad file, port or preset:
         one line, no URL); Ctrl-C stops it."""
         import os
-        import threading
         import time
 
         from .extras import require
@@ -60,48 +57,17 @@ def register(group: click.Group) -> None:
             return view_grid(grid, mesh_file(mesh) if mesh else None, scene,
                              (probe, preset, transfer, hbasis), host, port, no_browser)
         # the files start loading first (viewer.loader), in a fork that shares what both
-        # sides need — numpy, the viewer's model, the lighting layer — imported once, here ...
+        # sides need — numpy, the viewer's model, the lighting layer — imported once, here;
+        # viewer.serve then builds the server while they load and prints the URL only once
+        # they are read (a start-up failure is one line and no URL)
         from .. import lighting  # noqa: F401
+        from ..viewer import serve
         from ..viewer.session import Session
+        from .serve import LOCAL_HOSTS, announce
 
         # the loading stages' times, for bench/bench_viewer.py (served by /api/init)
         stamps = {"cli": t_cli} if os.environ.get("SHPROBE_VIEW_STAMPS") else None
         session = Session(probe, preset, mesh_file(mesh) if mesh else None, transfer, layout,
                           load=False, stamps=stamps, hbasis=hbasis)
-        from ..viewer.app import listen
-        from .serve import LOCAL_HOSTS, announce
-
-        sock = listen(host, port)  # a port in use fails here, before any process starts
-        try:
-            session.fork_loader()  # before any thread starts
-            # ... then the server is imported and built while the files load; the URL is
-            # printed only once they are read: a start-up failure is one line and no URL
-            threading.Thread(target=_load, args=(session,), daemon=True).start()
-            from ..viewer import new_token
-            from ..viewer.app import create_app, make_server
-
-            port = sock.getsockname()[1]
-            token = new_token()
-            server = make_server(create_app(session, token, host, port,
-                                            check_host=host in LOCAL_HOSTS))
-            session.ready.wait()
-            if session.error is not None:
-                raise session.error
-        except BaseException:
-            sock.close()
-            session.close()
-            raise
-        announce(host, port, token, "/", no_browser)
-        session.stamp("url")
-        try:
-            server.run(sockets=[sock])
-        finally:
-            session.close()
-
-
-def _load(session: Any) -> None:
-    """Read the files named on the command line (the session keeps the error, one line)."""
-    try:
-        session.load()
-    except BaseException:  # session.error holds it; the command raises it
-        pass
+        serve(session, host, port, lambda url: announce(url, host, no_browser),
+              check_host=host in LOCAL_HOSTS)

@@ -16,17 +16,10 @@ def view_grid(grid: str | None, mesh: str | None, scene: str | None,
     if any(others):
         raise ShprobeError("--grid shows the grid's own lighting: give no PROBE, --preset, "
                            "--transfer or --hbasis with it")
-    from ..viewer import new_token
+    from ..viewer import serve
     from ..viewer.grid import load_grid_view
-
-    view = load_grid_view(grid, mesh, scene)
-    from ..viewer.app import create_app, listen, make_server
     from .serve import LOCAL_HOSTS, announce
 
-    sock = listen(host, port)
-    port = sock.getsockname()[1]
-    token = new_token()
-    server = make_server(create_app(None, token, host, port, check_host=host in LOCAL_HOSTS,
-                                    grid=view))
-    announce(host, port, token, "/grid", no_browser)
-    server.run(sockets=[sock])
+    view = load_grid_view(grid, mesh, scene)
+    serve(view, host, port, lambda url: announce(url, host, no_browser),
+          check_host=host in LOCAL_HOSTS)

@@ -5,12 +5,15 @@ numbers all come from the library: the session (`shprobe.viewer.session`) with i
 (`shprobe.viewer.source`), uploads (`shprobe.viewer.uploads`), file loader
 (`shprobe.viewer.loader`), designs (`shprobe.viewer.design`, the library's edit language), views
 (`shprobe.viewer.views`), and what goes over the wire (`shprobe.viewer.wire`,
-`shprobe.viewer.payloads`). See docs/viewer.md.
+`shprobe.viewer.payloads`). Every page starts through [`serve`][shprobe.viewer.serve]
+(`shprobe.viewer.start`). See docs/viewer.md.
 """
 
 import secrets
 
-__all__ = ["new_token"]
+from .start import serve
+
+__all__ = ["new_token", "serve"]
 
 
 def new_token() -> str:

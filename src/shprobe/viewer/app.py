@@ -14,10 +14,7 @@ reference) runs in worker threads off the event loop.
 from __future__ import annotations
 
 import secrets
-import socket
 from functools import partial
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
@@ -27,10 +24,10 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from ..errors import ShprobeError
 from ..lighting.edits import EditSpec
 from .handlers import Handlers, api, read_spec
 from .session import Session
+from .web import csp_of, static_dir
 
 __all__ = ["create_app", "make_server", "python_text", "static_dir"]
 
@@ -40,34 +37,6 @@ MAX_QUERY = 4096
 #: read whole and refused, rather than the connection being reset under the client)
 MAX_HEAD = 4 << 20
 COOKIE = "shprobe_token_{port}"  # cookies ignore ports: one name per server
-CSP = ("default-src 'self'; script-src 'self' {importmap}; style-src 'self'; "
-       "img-src 'self' blob: data:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
-       "frame-ancestors 'none'")
-
-
-def _csp(index: str) -> str:
-    """The page's Content-Security-Policy: only this origin, plus the hash of the inline
-    import map (which points ``three`` at the vendored copy)."""
-    import base64
-    import hashlib
-    import re
-
-    m = re.search(r'<script type="importmap">(.*?)</script>', index, re.S)
-    h = ""
-    if m is not None:
-        digest = hashlib.sha256(m.group(1).encode()).digest()
-        h = f"'sha256-{base64.b64encode(digest).decode()}'"
-    return CSP.format(importmap=h)
-
-
-def static_dir() -> Path:
-    """The page and its vendored libraries (package data); refuses a checkout where
-    ``tools/vendor_js.sh`` has not been run."""
-    d = Path(str(resources.files("shprobe.viewer") / "static"))
-    if not (d / "vendor" / "three" / "three.min.js").is_file():
-        raise ShprobeError("the viewer's JavaScript libraries are not installed: run "
-                           "tools/vendor_js.sh (it installs three.js from npm)", d / "vendor")
-    return d
 
 
 class Guard:
@@ -112,12 +81,14 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
     `shprobe.viewer.grid.GridView`; session None): the grid page and its routes instead."""
     static = static_dir()
     index = (static / "index.html").read_text()
-    h = Handlers(session, index, _csp(index), token, COOKIE.format(port=port))
+    h = Handlers(session, index, csp_of(index), token, COOKIE.format(port=port))
     routes = [*h.routes(), Route("/api/snippet", h.ready(partial(api(_snippet), h)),
                                  methods=["POST"]),
               Mount("/static", StaticFiles(directory=str(static)), name="static")]
     if grid is not None:  # `shprobe view --grid`: the grid page and its API, not the viewer's
-        routes = [*grid.routes(_csp, token, COOKIE.format(port=port)), routes[-1]]
+        from .gridhandlers import GridHandlers
+
+        routes = [*GridHandlers(grid, token, COOKIE.format(port=port)).routes(), routes[-1]]
     app = Starlette(routes=routes)
     hosts = None
     if check_host:
@@ -157,19 +128,3 @@ def make_server(app: ASGIApp) -> Any:
 
     return uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False,
                                          http="h11", h11_max_incomplete_event_size=MAX_HEAD))
-
-
-def listen(host: str, port: int) -> socket.socket:
-    """A listening socket on ``host``:``port`` (0: a free port); one line when it cannot be
-    had (a port in use, an address not of this machine). The page's first connection waits in
-    its backlog until the server runs."""
-    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-    except (OSError, OverflowError) as e:
-        sock.close()
-        reason = getattr(e, "strerror", None) or str(e)
-        raise ShprobeError(f"cannot listen on {host}:{port}: {reason}") from None
-    sock.listen(128)
-    return sock

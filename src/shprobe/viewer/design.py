@@ -33,7 +33,37 @@ def read_state(doc: Any) -> EditSpec:
     """The page's edit state (parsed JSON) as a spec, checked once: one-line
     [`ShprobeError`][shprobe.errors.ShprobeError] on anything malformed
     ([`EditSpec.from_json`][shprobe.lighting.EditSpec.from_json], degrees up to `DESIGN_LMAX`)."""
-    return EditSpec.from_json(doc, max_lmax=DESIGN_LMAX)
+    spec = EditSpec.from_json(doc, max_lmax=DESIGN_LMAX)  # unknown keys, ranges: first
+    _no_text_numbers(doc)
+    return spec
+
+
+#: where the edit-state JSON holds text: the window, a blend's preset or probe, an "l,m" to
+#: negate; everywhere else a value is a JSON number (the command line's text forms, which
+#: the edit language also reads, are not JSON's)
+_TEXT_AT = {("window",), ("blends", "*", "preset"), ("blends", "*", "probe"), ("negate", "*")}
+
+
+def _no_text_numbers(doc: Any, at: tuple[str, ...] = ()) -> None:
+    """Refuse (one line) a string where the edit state wants a number: ``{"lmax": "2"}``."""
+    from ..errors import ShprobeError
+
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            # table keys ("l,m", "l") are text by design: their values are numbers
+            _no_text_numbers(v, (*at, "*" if at and at[-1] in _TABLES else str(k)))
+    elif isinstance(doc, list):
+        for v in doc:
+            _no_text_numbers(v, (*at, "*"))
+    elif isinstance(doc, str) and at and at not in _TEXT_AT:
+        name = ".".join(a for a in at if a != "*") or "value"
+        shown = doc if len(doc) <= 20 else doc[:17] + "..."
+        raise ShprobeError(f"edit state: {name} must be a JSON number, not the text "
+                           f"{shown!r}")
+
+
+#: the edit state's tables, keyed by text: {"l,m": value} or {"l": value}
+_TABLES = ("scale", "set", "scale_band", "set_band")
 
 
 def design_coeffs(base: NDArray[np.float64] | None, spec: EditSpec, blends: Blends

@@ -1,4 +1,5 @@
-"""The grid view (``shprobe view --grid``): a probe grid (irradiance volume) in the page.
+"""The grid view (``shprobe view --grid``): a probe grid (irradiance volume) in the page — the
+page's model, as the session is the designer page's (its routes: `shprobe.viewer.gridhandlers`).
 
 The page draws what the library computes: each probe as a small sphere lit by its own SH (its
 irradiance coefficients E_lm = Â_l L_lm, R&H 2001 eq. 7, summed per pixel by the library's
@@ -15,21 +16,17 @@ from __future__ import annotations
 import logging
 import os
 import threading
-import time
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from starlette.requests import Request
-from starlette.responses import JSONResponse, Response
-from starlette.routing import Route
 
 from ..errors import ShprobeError
 from ..grids import ProbeGrid, load_grid
 from .wire import pack_binary
 
-__all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "GridView", "Placement", "load_grid_view",
-           "parse_placement"]
+__all__ = ["MAX_SHADE", "MAX_VIEW_PROBES", "PAGE_MAX", "GridView", "Placement", "check_viewable",
+           "load_grid_view", "parse_placement"]
 
 #: most probes the page draws (each a sphere of ~100 vertices)
 MAX_VIEW_PROBES = 16384
@@ -38,6 +35,8 @@ MAX_OBJECT_VERTICES = 1 << 20
 #: largest shading request body (bytes): a position, a size and a flag
 MAX_SHADE = 4096
 _log = logging.getLogger("shprobe.viewer")
+#: the object's vertices lit at each place :meth:`GridView.leak_spot` tries (thinned to this)
+_SPOT_VERTICES = 96
 #: normals over which the brightest probe irradiance is found (the page's default exposure)
 _EXPOSURE_NORMALS = 512
 
@@ -86,6 +85,52 @@ def parse_placement(body: Any, grid: ProbeGrid) -> Placement:
     return Placement(p, float(size), leak)
 
 
+#: largest magnitude of a position or coefficient the page is sent: it draws in 32-bit floats
+#: (about ±3.4e38), and sums of a few products of them must stay finite
+PAGE_MAX = 1e30
+
+
+def check_viewable(grid: ProbeGrid, name: str) -> None:
+    """Refuse, in one line naming the file, a grid the page cannot draw or shade: a depth
+    array that is not (NX, NY, NZ, D, D, 2), a ``normal_bias`` that is not a number in
+    [0, 0.5], bounds or coefficients beyond `PAGE_MAX` (non-finite once sent as the
+    page's 32-bit floats).
+
+    Parameters
+    ----------
+    grid : ProbeGrid
+        The grid as read by ``load_grid``.
+    name : str
+        The file's name, for the message.
+
+    Raises
+    ------
+    ShprobeError
+        When the grid cannot be shown.
+    """
+    d = grid.depth
+    if d is not None:
+        shape = np.shape(d)
+        if len(shape) != 6 or shape[3] != shape[4] or shape[3] < 2 or shape[5] != 2:
+            raise ShprobeError(f"grid depth has shape {tuple(shape)}, not (NX, NY, NZ, D, D, 2) "
+                               "(mean and mean-square distance per octahedral texel)", name)
+    bias = grid.meta.get("normal_bias")
+    if bias is not None and (isinstance(bias, bool) or not isinstance(bias, int | float)
+                             or not 0.0 <= float(bias) <= 0.5):
+        shown = repr(bias)[:40]
+        raise ShprobeError(f"grid meta normal_bias must be a number in [0, 0.5], got {shown}",
+                           name)
+    lo, hi = grid.bounds
+    if np.max(np.abs(grid.bounds)) > PAGE_MAX or not np.all(np.isfinite(hi - lo)):
+        raise ShprobeError(f"grid bounds beyond ±{PAGE_MAX:g} cannot be drawn (the page "
+                           "draws in 32-bit floats)", name)
+    for what, a in (("coefficients", grid.coeffs), ("positions", grid.positions)):
+        if a is not None and (not np.all(np.isfinite(a))
+                              or float(np.max(np.abs(a), initial=0.0)) > PAGE_MAX):
+            raise ShprobeError(f"grid {what} beyond ±{PAGE_MAX:g} cannot be shown (the page "
+                               "draws in 32-bit floats)", name)
+
+
 class GridView:
     """Everything one ``shprobe view --grid`` serves: the grid, the object moved through it
     (``obj`` a trimesh mesh, None: the unit sphere) and the scene it was baked from (None:
@@ -99,6 +144,7 @@ class GridView:
         if n > MAX_VIEW_PROBES:
             raise ShprobeError(f"the grid has {n} probes; the viewer draws at most "
                                f"{MAX_VIEW_PROBES}", name)
+        check_viewable(grid, name)
         self.grid, self.name = grid, name
         m = obj if obj is not None else sphere_mesh(4)
         if len(m.vertices) > MAX_OBJECT_VERTICES:
@@ -112,15 +158,69 @@ class GridView:
         self.faces = np.asarray(m.faces)
         self.obj_name, self.scene, self.scene_name = obj_name, scene, scene_name
         self._payload: bytes | None = None
+        self._defaults: dict[str, Any] | None = None
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ what the page draws
     def defaults(self) -> dict[str, Any]:
-        """The object's first placement: the volume's centre, radius half the smallest
-        cell."""
+        """The object's first placement, radius half the smallest cell: on a grid with depth
+        data, where leak control changes its lighting most (`leak_spot`: the first view
+        shows what the toggle does), else the volume's centre.
+
+        Returns
+        -------
+        dict
+            ``position`` (3 numbers), ``size`` and ``leak_control``, as the shading request
+            takes them.
+        """
+        if self._defaults is None:
+            lo, hi = self.grid.bounds
+            size = 0.5 * float(np.min(self.grid.spacing))
+            pos = 0.5 * (lo + hi) if self.grid.depth is None else self.leak_spot(size)
+            self._defaults = {"position": [float(x) for x in pos], "size": size,
+                              "leak_control": True}
+        return dict(self._defaults)
+
+    def leak_spot(self, size: float, per_axis: int = 8) -> NDArray[np.float64]:
+        """Where an object of radius ``size`` is lit most differently with leak control on
+        and off: over a lattice of ``per_axis``³ places inside the volume (the object kept
+        inside it), the largest mean |E_on − E_off| (summed over R, G, B) over its vertices
+        (at most about `_SPOT_VERTICES` of them), E from
+        [`ProbeGrid.irradiance`][shprobe.grids.ProbeGrid.irradiance], among the places where both
+        settings light it at least a tenth as brightly as the brightest place: inside a closed room
+        lit from outside, where leak control gives black and plain trilinear a dim leak, the
+        difference cannot be seen.
+
+        Parameters
+        ----------
+        size : float
+            The object's radius.
+        per_axis : int
+            Lattice places along each axis.
+
+        Returns
+        -------
+        ndarray (3,)
+            The chosen centre.
+        """
         lo, hi = self.grid.bounds
-        return {"position": (0.5 * (lo + hi)).tolist(),
-                "size": 0.5 * float(np.min(self.grid.spacing)), "leak_control": True}
+        m = np.minimum(size, 0.49 * (hi - lo))  # the object inside the volume
+        t = (np.arange(per_axis) + 0.5) / per_axis
+        axes = [lo[a] + m[a] + t * (hi[a] - lo[a] - 2 * m[a]) for a in range(3)]
+        c = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 1, 3)
+        step = max(1, len(self.local) // _SPOT_VERTICES)  # the object's own vertices, thinned
+        loc, d = self.local[::step], self.normals[::step]
+        pts = (c + size * loc).reshape(-1, 3)
+        nrm = np.broadcast_to(d, (len(c), *d.shape)).reshape(-1, 3)
+        on = self.grid.irradiance(pts, nrm, leak_control=True)
+        off = self.grid.irradiance(pts, nrm, leak_control=False)
+        on_m = on.sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        off_m = off.sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        score = np.abs(on - off).sum(axis=-1).reshape(len(c), -1).mean(axis=1)
+        # both lit enough to be seen: a closed room that leaks a little light with leak
+        # control off is still black on the screen (a tenth of the brightest place at least)
+        seen = np.minimum(on_m, off_m) >= 0.1 * float(np.max(np.maximum(on_m, off_m)))
+        return c[int(np.argmax(np.where(seen, score, -1.0) if seen.any() else score)), 0]
 
     def probe_irradiance_coeffs(self) -> NDArray[np.float64]:
         """E_lm = Â_l L_lm (N, K, 3) of every probe (flat index (ix·NY + iy)·NZ + iz, as
@@ -185,51 +285,14 @@ class GridView:
                                  leak_control=placement.leak_control)
         return e, placement.leak_control and self.grid.depth is not None
 
-    # ------------------------------------------------------------------ HTTP
-    def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:
-        """The grid page at ``/`` (and ``/grid``), its data and the shading endpoint."""
-        from .app import static_dir
-        from .handlers import page_response
-
-        html = (static_dir() / "grid.html").read_text()
-        csp = csp_of(html)
-
-        async def page(req: Request) -> Response:
-            return page_response(html, csp, cookie, token)
-
-        return [Route("/", page), Route("/grid", page),
-                Route("/api/grid", self._data), Route("/api/grid/shade", self._shade,
-                                                        methods=["POST"])]
-
-    async def _data(self, req: Request) -> Response:
-        from anyio import to_thread
-
-        data = await to_thread.run_sync(self.payload)
-        return Response(data, media_type="application/octet-stream")
-
-    async def _shade(self, req: Request) -> Response:
-        from anyio import to_thread
-        from starlette.requests import ClientDisconnect
-
-        from .handlers import read_json
-
-        try:
-            spec = parse_placement(await read_json(req, MAX_SHADE, "shading request"),
-                                   self.grid)
-            t = time.perf_counter()
-            e, leak = await to_thread.run_sync(self.shade, spec)
-        except ClientDisconnect:
-            return Response(status_code=400)
-        except ShprobeError as err:
-            return JSONResponse({"error": str(err).splitlines()[0]}, 400)
-        except Exception as err:  # a library bug: one line in the log, the server stays up
-            line = str(err).splitlines()[0] if str(err) else type(err).__name__
-            _log.error("POST /api/grid/shade: %s: %s", type(err).__name__, line)
-            return JSONResponse({"error": line}, 500)
-        ms = 1e3 * (time.perf_counter() - t)
-        return Response(pack_binary({"leak_control": leak, "mean": e.mean(axis=0).tolist(),
-                                     "ms": ms}, {"irradiance": e}),
-                        media_type="application/octet-stream")
+    def other_mean(self, placement: Placement) -> NDArray[np.float64] | None:
+        """The object's mean irradiance (3,) with the other leak-control setting (None
+        without depth data: both are plain trilinear), so that the page shows both."""
+        if self.grid.depth is None:
+            return None
+        e = self.grid.irradiance(placement.place(self.local), self.normals,
+                                 leak_control=not placement.leak_control)
+        return e.mean(axis=0)
 
 
 def load_grid_view(grid_path: str, mesh_path: str | None = None,
@@ -242,7 +305,15 @@ def load_grid_view(grid_path: str, mesh_path: str | None = None,
     from ..scene import load_mesh
     from .loader import mesh_to_load
 
-    grid = load_grid(grid_path)
+    try:
+        grid = load_grid(grid_path)
+    except ShprobeError:
+        raise
+    except (ValueError, TypeError, KeyError, OverflowError, RecursionError) as e:
+        # a file the reader did not foresee (its meta's types): one line, not a traceback
+        raise ShprobeError(f"not a readable shprobe grid file ({type(e).__name__}: "
+                           f"{str(e).splitlines()[0][:80] if str(e) else 'bad data'})",
+                           grid_path) from None
     obj_path = mesh_to_load(mesh_path, None)
     obj = None if obj_path is None else load_mesh(obj_path)
     scene = None
@@ -258,8 +329,11 @@ def _json_safe(meta: dict[str, Any]) -> dict[str, Any]:
     """The grid's bake settings as the page shows them (scalars and short lists only)."""
     out: dict[str, Any] = {}
     for k, v in meta.items():
+        if isinstance(v, float) and not np.isfinite(v):
+            continue  # JSON has no NaN or ∞
         if isinstance(v, str | int | float | bool) or v is None:
             out[str(k)] = v if not isinstance(v, str) else v[:200]
         elif isinstance(v, list | tuple) and len(v) <= 16:
-            out[str(k)] = [x for x in v if isinstance(x, str | int | float | bool)]
+            out[str(k)] = [x for x in v if isinstance(x, str | int | bool)
+                           or (isinstance(x, float) and np.isfinite(x))]
     return out

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import threading
 from collections.abc import Awaitable, Callable
 from pathlib import Path
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from anyio import to_thread
-from starlette.requests import ClientDisconnect, Request
+from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 from starlette.routing import Route
 
@@ -29,9 +30,10 @@ from .session import Session, Task
 from .source import MAX_LMAX
 from .uploads import MAX_UPLOAD, Uploads
 from .views import compare_data
+from .web import Refused, api, declared, error_response, one_line, page_response, read_json
 from .wire import pack_binary
 
-__all__ = ["MAX_STATE", "Handlers"]
+__all__ = ["MAX_STATE", "Handlers", "Refused", "page_response", "read_json"]
 
 #: largest edit-state body (bytes)
 MAX_STATE = 1 << 20
@@ -42,66 +44,6 @@ _log = logging.getLogger("shprobe.viewer")
 Handler = Callable[[Request], Awaitable[Response]]
 
 
-class Refused(ShprobeError):
-    """A request refused with an HTTP ``status`` (400 unless said)."""
-
-    def __init__(self, message: str, status: int = 400) -> None:
-        super().__init__(message)
-        self.status = status
-
-
-def _line(e: BaseException) -> str:
-    return str(e).splitlines()[0] if str(e) else type(e).__name__
-
-
-def _error(e: BaseException, status: int = 400) -> JSONResponse:
-    return JSONResponse({"error": _line(e)}, status)
-
-
-def _declared(req: Request, limit: int, what: str, need: bool = False) -> int | None:
-    """The body's declared length (None: not declared; refused, 411, where ``need``),
-    refused (413) over ``limit`` before anything is read."""
-    text = req.headers.get("content-length")
-    if text is None:
-        if need:
-            raise Refused(f"{what}: send the length of the body (Content-Length)", 411)
-        return None
-    if not text.isdigit() or len(text) > 18:
-        raise Refused(f"{what}: bad Content-Length")
-    n = int(text)
-    if n > limit:
-        raise Refused(f"{what}: {_size(n)} is over the {_size(limit)} limit", 413)
-    return n
-
-
-def _size(n: int) -> str:
-    return f"{n >> 20} MiB" if n >= 1 << 20 else f"{n >> 10} KiB"
-
-
-def page_response(html: str, csp: str, cookie: str, token: str) -> Response:
-    """A page of the viewer: its CSP, never cached, no referrer, and the token's cookie (the
-    page's API calls carry it)."""
-    r = Response(html, media_type="text/html",
-                 headers={"Content-Security-Policy": csp, "Cache-Control": "no-store",
-                          "Referrer-Policy": "no-referrer"})
-    r.set_cookie(cookie, token, httponly=True, samesite="strict")
-    return r
-
-
-async def read_json(req: Request, limit: int, what: str) -> Any:
-    """The request's body as strict JSON, refused (413) past ``limit`` bytes — declared or
-    read — before it is parsed."""
-    from ..lighting.document import parse_json
-
-    _declared(req, limit, what)
-    body = bytearray()
-    async for chunk in req.stream():
-        body += chunk
-        if len(body) > limit:
-            raise Refused(f"{what}: over the {_size(limit)} limit", 413)
-    return parse_json(body.decode("utf-8", "replace") or "{}", what)
-
-
 async def read_spec(req: Request) -> EditSpec:
     """The request's edit state: bounded, strict JSON, checked by the schema."""
     return read_state(await read_json(req, MAX_STATE, "edit state"))
@@ -110,36 +52,18 @@ async def read_spec(req: Request) -> EditSpec:
 async def receive(req: Request, path: Path, name: str) -> None:
     """Stream the request's body into ``path``, refusing it (413) once it passes its declared
     length or the upload limit; the partial file is removed on any failure."""
-    declared = _declared(req, MAX_UPLOAD, name, need=True)
+    length = declared(req, MAX_UPLOAD, name, need=True)
     got = 0
     try:
         with open(path, "wb") as f:
             async for chunk in req.stream():
                 got += len(chunk)
-                if declared is not None and got > declared:
+                if length is not None and got > length:
                     raise Refused(f"{name}: more bytes than its declared length")
                 f.write(chunk)
     except BaseException:
         path.unlink(missing_ok=True)
         raise
-
-
-def api(fn: Callable[[Handlers, Request], Awaitable[Response]]) -> Callable[..., Any]:
-    """A handler's errors as one-line answers: [`ShprobeError`][shprobe.errors.ShprobeError] 400 (or
-    its status), a client gone silence, anything else 500 (logged in one line: a library bug must
-    not take the server down)."""
-    async def wrapped(self: Handlers, req: Request) -> Response:
-        try:
-            return await fn(self, req)
-        except ClientDisconnect:
-            return Response(status_code=400)  # nobody reads it
-        except ShprobeError as e:
-            return _error(e, getattr(e, "status", 400))
-        except Exception as e:
-            _log.error("%s %s: %s: %s", req.method, req.url.path, type(e).__name__, _line(e))
-            return _error(e, 500)
-    wrapped.__name__, wrapped.__doc__ = fn.__name__, fn.__doc__
-    return wrapped
 
 
 class Handlers:
@@ -174,7 +98,7 @@ class Handlers:
             if not self.session.ready.is_set():
                 await to_thread.run_sync(self.session.ready.wait)
             if self.session.error is not None:
-                return _error(self.session.error, 500)
+                return error_response(self.session.error, 500)
             return await fn(req)
         return wrapped
 
@@ -334,7 +258,7 @@ class Handlers:
         except ShprobeError as e:
             raise ShprobeError(_shown(str(e), paths, names)) from None
         except Exception as e:  # a library bug must not take the server down
-            raise ShprobeError(_shown(f"{shown}: could not load: {_line(e)}", paths,
+            raise ShprobeError(_shown(f"{shown}: could not load: {one_line(e)}", paths,
                                       names)) from None
         pid = None
         if isinstance(new, tuple):
@@ -392,8 +316,10 @@ class Handlers:
     @api
     async def transfer(self, req: Request) -> Response:
         mode = req.query_params.get("mode") or None
+        if mode is not None and not re.fullmatch(r"[a-z]{1,20}", mode):
+            raise Refused(f"mode must be a PRT mode name, got {mode[:20]!r}")
         b = req.query_params.get("bounces")
-        if b not in (None, "") and not (b.isdigit() and len(b) <= 4):
+        if b not in (None, "") and not re.fullmatch(r"[0-9]{1,4}", b):  # ASCII: not "①"
             raise Refused(f"bounces must be a small integer, got {b[:20]!r}")
         bounces = None if b in (None, "") else int(b)
         data = await to_thread.run_sync(self.session.transfer_bytes, mode, bounces)
@@ -403,10 +329,10 @@ class Handlers:
 def _run_compare(task: Task, src: Any) -> None:
     """The compare view's numbers in a thread, its progress and outcome on ``task``."""
     try:
-        task.result = compare_data(src, task)
+        task.result = compare_data(src, task.progress)
         task.status, task.done = "done", 1.0
     except Exception as e:  # reported to the page, one line
-        task.status, task.message = "error", _line(e)
+        task.status, task.message = "error", one_line(e)
 
 
 def _shown(msg: str, paths: list[str], names: list[str]) -> str:

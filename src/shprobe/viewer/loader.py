@@ -1,5 +1,9 @@
-"""The viewer's file loader: a forked process that reads the probe and the mesh named on the
-command line while the server starts and the page loads (``shprobe view``).
+"""The viewer's file loader: what reads the probe and the mesh named on the command line while
+the server starts and the page loads. One interface (`Loader`: per file a (worker,
+receiving end) pair sending the same messages, and the `Go` that asks for the Env), two
+implementations: a forked process (`fork_loader`, ``shprobe view`` on Linux) and threads
+of this process (`inline_loader`, everywhere else); the session reads either the same
+way (`shprobe.viewer.session.Session.load`), so a probe has one path to it.
 
 ``shprobe view`` forks it as soon as numpy, the viewer's model and the lighting layer are
 imported (both sides need them: imported once, shared by the fork), before the server is
@@ -21,7 +25,8 @@ from typing import Any, NamedTuple
 
 from ..errors import ShprobeError
 
-__all__ = ["ENV_WAIT", "Go", "Loader", "default_mesh_path", "fork_loader", "mesh_to_load"]
+__all__ = ["ENV_WAIT", "Go", "Loader", "default_mesh_path", "fork_loader", "inline_loader",
+           "mesh_to_load", "start_loader"]
 
 
 def default_mesh_path() -> Path | None:
@@ -119,6 +124,122 @@ def fork_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | No
     return Loader(child, go)
 
 
+def start_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | None:
+    """The loader of ``probe`` and ``mesh``: forked where the platform allows
+    (`fork_loader`), else in threads (`inline_loader`); None with nothing to load.
+
+    Parameters
+    ----------
+    probe : str or None
+        The probe file named on the command line.
+    layout : str
+        Its layout ('auto' to detect).
+    mesh : str or None
+        The mesh file.
+
+    Returns
+    -------
+    Loader or None
+        The running loader.
+    """
+    return fork_loader(probe, layout, mesh) or inline_loader(probe, layout, mesh)
+
+
+class _Conn:
+    """One end of an in-process one-way pipe (`inline_loader`): ``send`` on the worker's
+    side, ``recv`` on the session's (EOFError once the sender closed and all is read); a send
+    after the receiver closed is dropped, as a send into a closed pipe fails."""
+
+    _END = object()
+
+    def __init__(self) -> None:
+        import queue
+
+        self._q: Any = queue.SimpleQueue()
+        self._gone = False
+
+    def send(self, msg: Any) -> None:
+        if self._gone:
+            raise BrokenPipeError("the receiving end is closed")
+        self._q.put(msg)
+
+    def recv(self) -> Any:
+        msg = self._q.get()
+        if msg is _Conn._END:
+            self._q.put(msg)  # every later recv ends too
+            raise EOFError
+        return msg
+
+    def close(self) -> None:
+        """The sender's close (the end of its messages) or the receiver's (later sends are
+        dropped): both, as each side closes its own copy of a real pipe."""
+        self._gone = True
+        self._q.put(_Conn._END)
+
+
+class _Worker:
+    """A loader thread with the part of a process's interface the session uses."""
+
+    def __init__(self, target: Any, args: tuple[Any, ...]) -> None:
+        self._thread = threading.Thread(target=target, args=args, daemon=True)
+        self.exitcode: int | None = None
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def is_alive(self) -> bool:
+        return self._thread.is_alive()
+
+    def terminate(self) -> None:
+        """A thread cannot be killed: its receiver is closed, so its next send ends it."""
+
+    def join(self, timeout: float | None = None) -> None:
+        self._thread.join(timeout)
+        if not self._thread.is_alive():
+            self.exitcode = 0
+
+    def close(self) -> None:
+        pass
+
+
+def inline_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | None:
+    """The loader in threads of this process (no fork: not Linux, or a session made by a
+    program or a test), sending what `fork_loader`'s processes send, in the same order,
+    through in-process pipes; ``None`` where there is nothing to load.
+
+    Parameters
+    ----------
+    probe : str or None
+        The probe file.
+    layout : str
+        Its layout ('auto' to detect).
+    mesh : str or None
+        The mesh file.
+
+    Returns
+    -------
+    Loader or None
+        The running loader.
+    """
+    if not (probe or mesh):
+        return None
+    go = Go()
+    name = os.path.basename(mesh) if mesh else None
+    child = []
+    for which in ("probe", "mesh"):
+        path = probe if which == "probe" else mesh
+        if not path:
+            continue
+        conn = _Conn()
+        args = ((conn, probe, layout, None, None) if which == "probe"
+                else (conn, None, layout, mesh, name))
+        worker = _Worker(_load_child, (*args, 0, go if which == "probe" else None, None,
+                                       False))
+        worker.start()
+        child.append((worker, conn))
+    return Loader(child, go)
+
+
 def _fork_context() -> Any:
     """multiprocessing's fork context on Linux, else None (macOS has fork, but forking a
     process that has loaded system frameworks is unsafe there)."""
@@ -194,14 +315,16 @@ def _send_mesh(conn: Any, data: bytes, stamp: dict[str, float]) -> None:
 
 def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
                 mesh_name: str | None, wait: int = 0, go: Go | None = None,
-                then: tuple[Any, bytes, dict[str, float]] | None = None) -> None:
+                then: tuple[Any, bytes, dict[str, float]] | None = None,
+                forked: bool = True) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
     mesh arrays (or, given ``then``, the cached ones down their own pipe, read next), then —
     once ``go`` is set, or `ENV_WAIT` seconds later — the [`Env`][shprobe.probes.env.Env], its
     lmax-`MAX_LMAX` coefficients and the background texture, each sent when ready
-    (with wall-clock stamps); a failure is one ("error", line) message. Ends the process
+    (with wall-clock stamps); a failure is one ("error", line) message. A forked process ends
     itself (``os._exit``, after reaping the process ``wait``): nothing of the parent's
-    (threads, exit handlers, the CLI's signal handlers) runs here."""
+    (threads, exit handlers, the CLI's signal handlers) runs there; ``forked=False`` (a
+    thread, `inline_loader`) returns."""
     import time
 
     try:
@@ -226,12 +349,22 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
             env = src.env
             conn.send(("env", env, src.coeffs, background_payload(env),
                        {"env_sent": time.time()}))
+    except (BrokenPipeError, ConnectionResetError):  # the session has gone: nothing to tell
+        pass
     except ShprobeError as e:
-        conn.send(("error", str(e)))
+        _tell(conn, ("error", str(e)))
     except Exception as e:  # a library bug: one line, the server stops
-        conn.send(("error", f"{type(e).__name__}: {e}".splitlines()[0]))
+        _tell(conn, ("error", f"{type(e).__name__}: {e}".splitlines()[0]))
     finally:
         conn.close()
         if wait:
             os.waitpid(wait, 0)
-        os._exit(0)
+        if forked:  # (``forked=False``: a thread of the session's process, which returns)
+            os._exit(0)
+
+
+def _tell(conn: Any, msg: Any) -> None:
+    try:
+        conn.send(msg)
+    except OSError:  # the session has gone
+        pass

@@ -1,8 +1,9 @@
 """The viewer's session: what one ``shprobe view`` serves — the files named on the command line
-(read by the forked loader, `shprobe.viewer.loader`, or here), the files uploaded through the page
-(`shprobe.viewer.uploads`), the lighting source and the probes kept for blending, the mesh and the
-optional PRT transfer, and the page's designs (`shprobe.viewer.design`). No HTTP here
-(`shprobe.viewer.app`)."""
+(the probe and the mesh through the loader, `shprobe.viewer.loader`: forked or in threads, one
+path), the files uploaded through the page (`shprobe.viewer.uploads`), the lighting source, the
+page's designs (`shprobe.viewer.design`) and its long views; by concern, the probes kept for
+blending (`shprobe.viewer.shelf`) and the mesh, transfer and H-basis bake
+(`shprobe.viewer.scenefiles`). No HTTP here (`shprobe.viewer.app`)."""
 
 from __future__ import annotations
 
@@ -16,42 +17,42 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..lighting.edits import Blend, EditSpec
-from .design import DESIGN_LMAX, Designed, Designer, design_coeffs
-from .loader import fork_loader, mesh_to_load
-from .payloads import background_payload, ground_mask, mesh_payload, view_cameras
+from ..lighting.edits import EditSpec
+from ..progress import Fraction
+from .design import Designed, Designer, design_coeffs
+from .loader import fork_loader, inline_loader, mesh_to_load
+from .payloads import background_payload
+from .scenefiles import SceneFiles
+from .shelf import ProbeShelf
 from .source import Source, env_source, load_probe, preset_source
 from .uploads import Uploads
-from .views import hbasis_panel
-from .wire import pack_binary
+from .views import hbasis_panel, is_rotation_only
 
 __all__ = ["Session", "Task"]
 
 
 @dataclass
 class Task:
-    """A long library call running off the event loop, and its progress as the page polls
-    it: a [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter (``done`` is the
-    fraction of the stage under way)."""
+    """A long library call running off the event loop, and its outcome as the page polls it;
+    ``done``, the fraction of the stage under way, is kept by `progress` (a
+    [`shprobe.progress.Fraction`][shprobe.progress.Fraction] reporter handed to the library
+    call)."""
 
     done: float = 0.0
     status: str = "idle"  # idle | running | done | error
     message: str = ""
     result: Any = None
-    _total: float | None = None
 
-    def begin(self, description: str, total: float | None = None) -> None:
-        self._total, self.done = total, 0.0
-
-    def update(self, done: float) -> None:
-        self.done = min(done / self._total, 1.0) if self._total else 0.0
-
-    def end(self) -> None:
-        self.done = 1.0
+    @property
+    def progress(self) -> Fraction:
+        """The reporter to give the library call: it sets `done`."""
+        return Fraction(lambda f: setattr(self, "done", f))
 
 
-class Session:
-    """Everything one ``shprobe view`` serves: sources, mesh, transfer, uploads."""
+class Session(ProbeShelf, SceneFiles):
+    """Everything one ``shprobe view`` serves: sources (the probes kept for blending:
+    `ProbeShelf`), mesh, transfer and H-basis bake
+    (`SceneFiles`), uploads, designs."""
 
     def __init__(self, probe: str | None = None, preset: str | None = None,
                  mesh: str | None = None, transfer: str | None = None,
@@ -117,23 +118,44 @@ class Session:
             self.stamp("load_start")
             self._child, self._go = loader
 
+    def start(self) -> None:
+        """Start reading the files named on the command line: the forked loader
+        (`fork_loader`), then `load` in a thread; `wait` waits for it."""
+        self.fork_loader()  # before any thread starts
+        threading.Thread(target=self._load_quietly, daemon=True).start()
+
+    def _load_quietly(self) -> None:
+        try:
+            self.load()
+        except BaseException:  # kept in self.error; wait() raises it
+            pass
+
+    def wait(self) -> None:
+        """Wait until the files named on the command line are read; their one-line error,
+        if any, is raised."""
+        self.ready.wait()
+        if self.error is not None:
+            raise self.error
+
     def load(self) -> None:
-        """Read the files named on the command line (probe and mesh in parallel, or from the
-        process `fork_loader` started); sets `ready`, and `error` when one
-        of them is bad (then re-raised)."""
+        """Read the files named on the command line: the probe and the mesh through the loader
+        (the process `fork_loader` started, else `inline_loader`'s
+        threads), a transfer and an H-basis bake here; sets `ready`, and `error`
+        when one of them is bad (then re-raised)."""
         probe, preset, _, transfer = self._args
         mesh_path = self._mesh_arg()
         errors: list[BaseException] = []
         self.stamp("load_start", first=True)
-        forked = self._child is not None
+        if self._child is None:  # not forked (fork_loader): the same loader, in threads
+            loader = inline_loader(probe, self.layout, mesh_path)
+            if loader is not None:
+                self._child, self._go = loader
+        from_loader = self._child is not None
 
         def geometry() -> None:
             try:
                 if transfer:
                     self.load_transfer(transfer)
-                if mesh_path and not forked:
-                    self.load_mesh(mesh_path, os.path.basename(mesh_path))
-                    self.stamp("geometry_done")
                 if self._hbasis_arg:  # checked against the mesh below, once it is in
                     self._read_hbasis(self._hbasis_arg)
             except BaseException as e:  # re-raised below, in the caller's thread
@@ -142,11 +164,10 @@ class Session:
         th = threading.Thread(target=geometry, daemon=True)
         th.start()
         try:
-            if forked:
-                self._load_forked(probe, mesh_path)
-            if probe and not forked:
-                self.source = self.probe_source(probe)
-                self.register_probe(self.source, probe)
+            if from_loader:  # the probe (the source) and the mesh's page arrays
+                self._load_from_loader(probe, mesh_path)
+            if probe:
+                pass
             elif preset:
                 self.source = preset_source(preset)
             elif self._hbasis_arg:  # the lighting the bake was made for
@@ -174,9 +195,10 @@ class Session:
             raise self.error
         self.ready.set()
 
-    def _load_forked(self, probe: str | None, mesh_path: str | None) -> None:
-        """`load`'s probe and mesh from the forked processes
-        (`_load_child`)."""
+    def _load_from_loader(self, probe: str | None, mesh_path: str | None) -> None:
+        """`load`'s probe and mesh from the loader (forked or in threads: the same
+        messages, `shprobe.viewer.loader`): the one path of a command line's probe to the
+        session."""
         name = os.path.basename(mesh_path) if mesh_path else None
         src: Source | None = None
         try:
@@ -247,6 +269,8 @@ class Session:
             self._child = None
         for _, recv in child:
             recv.close()
+        if self._go is not None:  # a loader waiting to send the Env sends it (into a closed
+            self._go.set()        # pipe) and ends now, not ENV_WAIT later
         for proc in {id(p): p for p, _ in child}.values():  # one loader, 1-2 pipes
             if done is None and proc.is_alive():
                 proc.terminate()
@@ -282,8 +306,11 @@ class Session:
                 hit = self._hbasis_made = (bk, hbasis_panel(bk.lighting, None, np.eye(3),
                                                             self.mesh, baked=bk))
             return hit[1]
-        L, _ = self.design_exact(spec.with_lmax(4))
-        return hbasis_panel(L, self.source.env, spec.rotation_matrix(), self.mesh)
+        spec4 = spec.with_lmax(4)
+        L, _ = self.design_exact(spec4)
+        # the probe itself (turned) where the design is the probe turned; else the edited SH
+        env = self.source.env if is_rotation_only(spec4) else None
+        return hbasis_panel(L, env, spec.rotation_matrix(), self.mesh)
 
     @property
     def source(self) -> Source:
@@ -297,58 +324,6 @@ class Session:
         self._source = src
         self._trim_probes()
 
-    def register_probe(self, src: Source, name: str) -> str:
-        """Keep a loaded probe for blending; → its id (what the page names it by)."""
-        with self.lock:
-            pid = f"{self._probe_tag}.{len(self.probes)}"
-            self.probes[pid] = (name, src)
-        self._trim_probes(keep=src)  # it may become the source next
-        return pid
-
-    def _trim_probes(self, keep: Source | None = None) -> None:
-        """A probe that is only a blend source now (not `source`, not ``keep``) keeps
-        its coefficients at every degree a design can ask for and lets its decoded image go
-        (in a thread: up to `DESIGN_LMAX` + 1 projections), so that uploads do not pile
-        up images in memory: at most the source's and the latest upload's are held."""
-        current = self._source
-        old = [src for _, (_, src) in self._probe_items()
-               if src is not current and src is not keep and src._arrived.is_set()
-               and src._env is not None]
-        if old:
-            threading.Thread(target=lambda: [o.keep_coeffs_only(DESIGN_LMAX) for o in old],
-                             daemon=True).start()
-
-    def _probe_items(self) -> list[tuple[str, tuple[str, Source]]]:
-        with self.lock:  # register_probe adds from a worker thread
-            return list(self.probes.items())
-
-    def probe_names(self) -> dict[str, str]:
-        return {k: v[0] for k, v in self._probe_items()}
-
-    def probe_list(self) -> list[dict[str, str]]:
-        return [{"id": k, "name": os.path.basename(v[0]) or v[0]}
-                for k, v in self._probe_items()]
-
-    def blend_coeffs(self, blend: Blend, lmax: int) -> NDArray[np.float64]:
-        """A blend of the page's design: a preset, or a probe this session loaded (by id);
-        never a file named by the page."""
-        from ..lighting.source import blend_lighting
-
-        if blend.kind == "probe":
-            return self.probe_coeffs(blend.name, lmax)
-        if blend.kind != "preset":
-            raise ShprobeError("the page blends presets and the probes this server loaded")
-        return blend_lighting(blend, lmax)
-
-    def probe_coeffs(self, pid: str, lmax: int) -> NDArray[np.float64]:
-        """A registered probe projected to ``lmax`` (`Source.coeffs_at`)."""
-        with self.lock:
-            hit = self.probes.get(pid)
-        if hit is None:
-            raise ShprobeError(f"blend probe {pid} is not loaded in this server (load it "
-                               "again)")
-        return hit[1].coeffs_at(lmax)
-
     def base(self, lmax: int) -> NDArray[np.float64]:
         """The coefficients the edits start from at degree ``lmax``: a probe projected to
         max(lmax, 2), as ``shprobe edit`` projects its source."""
@@ -360,117 +335,6 @@ class Session:
     def probe_source(self, path: str | list[str], name: str | None = None) -> Source:
         return load_probe(path, self.layout, name,
                           lambda k: self.stamp(k, first=True))
-
-    # mesh / transfer --------------------------------------------------------
-    @property
-    def mesh(self) -> Any:
-        """The trimesh mesh drawn (None: the built-in sphere); a mesh the loading process
-        read for the first frame is loaded here on first use."""
-        with self._mesh_lock:
-            if self._mesh is None and self._mesh_path is not None:
-                from ..scene import load_mesh
-
-                self._mesh = load_mesh(self._mesh_path)
-            return self._mesh
-
-    def load_mesh(self, path: str, name: str | None = None) -> None:
-        from ..scene import load_mesh
-
-        m = load_mesh(path)
-        with self._mesh_lock:
-            self._mesh, self._mesh_path, self._mesh_bytes = m, None, None
-            self.mesh_name = name or os.path.basename(path)
-        self.hbasis_bake = None  # per vertex of the mesh it was baked for
-
-    def load_transfer(self, path: str, name: str | None = None) -> None:
-        """A transfer file (``shprobe prt bake``), read by the library's checked reader; an
-        H-basis bake given instead is named as one."""
-        from ..hbasis.bakefile import is_bake
-        from ..prt.transfer import load_transfer
-
-        if is_bake(path):
-            raise ShprobeError("is an H-basis bake (`shprobe hbasis bake`), not a PRT "
-                               "transfer: open it with `shprobe view --hbasis FILE` or the "
-                               "page's H-basis loader", name or path)
-        self.transfer = load_transfer(path)
-        self.transfer_name = name or os.path.basename(path)
-
-    def _read_hbasis(self, path: str, name: str | None = None) -> None:
-        """Read a ``shprobe hbasis bake`` file (`load_bake`);
-        a PRT transfer given instead is named as one."""
-        from ..hbasis.bakefile import is_bake, load_bake
-
-        shown = name or os.path.basename(path)
-        if not is_bake(path) and str(path).lower().endswith(".npz"):
-            from ..files import npz_headers
-
-            try:
-                heads = npz_headers(path, "bake file")
-            except ShprobeError:
-                heads = {}
-            if "vertices" in heads:
-                raise ShprobeError("is a PRT transfer (`shprobe prt bake`), not an H-basis "
-                                   "bake: open it with `shprobe view --transfer FILE`",
-                                   name or path)
-        self.hbasis_bake = load_bake(path)
-        self.hbasis_name = shown
-
-    def _check_hbasis(self, bake: Any, path: Any) -> None:
-        """Refuse a bake made for another mesh than the one shown (one line)."""
-        from ..scene import mesh_hash
-
-        m = self.mesh
-        if m is None:
-            raise ShprobeError("an H-basis bake is per vertex of its mesh: give that mesh "
-                               "with --mesh", path)
-        if mesh_hash(m.vertices, m.faces) != bake.mesh_hash:
-            raise ShprobeError(f"was baked for another mesh than {self.mesh_name}: give the "
-                               "mesh it was baked for with --mesh", path)
-
-    def load_hbasis(self, path: str, name: str | None = None) -> None:
-        """An H-basis bake (``shprobe hbasis bake``) for the mesh shown, checked against it
-        (the bake shown before is kept when this one is refused)."""
-        keep = (self.hbasis_bake, self.hbasis_name)
-        try:
-            self._read_hbasis(path, name)
-            self._check_hbasis(self.hbasis_bake, name or path)
-        except BaseException:
-            self.hbasis_bake, self.hbasis_name = keep
-            raise
-
-    def _bake_source(self) -> Source:
-        """The lighting an H-basis bake was made for (its radiance SH, to the design's
-        highest degree) as the source."""
-        L = np.asarray(self.hbasis_bake.lighting, np.float64)
-        return Source(f"{self.hbasis_name} (baked lighting)", L[: (DESIGN_LMAX + 1) ** 2])
-
-    def mesh_bytes(self) -> bytes:
-        """The page's mesh (`mesh_payload`), made once per mesh (under the mesh lock: an
-        upload meanwhile waits, so the payload cached is always the current mesh's)."""
-        with self._mesh_lock:
-            if self._mesh_bytes is None:
-                self._mesh_bytes = mesh_payload(self.mesh, self.mesh_name)
-            return self._mesh_bytes
-
-    def transfer_bytes(self, mode: str | None, bounces: int | None) -> bytes:
-        t = self.transfer
-        if t is None:
-            raise ShprobeError("no transfer: start `shprobe view --transfer T.npz`")
-        T = t.select(mode, bounces)
-        v = np.asarray(t.vertices)
-        # framed on the object; the ground plane (the last vertices) is seen around it
-        flat = ground_mask(v, t.normals, bool(t.metadata.get("ground")))
-        ng = int(flat.sum())
-        obj = v[~flat] if ng < len(v) else v
-        c = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
-        r = float(np.sqrt(((obj - c) ** 2).sum(axis=1).max()))
-        return pack_binary(
-            {"name": self.transfer_name, "lmax": t.lmax, "modes": list(t.modes),
-             "max_bounces": t.max_bounces, "mode": mode or t.mode, "bounces": bounces,
-             "ground_vertices": ng, "center": c.tolist(), "radius": r,
-             **view_cameras(c, r, ground=ng > 0)},
-            {"position": v, "normal": t.normals, "index": t.faces,
-             "transfer": T.reshape(T.shape[0], -1)})
 
     # pictures ---------------------------------------------------------------
     def background_bytes(self) -> bytes | None:

@@ -10,10 +10,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..lighting.edits import EditSpec
 from ..progress import Progress
 from .source import MAX_LMAX, Source
 
-__all__ = ["HBASIS_LABELS", "NORMAL_GRID", "compare_data", "hbasis_panel"]
+__all__ = ["HBASIS_LABELS", "NORMAL_GRID", "compare_data", "hbasis_panel", "is_rotation_only"]
 
 #: lat-long size (H) of the irradiance lookup textures (the normals of ``error_report``)
 NORMAL_GRID = 32
@@ -55,23 +56,69 @@ HBASIS_LABELS = {"reference": "reference E(n′)", "H6": "H6: 6 per-vertex coeff
                  "H4": "H4: 4 per-vertex coefficients", "SH9": "SH9: 9 per-vertex coefficients"}
 
 
+def is_rotation_only(spec: EditSpec) -> bool:
+    """Whether ``spec`` leaves its source as it is but for a rotation (no scale, set, light,
+    blend, weight or window): then the design is the probe turned, and the H-basis view can
+    bake from the probe's own pixels and compare with the brute force over them.
+
+    Parameters
+    ----------
+    spec : EditSpec
+        The page's edit state.
+
+    Returns
+    -------
+    bool
+        True when only rotations (or nothing) are edited.
+    """
+    from dataclasses import replace
+
+    def moved(vals: tuple) -> tuple:  # a slider left at 1 is no edit
+        return tuple(x for x in vals if any(v != 1.0 for v in x[1]))
+
+    core = replace(spec.unrotated(), scales=moved(spec.scales),
+                   scale_bands=moved(spec.scale_bands))
+    return spec.window is None and core == EditSpec(lmax=spec.lmax)
+
+
 def hbasis_panel(L: NDArray[np.float64], env: Any, rotation: NDArray[np.float64], mesh: Any,
                  size: int = 160, baked: Any = None) -> tuple[bytes, dict[str, float]]:
-    """Irradiance normal mapping (Habel & Wimmer 2010) as ``shprobe hbasis render`` draws it,
-    for the page's lighting ``L`` (its design at lmax 4, edits and rotation applied): ``mesh``
-    (None: a sphere) with a procedural bump, shaded by per-vertex H6, H4 and tangent-space
-    SH9 baked from ``L`` (or the per-vertex coefficients ``baked``, a ``shprobe hbasis bake``
-    file's, under the lighting they were baked for: then ``L`` is its radiance SH and
-    ``env`` None), against the reference E(n′) — brute force over the probe ``env``
-    (box-filtered to 64×128 and turned by ``rotation``; the other edits are not applied to
-    it) or, without a probe, the lighting's own SH expansion.
+    """Irradiance normal mapping (Habel & Wimmer 2010) as ``shprobe hbasis render`` draws it.
 
-    → (one `pack_binary` message, relative RMS per basis). The
-    message holds each panel as linear E/π (H, W, 3) float32 (``reference``, ``H6``, ``H4``,
-    ``SH9``), the exposure that shows them (`auto_exposure` of
-    the reference), and each basis's error map ``err_<basis>`` (H, W): |E_basis − E_ref| as a
-    fraction of ∫L dω, the largest over R, G, B — the compare view's metric (R&H §3.1, the
-    unit of ``shprobe error``) — with its maximum and the mask of hit pixels."""
+    ``mesh`` (None: a sphere) with a procedural bump, shaded by per-vertex H6, H4 and
+    tangent-space SH9, against the reference E(n′). The per-vertex coefficients are baked
+    from the probe ``env`` box-filtered to 64×128 and turned by ``rotation`` (the page's
+    design when it only rotates the probe, `is_rotation_only`), the reference the brute
+    force over those pixels; without ``env``, from ``L`` (the page's design at lmax 4, every
+    edit applied), the reference the lighting's own SH expansion — the panels and errors are
+    then those of ``render_normal_mapped(mesh, L)``; with ``baked`` (a ``shprobe hbasis
+    bake`` file's coefficients; ``L`` its radiance SH, ``env`` None), those coefficients.
+
+    Parameters
+    ----------
+    L : ndarray (K, 3)
+        Radiance SH of the lighting (used when ``env`` is None).
+    env : Env or None
+        The probe, when the design is the probe turned by ``rotation``.
+    rotation : ndarray (3, 3)
+        The design's rotation, applied to ``env``.
+    mesh : trimesh.Trimesh or None
+        The mesh shown (None: a sphere).
+    size : int
+        Panel size in pixels.
+    baked : NormalMapBake or None
+        Per-vertex coefficients of a bake file, drawn instead of baking.
+
+    Returns
+    -------
+    tuple of (bytes, dict)
+        One ``pack_binary`` message and the relative RMS error per basis. The message
+        holds each panel as linear E/π (H, W, 3) float32 (``reference``, ``H6``, ``H4``,
+        ``SH9``), the exposure that shows them (``auto_exposure`` of the reference), and each
+        basis's error map ``err_<basis>`` (H, W): |E_basis − E_ref| as a fraction of ∫L dω,
+        the largest over R, G, B — the compare view's metric (R&H §3.1, the unit of
+        ``shprobe error``) — with its maximum and the mask of hit pixels.
+    """
     from ..hbasis.rendering import render_normal_mapped
     from ..lighting.projection import total_intensity
     from ..probes.env import Env

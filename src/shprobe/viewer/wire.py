@@ -17,16 +17,24 @@ __all__ = ["camera_json", "pack_binary", "unpack_files"]
 def pack_binary(header: dict[str, Any], arrays: dict[str, NDArray]) -> bytes:
     """One binary message: uint32 header length, JSON header (with each array's dtype, shape
     and byte offset), padding to 4 bytes, then the arrays (little-endian float16 / float32 /
-    uint32), each padded to 4 bytes."""
+    uint32), each padded to 4 bytes. A NaN or ∞ — in the header, or in an array once cast to
+    its wire type — is refused (one-line ShprobeError): the page is never sent one."""
     parts, meta, off = [], {}, 0
     for name, a in arrays.items():
         kind = "f2" if a.dtype == np.float16 else "f4" if a.dtype.kind == "f" else "u4"
-        a = np.ascontiguousarray(a, dtype="<" + kind)
+        with np.errstate(over="ignore", invalid="ignore"):
+            a = np.ascontiguousarray(a, dtype="<" + kind)
+        if kind != "u4" and not np.all(np.isfinite(a)):  # never a NaN or ∞ to the page
+            raise ShprobeError(f"{name}: values too large for the page's "
+                               f"{16 if kind == 'f2' else 32}-bit floats (or not finite)")
         meta[name] = {"dtype": kind, "shape": list(a.shape), "offset": off}
         parts.append(a.tobytes())
         off += a.nbytes + (-a.nbytes % 4)
         parts.append(b"\0" * (-a.nbytes % 4))
-    head = json.dumps({**header, "arrays": meta}).encode()
+    try:
+        head = json.dumps({**header, "arrays": meta}, allow_nan=False).encode()
+    except ValueError:
+        raise ShprobeError("a number for the page is not finite (NaN or ∞)") from None
     head += b" " * (-(len(head) + 4) % 4)
     return len(head).to_bytes(4, "little") + head + b"".join(parts)
 

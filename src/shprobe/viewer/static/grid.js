@@ -3,166 +3,31 @@
 // library's generated GLSL, R&H 2001 eq. 7) and the object's per-vertex irradiance
 // (ProbeGrid.irradiance, leak control on or off). The page only draws.
 import * as THREE from 'three';  // the parts of three.js the pages use (tools/js/entry.js)
-import { unpack } from './wire.js';
 import { OrbitControls } from 'three';
+import { $, api, call, clearError, showError } from './api.js';
+import { ROW, boxEdges, cages, edges, lineMaterial, meshGeometry, objectMaterial, probeMaterial,
+  probeSpheres, sceneMaterial } from './gridscene.js';
 
-const $ = (id) => document.getElementById(id);
-const api = window.__shprobe = { lastError: null };  // exposed for tests
 window.addEventListener('error', (e) => { api.lastError = String(e.message || e); });
-const W = 720, H = 540;
-const DOUBLE_SIDE = 2;  // three.js's DoubleSide (a constant the bundle does not export)
-const ROW = 256;        // probes per row of the coefficient texture
-
-// ------------------------------------------------------------------ server calls
-async function call(path, opts = {}) {
-  const r = await fetch(path, opts);
-  const type = r.headers.get('content-type') || '';
-  if (!r.ok) {
-    let msg = `${r.status} ${r.statusText}`;
-    if (type.includes('json')) msg = (await r.json()).error || msg;
-    throw new Error(msg);
-  }
-  return unpack(await r.arrayBuffer());
-}
-function showError(e) {
-  const el = $('error');
-  el.textContent = String(e && e.message ? e.message : e);
-  el.hidden = false;
-  api.lastError = el.textContent;
-}
-
-// ------------------------------------------------------------------ shaders
-const COMMON = `const float PI = 3.141592653589793;
-out vec4 fragColor;
-vec3 srgb(vec3 v) { v = clamp(v, 0.0, 1.0);
-  return mix(12.92 * v, 1.055 * pow(v, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), v)); }
-`;
-function probeMaterial(glsl, K) {
-  // the library's E(n) with its uniform array made a global, filled per fragment from the
-  // probe's row of the coefficient texture
-  const fn = glsl.replace(/uniform vec3 SHPROBE_E\[(\d+)\];/, 'vec3 SHPROBE_E[$1];');
-  return new THREE.ShaderMaterial({
-    glslVersion: THREE.GLSL3,
-    uniforms: { uE: { value: null }, uRadius: { value: 0.1 }, uExposure: { value: 0 } },
-    defines: { K, ROW },
-    vertexShader: `in float probe; in vec3 centre; uniform float uRadius;
-      flat out int vProbe; out vec3 vN;
-      void main() { vProbe = int(probe + 0.5); vN = normal;
-        gl_Position = projectionMatrix * modelViewMatrix * vec4(centre + uRadius * normal, 1.0); }`,
-    fragmentShader: COMMON + fn + `
-      uniform sampler2D uE; uniform float uExposure; flat in int vProbe; in vec3 vN;
-      void main() {
-        for (int k = 0; k < K; k++)
-          SHPROBE_E[k] = texelFetch(uE, ivec2((vProbe % ROW) * K + k, vProbe / ROW), 0).rgb;
-        vec3 e = max(shprobe_irradiance_sh(normalize(vN)), 0.0);  // clamped as the engines do
-        fragColor = vec4(srgb(e / PI * exp2(uExposure)), 1.0);
-      }`,
-  });
-}
-function objectMaterial() {  // albedo · E/π, E the library's per-vertex irradiance
-  return new THREE.ShaderMaterial({
-    glslVersion: THREE.GLSL3,
-    uniforms: { uExposure: { value: 0 } },
-    vertexShader: `in vec3 albedo; in vec3 irradiance; out vec3 vC;
-      void main() { vC = albedo * irradiance;
-        gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
-    fragmentShader: COMMON + `uniform float uExposure; in vec3 vC;
-      void main() { fragColor = vec4(srgb(vC / PI * exp2(uExposure)), 1.0); }`,
-  });
-}
-function lineMaterial(rgb) {  // edges drawn as wireframe of (a, b, b) triangles
-  return new THREE.ShaderMaterial({
-    glslVersion: THREE.GLSL3, wireframe: true,
-    uniforms: { uScale: { value: 1 } },
-    vertexShader: `in vec3 offset; uniform float uScale;
-      void main() { gl_Position = projectionMatrix * modelViewMatrix * vec4(position + uScale * offset, 1.0); }`,
-    fragmentShader: `out vec4 fragColor; void main() { fragColor = vec4(${rgb.join(', ')}, 1.0); }`,
-  });
-}
-function sceneMaterial() {  // the bake scene, translucent so that the probes inside show
-  return new THREE.ShaderMaterial({
-    glslVersion: THREE.GLSL3, transparent: true, depthWrite: false, side: DOUBLE_SIDE,
-    vertexShader: `out vec3 vN; void main() { vN = normal;
-        gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0); }`,
-    fragmentShader: `out vec4 fragColor; in vec3 vN;
-      void main() { float g = 0.45 + 0.25 * abs(normalize(vN).y); fragColor = vec4(vec3(g), 0.22); }`,
-  });
-}
-
-// ------------------------------------------------------------------ geometry
-function attr(g, name, data, k) { g.setAttribute(name, new THREE.BufferAttribute(data, k)); }
-function probeSpheres(pos, n, seg, rings) {  // one UV sphere per probe, merged
-  const vs = (seg + 1) * (rings + 1), is = seg * rings * 6;
-  const centre = new Float32Array(n * vs * 3), normal = new Float32Array(n * vs * 3);
-  const probe = new Float32Array(n * vs), index = new Uint32Array(n * is);
-  const unit = [];
-  for (let r = 0; r <= rings; r++) {
-    const th = Math.PI * r / rings;
-    for (let s = 0; s <= seg; s++) {
-      const ph = 2 * Math.PI * s / seg;
-      unit.push([Math.sin(th) * Math.cos(ph), Math.cos(th), Math.sin(th) * Math.sin(ph)]);
-    }
-  }
-  for (let p = 0; p < n; p++) {
-    for (let v = 0; v < vs; v++) {
-      const o = (p * vs + v) * 3;
-      for (let a = 0; a < 3; a++) { centre[o + a] = pos[3 * p + a]; normal[o + a] = unit[v][a]; }
-      probe[p * vs + v] = p;
-    }
-    let o = p * is;
-    for (let r = 0; r < rings; r++) {
-      for (let s = 0; s < seg; s++) {
-        const a = p * vs + r * (seg + 1) + s, b = a + seg + 1;
-        index.set([a, a + 1, b, a + 1, b + 1, b], o); o += 6;  // counter-clockwise from outside
-      }
-    }
-  }
-  const g = new THREE.BufferGeometry();
-  attr(g, 'position', centre, 3); attr(g, 'centre', centre, 3); attr(g, 'normal', normal, 3);
-  attr(g, 'probe', probe, 1); g.setIndex(new THREE.BufferAttribute(index, 1));
-  g.userData.indicesPerSphere = is;
-  return g;
-}
-function edges(points, offsets, pairs) {  // segments as degenerate triangles (a, b, b)
-  const g = new THREE.BufferGeometry();
-  attr(g, 'position', new Float32Array(points), 3);
-  attr(g, 'offset', new Float32Array(offsets || points.map(() => 0)), 3);
-  const idx = [];
-  for (const [a, b] of pairs) idx.push(a, b, b);
-  g.setIndex(new THREE.BufferAttribute(new Uint32Array(idx), 1));
-  return g;
-}
-function boxEdges(lo, hi) {
-  const pts = [];
-  for (let i = 0; i < 8; i++) pts.push(i & 1 ? hi[0] : lo[0], i & 2 ? hi[1] : lo[1], i & 4 ? hi[2] : lo[2]);
-  const pairs = [];
-  for (let i = 0; i < 8; i++) for (const bit of [1, 2, 4]) if (!(i & bit)) pairs.push([i, i | bit]);
-  return edges(pts, null, pairs);
-}
-function cages(pos, which) {  // an octahedron around each marked probe (its size: uScale)
-  const pts = [], off = [], pairs = [];
-  const dirs = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
-  for (const p of which) {
-    const b = pts.length / 3;
-    for (const d of dirs) { pts.push(pos[3 * p], pos[3 * p + 1], pos[3 * p + 2]); off.push(...d); }
-    for (const [i, j] of [[0, 2], [0, 3], [0, 4], [0, 5], [1, 2], [1, 3], [1, 4], [1, 5], [2, 4], [2, 5], [3, 4], [3, 5]]) pairs.push([b + i, b + j]);
-  }
-  return edges(pts, off, pairs);
-}
-function meshGeometry(pos, nrm, idx, extra) {
-  const g = new THREE.BufferGeometry();
-  attr(g, 'position', new Float32Array(pos), 3); attr(g, 'normal', new Float32Array(nrm), 3);
-  for (const [k, v] of Object.entries(extra || {})) attr(g, k, v, 3);
-  g.setIndex(new THREE.BufferAttribute(new Uint32Array(idx), 1));
-  return g;
-}
+let W = 720, H = 540;  // the canvas's drawing buffer: its size on the page (fit())
 
 // ------------------------------------------------------------------ the page
 let renderer, scene, camera, controls, data, head;
 let probes, probeMat, objMesh, objMat, boxMesh, sceneMesh, cageMesh, moveMesh;
 const place = { position: [0, 0, 0], size: 1, leak_control: true };
 
+// the drawing buffer follows the canvas's size on the page (CSS pixels one for one: the
+// pointer and the tests' pixel reads map to it directly); → true when it changed
+function fit() {
+  const c = $('view'), w = Math.max(1, c.clientWidth), h = Math.max(1, c.clientHeight);
+  if (w === W && h === H && renderer.domElement.width === w) return false;
+  W = w; H = h; renderer.setSize(W, H, false);
+  if (camera) { camera.aspect = W / H; camera.updateProjectionMatrix(); }
+  return true;
+}
+new ResizeObserver(() => { if (renderer && fit() && scene) draw(); }).observe($('viewwrap'));
 function draw() {
+  if (!scene) return;
   renderer.render(scene, camera);
   api.frames = (api.frames || 0) + 1;
 }
@@ -196,10 +61,14 @@ async function shade() {
       a.array.set(r.irradiance); a.needsUpdate = true;
       api.lastShade = { ...r.head, request: JSON.parse(body) };
       api.objectIrradiance = Array.from(r.irradiance);
-      $('objmean').textContent = r.head.mean.map((v) => v.toPrecision(4)).join(', ')
-        + (r.head.leak_control ? ' (leak control on)' : ' (plain trilinear)');
+      // both settings, so that what leak control does shows without touching the toggle
+      const rgb = (m) => `(${m.map((v) => v.toPrecision(3)).join(', ')})`;
+      const on = r.head.leak_control, other = r.head.mean_other;
+      $('objmean').textContent = other
+        ? `leak control on ${rgb(on ? r.head.mean : other)} · off (plain trilinear) ${rgb(on ? other : r.head.mean)}; drawn: ${on ? 'on' : 'off'}`
+        : `${rgb(r.head.mean)} (plain trilinear)`;
       $('shadeinfo').textContent = `${objMesh.geometry.getAttribute('position').count} vertices lit by the library in ${r.head.ms.toFixed(1)} ms`;
-      $('error').hidden = true;
+      clearError();
       draw();
     } while (again);
   } catch (e) { showError(e); }
@@ -283,6 +152,33 @@ function gridInfo() {
   }
 }
 
+// the first view of a grid with depth data: the camera ``d`` from the object, on the side
+// of the volume it is on, along the clearest line of sight (the farthest from every probe
+// sphere), so that the object shows with the probes and walls around it
+function firstView(d) {
+  const o = new THREE.Vector3(...place.position), mid = controls.target.clone();
+  const out = o.clone().sub(mid); out.y = 0;
+  const r = probeMat.uniforms.uRadius.value, n = head.probes, pos = data.probe_position;
+  let best = null;
+  for (let a = 0; a < 24; a++) {
+    for (const el of [15, 30, 45]) {
+      const az = 2 * Math.PI * a / 24, e = el * Math.PI / 180;
+      const dir = new THREE.Vector3(Math.cos(e) * Math.cos(az), Math.sin(e), Math.cos(e) * Math.sin(az));
+      if (out.lengthSq() > 0 && dir.x * out.x + dir.z * out.z < 0) continue;  // the object's side
+      let clear = Infinity;
+      for (let p = 0; p < n; p++) {  // distance from each probe to the line of sight
+        const q = new THREE.Vector3(pos[3 * p], pos[3 * p + 1], pos[3 * p + 2]).sub(o);
+        const t = Math.min(Math.max(q.dot(dir), place.size), d);
+        clear = Math.min(clear, q.distanceTo(dir.clone().multiplyScalar(t)) - r);
+      }
+      if (!best || clear > best.clear + 1e-9) best = { clear, dir };
+    }
+  }
+  controls.target.copy(o);
+  camera.position.copy(o).addScaledVector(best.dir, d);
+  controls.update(); draw();
+}
+
 function radiusCells(v) {
   $('radval').textContent = Number(v).toFixed(2);
   const r = Number(v) * Math.min(...head.spacing);
@@ -316,6 +212,7 @@ api.readPixel = (x, y) => {  // (x, y) from the top left
   gl.readPixels(x, H - 1 - y, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
   return Array.from(px);
 };
+api.canvasSize = () => [W, H];
 api.state = () => ({
   probesDrawn: probes.visible ? probes.geometry.index.count / probes.geometry.userData.indicesPerSphere : 0,
   probes: head.probes, exposure: exposure(), radius: probeMat.uniforms.uRadius.value,
@@ -325,7 +222,7 @@ api.state = () => ({
 
 async function main() {
   renderer = new THREE.WebGLRenderer({ canvas: $('view'), antialias: false, preserveDrawingBuffer: true });
-  renderer.setPixelRatio(1); renderer.setSize(W, H, false);
+  renderer.setPixelRatio(1); fit();
   renderer.outputColorSpace = THREE.LinearSRGBColorSpace;  // the shaders write sRGB themselves
   renderer.setClearColor(new THREE.Color(0.11, 0.12, 0.13), 1);
   data = await call('/api/grid');
@@ -336,7 +233,10 @@ async function main() {
   const mid = lo.map((v, a) => (v + hi[a]) / 2), rad = Math.hypot(...hi.map((h, a) => h - lo[a])) / 2;
   camera = new THREE.PerspectiveCamera(40, W / H, rad * 0.01, rad * 20);
   const dist = rad / Math.sin(20 * Math.PI / 180) * 0.9;  // the box, not its bounding sphere, fills the view
-  camera.position.set(mid[0] + dist * 0.55, mid[1] + dist * 0.5, mid[2] + dist * 0.67);
+  // from above, on the side of the volume where the object starts (the server places it
+  // where leak control matters: seen in front of the scene, not behind it)
+  const side = (a) => (head.defaults.position[a] < mid[a] ? -1 : 1);
+  camera.position.set(mid[0] + dist * 0.55 * side(0), mid[1] + dist * 0.5, mid[2] + dist * 0.67 * side(2));
   controls = new OrbitControls(camera, $('view'));
   controls.target.set(...mid); controls.update();
   controls.addEventListener('change', draw);
@@ -413,11 +313,15 @@ async function main() {
     controls.target.set(...target); camera.position.copy(controls.target).addScaledVector(dir, d);
     controls.update(); draw();
   };
-  $('frameobj').addEventListener('click', () => frame(place.position, place.size / Math.sin(20 * Math.PI / 180) * 1.6));
+  const objDist = () => place.size / Math.sin(20 * Math.PI / 180) * 1.6;
+  $('frameobj').addEventListener('click', () => frame(place.position, objDist()));
   $('framevol').addEventListener('click', () => frame(mid, dist));
+  // the first view: the object and the probes and walls around it (a few cells), seen from
+  // the volume's side it is on — where leak control on and off light it differently
   gridInfo();
   dragObject();
   radiusCells($('radius').value);
+  if (head.has_depth) firstView(2.2 * place.size / Math.sin(20 * Math.PI / 180) * 1.6);
   setExposure(autoExposure());
   placeObject();
   await api.settled();

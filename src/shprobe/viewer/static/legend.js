@@ -71,10 +71,14 @@ export function drawHBasis(r, exposure) {
   const top = Math.max(...bases.map((k) => h.max_frac[k])) || 1;
   const cols = h.keys.length;
   $('hbpanels').style.gridTemplateColumns = `repeat(${cols}, minmax(0, 1fr))`;
+  // the panels' exposure: the reference's own (auto) plus the page's slider, both named (a
+  // total alone would not match the slider beside it)
+  const sign = exposure < 0 ? '−' : '+';
+  const stops = `E/π at ${(h.stops + exposure).toFixed(2)} stops (auto ${h.stops.toFixed(2)} ${sign} slider ${Math.abs(exposure).toFixed(2)})`;
   for (const k of h.keys) {
     const a = r[k];
     const label = k === 'reference' ? `${h.labels[k]} (${h.reference})` : h.labels[k];
-    paint(panelCanvas(`hb-${k}`, `${label}, E/π at ${(h.stops + exposure).toFixed(1)} stops`), H, W,
+    paint(panelCanvas(`hb-${k}`, `${label}, ${stops}`), H, W,
       (i) => (mask[i] ? [srgb8(a[3 * i] * gain), srgb8(a[3 * i + 1] * gain), srgb8(a[3 * i + 2] * gain)] : [0, 0, 0]));
   }
   const note = document.createElement('figure');  // the reference has no error panel

@@ -2,8 +2,7 @@
 // current edit (POST /api/snippet, made by shprobe.lighting.snippet), shown under the command
 // and copied to the clipboard. While shown, it follows the edits (the command's text changes
 // with each design).
-const api = window.__shprobe || {};
-window.__shprobe = api;
+import { api, call } from './api.js';
 
 function setup() {
   const cli = document.getElementById('cli');
@@ -19,12 +18,7 @@ function setup() {
 
   async function fetchSnippet() {
     const state = api.getState ? api.getState() : {};
-    const r = await fetch('/api/snippet', { method: 'POST', body: JSON.stringify(state) });
-    if (!r.ok) {
-      let msg = `${r.status} ${r.statusText}`;
-      try { msg = (await r.json()).error || msg; } catch (e) { /* not JSON */ }
-      throw new Error(msg);
-    }
+    const r = await call('/api/snippet', { method: 'POST', body: JSON.stringify(state) });
     const text = await r.text();
     pre.textContent = text; pre.hidden = false;
     api.lastSnippet = text;
