@@ -40,6 +40,102 @@ def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
         raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
 
 
+def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
+    """The ``stat`` of an input that must be a regular file, or one line naming it.
+
+    A FIFO, a device (``/dev/zero``, ``/dev/urandom``), a socket or a folder is refused at
+    once: reading one would block forever or never end.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input file (links are followed).
+    what : str
+        What the file should be, for the messages ("splat file", "probe").
+
+    Returns
+    -------
+    os.stat_result
+        The file's status (size in ``st_size``).
+    """
+    p = os.fspath(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise ShprobeError(f"no such {what}", p) from None
+    except OSError as e:
+        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ShprobeError("is a directory, not a file", p)
+    if not stat.S_ISREG(st.st_mode):
+        raise ShprobeError(f"is not a regular file (a device, pipe or socket): a {what} must "
+                           "be a file", p)
+    return st
+
+
+def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: int = -1):
+    """Open an input for binary reading, refusing anything but a regular file.
+
+    The name is checked with :func:`regular_file`, then opened without blocking and checked
+    again on the open descriptor, so a FIFO or device swapped in between is refused too,
+    never waited on.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input file.
+    what : str
+        What the file should be, for the messages.
+    buffering : int
+        As for ``open`` (0: unbuffered).
+
+    Returns
+    -------
+    io.BufferedReader or io.FileIO
+        The open file, positioned at its start.
+    """
+    p = os.fspath(path)
+    regular_file(p, what)
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise ShprobeError(f"no such {what}", p) from None
+    except OSError as e:
+        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ShprobeError(f"is not a regular file (a device, pipe or socket): a {what} must "
+                           "be a file", p)
+    return open(fd, "rb", buffering=buffering)
+
+
+def read_bytes(path: str | os.PathLike[str], what: str = "file") -> bytes:
+    """The bytes of a regular input file (:func:`open_regular`), checked against the memory
+    limit from its size first.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input file.
+    what : str
+        What the file should be, for the messages.
+
+    Returns
+    -------
+    bytes
+        The file's content.
+    """
+    from .limits import check_memory
+
+    p = os.fspath(path)
+    with open_regular(p, what) as f:
+        check_memory(os.fstat(f.fileno()).st_size, f"reading this {what}", p)
+        try:
+            return f.read()
+        except OSError as e:
+            raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+
+
 def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
     """Refuse, before any work, an output that could not be written: an existing file (or
     link, even a dangling one) unless ``overwrite``, a folder, a parent that is a file or a

@@ -39,7 +39,8 @@ class Splats:
             a = getattr(self, name)
             if a is None:
                 continue
-            a = np.asarray(a, dtype=_F32)
+            with np.errstate(over="ignore"):  # beyond float32: inf, refused by check_finite
+                a = np.asarray(a, dtype=_F32)
             setattr(self, name, a)
             if a.shape[0] != n:
                 raise ShprobeError(f"splat {name} has {a.shape[0]} rows, positions {n}")
@@ -94,6 +95,24 @@ class Splats:
                 i = offset + int(np.argmin(ok))
                 raise ShprobeError(f"splat {i} has a non-finite value (NaN or Inf) in its "
                                    f"{_WHAT[name]}", where)
+
+
+    def check_rotations(self, where=None, offset: int = 0) -> None:
+        """Refuse a zero quaternion (it is no rotation: normalising it gives NaN), naming the
+        first splat (numbered from ``offset``).
+
+        Parameters
+        ----------
+        where : str or os.PathLike, optional
+            The file named in the message.
+        offset : int
+            Number of the first splat here (for chunks of a file).
+        """
+        norm2 = np.square(self.rotations, dtype=np.float64).sum(axis=1)
+        if not np.all(norm2 > 0):
+            i = offset + int(np.argmin(norm2 > 0))
+            raise ShprobeError(f"splat {i} has a zero rotation quaternion (no rotation: "
+                               "nothing written)", where)
 
 
 def concatenate(parts: list[Splats]) -> Splats:

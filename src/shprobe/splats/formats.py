@@ -69,6 +69,7 @@ def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
     are refused before anything is written."""
     kind = format_of(path)
     splats.check_finite(os.fspath(path))
+    splats.check_rotations(os.fspath(path))
     from ..files import atomic_output
 
     with stage(progress, "writing splats", total=splats.count) as bar:
@@ -146,6 +147,7 @@ def _stream_floats(layout: ply.PlyLayout, cols: dict[str, int], dtype: np.dtype,
             ply.first_non_finite(a, names, layout.path, done)
             ply.transform_matrix(a, cols, layout.degree, sim)
             ply.first_non_finite(a, names, f"{layout.path} (after the transform)", done)
+            ply.first_zero_rotation(a, cols, layout.path, done)
             (a if len(keep) == len(names) else a[:, keep]).tofile(f)
             done += rec.shape[0]
             bar.advance(rec.shape[0])
@@ -174,6 +176,7 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                 for rec, s in _chunks(layout, progress, "transforming splats"):
                     moved = apply(s.truncated(degree), settings.similarity)
                     moved.check_finite(os.fspath(dst))
+                    moved.check_rotations(os.fspath(dst))
                     ply.from_splats(moved, dtype, extra=rec).tofile(f)
         return TransformResult(layout.count, layout.degree, degree, Path(dst))
     s = read(src, progress)

@@ -28,6 +28,9 @@ from .cloud import Splats
 
 #: Largest deviation of AᵀA/s² from I accepted for a "similarity" 4×4.
 SIMILARITY_TOL = 1e-5
+#: Largest magnitude of a matrix entry: the scale of float32 positions (3.4e38) less room
+#: for the scene's own extent.
+MAX_ENTRY = 1e30
 
 #: Axis letters of the named frames: where the +x, +y, +z axes point (Right/Left, Up/Down,
 #: Back/Front; "back" is toward the viewer of a y-up scene).
@@ -88,6 +91,9 @@ class Similarity:
             m = m.reshape(-1, 4)
         if m.shape not in ((3, 4), (4, 4)) or not np.all(np.isfinite(m)):
             raise ShprobeError(f"matrix must be a finite 4×4 (or 3×4), got shape {m.shape}")
+        if np.abs(m).max() > MAX_ENTRY:  # its determinant and the positions would overflow
+            raise ShprobeError(f"matrix entries must be within ±{MAX_ENTRY:g}, got "
+                               f"{float(np.abs(m).max()):.3g}")
         if m.shape == (4, 4) and not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9):
             raise ShprobeError(f"matrix is projective (last row {m[3].tolist()}, expected "
                                "0,0,0,1): not a similarity")
@@ -116,15 +122,16 @@ def rotation(matrix: ArrayLike) -> Similarity:
 
 def translation(offset: ArrayLike) -> Similarity:
     t = np.asarray(offset, dtype=np.float64).reshape(3)
-    if not np.all(np.isfinite(t)):
-        raise ShprobeError("translation must be finite")
+    if not np.all(np.abs(t) <= MAX_ENTRY):
+        raise ShprobeError(f"translation must be finite and within ±{MAX_ENTRY:g}")
     return Similarity(np.eye(3), 1.0, t)
 
 
 def uniform_scale(factor: float) -> Similarity:
     s = float(factor)
-    if not (np.isfinite(s) and s > 0):
-        raise ShprobeError(f"scale must be a finite positive number, got {factor!r}")
+    if not (1.0 / MAX_ENTRY <= s <= MAX_ENTRY):
+        raise ShprobeError(f"scale must be a positive number from {1.0 / MAX_ENTRY:g} to "
+                           f"{MAX_ENTRY:g}, got {factor!r}")
     return Similarity(np.eye(3), s)
 
 
