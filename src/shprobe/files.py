@@ -41,10 +41,9 @@ def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
 
 
 def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
-    """The ``stat`` of an input that must be a regular file, or one line naming it.
-
-    A FIFO, a device (``/dev/zero``, ``/dev/urandom``), a socket or a folder is refused at
-    once: reading one would block forever or never end.
+    """The ``stat`` of an input that must be a regular file, or one line naming it: a FIFO,
+    a device (``/dev/zero``), a socket or a folder is refused at once (reading one would
+    block forever or never end).
 
     Parameters
     ----------
@@ -56,7 +55,7 @@ def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_re
     Returns
     -------
     os.stat_result
-        The file's status (size in ``st_size``).
+        The file's status.
     """
     p = os.fspath(path)
     try:
@@ -74,11 +73,9 @@ def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_re
 
 
 def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: int = -1):
-    """Open an input for binary reading, refusing anything but a regular file.
-
-    The name is checked with :func:`regular_file`, then opened without blocking and checked
-    again on the open descriptor, so a FIFO or device swapped in between is refused too,
-    never waited on.
+    """Open an input for binary reading (``open``'s ``buffering``) once :func:`regular_file`
+    accepts it; opened without blocking and checked again on the descriptor, so a FIFO
+    swapped in meanwhile is refused too, never waited on.
 
     Parameters
     ----------
@@ -92,14 +89,12 @@ def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: in
     Returns
     -------
     io.BufferedReader or io.FileIO
-        The open file, positioned at its start.
+        The open file.
     """
     p = os.fspath(path)
     regular_file(p, what)
     try:
         fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except FileNotFoundError:
-        raise ShprobeError(f"no such {what}", p) from None
     except OSError as e:
         raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
     if not stat.S_ISREG(os.fstat(fd).st_mode):
@@ -107,33 +102,6 @@ def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: in
         raise ShprobeError(f"is not a regular file (a device, pipe or socket): a {what} must "
                            "be a file", p)
     return open(fd, "rb", buffering=buffering)
-
-
-def read_bytes(path: str | os.PathLike[str], what: str = "file") -> bytes:
-    """The bytes of a regular input file (:func:`open_regular`), checked against the memory
-    limit from its size first.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The input file.
-    what : str
-        What the file should be, for the messages.
-
-    Returns
-    -------
-    bytes
-        The file's content.
-    """
-    from .limits import check_memory
-
-    p = os.fspath(path)
-    with open_regular(p, what) as f:
-        check_memory(os.fstat(f.fileno()).st_size, f"reading this {what}", p)
-        try:
-            return f.read()
-        except OSError as e:
-            raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
 
 
 def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:

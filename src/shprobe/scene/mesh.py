@@ -89,21 +89,26 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
     """
     import trimesh
 
+    from ..files import regular_file
+
     p = mesh_file(path)
-    if not os.path.isfile(p):
-        raise ShprobeError("no such mesh file", p)
+    regular_file(p, "mesh file")  # missing: "no such mesh file"; a FIFO or device: refused
     try:
         # trimesh computes normals of whatever it is given: overflow there is our check's job
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
-            obj = _flatten(trimesh.load(p, process=True), p)
+            loaded = trimesh.load(p, process=False)
+            parts = (loaded.geometry.values() if isinstance(loaded, trimesh.Scene)
+                     else [loaded])
+            for g in parts:
+                if isinstance(g, trimesh.Trimesh):
+                    _process(g, p)
+            obj = _flatten(loaded, p)
     except ShprobeError:
         raise
     except Exception as e:  # trimesh raises many types on bad input
         raise ShprobeError(f"cannot read mesh: {str(e).splitlines()[0] if str(e) else e!r}",
                            p) from None
-    if not np.all(np.isfinite(obj.vertices)):
-        raise ShprobeError("mesh has non-finite vertex coordinates", p)
     with np.errstate(all="ignore"):
         extent = np.ptp(np.asarray(obj.vertices, dtype=np.float64), axis=0).max()
     if not extent < MAX_EXTENT:
@@ -118,6 +123,23 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
 
 #: Largest extent of a mesh accepted: squared lengths and cross products stay finite.
 MAX_EXTENT = 1e100
+
+
+def _process(mesh: trimesh.Trimesh, where: Any) -> None:
+    """Check a loaded part's vertices (a NaN or infinite one is refused, not dropped as
+    trimesh's processing would) and merge duplicate vertices with a tolerance relative to
+    the coordinates: trimesh rounds to 8 decimals in int64, which overflows from about 1e11
+    and would merge every vertex into one."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise ShprobeError(f"mesh has non-finite vertex coordinates (vertex "
+                           f"{int(np.argmax(bad)) + 1} of {len(v)})", where)
+    big = float(np.abs(v).max()) if v.size else 0.0
+    if big < 1e9:
+        mesh.process()  # trimesh's own (8 decimals)
+    else:  # the same relative precision, within int64 (9.2e18)
+        mesh.merge_vertices(digits_vertex=int(np.floor(17.0 - np.log10(big))))
 
 
 def _flatten(obj: Any, where: Any = None) -> trimesh.Trimesh:

@@ -115,6 +115,36 @@ class Splats:
                                "nothing written)", where)
 
 
+def read_bytes(path, per_byte: int = 1) -> bytes:
+    """The bytes of a splat file that must be a regular file (a FIFO or ``/dev/zero`` is
+    refused at once, never read), its size times ``per_byte`` (the memory reading it takes)
+    checked against the memory limit first.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The splat file.
+    per_byte : int
+        Bytes of memory per byte of the file while it is read and decoded.
+
+    Returns
+    -------
+    bytes
+        The file's content.
+    """
+    import os
+
+    from ..files import open_regular
+    from ..limits import check_memory
+
+    with open_regular(path, "splat file") as f:
+        check_memory(per_byte * os.fstat(f.fileno()).st_size, "reading this file", path)
+        try:
+            return f.read()
+        except OSError as e:
+            raise ShprobeError(f"cannot read: {e.strerror or e}", path) from None
+
+
 def concatenate(parts: list[Splats]) -> Splats:
     """One :class:`Splats` from several of the same layout."""
     if not parts:

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from .cloud import Splats
+from .cloud import Splats, read_bytes
 from .transform import apply, frame
 
 MAGIC = 0x5053474E
@@ -39,12 +39,6 @@ _BYTES_PER_SPLAT = 4 * (3 + 3 + 4 + 1 + 48) * 2 + 64
 
 def _sh_dim(degree: int) -> int:
     return (degree + 1) ** 2 - 1
-
-
-def _read_bytes(p: str) -> bytes:
-    from ..files import read_bytes
-
-    return read_bytes(p, "splat file")  # a FIFO or /dev/zero: refused, never read
 
 
 def _inflate(z, raw: bytes, size: int, p: str) -> bytes:
@@ -93,7 +87,7 @@ def _zstd_streams(raw: bytes, p: str, n_streams: int, toc: int, size: int) -> li
 def read(path: str | os.PathLike[str]) -> Splats:
     """An SPZ file's splats, in the PLY's (RDF) frame."""
     p = os.fspath(path)
-    raw = _read_bytes(p)
+    raw = read_bytes(p)
     if raw[:4] == b"NGSP":  # version 4: plaintext header, zstd streams
         if len(raw) < 32:
             raise ShprobeError("SPZ header is truncated", p)
