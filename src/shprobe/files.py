@@ -24,8 +24,7 @@ from .errors import ShprobeError
 
 
 def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
-    """The UTF-8 text of an input file, or one line naming it (missing, a folder, unreadable,
-    not text)."""
+    """The UTF-8 text of an input file, or one line naming it (missing, folder, not text)."""
     p = os.fspath(path)
     try:
         with open(p, encoding="utf-8") as f:
@@ -72,10 +71,9 @@ def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_re
     return st
 
 
-def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: int = -1):
-    """Open an input for binary reading (``open``'s ``buffering``) once :func:`regular_file`
-    accepts it; opened without blocking and checked again on the descriptor, so a FIFO
-    swapped in meanwhile is refused too, never waited on.
+def open_regular(path: str | os.PathLike[str], what: str = "file"):
+    """Open an input for binary reading once :func:`regular_file` accepts it, without
+    blocking and checked again on the descriptor (a FIFO swapped in is never waited on).
 
     Parameters
     ----------
@@ -83,12 +81,10 @@ def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: in
         The input file.
     what : str
         What the file should be, for the messages.
-    buffering : int
-        As for ``open`` (0: unbuffered).
 
     Returns
     -------
-    io.BufferedReader or io.FileIO
+    io.BufferedReader
         The open file.
     """
     p = os.fspath(path)
@@ -99,17 +95,34 @@ def open_regular(path: str | os.PathLike[str], what: str = "file", buffering: in
         raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
     if not stat.S_ISREG(os.fstat(fd).st_mode):
         os.close(fd)
-        raise ShprobeError(f"is not a regular file (a device, pipe or socket): a {what} must "
-                           "be a file", p)
-    return open(fd, "rb", buffering=buffering)
+        raise ShprobeError(f"is not a regular file: a {what} must be a file", p)
+    return open(fd, "rb")
 
 
-def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
+def check_output_path(path: str | os.PathLike[str], overwrite: bool = False,
+                      inputs: tuple = ()) -> Path:
     """Refuse, before any work, an output that could not be written: an existing file (or
-    link, even a dangling one) unless ``overwrite``, a folder, a parent that is a file or a
-    folder that is not writable. Missing parent folders are fine: they are made when the file
-    is written (every command makes its output folders the same way)."""
+    link, even a dangling one) unless ``overwrite``, one of the ``inputs`` (by any name), a
+    folder, a parent that is a file or a folder that is not writable. Missing parent folders
+    are fine: they are made when the file is written (by every command the same way).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file.
+    overwrite : bool
+        Whether an existing file may be replaced (``--force``).
+    inputs : tuple of str or os.PathLike
+        The files the output is made from.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     p = Path(path)
+    if any(os.path.exists(p) and os.path.exists(i) and os.path.samefile(i, p) for i in inputs):
+        raise ShprobeError("is this command's input: the output must be another file", p)
     if len(os.fsencode(p.name)) > 255:
         raise ShprobeError("file name is longer than 255 bytes", p)
     if p.is_dir():

@@ -156,7 +156,7 @@ def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
     view = memoryview(buf)
     from ..files import open_regular
 
-    with open_regular(path, "probe", buffering=0) as f:
+    with open_regular(path, "probe") as f:
         while n := f.readinto(buf):
             h.update(view[:n])
     return h.hexdigest()
