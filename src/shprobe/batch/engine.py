@@ -103,11 +103,13 @@ def _write_part(folder: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) 
     try:
         with atomic_output(p) as tmp:
             pq.write_table(_rows_table(rows, meta), tmp)
-    except BaseException:
+    except BaseException as e:
         try:  # a full disk on the first part: no empty parts folder left behind
             folder.rmdir()
         except OSError:
             pass
+        if isinstance(e, ShprobeError):  # name the table, not a part of it
+            raise ShprobeError(e.message, folder.with_name(folder.name[:-6])) from None
         raise
     return p
 

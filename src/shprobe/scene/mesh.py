@@ -127,19 +127,17 @@ MAX_EXTENT = 1e100
 
 def _process(mesh: trimesh.Trimesh, where: Any) -> None:
     """Check a loaded part's vertices (a NaN or infinite one is refused, not dropped as
-    trimesh's processing would) and merge duplicate vertices with a tolerance relative to
-    the coordinates: trimesh rounds to 8 decimals in int64, which overflows from about 1e11
-    and would merge every vertex into one."""
+    trimesh's processing would) and merge duplicate vertices where trimesh can: it rounds to
+    8 decimals in int64, which overflows from about 1e11 and merged every vertex into one."""
     v = np.asarray(mesh.vertices, dtype=np.float64)
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise ShprobeError(f"mesh has non-finite vertex coordinates (vertex "
                            f"{int(np.argmax(bad)) + 1} of {len(v)})", where)
-    big = float(np.abs(v).max()) if v.size else 0.0
-    if big < 1e9:
+    if v.size and float(np.abs(v).max()) < 1e9:
         mesh.process()  # trimesh's own (8 decimals)
-    else:  # the same relative precision, within int64 (9.2e18)
-        mesh.merge_vertices(digits_vertex=int(np.floor(17.0 - np.log10(big))))
+    # else the file's vertices are kept as they are: any one rounding for the whole mesh
+    # would merge its small features near the origin once one vertex is far away
 
 
 def _flatten(obj: Any, where: Any = None) -> trimesh.Trimesh:
