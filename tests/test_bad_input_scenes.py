@@ -35,9 +35,9 @@ def _far_bunny(path, offset: float):
     m = trimesh.load(bunny_path(), process=False)
     with open(path, "w") as f:
         for v in m.vertices + offset:
-            f.write("v %.17g %.17g %.17g\n" % tuple(v))
+            f.write("v " + " ".join(f"{x:.17g}" for x in v) + "\n")
         for t in m.faces + 1:
-            f.write("f %d %d %d\n" % tuple(t))
+            f.write("f " + " ".join(str(i) for i in t) + "\n")
     return path
 
 
