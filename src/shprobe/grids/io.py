@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import ShprobeError
 from ..files import load_npz, npz_headers, save_npz
 from .grid import GRID_FORMAT, GRID_VERSION, ProbeGrid
+from .settings import MAX_COORDINATE
 
 __all__ = ["load_grid", "save_grid"]
 
@@ -39,9 +40,6 @@ _META = {"lmax": (int, 1, 2), "bounces": (int, 0, 16), "samples": (int, 1, 1 << 
          "seconds": (float, 0.0, 1e9)}
 #: Nesting of the meta JSON accepted (a bake writes a flat object).
 _META_DEPTH = 4
-#: Largest magnitude of a coordinate (bounds, positions) or depth in a grid file: the
-#: depth maps hold squared distances as float32 (3.4e38), and the page draws in float32.
-MAX_COORDINATE = 1e15
 #: Largest magnitude of a coefficient: shading sums a few dozen of them in float32.
 MAX_COEFFICIENT = 1e30
 

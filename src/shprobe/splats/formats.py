@@ -27,6 +27,56 @@ from .transform import Similarity, apply
 FORMATS = (".ply", ".spz", ".glb")
 #: Bytes of memory per splat while a whole scene is held (float32 attributes, a copy, packing).
 BYTES_PER_SPLAT = 1024
+#: Bytes per float of a splat's attributes (K·3 SH, 3 + 3 + 4 + 1 + 3 others) at the peak of
+#: each writer, by format (measured by bench/bench_estimates.py): the frame change's copy,
+#: float64 temporaries, the packed bytes, and for SPZ the compressed stream too.
+WRITE_BYTES_PER_FLOAT = {".ply": 0.0, ".spz": 24.0, ".glb": 17.0}
+#: Copies of a chunk's records a streamed PLY → PLY transform holds at its peak.
+STREAM_COPIES = 1.75
+
+
+def _floats_per_splat(degree: int) -> int:
+    return 3 * (degree + 1) ** 2 + 14
+
+
+def estimate_write(splats: Splats, path: str | os.PathLike[str]) -> float:
+    """Peak bytes :func:`write` allocates for ``splats`` to ``path`` (its format by suffix);
+    a PLY is written a chunk at a time.
+
+    Parameters
+    ----------
+    splats : Splats
+        What is written.
+    path : str or os.PathLike
+        The output (``.ply``, ``.spz`` or ``.glb``).
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit before writing.
+    """
+    kind = format_of(path)
+    floats = _floats_per_splat(splats.degree)
+    if kind == ".ply":
+        return float(min(splats.count, ply.CHUNK) * floats * 4 * 3)
+    return float(splats.count * floats * WRITE_BYTES_PER_FLOAT[kind])
+
+
+def estimate_stream(layout: ply.PlyLayout) -> float:
+    """Peak bytes of a streamed PLY → PLY :func:`transform_file` (a chunk of records, its
+    float64 and moved copies), whatever the file's size.
+
+    Parameters
+    ----------
+    layout : shprobe.splats.ply.PlyLayout
+        The input's header.
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit before the transform.
+    """
+    return float(min(layout.count, ply.CHUNK) * layout.dtype.itemsize * STREAM_COPIES)
 
 
 def format_of(path: str | os.PathLike[str]) -> str:
@@ -70,6 +120,7 @@ def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
     kind = format_of(path)
     splats.check_finite(os.fspath(path))
     splats.check_rotations(os.fspath(path))
+    check_memory(estimate_write(splats, path), f"writing {splats.count} splats", path)
     from ..files import atomic_output
 
     with stage(progress, "writing splats", total=splats.count) as bar:
@@ -165,6 +216,7 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
     out_kind = format_of(dst)
     if format_of(src) == ".ply" and out_kind == ".ply":
         layout = ply.read_layout(src)
+        check_memory(estimate_stream(layout), f"transforming {layout.count} splats", src)
         degree = _degree(settings, layout.degree, src)
         dtype = ply.output_dtype(layout.dtype, degree)
         cols = ply.float_columns(layout.dtype.newbyteorder("="))
