@@ -200,7 +200,22 @@ def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "
                            f"{', '.join(FORMATS)}")
     check_memory(estimate_export(grid, fmt), f"the {fmt} export")
+    _check_values(grid)
     return _WRITERS[fmt](grid, source)
+
+
+def _check_values(grid: ProbeGrid) -> None:
+    """Refuse, before converting, values whose conversion would overflow (a grid made in
+    memory; :func:`shprobe.grids.load_grid` refuses them in files)."""
+    from .io import MAX_COEFFICIENT
+    from .settings import MAX_COORDINATE
+
+    c = np.asarray(grid.coeffs)
+    if not np.all(np.isfinite(c)) or not np.all(np.isfinite(grid.bounds)):
+        raise ShprobeError("grid holds non-finite values; nothing written")
+    if np.abs(c).max() > MAX_COEFFICIENT or np.abs(grid.bounds).max() > MAX_COORDINATE:
+        raise ShprobeError(f"grid holds coefficients beyond ±{MAX_COEFFICIENT:g} or bounds "
+                           f"beyond ±{MAX_COORDINATE:g}; nothing written")
 
 
 def export_grid(grid: ProbeGrid, fmt: str, path: str | os.PathLike[str],
