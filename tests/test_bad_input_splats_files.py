@@ -295,3 +295,16 @@ def test_overflowing_transform_is_refused_without_warnings(suffix, tmp_path, cap
                      capfd, src if suffix == ".ply" else out)
     assert "non-finite" in line
     assert not out.exists()
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".glb"])
+def test_sh_overflowing_under_a_rotation_is_refused_without_warnings(suffix, tmp_path, capfd):
+    r = ref.random_splats(20, 1, seed=3)
+    r["sh"][4, 1:] = 3.3e38  # a rotation mixes three of them: beyond float32
+    src = tmp_path / "in.ply"
+    ref.write_trainer_ply(src, r)
+    out = tmp_path / f"o{suffix}"
+    line = _one_line(["splat", "transform", str(src), "-o", str(out), "--rotate", "1,1,1:50"],
+                     capfd, src if suffix == ".ply" else out)
+    assert "splat 4 has a non-finite value" in line
+    assert not out.exists()

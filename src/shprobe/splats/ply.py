@@ -293,14 +293,19 @@ def first_zero_rotation(a: np.ndarray, cols: dict[str, int], where, offset: int 
 
 def transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     """Move the splats of an (N, F) float32 record matrix in place (the fast path of
-    :func:`shprobe.splats.transform.apply` for all-float layouts: one GEMM for the SH)."""
+    :func:`shprobe.splats.transform.apply` for all-float layouts: one GEMM for the SH);
+    values beyond float32 become inf, refused after the transform (no numpy warning)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        _transform_matrix(a, cols, degree, sim)
+
+
+def _transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     from .transform import X180, quat_from_matrix, quat_multiply, sh_matrix
 
     q = np.asarray(sim.linear, dtype=np.float64)
     mirror_ = np.linalg.det(q) < 0
     xyz = [cols[c] for c in "xyz"]
-    with np.errstate(over="ignore"):  # beyond float32: inf, refused after the transform
-        a[:, xyz] = (a[:, xyz].astype(np.float64) @ (sim.scale * q).T + sim.translation)
+    a[:, xyz] = (a[:, xyz].astype(np.float64) @ (sim.scale * q).T + sim.translation)
     if "nx" in cols:
         nrm = [cols["nx"], cols["ny"], cols["nz"]]
         a[:, nrm] = a[:, nrm] @ q.T.astype(np.float32)

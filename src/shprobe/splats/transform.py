@@ -245,7 +245,13 @@ X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
-    """The splats moved by ``sim`` (see the module docstring), every SH band included."""
+    """The splats moved by ``sim`` (see the module docstring), every SH band included; values
+    beyond float32 become inf, which every writer refuses (no numpy warning on the way)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _apply(splats, sim)
+
+
+def _apply(splats: Splats, sim: Similarity) -> Splats:
     q = np.asarray(sim.linear, dtype=np.float64)
     mirror_ = np.linalg.det(q) < 0
     proper = -q if mirror_ else q
