@@ -11,6 +11,29 @@ from ..errors import ShprobeError
 from .conventions import MAX_DEGREE
 
 _F32 = np.float32
+#: Bytes of memory per float of the splats (the K·3 SH and 14 others) at the peak of reading
+#: a whole file, by format (measured by bench/bench_estimates.py): the chunks or packed
+#: bytes, their decoding in float64, the concatenated arrays; a PLY read adds a fixed 24 MB
+#: (its chunks).
+READ_BYTES_PER_FLOAT = {".ply": 7.5, ".spz": 12.6, ".glb": 20.0}
+PLY_READ_BASE_BYTES = 24e6
+
+
+def floats_per_splat(degree: int) -> int:
+    """Floats of one splat in memory: (degree + 1)² RGB SH coefficients, position, scales,
+    rotation, opacity and normal.
+
+    Parameters
+    ----------
+    degree : int
+        The SH degree.
+
+    Returns
+    -------
+    int
+        3 (degree + 1)² + 14.
+    """
+    return 3 * (degree + 1) ** 2 + 14
 _WHAT = {"positions": "position", "log_scales": "scales", "rotations": "rotation",
          "opacity": "opacity", "sh": "SH coefficients", "normals": "normal"}
 

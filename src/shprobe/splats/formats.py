@@ -21,22 +21,64 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..progress import Progress, stage
 from . import gltf, ply, spz
-from .cloud import Splats, concatenate
+from .cloud import (
+    PLY_READ_BASE_BYTES,
+    READ_BYTES_PER_FLOAT,
+    Splats,
+    concatenate,
+    floats_per_splat,
+)
 from .transform import Similarity, apply
 
 FORMATS = (".ply", ".spz", ".glb")
-#: Bytes of memory per splat while a whole scene is held (float32 attributes, a copy, packing).
-BYTES_PER_SPLAT = 1024
 #: Bytes per float of a splat's attributes (K·3 SH, 3 + 3 + 4 + 1 + 3 others) at the peak of
 #: each writer, by format (measured by bench/bench_estimates.py): the frame change's copy,
 #: float64 temporaries, the packed bytes, and for SPZ the compressed stream too.
 WRITE_BYTES_PER_FLOAT = {".ply": 0.0, ".spz": 24.0, ".glb": 17.0}
 #: Copies of a chunk's records a streamed PLY → PLY transform holds at its peak.
-STREAM_COPIES = 1.75
+STREAM_COPIES = 3.2
 
 
-def _floats_per_splat(degree: int) -> int:
-    return 3 * (degree + 1) ** 2 + 14
+def estimate_read(count: int, degree: int, kind: str) -> float:
+    """Peak bytes of reading a whole splat file of ``count`` splats of SH ``degree``.
+
+    Parameters
+    ----------
+    count, degree : int
+        The file's splats and SH degree (from its header).
+    kind : str
+        '.ply', '.spz' or '.glb'.
+
+    Returns
+    -------
+    float
+        The estimate the reader checks against the memory limit.
+    """
+    base = PLY_READ_BASE_BYTES if kind == ".ply" else 0.0
+    return base + count * floats_per_splat(degree) * READ_BYTES_PER_FLOAT[kind]
+
+
+def estimate_transform(count: int, degree: int, src: str, dst: str) -> float:
+    """Peak bytes of a :func:`transform_file` that holds the whole scene (any but PLY →
+    PLY, which :func:`estimate_stream` covers): the larger of reading it and of holding it,
+    its moved copy and the writer's peak.
+
+    Parameters
+    ----------
+    count, degree : int
+        The input's splats and SH degree.
+    src, dst : str
+        The input's and output's formats ('.ply', '.spz', '.glb').
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit.
+    """
+    floats = count * floats_per_splat(degree)
+    write_peak = (min(count, ply.CHUNK) * floats_per_splat(degree) * 12 if dst == ".ply"
+                  else floats * WRITE_BYTES_PER_FLOAT[dst])
+    return max(estimate_read(count, degree, src), 8.0 * floats + write_peak)
 
 
 def estimate_write(splats: Splats, path: str | os.PathLike[str]) -> float:
@@ -56,7 +98,7 @@ def estimate_write(splats: Splats, path: str | os.PathLike[str]) -> float:
         The estimate checked against the memory limit before writing.
     """
     kind = format_of(path)
-    floats = _floats_per_splat(splats.degree)
+    floats = floats_per_splat(splats.degree)
     if kind == ".ply":
         return float(min(splats.count, ply.CHUNK) * floats * 4 * 3)
     return float(splats.count * floats * WRITE_BYTES_PER_FLOAT[kind])
@@ -105,7 +147,8 @@ def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Spla
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)
-        check_memory(layout.count * BYTES_PER_SPLAT, f"reading {layout.count} splats", path)
+        check_memory(estimate_read(layout.count, layout.degree, ".ply"),
+                     f"reading {layout.count} splats", path)
         return concatenate([s for _, s in _chunks(layout, progress, "reading splats")])
     with stage(progress, "reading splats"):
         s = spz.read(path) if kind == ".spz" else gltf.read(path)
@@ -233,6 +276,8 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
         return TransformResult(layout.count, layout.degree, degree, Path(dst))
     s = read(src, progress)
     degree = _degree(settings, s.degree, src)
+    check_memory(estimate_transform(s.count, degree, format_of(src), out_kind),
+                 f"transforming {s.count} splats", src)
     with stage(progress, "transforming splats"):
         moved = apply(s.truncated(degree), settings.similarity)
     write(dst, moved, settings.overwrite, progress)

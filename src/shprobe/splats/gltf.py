@@ -23,7 +23,7 @@ import struct
 import numpy as np
 
 from ..errors import ShprobeError
-from .cloud import Splats, read_bytes
+from .cloud import READ_BYTES_PER_FLOAT, Splats, read_bytes
 from .conventions import SH_C0
 from .transform import apply, frame
 
@@ -296,7 +296,9 @@ def _splat_primitive(doc: dict, p) -> dict:
 def read(path: str | os.PathLike[str]) -> Splats:
     """The splats of a .glb's first ``KHR_gaussian_splatting`` primitive, in the PLY's frame."""
     p = os.fspath(path)
-    raw = read_bytes(p, 4)  # a FIFO or /dev/zero is refused at once, never read
+    # a FIFO or /dev/zero is refused at once, never read; a splat is ~4 bytes a float in the
+    # file, and READ_BYTES_PER_FLOAT in memory while read
+    raw = read_bytes(p, round(READ_BYTES_PER_FLOAT[".glb"] / 4))
     doc, binary = parse(raw, p)
     att = _splat_primitive(doc, p)
     need = ["POSITION", f"{EXT}:ROTATION", f"{EXT}:SCALE", f"{EXT}:OPACITY",

@@ -27,14 +27,12 @@ import numpy as np
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from .cloud import Splats, read_bytes
+from .cloud import READ_BYTES_PER_FLOAT, Splats, floats_per_splat, read_bytes
 from .transform import apply, frame
 
 MAGIC = 0x5053474E
 _SQRT1_2 = np.float32(0.7071067811865476)
 _COLOR_SCALE = 0.15
-#: Bytes per splat in memory while an SPZ is read or written (float32 attributes + packed).
-_BYTES_PER_SPLAT = 4 * (3 + 3 + 4 + 1 + 48) * 2 + 64
 
 
 def _sh_dim(degree: int) -> int:
@@ -136,7 +134,8 @@ def _check_header(p: str, version: int, n: int, degree: int, fbits: int = 12) ->
                            "degree ≤ 3; no degree-4 layout is read", p)
     if n == 0:
         raise ShprobeError("SPZ holds no splats", p)
-    check_memory(n * _BYTES_PER_SPLAT, f"reading {n} splats", p)
+    check_memory(n * floats_per_splat(degree) * READ_BYTES_PER_FLOAT[".spz"],
+                 f"reading {n} splats", p)
 
 
 def _take(body: bytes, pos: int, size: int, p: str) -> tuple[np.ndarray, int]:
