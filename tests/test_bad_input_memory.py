@@ -22,7 +22,7 @@ def test_estimates_are_within_20_percent_of_measured_peaks():
                        capture_output=True, text=True, timeout=1200)
     print(r.stdout, r.stderr)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert r.stdout.count("| ok |") >= 9
+    assert r.stdout.count("| ok |") == 15
 
 
 def _grid(tmp_path, res):

@@ -162,3 +162,17 @@ def test_env_type_error_names_a_real_function():
         check_env(np.ones((4, 8, 3)))
     print(e.value)
     assert "shprobe.load_env(path)" in str(e.value) and callable(shprobe.load_env)
+
+
+def test_in_memory_mesh_with_a_nan_vertex_is_refused_by_the_bake():
+    import trimesh
+
+    from shprobe.errors import ShprobeError
+    from shprobe.grids import GridSettings, bake_grid
+
+    m = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [np.nan, 0, 1]],
+                        [[0, 1, 2], [0, 1, 3]], process=False)
+    with pytest.raises(ShprobeError, match="non-finite vertex") as e:
+        bake_grid(m, np.eye(9, 3), GridSettings(resolution=(2, 2, 2), samples=64,
+                                                bounces=0))
+    print(e.value)

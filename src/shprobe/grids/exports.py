@@ -194,8 +194,23 @@ def estimate_export(grid: ProbeGrid, fmt: str) -> float:
 
 
 def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
-    """The text of ``grid`` in format ``fmt`` (one of :data:`FORMATS`); refused first when
-    it would not fit in memory (:func:`estimate_export`)."""
+    """The text of ``grid`` in format ``fmt``; refused first when it would not fit in
+    memory (:func:`estimate_export`) or its values would overflow the conversion.
+
+    Parameters
+    ----------
+    grid : ProbeGrid
+        The grid.
+    fmt : str
+        One of :data:`FORMATS`.
+    source : str, optional
+        The grid file's name, recorded in the export.
+
+    Returns
+    -------
+    str
+        The export's text.
+    """
     if fmt not in _WRITERS:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "
                            f"{', '.join(FORMATS)}")

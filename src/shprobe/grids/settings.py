@@ -82,7 +82,19 @@ class GridSettings:
 
 
 def check_bounds(bounds: Any) -> NDArray[np.float64]:
-    """(2, 3) finite min/max corners with max > min on every axis, or one line."""
+    """(2, 3) finite min/max corners with max > min on every axis, within
+    ±:data:`MAX_COORDINATE`, or one line.
+
+    Parameters
+    ----------
+    bounds : array_like
+        Six numbers X0, Y0, Z0, X1, Y1, Z1 (or a (2, 3) array).
+
+    Returns
+    -------
+    numpy.ndarray
+        The (2, 3) float64 corners.
+    """
     try:
         b = np.asarray(bounds, dtype=np.float64).reshape(2, 3)
     except (TypeError, ValueError):

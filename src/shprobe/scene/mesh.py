@@ -162,7 +162,10 @@ def as_mesh(item: Any) -> trimesh.Trimesh:
     if isinstance(item, str | os.PathLike):
         return load_mesh(item)
     if isinstance(item, trimesh.Scene | trimesh.Trimesh):
-        return _flatten(item)
+        mesh = _flatten(item)
+        if not np.all(np.isfinite(np.asarray(mesh.vertices, dtype=np.float64))):
+            raise ShprobeError("mesh has non-finite vertex coordinates")
+        return mesh
     raise ShprobeError(f"cannot use {type(item).__name__} as a mesh (path or trimesh object)")
 
 

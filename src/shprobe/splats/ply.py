@@ -294,7 +294,19 @@ def first_zero_rotation(a: np.ndarray, cols: dict[str, int], where, offset: int 
 def transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     """Move the splats of an (N, F) float32 record matrix in place (the fast path of
     :func:`shprobe.splats.transform.apply` for all-float layouts: one GEMM for the SH);
-    values beyond float32 become inf, refused after the transform (no numpy warning)."""
+    values beyond float32 become inf, refused after the transform (no numpy warning).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        (N, F) float32 records, changed in place.
+    cols : dict
+        Column of each property.
+    degree : int
+        The SH degree of the records.
+    sim : shprobe.splats.Similarity
+        The transform.
+    """
     with np.errstate(over="ignore", invalid="ignore"):
         _transform_matrix(a, cols, degree, sim)
 

@@ -246,7 +246,20 @@ X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
     """The splats moved by ``sim`` (see the module docstring), every SH band included; values
-    beyond float32 become inf, which every writer refuses (no numpy warning on the way)."""
+    beyond float32 become inf, which every writer refuses (no numpy warning on the way).
+
+    Parameters
+    ----------
+    splats : Splats
+        The splats, in the PLY's frame.
+    sim : Similarity
+        The transform.
+
+    Returns
+    -------
+    Splats
+        The moved splats.
+    """
     with np.errstate(over="ignore", invalid="ignore"):
         return _apply(splats, sim)
 
