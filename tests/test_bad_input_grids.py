@@ -215,3 +215,13 @@ def test_export_of_overflowing_grid_in_memory_is_refused_without_warnings(coeff,
             export_grid(g, fmt, tmp_path / f"g.{fmt}")
         print(e.value)
         assert not (tmp_path / f"g.{fmt}").exists()
+
+
+def test_clamp_refuses_only_a_whole_image_without_a_finite_pixel():
+    from shprobe.probes.images import check_pixels
+
+    nan = np.full((4, 8, 3), np.nan, np.float32)
+    with pytest.raises(ShprobeError, match="no finite pixel"):
+        check_pixels(nan, "x.pfm", clamp=True)
+    # a block of a streamed image may be all NaN where the rest is not: clamped to 0
+    np.testing.assert_array_equal(check_pixels(nan, "x.pfm", clamp=True, whole=False), 0.0)

@@ -102,8 +102,9 @@ def to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 
 
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
-                 clamp: bool = False) -> NDArray[np.float32]:
-    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``."""
+                 clamp: bool = False, whole: bool = True) -> NDArray[np.float32]:
+    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``;
+    a ``whole`` image (not a block of one) without any finite pixel is refused even then."""
     if img.size == 0:
         return img
     lo, hi = img.min(), img.max()  # fast path: two reductions, no temporaries
@@ -122,7 +123,7 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
             "image has " + ", ".join(parts) + " pixel values (use clamp / --clamp to zero them)",
             path)
     finite = img[np.isfinite(img)]
-    if finite.size == 0:  # clamping would leave a black image: nothing to light with
+    if finite.size == 0 and whole:  # clamping would leave a black image: nothing to light
         raise ShprobeError(f"image has no finite pixel value ({n_nan} NaN, {n_inf} infinite): "
                            "clamp would leave it black", path)
     big = float(finite.max())
