@@ -126,7 +126,7 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
     if finite.size == 0 and whole:  # clamping would leave a black image: nothing to light
         raise ShprobeError(f"image has no finite pixel value ({n_nan} NaN, {n_inf} infinite): "
                            "clamp would leave it black", path)
-    big = float(finite.max())
+    big = float(finite.max()) if finite.size else 0.0
     out = np.nan_to_num(img, nan=0.0, posinf=max(big, 0.0), neginf=0.0)
     return np.maximum(out, 0.0).astype(np.float32)
 
