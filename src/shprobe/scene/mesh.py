@@ -134,7 +134,7 @@ def _process(mesh: trimesh.Trimesh, where: Any) -> None:
     if bad.any():
         raise ShprobeError(f"mesh has non-finite vertex coordinates (vertex "
                            f"{int(np.argmax(bad)) + 1} of {len(v)})", where)
-    if v.size and float(np.abs(v).max()) < 1e9:
+    if v.size and float(np.abs(v).max()) < 1e10:
         mesh.process()  # trimesh's own (8 decimals)
     # else the file's vertices are kept as they are: any one rounding for the whole mesh
     # would merge its small features near the origin once one vertex is far away
