@@ -41,6 +41,23 @@ def _files(d: Path) -> dict[str, Path]:
         out.write(buf.getvalue() + bytes(1 << 20))
     f["deep.json"] = d / "deep.json"
     f["deep.json"].write_text("[" * 100_000 + "]" * 100_000)
+    os.mkfifo(d / "fifo.spz")  # nobody writes to it: a reader that opens it blocks forever
+    f["fifo.spz"] = d / "fifo.spz"
+    os.symlink("/dev/zero", d / "zero.glb")  # endless
+    f["zero.glb"] = d / "zero.glb"
+    import json
+    import struct
+
+    js = json.dumps([{"asset": {"version": "2.0"}}]).encode()  # a list as the document
+    js += b" " * (-len(js) % 4)
+    f["list.glb"] = d / "list.glb"
+    f["list.glb"].write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(js))
+                              + struct.pack("<II", len(js), 0x4E4F534A) + js)
+    meta = json.dumps({"format": "shprobe-grid", "version": "1"}).encode()
+    f["grid.npz"] = d / "grid.npz"
+    np.savez(f["grid.npz"], meta=np.frombuffer(meta, np.uint8),
+             coeffs=np.zeros((2, 2, 2, 9, 3), np.float32),
+             bounds=np.array([[-1.0, -1, -1], [1, 1, 1]]))
     return f
 
 
@@ -79,6 +96,15 @@ def main() -> None:
              ["-c", "import numpy as np, shprobe\ntry: shprobe.sh_basis(np.tile([0, 0, 1.0], "
                     "(3000, 1)), 1024)\nexcept shprobe.ShprobeError: raise SystemExit(1)"]),
             ("sh eval --lmax 100000", ["sh", "eval", "--dir", "0,0,1", "--lmax", "100000"]),
+            ("a FIFO named x.spz", ["splat", "info", str(f["fifo.spz"])]),
+            ("a .glb linked to /dev/zero", ["splat", "info", str(f["zero.glb"])]),
+            ("a .glb whose JSON is a list", ["splat", "info", str(f["list.glb"])]),
+            ("a grid file whose version is a string",
+             ["grid", "export", str(f["grid.npz"]), "--format", "godot", "-o",
+              str(d / "g.tres")]),
+            ("grid bake --bounds ±1e300",
+             ["grid", "bake", "bunny", "--preset", "grace", "--resolution", "2,2,2",
+              "--bounds", "-1e300,-1e300,-1e300,1e300,1e300,1e300", "-o", str(d / "g.npz")]),
         ]
         print(f"Machine: {machine()}\n")
         print("| refusal | wall (s) | peak RSS (MB) | exit |")

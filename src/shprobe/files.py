@@ -24,21 +24,7 @@ from .errors import ShprobeError
 
 
 def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
-    """The UTF-8 text of an input file, or one line naming it (missing, a folder, unreadable,
-    not text).
-
-    Parameters
-    ----------
-    path
-        The input file.
-    what
-        What the file is, named in errors.
-
-    Returns
-    -------
-    str
-        Its text.
-    """
+    """The UTF-8 text of an input file, or one line naming it (missing, folder, not text)."""
     p = os.fspath(path)
     try:
         with open(p, encoding="utf-8") as f:
@@ -53,25 +39,90 @@ def read_text(path: str | os.PathLike[str], what: str = "text file") -> str:
         raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
 
 
-def check_output_path(path: str | os.PathLike[str], overwrite: bool = False) -> Path:
-    """Refuse, before any work, an output that could not be written: an existing file (or
-    link, even a dangling one) unless ``overwrite``, a folder, a parent that is a file or a
-    folder that is not writable. Missing parent folders are fine: they are made when the file
-    is written (every command makes its output folders the same way).
+def regular_file(path: str | os.PathLike[str], what: str = "file") -> os.stat_result:
+    """The ``stat`` of an input that must be a regular file, or one line naming it: a FIFO,
+    a device (``/dev/zero``), a socket or a folder is refused at once (reading one would
+    block forever or never end).
 
     Parameters
     ----------
-    path
+    path : str or os.PathLike
+        The input file (links are followed).
+    what : str
+        What the file should be, for the messages ("splat file", "probe").
+
+    Returns
+    -------
+    os.stat_result
+        The file's status.
+    """
+    p = os.fspath(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise ShprobeError(f"no such {what}", p) from None
+    except OSError as e:
+        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ShprobeError("is a directory, not a file", p)
+    if not stat.S_ISREG(st.st_mode):
+        raise ShprobeError(f"is not a regular file (a device, pipe or socket): a {what} must "
+                           "be a file", p)
+    return st
+
+
+def open_regular(path: str | os.PathLike[str], what: str = "file"):
+    """Open an input for binary reading once [`regular_file`][shprobe.files.regular_file] accepts
+    it, without blocking and checked again on the descriptor (a FIFO swapped in is never waited on).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The input file.
+    what : str
+        What the file should be, for the messages.
+
+    Returns
+    -------
+    io.BufferedReader
+        The open file.
+    """
+    p = os.fspath(path)
+    regular_file(p, what)
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as e:
+        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ShprobeError(f"is not a regular file: a {what} must be a file", p)
+    return open(fd, "rb")
+
+
+def check_output_path(path: str | os.PathLike[str], overwrite: bool = False,
+                      inputs: tuple = ()) -> Path:
+    """Refuse, before any work, an output that could not be written: an existing file (or
+    link, even a dangling one) unless ``overwrite``, one of the ``inputs`` (by any name), a
+    folder, a parent that is a file or a folder that is not writable. Missing parent folders
+    are fine: they are made when the file is written (by every command the same way).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
         The output file.
-    overwrite
-        An existing file may be replaced.
+    overwrite : bool
+        Whether an existing file may be replaced (``--force``).
+    inputs : tuple of str or os.PathLike
+        The files the output is made from.
 
     Returns
     -------
     Path
-        The path, checked.
+        ``path``.
     """
     p = Path(path)
+    if any(os.path.exists(p) and os.path.exists(i) and os.path.samefile(i, p) for i in inputs):
+        raise ShprobeError("is this command's input: the output must be another file", p)
     if len(os.fsencode(p.name)) > 255:
         raise ShprobeError("file name is longer than 255 bytes", p)
     if p.is_dir():

@@ -17,8 +17,8 @@ from typing import Any
 
 from .errors import ShprobeError
 
-__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "MAX_PAIRS", "Cost", "check_memory", "check_pairs",
-           "cores", "format_bytes", "format_seconds", "memory_limit", "pairs_limit",
+__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "MAX_PAIRS", "Cost", "check_disk", "check_memory",
+           "check_pairs", "cores", "format_bytes", "format_seconds", "memory_limit", "pairs_limit",
            "parse_bytes"]
 
 #: Working-set target of one chunk of chunked work (samples, rows, normals).
@@ -114,6 +114,35 @@ def check_memory(nbytes: float, what: str, where: Any = None) -> None:
             f"{what} would need about {format_bytes(nbytes)}, over the limit of "
             f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
             where)
+
+
+def check_disk(folder: str | os.PathLike[str], nbytes: float, what: str,
+               where: Any = None) -> None:
+    """Refuse ``what`` when the file system of ``folder`` (or of its nearest existing parent:
+    folders are made later) has less than ``nbytes`` free, before any work or output.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Where the output goes.
+    nbytes : float
+        The output's estimated size in bytes.
+    what : str
+        The output, for the message.
+    where : str or os.PathLike, optional
+        The file named in the message.
+    """
+    path = os.path.abspath(os.fspath(folder))
+    while not os.path.isdir(path) and os.path.dirname(path) != path:
+        path = os.path.dirname(path)
+    try:
+        st = os.statvfs(path)
+    except (OSError, AttributeError):  # cannot tell: the write itself will say
+        return
+    free = st.f_bavail * st.f_frsize
+    if nbytes > free:
+        raise ShprobeError(f"{what} needs about {format_bytes(nbytes)} of disk, and {path} has "
+                           f"{format_bytes(free)} free", where)
 
 
 #: Brute-force work one call starts unasked, in normal × sample products (the exact

@@ -78,10 +78,10 @@ def test_bad_scenes_are_one_line_naming_the_file(tmp_path, capsys):
     out = tmp_path / "g.npz"
     nan = _obj(tmp_path / "nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 0 1\nf 1 3 2\n")
     empty = _obj(tmp_path / "empty.obj", "v 0 0 0\nv 1 0 0\nv 0 0 1\n")
-    for path in (nan, empty):  # trimesh drops the face with a NaN corner: no triangles left
+    for path, what in ((nan, "non-finite vertex"), (empty, "triangles")):
         fails_with_one_line(capsys, ["grid", "bake", str(path), "--preset", "grace",
                                      "--resolution", "2,2,2", "-o", str(out)], path.name,
-                            "triangles")
+                            what)
     fails_with_one_line(capsys, ["grid", "bake", str(tmp_path / "missing.obj"), "--preset",
                                  "grace", "--resolution", "2,2,2", "-o", str(out)], "missing.obj")
     assert not out.exists()

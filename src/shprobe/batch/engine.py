@@ -27,6 +27,7 @@ from typing import Any
 
 from ..errors import ShprobeError
 from ..files import atomic_output, check_output_path
+from ..limits import check_disk
 from .inputs import expand_inputs
 from .lock import interruptible, output_lock
 from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
@@ -111,13 +112,27 @@ def _rows_table(rows: list[dict[str, Any]], meta: dict[str, Any]):
     return pa.Table.from_pylist(clean, schema=schema(meta))
 
 
+#: Bytes of a table row on disk, with room (a row is ~1 kB of numbers and strings, its
+#: thumbnail a few kB of PNG), for the free-space check before a batch starts.
+ROW_BYTES = 16 << 10
+
+
 def _write_part(folder: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) -> Path:
     import pyarrow.parquet as pq
 
     folder.mkdir(parents=True, exist_ok=True)
     p = folder / f"part-{time.time_ns():020d}-{os.getpid()}-{secrets.token_hex(3)}.parquet"
-    with atomic_output(p) as tmp:
-        pq.write_table(_rows_table(rows, meta), tmp)
+    try:
+        with atomic_output(p) as tmp:
+            pq.write_table(_rows_table(rows, meta), tmp)
+    except BaseException as e:
+        try:  # a full disk on the first part: no empty parts folder left behind
+            folder.rmdir()
+        except OSError:
+            pass
+        if isinstance(e, ShprobeError):  # name the table, not a part of it
+            raise ShprobeError(e.message, folder.with_name(folder.name[:-6])) from None
+        raise
     return p
 
 
@@ -464,6 +479,9 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
             if r.get("failure") is None and r.get("content_hash")}
     done = frozenset(good)
     total = len(jobs)
+    if out is not None:  # a full disk is said before any work, not after the first part
+        check_disk(out.parent, (total + len(old)) * ROW_BYTES + (1 << 20),
+                   f"a batch table of {total + len(old):,} rows", out)
     fresh: list[dict[str, Any]] = []
     pending: list[dict[str, Any]] = []
     last = time.monotonic()
@@ -516,7 +534,10 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
         if interrupted:
             raise KeyboardInterrupt
     except BaseException:
-        flush()  # Ctrl-C or a crash: keep what is finished
+        try:
+            flush()  # Ctrl-C or a crash: keep what is finished
+        except Exception:  # the same full disk again: the first error is the one said
+            pass
         raise
     finally:
         if progress is not None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import io
 import math
 import os
-import stat
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -199,11 +198,9 @@ def content_hash(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
     h = xxhash.xxh3_128()
     buf = bytearray(chunk)
     view = memoryview(buf)
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    if not stat.S_ISREG(os.fstat(fd).st_mode):
-        os.close(fd)
-        raise ShprobeError("is not a regular file: only files are probes", path)
-    with open(fd, "rb", buffering=0) as f:
+    from ..files import open_regular
+
+    with open_regular(path, "probe") as f:
         while n := f.readinto(buf):
             h.update(view[:n])
     return h.hexdigest()
@@ -293,10 +290,9 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
     t0 = time.perf_counter()
     row = empty_row(path)
     try:
-        st = os.stat(path)
-        if not stat.S_ISREG(st.st_mode):  # /dev/zero, a FIFO, a socket: reading never ends
-            raise ShprobeError("is not a regular file (a device, pipe, socket or folder): "
-                               "only files are probes", path)
+        from ..files import regular_file
+
+        st = regular_file(path, "probe")  # /dev/zero, a FIFO, a socket: reading never ends
         row["size_bytes"] = st.st_size
         row["content_hash"] = content_hash(path)
         if done is not None and row["content_hash"] in done:

@@ -33,7 +33,7 @@ def export(grid_file: str, fmt: str, output: str, force: bool) -> None:
     from ..grids.exports import export_grid
     from ..grids.io import load_grid
 
-    check_output_path(output, force)
+    check_output_path(output, force, inputs=(grid_file,))
     grid = load_grid(grid_file)
     export_grid(grid, fmt, output, overwrite=force, source=os.path.basename(grid_file))
     nx, ny, nz = grid.resolution

@@ -22,7 +22,7 @@ def _similarity(frame: str | None, matrix: str | None, mirrors: tuple[str, ...],
         if not sep:
             raise ShprobeError(f"--frame {frame!r}: expected FROM:TO, e.g. colmap:gltf")
         sim = sim.then(tf.frame(src, dst))
-    if matrix:
+    if matrix is not None:  # "" is an empty matrix, refused, not no matrix
         sim = sim.then(tf.Similarity.from_matrix(parse_floats(matrix, None, "--matrix")))
     for axis in mirrors:
         sim = sim.then(tf.mirror(axis))

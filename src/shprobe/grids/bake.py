@@ -45,11 +45,23 @@ __all__ = ["bake_grid", "estimate_grid_bake", "grid_bounds"]
 #: a bounce (measured on the room and the bunny on a 2-core box, rounded down).
 RAYS_PER_CORE_SECOND = 1.5e6
 LOOKUPS_PER_CORE_SECOND = 2e5
-#: Bytes per probe ray kept across bounces: its hit (face, u, v, distance, flags, 28), its
-#: radiance and miss flag (16) and, for the ~60 % that meet a surface, that surface's point,
-#: normal, albedo and face (80), with the hit irradiance of a bounce (24); and a quarter more
-#: for temporaries (a 13×8×13 room bake: 685 MB measured, 850 MB estimated).
-_BYTES_PER_RAY = 1.25 * (28 + 16 + 0.6 * (80 + 24))
+#: Scene triangles prepared per second and core (the ray caster's BVH, face normals, the
+#: scene's hash: 29 s for 5.2 million triangles on the 2-core box), so that a large scene's
+#: bake is announced even with few probes.
+FACES_PER_CORE_SECOND = 1e5
+#: Peak memory of a bake (measured in fresh processes by bench/bench_estimates.py on the
+#: reference room and bunny scenes, fitted): a fixed part (compiled kernels, the ray buffers
+#: of one Embree call, one block of depth rays and of bounce lookups), per probe ray (its hit,
+#: radiance and, for the rays that meet a surface, that surface's point, normal and albedo),
+#: per probe (its depth map, its coefficients per bounce) and per probe again when a bounce
+#: reads the previous bounce's grid. Placement and depth rays are traced in blocks.
+BAKE_BASE_BYTES = 135e6
+BYTES_PER_RAY = 107.0
+BYTES_PER_PROBE = 0.0
+BOUNCE_BYTES_PER_PROBE = 20e3
+
+#: Depth-map rays traced at once (their hits, distances and temporaries: ~120 bytes a ray).
+DEPTH_RAYS_PER_BLOCK = 1 << 18
 
 
 def grid_bounds(scene: BakeScene, settings: GridSettings) -> NDArray[np.float64]:
@@ -80,26 +92,30 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
 
     Parameters
     ----------
-    n_faces
-        The scene's triangles.
-    settings
+    n_faces : int
+        Triangles of the scene.
+    settings : GridSettings
         The bake's settings.
 
     Returns
     -------
     Cost
-        The estimated seconds and peak bytes.
+        Seconds (rays traced, hit lookups and the scene's preparation, over this machine's
+        cores) and peak bytes (fitted to measured peaks: bench/bench_estimates.py), the
+        figure checked against the memory limit.
     """
     p, d = settings.n_probes, settings.samples
     rays = p * (TEST_RAYS + d + settings.depth_rays)
     hits = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
     rays += hits * settings.gather
     lookups = hits * max(1.0, 0.6 * settings.gather)
-    seconds = (rays / RAYS_PER_CORE_SECOND + lookups / LOOKUPS_PER_CORE_SECOND) / cores()
+    seconds = (rays / RAYS_PER_CORE_SECOND + lookups / LOOKUPS_PER_CORE_SECOND
+               + n_faces / FACES_PER_CORE_SECOND) / cores()
     seconds *= 1.0 + 0.05 * np.log2(max(n_faces, 2)) / 10  # deeper BVH
-    nbytes = (p * d * _BYTES_PER_RAY
-              + p * settings.depth_rays * 16 + p * num_coeffs(settings.lmax) * 3 * 8 * 3
-              + (64 << 20))
+    per_probe = (BYTES_PER_PROBE + 8 * settings.depth_resolution ** 2
+                 + num_coeffs(settings.lmax) * 3 * 8 * (2 + settings.bounces)
+                 + (BOUNCE_BYTES_PER_PROBE if settings.bounces and not settings.gather else 0))
+    nbytes = BAKE_BASE_BYTES + p * (per_probe + d * BYTES_PER_RAY)
     return Cost(float(seconds), float(nbytes))
 
 
@@ -264,9 +280,15 @@ def _depth_moments(tracer: ProbeTracer, pos: NDArray, settings: GridSettings, ca
     distances capped at ``cap`` (misses count as the cap)."""
     n, s = settings.depth_resolution, settings.depth_samples
     td = texel_directions(n, s).reshape(-1, 3)  # (n·n·s², 3)
-    h = tracer.trace(pos, td, on_block=advance)
-    d = np.minimum(h.dist.astype(np.float64), 2.0 * cap).reshape(len(pos), n, n, s * s)
-    return np.stack([d.mean(axis=-1), (d * d).mean(axis=-1)], axis=-1).astype(np.float32)
+    out = np.empty((len(pos), n, n, 2), np.float32)
+    # a block of probes at a time: the hits of all depth rays at once held ~100 bytes a ray
+    step = max(1, DEPTH_RAYS_PER_BLOCK // len(td))
+    for a in range(0, len(pos), step):
+        h = tracer.trace(pos[a:a + step], td, on_block=advance)
+        d = np.minimum(h.dist.astype(np.float64), 2.0 * cap).reshape(-1, n, n, s * s)
+        out[a:a + step, ..., 0] = d.mean(axis=-1)
+        out[a:a + step, ..., 1] = (d * d).mean(axis=-1)
+    return out
 
 
 def _lighting_parts(lighting: Any) -> tuple[NDArray[np.float64], Any, str]:

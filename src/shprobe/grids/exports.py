@@ -44,7 +44,7 @@ from ..sh.registry import convert
 from ..sh.rotation import z_mirror_signs
 from .grid import ProbeGrid
 
-__all__ = ["FORMATS", "SUFFIX", "export_grid", "export_text", "grid_coeffs9"]
+__all__ = ["FORMATS", "SUFFIX", "estimate_export", "export_grid", "export_text", "grid_coeffs9"]
 
 #: Format of each export document (the ``format`` field / Godot metadata).
 THREE_FORMAT = "shprobe-grid-three"
@@ -167,19 +167,70 @@ FORMATS = tuple(_WRITERS)
 SUFFIX = {"three": ".three.json", "unity": ".unity.json", "godot": ".tres"}
 
 
-#: Bytes of memory an export needs per probe: its text (27 + 3 numbers of up to 16
-#: characters) and the float64 copies made on the way, with room to spare.
-BYTES_PER_PROBE = 2048
+#: Bytes of memory an export needs per probe, by format, and a fixed part (measured peaks of
+#: bench/bench_estimates.py, fitted): the float64 copies made on the way, a Python float per
+#: number (24 bytes and a list slot), the text (27 + 3 numbers of up to 16 characters) and,
+#: for Godot, the formatted strings joined.
+BYTES_PER_PROBE = {"three": 1900, "unity": 2150, "godot": 4050}
+EXPORT_BASE_BYTES = 20e6
+
+
+def estimate_export(grid: ProbeGrid, fmt: str) -> float:
+    """Peak bytes of `export_text` of ``grid`` in format ``fmt``.
+
+    Parameters
+    ----------
+    grid : ProbeGrid
+        The grid to export.
+    fmt : str
+        One of `FORMATS`.
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit.
+    """
+    return EXPORT_BASE_BYTES + float(np.prod(grid.resolution)) * BYTES_PER_PROBE[fmt]
 
 
 def export_text(grid: ProbeGrid, fmt: str, source: str | None = None) -> str:
-    """The text of ``grid`` in format ``fmt`` (one of `FORMATS`); refused first when
-    it would not fit in memory."""
+    """The text of ``grid`` in format ``fmt``; refused first when it would not fit in
+    memory (`estimate_export`) or its values would overflow the conversion.
+
+    Parameters
+    ----------
+    grid : ProbeGrid
+        The grid.
+    fmt : str
+        One of `FORMATS`.
+    source : str, optional
+        The grid file's name, recorded in the export.
+
+    Returns
+    -------
+    str
+        The export's text.
+    """
     if fmt not in _WRITERS:
         raise ShprobeError(f"unknown grid export format {fmt!r}; choose from "
                            f"{', '.join(FORMATS)}")
-    check_memory(float(np.prod(grid.resolution)) * BYTES_PER_PROBE, f"the {fmt} export")
+    check_memory(estimate_export(grid, fmt), f"the {fmt} export")
+    _check_values(grid)
     return _WRITERS[fmt](grid, source)
+
+
+def _check_values(grid: ProbeGrid) -> None:
+    """Refuse, before converting, values whose conversion would overflow (a grid made in
+    memory; [`shprobe.grids.load_grid`][shprobe.grids.load_grid] refuses them in files)."""
+    from .io import MAX_COEFFICIENT
+    from .settings import MAX_COORDINATE
+
+    c = np.asarray(grid.coeffs)
+    if not np.all(np.isfinite(c)) or not np.all(np.isfinite(grid.bounds)):
+        raise ShprobeError("grid holds non-finite values; nothing written")
+    if np.abs(c).max() > MAX_COEFFICIENT or np.abs(grid.bounds).max() > MAX_COORDINATE:
+        raise ShprobeError(f"grid holds coefficients beyond ±{MAX_COEFFICIENT:g} or bounds "
+                           f"beyond ±{MAX_COORDINATE:g}; nothing written")
 
 
 def export_grid(grid: ProbeGrid, fmt: str, path: str | os.PathLike[str],

@@ -66,9 +66,14 @@ def place_probes(tracer: ProbeTracer, centres: NDArray[np.float64],
 
 def _back_fraction(tracer: ProbeTracer, points: NDArray[np.float64], dirs: NDArray[np.float64]
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Fraction of rays meeting a back face and the nearest hit distance, per point."""
-    h = tracer.trace(points, dirs)
-    return h.back.mean(axis=1), h.dist.min(axis=1).astype(np.float64)
+    """Fraction of rays meeting a back face and the nearest hit distance, per point (a block
+    of points at a time: the hits of all rays at once held ~100 bytes a ray)."""
+    back, near = np.empty(len(points)), np.empty(len(points))
+    step = max(1, (1 << 18) // len(dirs))
+    for a in range(0, len(points), step):
+        h = tracer.trace(points[a:a + step], dirs)
+        back[a:a + step], near[a:a + step] = h.back.mean(axis=1), h.dist.min(axis=1)
+    return back, near
 
 
 def dilate(coeffs: NDArray, validity: NDArray) -> NDArray:

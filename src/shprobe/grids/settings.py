@@ -100,7 +100,19 @@ class GridSettings:
 
 
 def check_bounds(bounds: Any) -> NDArray[np.float64]:
-    """(2, 3) finite min/max corners with max > min on every axis, or one line."""
+    """(2, 3) finite min/max corners with max > min on every axis, within
+    ±`MAX_COORDINATE`, or one line.
+
+    Parameters
+    ----------
+    bounds : array_like
+        Six numbers X0, Y0, Z0, X1, Y1, Z1 (or a (2, 3) array).
+
+    Returns
+    -------
+    numpy.ndarray
+        The (2, 3) float64 corners.
+    """
     try:
         b = np.asarray(bounds, dtype=np.float64).reshape(2, 3)
     except (TypeError, ValueError):
@@ -109,7 +121,16 @@ def check_bounds(bounds: Any) -> NDArray[np.float64]:
     if not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
         raise ShprobeError("grid bounds must be finite, X0,Y0,Z0 (min corner) then X1,Y1,Z1 "
                            "(max corner), max > min on every axis")
+    if np.abs(b).max() > MAX_COORDINATE:
+        raise ShprobeError(f"grid bounds reach {np.abs(b).max():.3g}: a grid lies within "
+                           f"±{MAX_COORDINATE:g} (its depth maps hold squared distances as "
+                           "float32); rescale the scene")
     return b
+
+
+#: Largest magnitude of a grid's bounds, probe positions and depths: the depth maps hold
+#: squared distances as float32 (3.4e38), and the viewer draws in float32.
+MAX_COORDINATE = 1e15
 
 
 def _is_int(v: Any) -> bool:

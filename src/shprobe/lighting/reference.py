@@ -95,7 +95,7 @@ SAMPLE_COST = 64
 
 def check_env(env: Any, what: str = "env") -> Env:
     if not isinstance(env, Env):
-        raise ShprobeError(f"{what} must be an Env (shprobe.probes.load_env(path), or "
+        raise ShprobeError(f"{what} must be an Env (shprobe.load_env(path), or "
                            f"Env(radiance, layout) for an array), got {type(env).__name__}")
     return env
 

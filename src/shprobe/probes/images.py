@@ -123,8 +123,9 @@ def to_rgb(img: NDArray[np.float32], p: Path) -> NDArray[np.float32]:
 
 
 def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None = None,
-                 clamp: bool = False) -> NDArray[np.float32]:
-    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``.
+                 clamp: bool = False, whole: bool = True) -> NDArray[np.float32]:
+    """Refuse NaN, Inf or negative pixels (``ShprobeError`` with counts) unless ``clamp``;
+    a ``whole`` image (not a block of one) without any finite pixel is refused even then.
 
     Parameters
     ----------
@@ -134,6 +135,8 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
         Its file, named in the error.
     clamp
         Clamp bad pixels to 0 instead of refusing them.
+    whole
+        The image is whole (not a streamed block of one).
 
     Returns
     -------
@@ -158,6 +161,9 @@ def check_pixels(img: NDArray[np.float32], path: str | os.PathLike[str] | None =
             "image has " + ", ".join(parts) + " pixel values (use clamp / --clamp to zero them)",
             path)
     finite = img[np.isfinite(img)]
+    if finite.size == 0 and whole:  # clamping would leave a black image: nothing to light
+        raise ShprobeError(f"image has no finite pixel value ({n_nan} NaN, {n_inf} infinite): "
+                           "clamp would leave it black", path)
     big = float(finite.max()) if finite.size else 0.0
     out = np.nan_to_num(img, nan=0.0, posinf=max(big, 0.0), neginf=0.0)
     return np.maximum(out, 0.0).astype(np.float32)

@@ -191,7 +191,8 @@ class ImageRows:
             blk = self._read(y0, y1)
             # shprobe's RGBE decode is finite and ≥ 0 by construction: (m + 0.5) · 2^(e − 136)
             # ≤ 255.5 · 2^119 < float32 max
-            yield y0, blk if self._own_rgbe else check_pixels(blk, self.path, self.clamp)
+            yield y0, blk if self._own_rgbe else check_pixels(blk, self.path, self.clamp,
+                                                              whole=False)
 
     def row_sums(self, weights: ArrayLike) -> Iterator[tuple[int, NDArray[np.float64]]]:
         """Yield ``(y0, sums)`` top to bottom, ``sums`` ``(rows, M, 3) float64`` with

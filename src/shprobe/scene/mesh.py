@@ -112,21 +112,26 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
     """
     import trimesh
 
+    from ..files import regular_file
+
     p = mesh_file(path)
-    if not os.path.isfile(p):
-        raise ShprobeError("no such mesh file", p)
+    regular_file(p, "mesh file")  # missing: "no such mesh file"; a FIFO or device: refused
     try:
         # trimesh computes normals of whatever it is given: overflow there is our check's job
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
-            obj = _flatten(trimesh.load(p, process=True), p)
+            loaded = trimesh.load(p, process=False)
+            parts = (loaded.geometry.values() if isinstance(loaded, trimesh.Scene)
+                     else [loaded])
+            for g in parts:
+                if isinstance(g, trimesh.Trimesh):
+                    _process(g, p)
+            obj = _flatten(loaded, p)
     except ShprobeError:
         raise
     except Exception as e:  # trimesh raises many types on bad input
         raise ShprobeError(f"cannot read mesh: {str(e).splitlines()[0] if str(e) else e!r}",
                            p) from None
-    if not np.all(np.isfinite(obj.vertices)):
-        raise ShprobeError("mesh has non-finite vertex coordinates", p)
     with np.errstate(all="ignore"):
         extent = np.ptp(np.asarray(obj.vertices, dtype=np.float64), axis=0).max()
     if not extent < MAX_EXTENT:
@@ -141,6 +146,21 @@ def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
 
 #: Largest extent of a mesh accepted: squared lengths and cross products stay finite.
 MAX_EXTENT = 1e100
+
+
+def _process(mesh: trimesh.Trimesh, where: Any) -> None:
+    """Check a loaded part's vertices (a NaN or infinite one is refused, not dropped as
+    trimesh's processing would) and merge duplicate vertices where trimesh can: it rounds to
+    8 decimals in int64, which overflows from about 1e11 and merged every vertex into one."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise ShprobeError(f"mesh has non-finite vertex coordinates (vertex "
+                           f"{int(np.argmax(bad)) + 1} of {len(v)})", where)
+    if v.size and float(np.abs(v).max()) < 1e10:
+        mesh.process()  # trimesh's own (8 decimals)
+    # else the file's vertices are kept as they are: any one rounding for the whole mesh
+    # would merge its small features near the origin once one vertex is far away
 
 
 def _flatten(obj: Any, where: Any = None) -> trimesh.Trimesh:
@@ -177,7 +197,10 @@ def as_mesh(item: Any) -> trimesh.Trimesh:
     if isinstance(item, str | os.PathLike):
         return load_mesh(item)
     if isinstance(item, trimesh.Scene | trimesh.Trimesh):
-        return _flatten(item)
+        mesh = _flatten(item)
+        if not np.all(np.isfinite(np.asarray(mesh.vertices, dtype=np.float64))):
+            raise ShprobeError("mesh has non-finite vertex coordinates")
+        return mesh
     raise ShprobeError(f"cannot use {type(item).__name__} as a mesh (path or trimesh object)")
 
 

@@ -11,6 +11,29 @@ from ..errors import ShprobeError
 from .conventions import MAX_DEGREE
 
 _F32 = np.float32
+#: Bytes of memory per float of the splats (the K·3 SH and 14 others) at the peak of reading
+#: a whole file, by format (measured by bench/bench_estimates.py): the chunks or packed
+#: bytes, their decoding in float64, the concatenated arrays; a PLY read adds a fixed 24 MB
+#: (its chunks).
+READ_BYTES_PER_FLOAT = {".ply": 7.5, ".spz": 12.6, ".glb": 20.0}
+PLY_READ_BASE_BYTES = 24e6
+
+
+def floats_per_splat(degree: int) -> int:
+    """Floats of one splat in memory: (degree + 1)² RGB SH coefficients, position, scales,
+    rotation, opacity and normal.
+
+    Parameters
+    ----------
+    degree : int
+        The SH degree.
+
+    Returns
+    -------
+    int
+        3 (degree + 1)² + 14.
+    """
+    return 3 * (degree + 1) ** 2 + 14
 _WHAT = {"positions": "position", "log_scales": "scales", "rotations": "rotation",
          "opacity": "opacity", "sh": "SH coefficients", "normals": "normal"}
 
@@ -54,7 +77,8 @@ class Splats:
             a = getattr(self, name)
             if a is None:
                 continue
-            a = np.asarray(a, dtype=_F32)
+            with np.errstate(over="ignore"):  # beyond float32: inf, refused by check_finite
+                a = np.asarray(a, dtype=_F32)
             setattr(self, name, a)
             if a.shape[0] != n:
                 raise ShprobeError(f"splat {name} has {a.shape[0]} rows, positions {n}")
@@ -139,6 +163,54 @@ class Splats:
                 i = offset + int(np.argmin(ok))
                 raise ShprobeError(f"splat {i} has a non-finite value (NaN or Inf) in its "
                                    f"{_WHAT[name]}", where)
+
+
+    def check_rotations(self, where=None, offset: int = 0) -> None:
+        """Refuse a zero quaternion (it is no rotation: normalising it gives NaN), naming the
+        first splat (numbered from ``offset``).
+
+        Parameters
+        ----------
+        where : str or os.PathLike, optional
+            The file named in the message.
+        offset : int
+            Number of the first splat here (for chunks of a file).
+        """
+        norm2 = np.square(self.rotations, dtype=np.float64).sum(axis=1)
+        if not np.all(norm2 > 0):
+            i = offset + int(np.argmin(norm2 > 0))
+            raise ShprobeError(f"splat {i} has a zero rotation quaternion (no rotation: "
+                               "nothing written)", where)
+
+
+def read_bytes(path, per_byte: int = 1) -> bytes:
+    """The bytes of a splat file that must be a regular file (a FIFO or ``/dev/zero`` is
+    refused at once, never read), its size times ``per_byte`` (the memory reading it takes)
+    checked against the memory limit first.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The splat file.
+    per_byte : int
+        Bytes of memory per byte of the file while it is read and decoded.
+
+    Returns
+    -------
+    bytes
+        The file's content.
+    """
+    import os
+
+    from ..files import open_regular
+    from ..limits import check_memory
+
+    with open_regular(path, "splat file") as f:
+        check_memory(per_byte * os.fstat(f.fileno()).st_size, "reading this file", path)
+        try:
+            return f.read()
+        except OSError as e:
+            raise ShprobeError(f"cannot read: {e.strerror or e}", path) from None
 
 
 def concatenate(parts: list[Splats]) -> Splats:

@@ -22,12 +22,104 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..progress import Progress, stage
 from . import gltf, ply, spz
-from .cloud import Splats, concatenate
+from .cloud import (
+    PLY_READ_BASE_BYTES,
+    READ_BYTES_PER_FLOAT,
+    Splats,
+    concatenate,
+    floats_per_splat,
+)
 from .transform import Similarity, apply
 
 FORMATS = (".ply", ".spz", ".glb")
-#: Bytes of memory per splat while a whole scene is held (float32 attributes, a copy, packing).
-BYTES_PER_SPLAT = 1024
+#: Bytes per float of a splat's attributes (K·3 SH, 3 + 3 + 4 + 1 + 3 others) at the peak of
+#: each writer, by format (measured by bench/bench_estimates.py): the frame change's copy,
+#: float64 temporaries, the packed bytes, and for SPZ the compressed stream too.
+WRITE_BYTES_PER_FLOAT = {".ply": 0.0, ".spz": 24.0, ".glb": 17.0}
+#: Copies of a chunk's records a streamed PLY → PLY transform holds at its peak.
+STREAM_COPIES = 3.2
+
+
+def estimate_read(count: int, degree: int, kind: str) -> float:
+    """Peak bytes of reading a whole splat file of ``count`` splats of SH ``degree``.
+
+    Parameters
+    ----------
+    count, degree : int
+        The file's splats and SH degree (from its header).
+    kind : str
+        '.ply', '.spz' or '.glb'.
+
+    Returns
+    -------
+    float
+        The estimate the reader checks against the memory limit.
+    """
+    base = PLY_READ_BASE_BYTES if kind == ".ply" else 0.0
+    return base + count * floats_per_splat(degree) * READ_BYTES_PER_FLOAT[kind]
+
+
+def estimate_transform(count: int, degree: int, src: str, dst: str) -> float:
+    """Peak bytes of a [`transform_file`][shprobe.splats.transform_file] that holds the whole scene
+    (any but PLY → PLY, which `estimate_stream` covers): the larger of reading it and of holding it,
+    its moved copy and the writer's peak.
+
+    Parameters
+    ----------
+    count, degree : int
+        The input's splats and SH degree.
+    src, dst : str
+        The input's and output's formats ('.ply', '.spz', '.glb').
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit.
+    """
+    floats = count * floats_per_splat(degree)
+    write_peak = (min(count, ply.CHUNK) * floats_per_splat(degree) * 12 if dst == ".ply"
+                  else floats * WRITE_BYTES_PER_FLOAT[dst])
+    return max(estimate_read(count, degree, src), 8.0 * floats + write_peak)
+
+
+def estimate_write(splats: Splats, path: str | os.PathLike[str]) -> float:
+    """Peak bytes [`write`][shprobe.splats.write] allocates for ``splats`` to ``path`` (its format
+    by suffix); a PLY is written a chunk at a time.
+
+    Parameters
+    ----------
+    splats : Splats
+        What is written.
+    path : str or os.PathLike
+        The output (``.ply``, ``.spz`` or ``.glb``).
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit before writing.
+    """
+    kind = format_of(path)
+    floats = floats_per_splat(splats.degree)
+    if kind == ".ply":
+        return float(min(splats.count, ply.CHUNK) * floats * 4 * 3)
+    return float(splats.count * floats * WRITE_BYTES_PER_FLOAT[kind])
+
+
+def estimate_stream(layout: ply.PlyLayout) -> float:
+    """Peak bytes of a streamed PLY → PLY [`transform_file`][shprobe.splats.transform_file] (a chunk
+    of records, its float64 and moved copies), whatever the file's size.
+
+    Parameters
+    ----------
+    layout : shprobe.splats.ply.PlyLayout
+        The input's header.
+
+    Returns
+    -------
+    float
+        The estimate checked against the memory limit before the transform.
+    """
+    return float(min(layout.count, ply.CHUNK) * layout.dtype.itemsize * STREAM_COPIES)
 
 
 def format_of(path: str | os.PathLike[str]) -> str:
@@ -80,7 +172,8 @@ def read(path: str | os.PathLike[str], progress: Progress | None = None) -> Spla
     kind = format_of(path)
     if kind == ".ply":
         layout = ply.read_layout(path)
-        check_memory(layout.count * BYTES_PER_SPLAT, f"reading {layout.count} splats", path)
+        check_memory(estimate_read(layout.count, layout.degree, ".ply"),
+                     f"reading {layout.count} splats", path)
         return concatenate([s for _, s in _chunks(layout, progress, "reading splats")])
     with stage(progress, "reading splats"):
         s = spz.read(path) if kind == ".spz" else gltf.read(path)
@@ -111,6 +204,8 @@ def write(path: str | os.PathLike[str], splats: Splats, overwrite: bool = False,
     """
     kind = format_of(path)
     splats.check_finite(os.fspath(path))
+    splats.check_rotations(os.fspath(path))
+    check_memory(estimate_write(splats, path), f"writing {splats.count} splats", path)
     from ..files import atomic_output
 
     with stage(progress, "writing splats", total=splats.count) as bar:
@@ -209,6 +304,7 @@ def _stream_floats(layout: ply.PlyLayout, cols: dict[str, int], dtype: np.dtype,
             ply.first_non_finite(a, names, layout.path, done)
             ply.transform_matrix(a, cols, layout.degree, sim)
             ply.first_non_finite(a, names, f"{layout.path} (after the transform)", done)
+            ply.first_zero_rotation(a, cols, layout.path, done)
             (a if len(keep) == len(names) else a[:, keep]).tofile(f)
             done += rec.shape[0]
             bar.advance(rec.shape[0])
@@ -243,6 +339,7 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
     out_kind = format_of(dst)
     if format_of(src) == ".ply" and out_kind == ".ply":
         layout = ply.read_layout(src)
+        check_memory(estimate_stream(layout), f"transforming {layout.count} splats", src)
         degree = _degree(settings, layout.degree, src)
         dtype = ply.output_dtype(layout.dtype, degree)
         cols = ply.float_columns(layout.dtype.newbyteorder("="))
@@ -254,10 +351,13 @@ def transform_file(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                 for rec, s in _chunks(layout, progress, "transforming splats"):
                     moved = apply(s.truncated(degree), settings.similarity)
                     moved.check_finite(os.fspath(dst))
+                    moved.check_rotations(os.fspath(dst))
                     ply.from_splats(moved, dtype, extra=rec).tofile(f)
         return TransformResult(layout.count, layout.degree, degree, Path(dst))
     s = read(src, progress)
     degree = _degree(settings, s.degree, src)
+    check_memory(estimate_transform(s.count, degree, format_of(src), out_kind),
+                 f"transforming {s.count} splats", src)
     with stage(progress, "transforming splats"):
         moved = apply(s.truncated(degree), settings.similarity)
     write(dst, moved, settings.overwrite, progress)

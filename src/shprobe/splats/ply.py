@@ -57,16 +57,14 @@ def _fail(path, msg: str):
 def read_layout(path: str | os.PathLike[str]) -> PlyLayout:
     """Parse and check a splat PLY's header (nothing else is read); one line per problem."""
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
+    from ..files import open_regular
+
+    with open_regular(p, "splat file") as f:  # a FIFO or /dev/zero: refused, never read
+        size = os.fstat(f.fileno()).st_size
+        try:
             head = f.read(MAX_HEADER)
-        size = os.path.getsize(p)
-    except FileNotFoundError:
-        raise ShprobeError("no such file", p) from None
-    except IsADirectoryError:
-        raise ShprobeError("is a directory, not a file", p) from None
-    except OSError as e:
-        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
+        except OSError as e:
+            raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
     if not head.startswith(b"ply"):
         _fail(p, "not a PLY file (no 'ply' magic)")
     end = re.search(rb"end_header\r?\n", head)
@@ -147,8 +145,10 @@ def read_layout(path: str | os.PathLike[str]) -> PlyLayout:
 def records(layout: PlyLayout, chunk: int | None = None) -> Iterator[np.ndarray]:
     """The vertex records, ``chunk`` (default `CHUNK`) at a time (structured arrays,
     native byte order)."""
+    from ..files import open_regular
+
     chunk = CHUNK if chunk is None else chunk
-    with open(layout.path, "rb") as f:
+    with open_regular(layout.path, "splat file") as f:
         f.seek(layout.offset)
         left = layout.count
         while left:
@@ -185,13 +185,16 @@ def to_splats(rec: np.ndarray, layout: PlyLayout) -> Splats:
 
 def output_dtype(layout_dtype: np.dtype, degree: int) -> np.dtype:
     """The little-endian record type written for ``degree``: the input's properties in their
-    order, f_rest beyond the degree dropped."""
+    order, f_rest beyond the degree dropped, normals stored as integers written as float."""
     keep = 3 * ((degree + 1) ** 2 - 1)
     fields = []
     for name in layout_dtype.names:
         if name.startswith("f_rest_") and int(name[7:]) >= keep:
             continue
-        fields.append((name, "<" + layout_dtype[name].str[1:]))
+        code = layout_dtype[name].str[1:]
+        if name in ("nx", "ny", "nz") and code[0] != "f":
+            code = "f4"  # a moved normal has negative components: no integer type holds it
+        fields.append((name, "<" + code))
     return np.dtype(fields)
 
 
@@ -266,10 +269,49 @@ def first_non_finite(a: np.ndarray, names, where, offset: int = 0) -> None:
                            f"property {names[int(j)]!r}", where)
 
 
+def first_zero_rotation(a: np.ndarray, cols: dict[str, int], where, offset: int = 0) -> None:
+    """Refuse an (N, F) record matrix holding a zero quaternion (no rotation), naming the
+    splat.
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        (N, F) float32 records.
+    cols : dict
+        Column of each property.
+    where : str
+        The file named in the message.
+    offset : int
+        Number of the first record here.
+    """
+    rot = a[:, [cols[f"rot_{i}"] for i in range(4)]]
+    zero = ~np.any(rot != 0, axis=1)
+    if zero.any():
+        raise ShprobeError(f"splat {offset + int(np.argmax(zero))} has a zero rotation "
+                           "quaternion (no rotation: nothing written)", where)
+
+
 def transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     """Move the splats of an (N, F) float32 record matrix in place (the fast path of
     [`shprobe.splats.transform.apply`][shprobe.splats.apply] for all-float layouts: one GEMM for the
-    SH)."""
+    SH); values beyond float32 become inf, refused after the transform (no numpy warning).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        (N, F) float32 records, changed in place.
+    cols : dict
+        Column of each property.
+    degree : int
+        The SH degree of the records.
+    sim : shprobe.splats.Similarity
+        The transform.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        _transform_matrix(a, cols, degree, sim)
+
+
+def _transform_matrix(a: np.ndarray, cols: dict[str, int], degree: int, sim) -> None:
     from .transform import X180, quat_from_matrix, quat_multiply, sh_matrix
 
     q = np.asarray(sim.linear, dtype=np.float64)

@@ -28,28 +28,16 @@ import numpy as np
 
 from ..errors import ShprobeError
 from ..limits import check_memory
-from .cloud import Splats
+from .cloud import READ_BYTES_PER_FLOAT, Splats, floats_per_splat, read_bytes
 from .transform import apply, frame
 
 MAGIC = 0x5053474E
 _SQRT1_2 = np.float32(0.7071067811865476)
 _COLOR_SCALE = 0.15
-#: Bytes per splat in memory while an SPZ is read or written (float32 attributes + packed).
-_BYTES_PER_SPLAT = 4 * (3 + 3 + 4 + 1 + 48) * 2 + 64
 
 
 def _sh_dim(degree: int) -> int:
     return (degree + 1) ** 2 - 1
-
-
-def _read_bytes(p: str) -> bytes:
-    try:
-        with open(p, "rb") as f:
-            return f.read()
-    except FileNotFoundError:
-        raise ShprobeError("no such file", p) from None
-    except OSError as e:
-        raise ShprobeError(f"cannot read: {e.strerror or e}", p) from None
 
 
 def _inflate(z, raw: bytes, size: int, p: str) -> bytes:
@@ -98,13 +86,13 @@ def _zstd_streams(raw: bytes, p: str, n_streams: int, toc: int, size: int) -> li
 def read(path: str | os.PathLike[str]) -> Splats:
     """An SPZ file's splats, in the PLY's (RDF) frame."""
     p = os.fspath(path)
-    raw = _read_bytes(p)
+    raw = read_bytes(p)
     if raw[:4] == b"NGSP":  # version 4: plaintext header, zstd streams
         if len(raw) < 32:
             raise ShprobeError("SPZ header is truncated", p)
         _, version, n, degree, fbits, _flags, n_streams, toc = struct.unpack_from(
             "<IIIBBBBI", raw)
-        _check_header(p, version, n, degree)
+        _check_header(p, version, n, degree, fbits)
         if n_streams < 5:
             raise ShprobeError(f"SPZ has {n_streams} streams, expected 6", p)
         body = b"".join(_zstd_streams(raw, p, n_streams, toc, n * _per_splat(version, degree)))
@@ -118,22 +106,37 @@ def read(path: str | os.PathLike[str]) -> Splats:
         magic, version, n, degree, fbits, _flags, _ = struct.unpack_from("<IIIBBBB", data)
         if magic != MAGIC:
             raise ShprobeError("not an SPZ file (no NGSP magic inside the gzip stream)", p)
-        _check_header(p, version, n, degree)
-        body = data[16:] + _inflate(z, z.unconsumed_tail, n * _per_splat(version, degree), p)
+        _check_header(p, version, n, degree, fbits)
+        size = n * _per_splat(version, degree)
+        body = data[16:] + _inflate(z, z.unconsumed_tail, size, p)
+        if len(body) == size and _inflate(z, z.unconsumed_tail, 1, p):
+            # a count below the data's would shift every attribute after the positions
+            raise ShprobeError(f"SPZ holds more data than its header's {n} splats (the count "
+                               "is wrong or the file is not SPZ)", p)
     else:
         raise ShprobeError("not an SPZ file (neither gzip nor NGSP)", p)
     return frame_in(_unpack(p, body, version, n, degree, fbits))
 
 
-def _check_header(p: str, version: int, n: int, degree: int) -> None:
+#: ``fractionalBits`` read: 24-bit fixed-point positions keep at least one integer bit and
+#: one fraction bit (0 or ≥ 24 would round every position to an integer or to zero).
+FRACTIONAL_BITS = (1, 23)
+
+
+def _check_header(p: str, version: int, n: int, degree: int, fbits: int = 12) -> None:
     if version not in (1, 2, 3, 4):
         raise ShprobeError(f"SPZ version {version} is not supported (1–4)", p)
+    lo, hi = FRACTIONAL_BITS
+    if version >= 2 and not lo <= fbits <= hi:
+        raise ShprobeError(f"SPZ fractionalBits {fbits} is outside {lo}–{hi} (24-bit fixed-"
+                           "point positions)", p)
     if degree > 3:
         raise ShprobeError(f"SPZ holds SH degree {degree}: the 3DGS renderer evaluates "
                            "degree ≤ 3; no degree-4 layout is read", p)
     if n == 0:
         raise ShprobeError("SPZ holds no splats", p)
-    check_memory(n * _BYTES_PER_SPLAT, f"reading {n} splats", p)
+    check_memory(n * floats_per_splat(degree) * READ_BYTES_PER_FLOAT[".spz"],
+                 f"reading {n} splats", p)
 
 
 def _take(body: bytes, pos: int, size: int, p: str) -> tuple[np.ndarray, int]:
@@ -226,14 +229,15 @@ def pack(s: Splats) -> bytes:
     n, d = s.count, _sh_dim(s.degree)
     big = float(np.abs(s.positions).max())
     fbits = 12
-    while fbits > 0 and big * (1 << fbits) >= (1 << 23) - 1:
+    while fbits > FRACTIONAL_BITS[0] and big * (1 << fbits) >= (1 << 23) - 1:
         fbits -= 1
     if big * (1 << fbits) >= (1 << 23) - 1:
         raise ShprobeError(f"positions up to {big:.3g} do not fit SPZ's 24-bit fixed point")
     fixed = np.round(s.positions.astype(np.float64) * (1 << fbits)).astype(np.int64)
     fixed &= 0xFFFFFF
     pos = np.stack([fixed & 0xFF, (fixed >> 8) & 0xFF, (fixed >> 16) & 0xFF], axis=-1)
-    alphas = _u8(255.0 / (1.0 + np.exp(-s.opacity.astype(np.float64))))
+    with np.errstate(over="ignore"):  # a logit below −709: e^−x is inf, the alpha 0
+        alphas = _u8(255.0 / (1.0 + np.exp(-s.opacity.astype(np.float64))))
     colors = _u8(s.sh[:, 0].astype(np.float64) * (_COLOR_SCALE * 255.0) + 127.5)
     scales = _u8((s.log_scales.astype(np.float64) + 10.0) * 16.0)
     if s.log_scales.shape[1] == 2:  # 2DGS: SPZ has three scales; the normal axis is flat
@@ -250,6 +254,13 @@ def write(path: str | os.PathLike[str], s: Splats, overwrite: bool = False) -> N
     """Write an SPZ (version 3, gzip; all SH at 8 bits) through `shprobe.files`."""
     from ..files import atomic_output
 
-    data = gzip.compress(pack(s), compresslevel=6)
+    s.check_finite(os.fspath(path))
+    s.check_rotations(os.fspath(path))
+    try:
+        data = gzip.compress(pack(s), compresslevel=6)
+    except ShprobeError as e:
+        if e.path:
+            raise
+        raise ShprobeError(e.message, path) from None
     with atomic_output(path, overwrite) as tmp, open(tmp, "wb") as f:
         f.write(data)

@@ -28,6 +28,9 @@ from .cloud import Splats
 
 #: Largest deviation of AᵀA/s² from I accepted for a "similarity" 4×4.
 SIMILARITY_TOL = 1e-5
+#: Largest magnitude of a matrix entry: the scale of float32 positions (3.4e38) less room
+#: for the scene's own extent.
+MAX_ENTRY = 1e30
 
 #: Axis letters of the named frames: where the +x, +y, +z axes point (Right/Left, Up/Down,
 #: Back/Front; "back" is toward the viewer of a y-up scene).
@@ -120,6 +123,9 @@ class Similarity:
             m = m.reshape(-1, 4)
         if m.shape not in ((3, 4), (4, 4)) or not np.all(np.isfinite(m)):
             raise ShprobeError(f"matrix must be a finite 4×4 (or 3×4), got shape {m.shape}")
+        if np.abs(m).max() > MAX_ENTRY:  # its determinant and the positions would overflow
+            raise ShprobeError(f"matrix entries must be within ±{MAX_ENTRY:g}, got "
+                               f"{float(np.abs(m).max()):.3g}")
         if m.shape == (4, 4) and not np.allclose(m[3], [0, 0, 0, 1], atol=1e-9):
             raise ShprobeError(f"matrix is projective (last row {m[3].tolist()}, expected "
                                "0,0,0,1): not a similarity")
@@ -172,8 +178,8 @@ def translation(offset: ArrayLike) -> Similarity:
         x ↦ x + offset.
     """
     t = np.asarray(offset, dtype=np.float64).reshape(3)
-    if not np.all(np.isfinite(t)):
-        raise ShprobeError("translation must be finite")
+    if not np.all(np.abs(t) <= MAX_ENTRY):
+        raise ShprobeError(f"translation must be finite and within ±{MAX_ENTRY:g}")
     return Similarity(np.eye(3), 1.0, t)
 
 
@@ -191,8 +197,9 @@ def uniform_scale(factor: float) -> Similarity:
         x ↦ factor · x.
     """
     s = float(factor)
-    if not (np.isfinite(s) and s > 0):
-        raise ShprobeError(f"scale must be a finite positive number, got {factor!r}")
+    if not (1.0 / MAX_ENTRY <= s <= MAX_ENTRY):
+        raise ShprobeError(f"scale must be a positive number from {1.0 / MAX_ENTRY:g} to "
+                           f"{MAX_ENTRY:g}, got {factor!r}")
     return Similarity(np.eye(3), s)
 
 
@@ -342,20 +349,26 @@ X180 = np.array([0.0, 1.0, 0.0, 0.0])
 
 
 def apply(splats: Splats, sim: Similarity) -> Splats:
-    """The splats moved by ``sim`` (see the module docstring), every SH band included.
+    """The splats moved by ``sim`` (see the module docstring), every SH band included; values
+    beyond float32 become inf, which every writer refuses (no numpy warning on the way).
 
     Parameters
     ----------
-    splats
-        The splats.
-    sim
-        The similarity.
+    splats : Splats
+        The splats, in the PLY's frame.
+    sim : Similarity
+        The transform.
 
     Returns
     -------
     Splats
-        The moved splats, every SH band turned with them.
+        The moved splats.
     """
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _apply(splats, sim)
+
+
+def _apply(splats: Splats, sim: Similarity) -> Splats:
     q = np.asarray(sim.linear, dtype=np.float64)
     mirror_ = np.linalg.det(q) < 0
     proper = -q if mirror_ else q
