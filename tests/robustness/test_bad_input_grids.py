@@ -181,7 +181,7 @@ def test_bake_refuses_absurd_bounds_before_work(bounds, phrase, tmp_path, capfd)
 
 
 def test_bake_refuses_all_nan_lighting_even_with_clamp(tmp_path, capfd):
-    from .conftest import write_raw_pfm
+    from tests.conftest import write_raw_pfm
 
     probe = write_raw_pfm(tmp_path / "nan.pfm", np.full((16, 32, 3), np.nan, np.float32))
     rc = main(_bake(tmp_path, "--lighting", str(probe), "--clamp"))

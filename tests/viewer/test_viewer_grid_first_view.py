@@ -72,7 +72,7 @@ def test_first_frame_in_the_browser_shows_both_settings(room, tmp_path):
     side, as the library computes them."""
     from tests.support.browser import chromium_page
 
-    from .test_viewer_grid import GridServed
+    from tests.viewer.test_viewer_grid import GridServed
 
     r, g = room
     view = GridView(g, "room.npz", scene=r.mesh(), scene_name="room")
