@@ -93,7 +93,7 @@ def test_every_encoding_compiles(tmp_path, target):
                "void main() {\n  vec3 n = shprobe_lightmap_normal(nm, 1.0);\n"
                f"  col = vec4({' + '.join(calls)}, 1.0);\n}}\n")
         path = tmp_path / "t.frag"
-        cmd = [GLSLANG] + (["-G"] if target == "glsl450" else [])
+        cmd = [GLSLANG] + (["-G", "-o", str(tmp_path / "t.spv")] if target == "glsl450" else [])
     path.write_text(src)
     r = subprocess.run([*cmd, str(path)], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
