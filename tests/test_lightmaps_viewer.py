@@ -58,9 +58,9 @@ def page(lightmap):
 
 
 def _canvas(page, name: str) -> np.ndarray:
-    from PIL import Image
-
     import base64
+
+    from PIL import Image
 
     page.screenshot(path=str(SHOTS / f"lightmap_page_{name}.png"))
     url = page.evaluate("() => document.getElementById('view').toDataURL('image/png')")
@@ -149,7 +149,7 @@ def test_fig5_h4_beside_h6(page, lightmap):
     _canvas(page, "fig5")
     rng = np.random.default_rng(2)
     left = np.stack([rng.integers(10, 470, 200), rng.integers(330, 530, 200)], 1)
-    right = left + [480, 0]
+    right = left + np.array([480, 0])
     uv_l = np.array(page.evaluate("(p) => window.__shprobe.readback('uv1', p)", left.tolist()))
     uv_r = np.array(page.evaluate("(p) => window.__shprobe.readback('uv1', p)", right.tolist()))
     ok = (np.abs(uv_l - uv_r).max(axis=1) < 1e-6) & (uv_l[:, :2].min(axis=1) > 0.02)
