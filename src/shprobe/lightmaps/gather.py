@@ -243,9 +243,8 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
             direct_sh[a:b] -= c * np.einsum("psk,psc->pkc", yk, ls)
             lz = ls * dt[..., 2:3]
             direct_e[a:b] -= c * lz.sum(1)
-            hs = S // 2
-            half[0, a:b] -= 2 * c * lz[:, :hs].sum(1)
-            half[1, a:b] -= 2 * c * lz[:, hs:].sum(1)
+            half[0, a:b] -= 2 * c * lz[:, 0::2].sum(1)
+            half[1, a:b] -= 2 * c * lz[:, 1::2].sum(1)
             front = (f >= 0) & ~backface & ~below
             pi, si = np.nonzero(front)
             if len(pi):
@@ -262,12 +261,12 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
                 alb = sample_albedo(atlas, prim, local, bary, override)
                 hits.append((pi + a, huv.astype(np.float32),
                              (alb * (c / np.pi)).astype(np.float32),
-                             dt[pi, si].astype(np.float32), si < hs))
+                             dt[pi, si].astype(np.float32)))
             bar.advance(b - a)
     if settings.sun is not None:
         _add_sun(tx, settings, caster, origins, fn, direct_sh, direct_e, half)
     if hits:
-        ht, huv, hw, hd, _ = (np.concatenate(x) for x in zip(*hits, strict=True))
+        ht, huv, hw, hd = (np.concatenate(x) for x in zip(*hits, strict=True))
     else:
         ht, huv, hw, hd = (np.empty((0, *s), t) for s, t in (
             ((), np.int64), ((2,), np.float32), ((3,), np.float32), ((3,), np.float32)))
