@@ -104,8 +104,8 @@ def _normal_field(uv):
 
 
 def _room():
-    """A 2 × 2 room, walls 1 high facing inwards, no ceiling; the floor has a normal map and TEXCOORD_0 with
-    u along +x and v along −y (so its tangent frame is the world frame)."""
+    """A 2 × 2 room, walls 1 high facing inwards, no ceiling; the floor has a normal map and
+    TEXCOORD_0 with u along +x and v along −y (so its tangent frame is the world frame)."""
     floor = _plane(uv1=False)
     n = 64
     g = (np.arange(n) + 0.5) / n
