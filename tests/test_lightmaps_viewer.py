@@ -103,11 +103,15 @@ def test_a_pixel_is_the_librarys_evaluation(page, lightmap):
 
 
 def _library_e(lightmap, encoding, uv, n):
+    """E from the library: ``Lightmap.irradiance`` of the file's own encoding, the implied
+    ones (lightmaps.derive) evaluated by format.evaluate."""
+    from shprobe.lightmaps import load_lightmap
     from shprobe.lightmaps.derive import implied_encodings
 
-    doc, binary = fmt.read_glb(lightmap)
-    stored = fmt.read_lightmap(doc, binary)
-    c = implied_encodings(stored.encoding, stored.coeffs)[encoding]
+    lm = load_lightmap(lightmap)
+    if encoding == lm.basis:
+        return lm.irradiance(np.asarray(uv, np.float64), n)
+    c = implied_encodings(lm.basis, lm.coefficients())[encoding]
     return fmt.evaluate(encoding, bilinear(c, uv), n)
 
 
@@ -195,3 +199,65 @@ def test_view_lightmap_refuses_bad_input_in_one_line(tmp_path, capsys):
     plain.write_bytes(game_scene_path().read_bytes())
     assert main(["view", "--lightmap", str(plain), "--no-browser"]) != 0
     assert "has no SHPROBE_lightmap extension" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    """A small real bake of the game scene (sky, one bounce), stored as L2 SH."""
+    from shprobe.lightmaps import LightmapSettings, bake_lightmap, load_scene
+    from shprobe.lightmaps.scenes import game_scene_path
+    from shprobe.probes.presets import get_preset
+
+    lm = bake_lightmap(load_scene(game_scene_path()), get_preset("grace"),
+                       LightmapSettings(basis="sh9", size=128, samples=16, bounces=1))
+    path = tmp_path_factory.mktemp("baked") / "courtyard_sh9.glb"
+    lm.save(path)
+    return path
+
+
+def test_a_baked_scene_in_the_page_is_the_librarys_evaluation(baked):
+    """Every surface of the game scene (five meshes, four materials, TANGENT frames, the
+    bake's xatlas UVs): the page's float E (H6 implied by the stored L2 SH) and its pixels
+    equal the library's at the read-back uv1 and normal-map normal."""
+    _need_browser()
+    from playwright.sync_api import sync_playwright
+
+    served = Served(None, grid=load_lightmap_view(baked), page="/lightmap")
+    errors: list[str] = []
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=FLAGS)
+        try:
+            pg = b.new_page(viewport={"width": 1500, "height": 820})
+            pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            pg.on("pageerror", lambda e: errors.append(str(e)))
+            pg.goto(served.url)
+            pg.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
+                                 "window.__shprobe.lastError)", timeout=90000)
+            assert pg.evaluate("() => window.__shprobe.lastError") is None and errors == []
+            st = pg.evaluate("() => window.__shprobe.set({layout: 'single', encoding: 'h6', "
+                             "albedo: true})")
+            assert st["panels"][0]["encoding"] == "h6"
+            img = _canvas(pg, "baked_h6")
+            rng = np.random.default_rng(5)
+            pts = np.stack([rng.integers(5, 955, 300), rng.integers(5, 535, 300)], 1).tolist()
+            uv = np.array(pg.evaluate("(p) => window.__shprobe.readback('uv1', p)", pts))
+            hit = uv[:, 2] == 0  # the background clears to a grey with z = clear colour
+            hit &= (uv[:, :2] > 0).all(axis=1) & (uv[:, :2] < 1).all(axis=1)
+            pts = [pts[i] for i in np.flatnonzero(hit)]
+            assert len(pts) > 150
+            uv = uv[hit, :2]
+            n = np.array(pg.evaluate("(p) => window.__shprobe.readback('normal', p)", pts))
+            e = np.array(pg.evaluate("(p) => window.__shprobe.readback('irradiance', p)", pts))
+            alb = np.array(pg.evaluate("(p) => window.__shprobe.readback('albedo', p)", pts))
+        finally:
+            b.close()
+            served.close()
+    want = _library_e(baked, "h6", uv, n)
+    peak = np.abs(want).max()
+    err = np.abs(e - want).max(axis=1)
+    # bilinear weights in 8 fractional bits on the GPU: beside a chart's seams, neighbouring
+    # texels differ most; the bulk agrees to 1e-3 of the peak
+    assert np.percentile(err, 95) <= 1e-3 * peak and err.max() <= 1e-2 * peak
+    px = _srgb(alb / math.pi * want * 2.0 ** st["exposure"]) * 255
+    got = img[[y for _, y in pts], [x for x, _ in pts]]
+    assert np.percentile(np.abs(got - px).max(axis=1), 95) <= 2.0
