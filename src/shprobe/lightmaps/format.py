@@ -11,8 +11,10 @@ The document
 * ``extensionsUsed`` lists ``"SHPROBE_lightmap"``; ``extensionsRequired`` does NOT, so a
   plain viewer still opens the scene (it simply ignores the lightmap).
 * Every lightmapped primitive has the core attribute ``TEXCOORD_1`` (FLOAT VEC2), the lightmap
-  UVs, and — when it has ``TEXCOORD_0`` — ``TANGENT`` (FLOAT VEC4, MikkTSpace of
-  ``TEXCOORD_0``, as glTF requires for normal maps; a tangent the scene already had is kept).
+  UVs, and ``TANGENT`` (FLOAT VEC4): MikkTSpace of ``TEXCOORD_0``, as glTF requires for normal
+  maps (a tangent the scene already had is kept), or the arbitrary frame below. A primitive
+  that had no ``TEXCOORD_0`` gets the lightmap UVs as ``TEXCOORD_0`` too (glTF numbers a
+  semantic's sets from 0 without gaps).
 * The root object carries ``extensions.SHPROBE_lightmap``::
 
       {"version": 1,
