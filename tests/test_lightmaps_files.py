@@ -224,3 +224,31 @@ def test_primitive_is_usable_without_glTF(tmp_path):
     doc, _ = fmt.read_glb(tmp_path / "a.glb")
     assert len(doc["images"]) == 1 and "normalTexture" in doc["materials"][0]
     assert isinstance(lm.texels, object) and isinstance(_room().primitives[0], Primitive)
+
+
+def test_the_game_scene_bakes_to_a_valid_glb_that_keeps_its_materials(tmp_path):
+    from shprobe.lightmaps.scenes import game_scene_path
+
+    out = tmp_path / "game.glb"
+    res = _cli(game_scene_path(), "--preset", "grace", "--sun", "0.3,1,0.2,2,2,2", "--size",
+               "64", "--samples", "4", "--basis", "h4", "-o", out)
+    assert res.returncode == 0, res.stderr
+    report = _validate(out)["game.glb"]
+    assert report["numErrors"] == 0, report["messages"]
+    src, _ = fmt.read_glb(game_scene_path())
+    doc, _ = fmt.read_glb(out)
+    assert doc["materials"] == src["materials"] and len(doc["images"]) == len(src["images"])
+    assert load_lightmap(out).coefficients().shape == (64, 64, 4, 3)
+
+
+def test_a_bake_over_the_memory_limit_is_refused_in_one_line(tmp_path):
+    import os
+
+    scene = _write_scene(tmp_path / "s.glb", QUAD, TWO)
+    env = {**os.environ, "SHPROBE_MAX_MEMORY": "2M"}
+    res = subprocess.run([sys.executable, "-m", "shprobe", "lightmap", "bake", str(scene),
+                          "--preset", "grace", "--size", "512", "-o", str(tmp_path / "o.glb")],
+                         capture_output=True, text=True, timeout=300, env=env)
+    assert res.returncode != 0
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "over the limit" in lines[0], res.stderr

@@ -223,11 +223,11 @@ def build_atlas(scene: LightmapScene, settings: LightmapSettings) -> Atlas:
     generate(settings.texels_per_unit)
     if settings.texels_per_unit is None:
         # xatlas may overshoot the resolution asked for: shrink the density until it fits
-        for _ in range(8):
+        for _ in range(16):
             if max(atlas.width, atlas.height) <= settings.size and atlas.atlas_count == 1:
                 break
             generate(atlas.texels_per_unit * settings.size
-                     / max(atlas.width, atlas.height) * 0.97)
+                     / max(atlas.width, atlas.height) * 0.9)
         w = h = int(settings.size)
     else:
         w, h = int(atlas.width), int(atlas.height)

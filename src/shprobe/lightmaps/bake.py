@@ -86,6 +86,10 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         scene = load_scene(scene)
     check_scene(scene)
     sky = sky_coeffs(lighting)
+    if settings.texels_per_unit is None:  # the size bounds the texels: refuse before any work
+        bound = estimate_lightmap_bake(settings.size**2, settings)
+        check_memory(bound.nbytes, f"a {settings.size}x{settings.size} lightmap bake with "
+                     f"{settings.samples} samples", scene.path)
     with stage(progress, "lightmap UVs and texels"):
         atlas = build_atlas(scene, settings)
         tx = texels(atlas)
