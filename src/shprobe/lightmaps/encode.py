@@ -47,6 +47,12 @@ def dilate(image: NDArray, valid: NDArray[np.bool_]) -> NDArray:
     return image[ri, ci]
 
 
+def _segment_sum(index: NDArray, values: NDArray, n: int) -> NDArray:
+    """Σ of the rows of ``values`` (M, C) per ``index`` (M,) → (n, C)."""
+    return np.stack([np.bincount(index, values[:, c], minlength=n)
+                     for c in range(values.shape[1])], 1)
+
+
 def _image(values: NDArray, rc: NDArray, valid: NDArray, shape: tuple[int, int]) -> NDArray:
     img = np.zeros((*shape, *values.shape[1:]))
     mask = np.zeros(shape, bool)
@@ -79,10 +85,8 @@ def bounce(g: Gathered, rc: NDArray, shape: tuple[int, int], bounces: int
     prev = np.zeros((*shape, 3))
     for _ in range(bounces):
         prev = _image(e, rc, g.valid, shape)
-        add = np.zeros_like(e)
-        np.add.at(add, g.hit_texel, g.hit_weight * bilinear(prev, g.hit_uv)
-                  * g.hit_dir[:, 2:3])
-        e = g.direct_e + add
+        w = g.hit_weight * bilinear(prev, g.hit_uv) * g.hit_dir[:, 2:3]
+        e = g.direct_e + _segment_sum(g.hit_texel, w, len(e))
     return e, prev
 
 
@@ -110,7 +114,7 @@ def project_sh(g: Gathered, prev: NDArray, bounces: int) -> NDArray[np.float64]:
         lr = g.hit_weight * bilinear(prev, g.hit_uv)
         yk = sh_basis(g.hit_dir.astype(np.float64), 2)
         for k in range(9):
-            np.add.at(out[:, k], g.hit_texel, lr * yk[:, k:k + 1])
+            out[:, k] += _segment_sum(g.hit_texel, lr * yk[:, k:k + 1], len(out))
     return out
 
 
