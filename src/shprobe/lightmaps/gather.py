@@ -190,8 +190,9 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
         The baked primitives.
     tx : Texels
         Covered texels with points and frames.
-    sky : ndarray (9, 3)
-        World-frame radiance SH of the distant environment.
+    sky : ndarray (9, C)
+        World-frame radiance SH of the distant environment, C = 3·k channels: k sets of
+        red, green, blue (the bake's transfer adds one set per sky coefficient).
     settings : LightmapSettings
         Samples, seed, albedo, sun.
     caster : RayCaster
@@ -215,7 +216,7 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     l_nodes = _sky(sky, world_nodes)  # (P, Q, 3)
     direct_sh = np.einsum("q,qk,pqc->pkc", w, y_nodes, l_nodes)
     direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
-    half = np.zeros((2, P, 3))
+    half = np.zeros((2, P, sky.shape[1]))
     half[:] = direct_e
     back = np.zeros(P)
     starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
@@ -283,7 +284,9 @@ def _add_sun(tx: Texels, settings: LightmapSettings, caster: RayCaster, origins:
     if len(idx):
         occ = caster.occluded(origins[idx], np.broadcast_to(d, (len(idx), 3)))
         idx = idx[~occ]
-    direct_sh[idx] += sh_basis(st[idx], 2)[:, :, None] * rgb
+    # the sun is in the first three channels (the lighting's colours) only: any further
+    # channels are the sky's transfer, which the sun is no part of
+    direct_sh[idx, :, :3] += sh_basis(st[idx], 2)[:, :, None] * rgb
     e = st[idx, 2:3] * rgb
-    direct_e[idx] += e
-    half[:, idx] += e
+    direct_e[idx, :3] += e
+    half[:, idx, :3] += e

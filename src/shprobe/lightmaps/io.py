@@ -203,4 +203,8 @@ def write_lightmap_glb(lm: Lightmap, path: str | os.PathLike[str],
     b.doc.setdefault("asset", {"version": "2.0"})
     extra = {k: lm.stats[k] for k in ("samples", "bounces") if k in lm.stats}
     add_lightmap(b.doc, b.bin, lm.basis, lm.coefficients(), prims, extra)
+    if lm.transfer and lm.basis in lm.transfer:
+        from .transfer_format import add_transfer
+
+        add_transfer(b.doc, b.bin, lm.transfer[lm.basis])
     write_glb(path, b.doc, b.bin, overwrite)
