@@ -61,3 +61,19 @@ def test_the_transfer_survives_the_glb(baked, tmp_path):
     want = lm.relight(turned).coefficients("h6")
     np.testing.assert_allclose(back.relight(turned).coefficients("h6"), want,
                                atol=3e-3 * np.abs(want).max())
+
+
+@pytest.mark.slow
+def test_a_bake_on_a_dask_cluster_equals_the_local_bake():
+    pytest.importorskip("distributed")
+    from distributed import LocalCluster
+
+    sky = resolve_lighting(preset="grace").coeffs[:9]
+    settings = LightmapSettings(size=48, samples=1024, bounces=1, seed=2)  # several tiles
+    local = bake_lightmap(_room(), sky, settings)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        remote = bake_lightmap(_room(), sky, settings, scheduler=cluster.scheduler_address)
+    assert local.texels.count > 2 * 256  # more than two tiles of 256 texels
+    for enc in local.encodings:
+        np.testing.assert_array_equal(remote.coefficients(enc), local.coefficients(enc))

@@ -62,7 +62,7 @@ def _rel_rms(a: NDArray, b: NDArray, ref: NDArray) -> float:
 
 def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
                   settings: LightmapSettings | None = None,
-                  progress: Progress | None = None) -> Lightmap:
+                  progress: Progress | None = None, scheduler: str | None = None) -> Lightmap:
     """Bake a scene's directional lightmap (H&W 2010 §4.2–4.3) in all six encodings.
 
     Parameters
@@ -76,6 +76,9 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         Basis, size, samples, bounces, sun, denoise.
     progress : Progress, optional
         Reporter.
+    scheduler : str, optional
+        A Dask scheduler (tcp://host:port) to trace the tiles of texels on; the result equals
+        the local bake's.
 
     Returns
     -------
@@ -109,7 +112,12 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
                        np.concatenate(_global_faces(atlas)))
     if settings.transfer:  # one more set of channels per sky coefficient (PRT, LH §4)
         sky = np.concatenate([sky, np.kron(np.eye(9), np.ones((1, 3)))], axis=1)
-    g = gather(atlas, tx, sky, settings, caster, progress)
+    if scheduler:
+        from .tiles import gather_on_dask
+
+        g = gather_on_dask(atlas, tx, sky, settings, scheduler, progress)
+    else:
+        g = gather(atlas, tx, sky, settings, caster, progress)
     shape = (atlas.height, atlas.width)
     with stage(progress, f"{settings.bounces} bounces and the SH projection"):
         plain, prev = bounce(g, tx.rc, shape, settings.bounces)
