@@ -60,12 +60,18 @@ def _albedo(text: str | None) -> float | tuple[float, float, float] | None:
               help="Hemisphere rays per texel: the accuracy option.")
 @click.option("--denoise", is_flag=True,
               help="Run Intel Open Image Denoise (RTLightmap) on the coefficient maps.")
+@click.option("--transfer", is_flag=True,
+              help="Relightable: also store per texel the matrix from the sky's SH (lmax 2) "
+                   "to the coefficients, shadows and bounces included.")
+@click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+              help="Trace the texels' tiles on this Dask scheduler (as `shprobe batch`); "
+                   "the result equals the local bake.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Sample pattern seed.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="The scene with TEXCOORD_1 and the SHPROBE_lightmap textures (.glb).")
 @force_option
 def bake_cmd(scene, probe, preset, coeffs_file, sun, basis, albedo, texels_per_unit, size,
-             bounces, samples, denoise, seed, output, force):
+             bounces, samples, denoise, transfer, scheduler, seed, output, force):
     """Bake SCENE (.glb, .gltf or .obj; its materials' base colour and normal maps) under
     a probe, preset or coefficient file (and an optional --sun) into a directional lightmap
     in the normal map's tangent frame; all six encodings are computed, --basis is written."""
@@ -87,7 +93,8 @@ def bake_cmd(scene, probe, preset, coeffs_file, sun, basis, albedo, texels_per_u
     settings = LightmapSettings(basis=basis, albedo=_albedo(albedo),
                                 texels_per_unit=texels_per_unit, size=size, bounces=bounces,
                                 samples=samples, denoise=denoise,
-                                sun=None if sun is None else parse_sun(sun), seed=seed)
+                                sun=None if sun is None else parse_sun(sun), seed=seed,
+                                transfer=transfer)
     from .extras import require
 
     require("lightmaps", "lightmap bake")
@@ -96,7 +103,8 @@ def bake_cmd(scene, probe, preset, coeffs_file, sun, basis, albedo, texels_per_u
     check_scene(sc)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        lm: Lightmap = bake_lightmap(sc, light, settings, progress=progress())
+        lm: Lightmap = bake_lightmap(sc, light, settings, progress=progress(),
+                                     scheduler=scheduler)
     for w in caught:
         click.echo(f"warning: {scene}: {w.message}", err=True)
     lm.save(output, overwrite=force)

@@ -6,7 +6,10 @@ Rasterisation (the definition the numba kernel implements): texel (r, c) has its
 u = (c + ½)/W, v = (r + ½)/H. A texel whose centre lies inside a triangle samples that point;
 a texel whose centre lies outside every triangle but within 0.75 texels of one (conservative
 coverage: small triangles and chart borders) samples the closest point of the closest such
-triangle. Texels no triangle reaches are filled later by dilation.
+triangle. Every sample point is then pulled into its triangle's interior (each barycentric
+coordinate at least :data:`EDGE_PULL`): a point exactly on an edge may lie on another surface
+(a floor's edge under a wall) and see nothing but that surface. Texels no triangle reaches are
+filled later by dilation.
 """
 
 from __future__ import annotations
@@ -24,6 +27,10 @@ from .settings import MAX_SIZE, LightmapSettings
 from .tangents import arbitrary_tangents, frames_from, vertex_normals, vertex_tangents
 
 __all__ = ["Atlas", "Texels", "build_atlas", "rasterize", "uv_overlap"]
+
+
+#: smallest barycentric coordinate of a sample point (module docstring: points on edges move in)
+EDGE_PULL = 0.02
 
 
 class OverlapWarning(UserWarning):
@@ -216,11 +223,11 @@ def build_atlas(scene: LightmapScene, settings: LightmapSettings) -> Atlas:
     generate(settings.texels_per_unit)
     if settings.texels_per_unit is None:
         # xatlas may overshoot the resolution asked for: shrink the density until it fits
-        for _ in range(8):
+        for _ in range(16):
             if max(atlas.width, atlas.height) <= settings.size and atlas.atlas_count == 1:
                 break
             generate(atlas.texels_per_unit * settings.size
-                     / max(atlas.width, atlas.height) * 0.97)
+                     / max(atlas.width, atlas.height) * 0.9)
         w = h = int(settings.size)
     else:
         w, h = int(atlas.width), int(atlas.height)
@@ -259,7 +266,10 @@ def texels(atlas: Atlas) -> Texels:
     (face, bary, dist, _), _ = rasterize(atlas.primitives, atlas.width, atlas.height)
     rr, cc = np.nonzero(face >= 0)
     gf = face[rr, cc]
-    b = bary[rr, cc]
+    # a point on a triangle's edge may lie on another surface (a floor's edge under a wall):
+    # every sample is pulled a little into its triangle's interior
+    b = np.maximum(bary[rr, cc], EDGE_PULL)
+    b /= b.sum(1, keepdims=True)
     starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
     prim = np.searchsorted(starts, gf, side="right") - 1
     pts = np.empty((len(gf), 3))

@@ -17,7 +17,7 @@ from .atlas import Atlas, build_atlas, texels
 from .checks import check_scene, sky_coeffs
 from .encode import bounce, denoise_sh, dilate, encodings_from_sh, project_sh
 from .format import ENCODINGS, N_COEFFS
-from .gather import BYTES_PER_HIT, gather
+from .gather import BYTES_PER_HIT, RAYS_PER_BATCH, gather
 from .result import Lightmap
 from .scene import LightmapScene, load_scene
 from .settings import LightmapSettings
@@ -45,10 +45,12 @@ def estimate_lightmap_bake(n_texels: int, settings: LightmapSettings) -> Cost:
     """
     rays = float(n_texels) * settings.samples
     size = (settings.size if settings.texels_per_unit is None else np.sqrt(n_texels)) ** 2
-    nbytes = (rays * BYTES_PER_HIT  # every ray may hit a front face
+    extra = 10 if settings.transfer else 1  # the transfer's 27 more channels
+    nbytes = (rays * (2 * BYTES_PER_HIT + 60 * extra)  # the hits (twice while joined), SH
               + n_texels * (9 * 3 * 8 * 3 + 64 * 3)  # SH, frames, points
-              + size * (sum(N_COEFFS.values()) * 3 * 4 + 9 * 3 * 8 * 3)  # images
-              + min(rays, 1 << 18) * 200)  # one batch of rays in flight
+              + size * (sum(N_COEFFS.values()) * 3 * 4 + 9 * 3 * 8 * 3) * extra  # images
+              + min(rays, RAYS_PER_BATCH) * 400)  # one batch of rays in flight
+    # measured (bench/bench_lightmap.py, tracemalloc): 376 MB for 37,498 texels × 64 rays
     seconds = rays * (1 + 0.3 * settings.bounces) / (RAYS_PER_CORE_SECOND * min(cores(), 2))
     return Cost(float(seconds), float(nbytes))
 
@@ -60,7 +62,7 @@ def _rel_rms(a: NDArray, b: NDArray, ref: NDArray) -> float:
 
 def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
                   settings: LightmapSettings | None = None,
-                  progress: Progress | None = None) -> Lightmap:
+                  progress: Progress | None = None, scheduler: str | None = None) -> Lightmap:
     """Bake a scene's directional lightmap (H&W 2010 §4.2–4.3) in all six encodings.
 
     Parameters
@@ -74,6 +76,9 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         Basis, size, samples, bounces, sun, denoise.
     progress : Progress, optional
         Reporter.
+    scheduler : str, optional
+        A Dask scheduler (tcp://host:port) to trace the tiles of texels on; the result equals
+        the local bake's.
 
     Returns
     -------
@@ -86,6 +91,10 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         scene = load_scene(scene)
     check_scene(scene)
     sky = sky_coeffs(lighting)
+    if settings.texels_per_unit is None:  # the size bounds the texels: refuse before any work
+        bound = estimate_lightmap_bake(settings.size**2, settings)
+        check_memory(bound.nbytes, f"a {settings.size}x{settings.size} lightmap bake with "
+                     f"{settings.samples} samples", scene.path)
     with stage(progress, "lightmap UVs and texels"):
         atlas = build_atlas(scene, settings)
         tx = texels(atlas)
@@ -101,7 +110,14 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
 
     caster = RayCaster(np.concatenate([p.positions for p in atlas.primitives]),
                        np.concatenate(_global_faces(atlas)))
-    g = gather(atlas, tx, sky, settings, caster, progress)
+    if settings.transfer:  # one more set of channels per sky coefficient (PRT, LH §4)
+        sky = np.concatenate([sky, np.kron(np.eye(9), np.ones((1, 3)))], axis=1)
+    if scheduler:
+        from .tiles import gather_on_dask
+
+        g = gather_on_dask(atlas, tx, sky, settings, scheduler, progress)
+    else:
+        g = gather(atlas, tx, sky, settings, caster, progress)
     shape = (atlas.height, atlas.width)
     with stage(progress, f"{settings.bounces} bounces and the SH projection"):
         plain, prev = bounce(g, tx.rc, shape, settings.bounces)
@@ -110,13 +126,15 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         valid[tx.rc[g.valid, 0], tx.rc[g.valid, 1]] = True
         sh_img = _to_image(lsh, tx.rc, g.valid, shape)
         plain_img = _to_image(plain, tx.rc, g.valid, shape)
+        transfer = _transfer(sh_img, plain_img) if settings.transfer else None
+        sh_img, plain_img = sh_img[..., :3], plain_img[..., :3]
     stats: dict[str, Any] = {
         "texels_baked": int(tx.count), "texels_invalid": int((~g.valid).sum()),
         "samples": settings.samples, "bounces": settings.bounces,
         "rays": tx.count * settings.samples,
         "atlas": "xatlas" if atlas.made else "TEXCOORD_1", "uv_overlap": atlas.overlap,
-        "noise_rel_rms": _rel_rms(g.half_e[0][g.valid], g.half_e[1][g.valid],
-                                  g.direct_e[g.valid]) / 2,
+        "noise_rel_rms": _rel_rms(g.half_e[0][g.valid, :3], g.half_e[1][g.valid, :3],
+                                  g.direct_e[g.valid, :3]) / 2,
         "estimate_seconds": cost.seconds, "estimate_bytes": cost.nbytes}
     if settings.denoise:
         with stage(progress, "denoising (Open Image Denoise, RTLightmap)"):
@@ -130,7 +148,17 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
     enc = {k: v.astype(np.float32) for k, v in encodings_from_sh(sh_img, plain_img).items()}
     stats["seconds"] = time.perf_counter() - t0
     noisy = stats.pop("noisy", None)
-    return Lightmap(enc, settings.basis, valid, stats, atlas, tx, scene, noisy)
+    return Lightmap(enc, settings.basis, valid, stats, atlas, tx, scene, noisy, transfer)
+
+
+def _transfer(sh_img: NDArray, plain_img: NDArray) -> dict[str, NDArray[np.float32]]:
+    """Per encoding, the (H, W, n, 9, 3) matrices from the sky's SH to the coefficients: the
+    channels 3 + 3j + c of the images are colour c of the texel's response to sky SH j."""
+    h, w = plain_img.shape[:2]
+    t_sh = np.moveaxis(sh_img[..., 3:].reshape(h, w, 9, 9, 3), 3, 2)  # (H, W, j, k, c)
+    t_plain = plain_img[..., 3:].reshape(h, w, 9, 3)
+    return {k: np.ascontiguousarray(np.moveaxis(v, 2, 3), dtype=np.float32)
+            for k, v in encodings_from_sh(t_sh, t_plain).items()}
 
 
 def _global_faces(atlas: Atlas) -> list[NDArray]:

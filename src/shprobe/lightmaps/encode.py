@@ -47,6 +47,18 @@ def dilate(image: NDArray, valid: NDArray[np.bool_]) -> NDArray:
     return image[ri, ci]
 
 
+def _tint(weight: NDArray, values: NDArray) -> NDArray:
+    """Colour weights (M, 3) times values (M, 3k): channel 3j + c is colour c of set j."""
+    m = len(values)
+    return (values.reshape(m, -1, 3) * weight[:, None, :]).reshape(m, -1)
+
+
+def _segment_sum(index: NDArray, values: NDArray, n: int) -> NDArray:
+    """Σ of the rows of ``values`` (M, C) per ``index`` (M,) → (n, C)."""
+    return np.stack([np.bincount(index, values[:, c], minlength=n)
+                     for c in range(values.shape[1])], 1)
+
+
 def _image(values: NDArray, rc: NDArray, valid: NDArray, shape: tuple[int, int]) -> NDArray:
     img = np.zeros((*shape, *values.shape[1:]))
     mask = np.zeros(shape, bool)
@@ -76,13 +88,11 @@ def bounce(g: Gathered, rc: NDArray, shape: tuple[int, int], bounces: int
         E_B (P, 3) and the dilated map E_{B−1} (H, W, 3) (None-like zeros for 0 bounces).
     """
     e = g.direct_e.copy()
-    prev = np.zeros((*shape, 3))
+    prev = np.zeros((*shape, e.shape[1]))
     for _ in range(bounces):
         prev = _image(e, rc, g.valid, shape)
-        add = np.zeros_like(e)
-        np.add.at(add, g.hit_texel, g.hit_weight * bilinear(prev, g.hit_uv)
-                  * g.hit_dir[:, 2:3])
-        e = g.direct_e + add
+        w = _tint(g.hit_weight, bilinear(prev, g.hit_uv)) * g.hit_dir[:, 2:3]
+        e = g.direct_e + _segment_sum(g.hit_texel, w, len(e))
     return e, prev
 
 
@@ -107,10 +117,10 @@ def project_sh(g: Gathered, prev: NDArray, bounces: int) -> NDArray[np.float64]:
     if bounces > 0 and len(g.hit_texel):
         from ..sh import sh_basis
 
-        lr = g.hit_weight * bilinear(prev, g.hit_uv)
+        lr = _tint(g.hit_weight, bilinear(prev, g.hit_uv))
         yk = sh_basis(g.hit_dir.astype(np.float64), 2)
         for k in range(9):
-            np.add.at(out[:, k], g.hit_texel, lr * yk[:, k:k + 1])
+            out[:, k] += _segment_sum(g.hit_texel, lr * yk[:, k:k + 1], len(out))
     return out
 
 

@@ -11,8 +11,10 @@ The document
 * ``extensionsUsed`` lists ``"SHPROBE_lightmap"``; ``extensionsRequired`` does NOT, so a
   plain viewer still opens the scene (it simply ignores the lightmap).
 * Every lightmapped primitive has the core attribute ``TEXCOORD_1`` (FLOAT VEC2), the lightmap
-  UVs, and — when it has ``TEXCOORD_0`` — ``TANGENT`` (FLOAT VEC4, MikkTSpace of
-  ``TEXCOORD_0``, as glTF requires for normal maps; a tangent the scene already had is kept).
+  UVs, and ``TANGENT`` (FLOAT VEC4): MikkTSpace of ``TEXCOORD_0``, as glTF requires for normal
+  maps (a tangent the scene already had is kept), or the arbitrary frame below. A primitive
+  that had no ``TEXCOORD_0`` gets the lightmap UVs as ``TEXCOORD_0`` too (glTF numbers a
+  semantic's sets from 0 without gaps).
 * The root object carries ``extensions.SHPROBE_lightmap``::
 
       {"version": 1,
@@ -28,6 +30,17 @@ The document
 
   Optional keys a reader must ignore when unknown (``"samples"``, ``"bounces"``, ``"sun"``,
   ``"transfer"``, ...).
+
+Transfer (relightable lightmaps)
+--------------------------------
+A lightmap baked with ``--transfer`` adds ``"transfer": {"sky_lmax": 2, "scale": s,
+"sets": [{"textures": [...]}, ...]}`` with 9 sets, one per sky SH coefficient j (world frame,
+flat index as above): set j's textures (same RGBA16F layout and ``components`` as the main
+ones, stored value × s) hold T_j, the coefficients the texel would have under a sky of radiance
+y_j(ω) in every colour channel, albedo colours, shadows and bounces included (Lisle & Huang
+2007 §4 per texel). Under a sky with SH coefficients L_jc (per colour c) the coefficients are
+Σ_j T_j[·, c] L_jc; a sun is not part of the transfer. Writer and reader:
+``shprobe.lightmaps.transfer_format`` (``add_transfer``, ``read_transfer``).
 
 Coefficient textures
 --------------------
@@ -364,19 +377,7 @@ def add_lightmap(doc: dict, binary: bytearray, encoding: str, coeffs: ArrayLike,
     e = check_encoding(encoding)
     c = np.asarray(coeffs, dtype=np.float64)
     scale = choose_scale(c)
-    layout = texture_layout(e)
-    views = doc.setdefault("bufferViews", [])
-    textures = []
-    for t, tex in zip(pack(e, c / scale, layout), layout, strict=True):
-        binary.extend(b"\0" * (-len(binary) % 4))
-        data = np.ascontiguousarray(t).astype("<f2").tobytes()
-        views.append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)})
-        binary.extend(data)
-        textures.append({"bufferView": len(views) - 1,
-                         "components": [None if ic is None else list(ic) for ic in tex]})
-    binary.extend(b"\0" * (-len(binary) % 4))
-    buffers = doc.setdefault("buffers", [{}])
-    buffers[0]["byteLength"] = len(binary)
+    textures = add_textures(doc, binary, e, c, scale)
     ext = {"version": VERSION, "encoding": e, "coefficients": N_COEFFS[e],
            "width": int(c.shape[1]), "height": int(c.shape[0]), "scale": scale,
            "quantity": "irradiance", "frame": "tangent", "textures": textures,
@@ -439,7 +440,45 @@ def read_lightmap(doc: dict, binary: bytes, where: Any = None) -> StoredLightmap
                                                     if k not in known})
 
 
+def add_textures(doc: dict, binary: bytearray, encoding: str, coeffs: NDArray,
+                 scale: float) -> list[dict]:
+    """Append the RGBA16F textures of coefficient images (H, W, n, 3) / ``scale`` to
+    ``binary`` as bufferViews (writer's packing).
+
+    Parameters
+    ----------
+    doc : dict
+        The glTF JSON (bufferViews appended, buffer 0's length updated).
+    binary : bytearray
+        The BIN chunk, extended in place.
+    encoding : str
+        One of :data:`ENCODINGS`.
+    coeffs : ndarray (H, W, n, 3)
+        Coefficients.
+    scale : float
+        Their divisor.
+
+    Returns
+    -------
+    list of dict
+        The ``textures`` entries (bufferView, components).
+    """
+    layout = texture_layout(encoding)
+    views = doc.setdefault("bufferViews", [])
+    textures = []
+    for t, tex in zip(pack(encoding, coeffs / scale, layout), layout, strict=True):
+        binary.extend(b"\0" * (-len(binary) % 4))
+        data = np.ascontiguousarray(t).astype("<f2").tobytes()
+        views.append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(data)})
+        binary.extend(data)
+        textures.append({"bufferView": len(views) - 1,
+                         "components": [None if ic is None else list(ic) for ic in tex]})
+    binary.extend(b"\0" * (-len(binary) % 4))
+    doc.setdefault("buffers", [{}])[0]["byteLength"] = len(binary)
+    return textures
+
+
 __all__ = ["ENCODINGS", "EXTENSION", "HL2_DIRECTIONS", "N_COEFFS", "VERSION", "StoredLightmap",
-           "add_lightmap", "basis_values", "check_encoding", "choose_scale", "encode_glb",
-           "evaluate", "pack", "parse_glb", "read_glb", "read_lightmap", "texture_layout",
-           "unpack", "write_glb"]
+           "add_lightmap", "add_textures", "basis_values", "check_encoding", "choose_scale",
+           "encode_glb", "evaluate", "pack", "parse_glb", "read_glb", "read_lightmap",
+           "texture_layout", "unpack", "write_glb"]

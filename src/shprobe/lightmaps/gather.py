@@ -30,7 +30,8 @@ from ..sh import sh_basis
 from .atlas import Atlas, Texels
 from .settings import LightmapSettings
 
-__all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "sample_albedo"]
+__all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "join",
+           "sample_albedo", "tile_size"]
 
 #: kept per ray that hits a front face (texel, UV, albedo weight, direction)
 BYTES_PER_HIT = 4 + 8 + 12 + 12
@@ -180,9 +181,26 @@ def _sky(coeffs: NDArray, dirs: NDArray) -> NDArray:
     return sh_basis(dirs.reshape(-1, 3), 2).reshape(*dirs.shape[:-1], 9) @ coeffs
 
 
-def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
-           caster: RayCaster, progress: Progress | None = None) -> Gathered:
-    """Trace every texel's hemisphere once (module docstring).
+def tile_size(settings: LightmapSettings) -> int:
+    """Texels per tile: one Embree batch of rays. Each tile draws its directions from its own
+    seed (settings.seed, first texel), so a bake is the same however its tiles are run.
+
+    Parameters
+    ----------
+    settings : LightmapSettings
+        The samples per texel.
+
+    Returns
+    -------
+    int
+        Texels per tile.
+    """
+    return max(1, RAYS_PER_BATCH // int(settings.samples))
+
+
+def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
+                settings: LightmapSettings, caster: RayCaster) -> Gathered:
+    """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
 
     Parameters
     ----------
@@ -190,8 +208,97 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
         The baked primitives.
     tx : Texels
         Covered texels with points and frames.
-    sky : ndarray (9, 3)
-        World-frame radiance SH of the distant environment.
+    a, b : int
+        The texel range.
+    sky : ndarray (9, C)
+        World-frame radiance SH of the distant environment, C = 3·k channels: k sets of
+        red, green, blue (the bake's transfer adds one set per sky coefficient).
+    settings : LightmapSettings
+        Samples, seed, albedo, sun.
+    caster : RayCaster
+        Over all primitives' faces, in atlas order.
+
+    Returns
+    -------
+    Gathered
+        Direct terms of the range and its front-face hits (texel indices global).
+    """
+    S, n = int(settings.samples), b - a
+    rng = np.random.default_rng([int(settings.seed), int(a)])
+    frames, face = tx.frames[a:b], tx.face[a:b]
+    fn = caster.face_normals[face]
+    origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
+    nodes, w = hemisphere_quadrature(3, 5)
+    l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
+    direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
+    direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
+    c = 2 * np.pi / S
+    dt = stratified(n, S, rng)
+    dw = np.einsum("psi,pij->psj", dt, frames)
+    below = np.einsum("psj,pj->ps", dw, fn) <= 0
+    f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
+    f = f.reshape(n, S).astype(np.int64)
+    blocked = (f >= 0) | below
+    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
+                                     caster.face_normals[np.maximum(f, 0)]) > 0)
+    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(n, S, 9)
+    ls = _sky(sky, dw) * blocked[..., None]
+    direct_sh -= c * np.einsum("psk,psc->pkc", yk, ls)
+    lz = ls * dt[..., 2:3]
+    half = np.stack([direct_e - 2 * c * lz[:, 0::2].sum(1), direct_e - 2 * c * lz[:, 1::2].sum(1)])
+    direct_e -= c * lz.sum(1)
+    pi, si = np.nonzero((f >= 0) & ~backface & ~below)
+    gf = f[pi, si]
+    uu, vv = u.reshape(n, S)[pi, si], v.reshape(n, S)[pi, si]
+    bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
+    starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
+    prim = np.searchsorted(starts, gf, side="right") - 1
+    local = gf - starts[prim]
+    huv = np.empty((len(gf), 2))
+    for i in np.unique(prim):
+        sel = prim == i
+        p = atlas.primitives[i]
+        huv[sel] = (p.uv1[p.faces[local[sel]]] * bary[sel][:, :, None]).sum(1)
+    alb = sample_albedo(atlas, prim, local, bary, settings.albedo_rgb)
+    if settings.sun is not None:
+        _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
+    return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
+                    (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
+                    (backface | below).mean(1) <= 0.5, half)
+
+
+def join(parts: list[Gathered]) -> Gathered:
+    """The tiles' gathers, in texel order, as one.
+
+    Parameters
+    ----------
+    parts : list of Gathered
+        From :func:`gather_tile`, ranges in order.
+
+    Returns
+    -------
+    Gathered
+        Their concatenation.
+    """
+    cat = np.concatenate
+    return Gathered(cat([g.direct_sh for g in parts]), cat([g.direct_e for g in parts]),
+                    cat([g.hit_texel for g in parts]), cat([g.hit_uv for g in parts]),
+                    cat([g.hit_weight for g in parts]), cat([g.hit_dir for g in parts]),
+                    cat([g.valid for g in parts]), cat([g.half_e for g in parts], axis=1))
+
+
+def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
+           caster: RayCaster, progress: Progress | None = None) -> Gathered:
+    """Trace every texel's hemisphere once, tile by tile (module docstring).
+
+    Parameters
+    ----------
+    atlas : Atlas
+        The baked primitives.
+    tx : Texels
+        Covered texels with points and frames.
+    sky : ndarray (9, C)
+        World-frame radiance SH, C = 3·k channels (see :func:`gather_tile`).
     settings : LightmapSettings
         Samples, seed, albedo, sun.
     caster : RayCaster
@@ -204,86 +311,29 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     Gathered
         Direct terms and the front-face hits.
     """
-    P, S = tx.count, int(settings.samples)
-    rng = np.random.default_rng(settings.seed)
-    fn = caster.face_normals[tx.face]
-    ext = 1.0 / caster.scale
-    origins, _ = caster.offset_points(tx.points, fn, 1e-4 * ext, tx.face)
-    nodes, w = hemisphere_quadrature(3, 5)
-    y_nodes = sh_basis(nodes, 2)
-    world_nodes = np.einsum("qi,pij->pqj", nodes, tx.frames)
-    l_nodes = _sky(sky, world_nodes)  # (P, Q, 3)
-    direct_sh = np.einsum("q,qk,pqc->pkc", w, y_nodes, l_nodes)
-    direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
-    half = np.zeros((2, P, 3))
-    half[:] = direct_e
-    back = np.zeros(P)
-    starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
-    uv1 = [p.uv1 for p in atlas.primitives]
-    override = settings.albedo_rgb
-    hits: list[tuple] = []
-    chunk = max(1, RAYS_PER_BATCH // S)
-    c = 2 * np.pi / S
-    with stage(progress, "tracing texel rays", total=P) as bar:
-        for a in range(0, P, chunk):
-            b = min(P, a + chunk)
-            dt = stratified(b - a, S, rng)
-            dw = np.einsum("psi,pij->psj", dt, tx.frames[a:b])
-            below = np.einsum("psj,pj->ps", dw, fn[a:b]) <= 0
-            o = np.repeat(origins[a:b], S, axis=0)
-            f, u, v = caster.first_hit(o, dw.reshape(-1, 3))
-            f = f.reshape(b - a, S).astype(np.int64)
-            blocked = (f >= 0) | below
-            fh = np.maximum(f, 0)
-            backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
-                                             caster.face_normals[fh]) > 0)
-            back[a:b] = (backface | below).mean(1)
-            yk = sh_basis(dt.reshape(-1, 3), 2).reshape(b - a, S, 9)
-            ls = _sky(sky, dw) * blocked[..., None]
-            direct_sh[a:b] -= c * np.einsum("psk,psc->pkc", yk, ls)
-            lz = ls * dt[..., 2:3]
-            direct_e[a:b] -= c * lz.sum(1)
-            half[0, a:b] -= 2 * c * lz[:, 0::2].sum(1)
-            half[1, a:b] -= 2 * c * lz[:, 1::2].sum(1)
-            front = (f >= 0) & ~backface & ~below
-            pi, si = np.nonzero(front)
-            if len(pi):
-                gf = f[pi, si]
-                uu, vv = u.reshape(b - a, S)[pi, si], v.reshape(b - a, S)[pi, si]
-                bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
-                prim = np.searchsorted(starts, gf, side="right") - 1
-                local = gf - starts[prim]
-                huv = np.empty((len(gf), 2))
-                for i in np.unique(prim):
-                    sel = prim == i
-                    huv[sel] = (uv1[i][atlas.primitives[i].faces[local[sel]]]
-                                * bary[sel][:, :, None]).sum(1)
-                alb = sample_albedo(atlas, prim, local, bary, override)
-                hits.append((pi + a, huv.astype(np.float32),
-                             (alb * (c / np.pi)).astype(np.float32),
-                             dt[pi, si].astype(np.float32)))
+    t = tile_size(settings)
+    parts = []
+    with stage(progress, "tracing texel rays", total=tx.count) as bar:
+        for a in range(0, tx.count, t):
+            b = min(tx.count, a + t)
+            parts.append(gather_tile(atlas, tx, a, b, sky, settings, caster))
             bar.advance(b - a)
-    if settings.sun is not None:
-        _add_sun(tx, settings, caster, origins, fn, direct_sh, direct_e, half)
-    if hits:
-        ht, huv, hw, hd = (np.concatenate(x) for x in zip(*hits, strict=True))
-    else:
-        ht, huv, hw, hd = (np.empty((0, *s), t) for s, t in (
-            ((), np.int64), ((2,), np.float32), ((3,), np.float32), ((3,), np.float32)))
-    return Gathered(direct_sh, direct_e, ht, huv, hw, hd, back <= 0.5, half)
+    return join(parts)
 
 
-def _add_sun(tx: Texels, settings: LightmapSettings, caster: RayCaster, origins: NDArray,
+def _add_sun(frames: NDArray, settings: LightmapSettings, caster: RayCaster, origins: NDArray,
              fn: NDArray, direct_sh: NDArray, direct_e: NDArray, half: NDArray) -> None:
     d, rgb = (np.asarray(x, dtype=np.float64) for x in settings.sun)  # type: ignore[union-attr]
     d = d / np.linalg.norm(d)
-    st = np.einsum("pij,j->pi", tx.frames, d)
+    st = np.einsum("pij,j->pi", frames, d)
     lit = (st[:, 2] > 0) & (fn @ d > 0)
     idx = np.flatnonzero(lit)
     if len(idx):
         occ = caster.occluded(origins[idx], np.broadcast_to(d, (len(idx), 3)))
         idx = idx[~occ]
-    direct_sh[idx] += sh_basis(st[idx], 2)[:, :, None] * rgb
+    # the sun is in the first three channels (the lighting's colours) only: any further
+    # channels are the sky's transfer, which the sun is no part of
+    direct_sh[idx, :, :3] += sh_basis(st[idx], 2)[:, :, None] * rgb
     e = st[idx, 2:3] * rgb
-    direct_e[idx] += e
-    half[:, idx] += e
+    direct_e[idx, :3] += e
+    half[:, idx, :3] += e

@@ -75,8 +75,9 @@ def _attributes(b: _Buf, p: Primitive, inv: NDArray, shift: NDArray) -> dict[str
     att = {"POSITION": b.accessor((p.positions - shift) @ inv.T, "VEC3")}
     n = p.normals @ nrm_m.T
     att["NORMAL"] = b.accessor(n / np.linalg.norm(n, axis=1, keepdims=True), "VEC3")
-    if p.uv0 is not None:
-        att["TEXCOORD_0"] = b.accessor(p.uv0, "VEC2")
+    # glTF numbers a semantic's sets from 0 without gaps: a primitive without its own
+    # TEXCOORD_0 gets the lightmap UVs there too
+    att["TEXCOORD_0"] = b.accessor(p.uv0 if p.uv0 is not None else p.uv1, "VEC2")
     att["TEXCOORD_1"] = b.accessor(p.uv1, "VEC2")
     t = p.tangents.copy()
     t[:, :3] = t[:, :3] @ inv.T
@@ -202,4 +203,8 @@ def write_lightmap_glb(lm: Lightmap, path: str | os.PathLike[str],
     b.doc.setdefault("asset", {"version": "2.0"})
     extra = {k: lm.stats[k] for k in ("samples", "bounces") if k in lm.stats}
     add_lightmap(b.doc, b.bin, lm.basis, lm.coefficients(), prims, extra)
+    if lm.transfer and lm.basis in lm.transfer:
+        from .transfer_format import add_transfer
+
+        add_transfer(b.doc, b.bin, lm.transfer[lm.basis])
     write_glb(path, b.doc, b.bin, overwrite)

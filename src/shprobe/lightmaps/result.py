@@ -40,6 +40,10 @@ class Lightmap:
         The scene baked.
     noisy : dict, optional
         With ``denoise``: the encodings before denoising.
+    transfer : dict, optional
+        With ``transfer``: encoding name → (H, W, n, 9, 3) matrices from the sky's radiance
+        SH (lmax 2, per colour) to the coefficients, shadows and bounces included (LH 2007
+        §4, per texel); :meth:`relight` applies them. A sun is not part of them.
     """
 
     encodings: dict[str, NDArray[np.float32]] = field(repr=False)
@@ -50,6 +54,7 @@ class Lightmap:
     texels: Texels | None = field(default=None, repr=False)
     scene: LightmapScene | None = field(default=None, repr=False)
     noisy: dict[str, NDArray[np.float32]] | None = field(default=None, repr=False)
+    transfer: dict[str, NDArray[np.float32]] | None = field(default=None, repr=False)
 
     @property
     def width(self) -> int:
@@ -116,6 +121,31 @@ class Lightmap:
             k = bilinear(c.reshape(self.height, self.width, n * 3), q).reshape(-1, n, 3)
         return evaluate(e, k, normals)
 
+    def relight(self, sky: ArrayLike) -> Lightmap:
+        """The lightmap under another distant sky, from the transfer matrices.
+
+        Parameters
+        ----------
+        sky : array_like (K >= 9, 3)
+            World-frame radiance SH (cut to lmax 2), or a ``Lighting``.
+
+        Returns
+        -------
+        Lightmap
+            The encodings the transfer holds, relit (no sun).
+        """
+        if not self.transfer:
+            raise ShprobeError("this lightmap has no transfer: bake it with transfer=True "
+                               "(--transfer)")
+        from .checks import sky_coeffs
+
+        c = sky_coeffs(sky)
+        enc = {k: np.einsum("hwnjc,jc->hwnc", v, c).astype(np.float32)
+               for k, v in self.transfer.items()}
+        return Lightmap(enc, self.basis if self.basis in enc else next(iter(enc)),
+                        self.valid, {**self.stats, "relit": True}, self.atlas, self.texels,
+                        self.scene)
+
     def as_dict(self) -> dict[str, Any]:
         """A JSON-able summary.
 
@@ -126,6 +156,7 @@ class Lightmap:
         """
         return {"basis": self.basis, "width": self.width, "height": self.height,
                 "texels": int(self.valid.sum()), "encodings": list(self.encodings),
+                "transfer": bool(self.transfer),
                 **self.stats}
 
     def save(self, path: str | os.PathLike[str], overwrite: bool = False) -> None:
@@ -162,7 +193,11 @@ def load_lightmap(path: str | os.PathLike[str]) -> Lightmap:
     p = os.fspath(path)
     doc, binary = read_glb(p)
     s = read_lightmap(doc, binary, p)
+    from .transfer_format import read_transfer
+
     valid = np.ones(s.coeffs.shape[:2], bool)
+    t = read_transfer(doc, binary, p)
+    extra = {k: v for k, v in s.extra.items() if k != "transfer"}
     return Lightmap({s.encoding: s.coeffs}, s.encoding, valid,
                     {"scale": s.scale, "primitives": [list(x) for x in s.primitives],
-                     **s.extra})
+                     **extra}, transfer=None if t is None else {s.encoding: t})
