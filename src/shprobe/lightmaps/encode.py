@@ -49,8 +49,8 @@ def dilate(image: NDArray, valid: NDArray[np.bool_]) -> NDArray:
 
 def _tint(weight: NDArray, values: NDArray) -> NDArray:
     """Colour weights (M, 3) times values (M, 3k): channel 3j + c is colour c of set j."""
-    m = len(values)
-    return (values.reshape(m, -1, 3) * weight[:, None, :]).reshape(m, -1)
+    m, c = values.shape
+    return (values.reshape(m, c // 3, 3) * weight[:, None, :]).reshape(m, c)
 
 
 def _segment_sum(index: NDArray, values: NDArray, n: int) -> NDArray:
