@@ -252,3 +252,12 @@ def test_a_bake_over_the_memory_limit_is_refused_in_one_line(tmp_path):
     assert res.returncode != 0
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "over the limit" in lines[0], res.stderr
+
+
+def test_irradiance_at_world_points_reads_their_texel(room):
+    lm, _ = room
+    tx = lm.texels
+    i = np.flatnonzero(tx.inside)[:10]
+    n = np.tile([0.0, 0.0, 1.0], (10, 1))
+    np.testing.assert_array_equal(lm.irradiance(tx.points[i] + 1e-6, n),
+                                  lm.irradiance(tx.rc[i], n))
