@@ -215,43 +215,39 @@ def baked(tmp_path_factory):
     return path
 
 
-def test_a_baked_scene_in_the_page_is_the_librarys_evaluation(baked):
+def test_a_baked_scene_in_the_page_is_the_librarys_evaluation(page, baked):
     """Every surface of the game scene (five meshes, four materials, TANGENT frames, the
     bake's xatlas UVs): the page's float E (H6 implied by the stored L2 SH) and its pixels
     equal the library's at the read-back uv1 and normal-map normal."""
-    _need_browser()
-    from playwright.sync_api import sync_playwright
-
     served = Served(None, grid=load_lightmap_view(baked), page="/lightmap")
     errors: list[str] = []
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=FLAGS)
-        try:
-            pg = b.new_page(viewport={"width": 1500, "height": 820})
-            pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-            pg.on("pageerror", lambda e: errors.append(str(e)))
-            pg.goto(served.url)
-            pg.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
-                                 "window.__shprobe.lastError)", timeout=90000)
-            assert pg.evaluate("() => window.__shprobe.lastError") is None and errors == []
-            st = pg.evaluate("() => window.__shprobe.set({layout: 'single', encoding: 'h6', "
-                             "albedo: true})")
-            assert st["panels"][0]["encoding"] == "h6"
-            img = _canvas(pg, "baked_h6")
-            rng = np.random.default_rng(5)
-            pts = np.stack([rng.integers(5, 955, 300), rng.integers(5, 535, 300)], 1).tolist()
-            uv = np.array(pg.evaluate("(p) => window.__shprobe.readback('uv1', p)", pts))
-            hit = uv[:, 2] == 0  # the background clears to a grey with z = clear colour
-            hit &= (uv[:, :2] > 0).all(axis=1) & (uv[:, :2] < 1).all(axis=1)
-            pts = [pts[i] for i in np.flatnonzero(hit)]
-            assert len(pts) > 150
-            uv = uv[hit, :2]
-            n = np.array(pg.evaluate("(p) => window.__shprobe.readback('normal', p)", pts))
-            e = np.array(pg.evaluate("(p) => window.__shprobe.readback('irradiance', p)", pts))
-            alb = np.array(pg.evaluate("(p) => window.__shprobe.readback('albedo', p)", pts))
-        finally:
-            b.close()
-            served.close()
+    # a second page of the module's browser (one Playwright per thread)
+    pg = page.context.browser.new_page(viewport={"width": 1500, "height": 820})
+    try:
+        pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(served.url)
+        pg.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
+                             "window.__shprobe.lastError)", timeout=90000)
+        assert pg.evaluate("() => window.__shprobe.lastError") is None and errors == []
+        st = pg.evaluate("() => window.__shprobe.set({layout: 'single', encoding: 'h6', "
+                         "albedo: true})")
+        assert st["panels"][0]["encoding"] == "h6"
+        img = _canvas(pg, "baked_h6")
+        rng = np.random.default_rng(5)
+        pts = np.stack([rng.integers(5, 955, 300), rng.integers(5, 535, 300)], 1).tolist()
+        uv = np.array(pg.evaluate("(p) => window.__shprobe.readback('uv1', p)", pts))
+        hit = uv[:, 2] == 0  # the background clears to a grey with z = clear colour
+        hit &= (uv[:, :2] > 0).all(axis=1) & (uv[:, :2] < 1).all(axis=1)
+        pts = [pts[i] for i in np.flatnonzero(hit)]
+        assert len(pts) > 150
+        uv = uv[hit, :2]
+        n = np.array(pg.evaluate("(p) => window.__shprobe.readback('normal', p)", pts))
+        e = np.array(pg.evaluate("(p) => window.__shprobe.readback('irradiance', p)", pts))
+        alb = np.array(pg.evaluate("(p) => window.__shprobe.readback('albedo', p)", pts))
+    finally:
+        pg.close()
+        served.close()
     want = _library_e(baked, "h6", uv, n)
     peak = np.abs(want).max()
     err = np.abs(e - want).max(axis=1)
