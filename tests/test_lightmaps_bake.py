@@ -216,3 +216,18 @@ def test_encodings_against_an_independent_path_tracer(room_bake):
     for rival in ("plain", "hl2", "sh4"):
         assert err["h6"][0] < err[rival][0], rival
     assert err["h6"][0] < err["sh9"][0] + 0.03
+
+
+def test_the_hit_kernel_equals_its_numpy_reference():
+    from shprobe.lightmaps.encode import hit_sums, hit_sums_numpy
+    from shprobe.lightmaps.gather import Gathered
+
+    rng = np.random.default_rng(0)
+    m, p = 500, 40
+    g = Gathered(np.zeros((p, 9, 6)), np.zeros((p, 6)), rng.integers(0, p, m),
+                 rng.random((m, 2)).astype(np.float32), rng.random((m, 3)).astype(np.float32),
+                 np.zeros((m, 3), np.float32), np.ones(p, bool), np.zeros((2, p, 6)))
+    image = rng.normal(size=(7, 5, 6))
+    factor = rng.normal(size=(m, 9))
+    np.testing.assert_allclose(hit_sums(g, image, factor), hit_sums_numpy(g, image, factor),
+                               rtol=1e-10, atol=1e-12)

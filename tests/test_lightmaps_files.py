@@ -252,3 +252,25 @@ def test_a_bake_over_the_memory_limit_is_refused_in_one_line(tmp_path):
     assert res.returncode != 0
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "over the limit" in lines[0], res.stderr
+
+
+def test_irradiance_at_world_points_reads_their_texel(room):
+    lm, _ = room
+    tx = lm.texels
+    i = np.flatnonzero(tx.inside)[:10]
+    n = np.tile([0.0, 0.0, 1.0], (10, 1))
+    np.testing.assert_array_equal(lm.irradiance(tx.points[i] + 1e-6, n),
+                                  lm.irradiance(tx.rc[i], n))
+
+
+def test_an_obj_scene_bakes_to_a_valid_glb(tmp_path):
+    obj = tmp_path / "corner.obj"
+    obj.write_text("v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv -1 -1 1\nv 1 -1 1\n"
+                   "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                   "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 1/1 5/4 6/3\nf 1/1 6/3 2/2\n")
+    res = _cli(obj, "--preset", "grace", "--size", "32", "--samples", "16", "-o",
+               tmp_path / "corner.glb")
+    assert res.returncode == 0, res.stderr
+    assert _validate(tmp_path / "corner.glb")["corner.glb"]["numErrors"] == 0
+    lm = load_lightmap(tmp_path / "corner.glb")
+    assert np.isfinite(lm.coefficients()).all() and lm.coefficients()[..., 0, :].max() > 0

@@ -65,3 +65,26 @@ def raster(tri, width, height, face, bary, dist, count):  # pragma: no cover - c
                     bary[r, c, 0] = b0
                     bary[r, c, 1] = b1
                     bary[r, c, 2] = b2
+
+
+@numba.njit(cache=True, nogil=True)
+def hit_sums(texel, uv, weight, factor, image, out):  # pragma: no cover - compiled
+    """out[t, k, ch] += factor[m, k] · weight[m, ch % 3] · bilinear(image, uv[m])[ch] for every
+    hit m of texel t: :func:`shprobe.lightmaps.encode.hit_sums_numpy`'s sums, one pass and no
+    temporaries. image (H, W, C) with clamp-to-edge bilinear taps at texel centres."""
+    h, w, nc = image.shape
+    nk = factor.shape[1]
+    for m in range(texel.shape[0]):
+        x = min(max(uv[m, 0] * w - 0.5, 0.0), w - 1.0)
+        y = min(max(uv[m, 1] * h - 0.5, 0.0), h - 1.0)
+        x0 = min(int(np.floor(x)), max(w - 2, 0))
+        y0 = min(int(np.floor(y)), max(h - 2, 0))
+        x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+        fx, fy = x - x0, y - y0
+        t = texel[m]
+        for ch in range(nc):
+            v = ((image[y0, x0, ch] * (1 - fx) + image[y0, x1, ch] * fx) * (1 - fy)
+                 + (image[y1, x0, ch] * (1 - fx) + image[y1, x1, ch] * fx) * fy)
+            v *= weight[m, ch % 3]
+            for k in range(nk):
+                out[t, k, ch] += factor[m, k] * v

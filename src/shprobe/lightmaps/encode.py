@@ -49,8 +49,60 @@ def dilate(image: NDArray, valid: NDArray[np.bool_]) -> NDArray:
 
 def _tint(weight: NDArray, values: NDArray) -> NDArray:
     """Colour weights (M, 3) times values (M, 3k): channel 3j + c is colour c of set j."""
-    m = len(values)
-    return (values.reshape(m, -1, 3) * weight[:, None, :]).reshape(m, -1)
+    m, c = values.shape
+    return (values.reshape(m, c // 3, 3) * weight[:, None, :]).reshape(m, c)
+
+
+def hit_sums_numpy(g: Gathered, image: NDArray, factor: NDArray) -> NDArray:
+    """Per texel, Σ over its hits of factor[k] · hit weight (colour) · bilinear(image) at the
+    hit's UV: the reference of the numba kernel ``_kernels.hit_sums``.
+
+    Parameters
+    ----------
+    g : Gathered
+        The hits.
+    image : ndarray (H, W, C)
+        The previous bounce's lightmap (C = 3·k channels).
+    factor : ndarray (M, K)
+        Per hit, the K direction factors (cos θ, or the 9 SH values).
+
+    Returns
+    -------
+    ndarray (P, K, C)
+        The sums.
+    """
+    lr = _tint(g.hit_weight, bilinear(image, g.hit_uv))
+    out = np.zeros((len(g.direct_e), factor.shape[1], image.shape[2]))
+    for k in range(factor.shape[1]):
+        out[:, k] = _segment_sum(g.hit_texel, lr * factor[:, k:k + 1], len(out))
+    return out
+
+
+def hit_sums(g: Gathered, image: NDArray, factor: NDArray) -> NDArray:
+    """:func:`hit_sums_numpy` by the numba kernel (one pass over the hits).
+
+    Parameters
+    ----------
+    g : Gathered
+        The hits.
+    image : ndarray (H, W, C)
+        The previous bounce's lightmap.
+    factor : ndarray (M, K)
+        Per hit, the direction factors.
+
+    Returns
+    -------
+    ndarray (P, K, C)
+        The sums.
+    """
+    from ._kernels import hit_sums as kernel
+
+    out = np.zeros((len(g.direct_e), factor.shape[1], image.shape[2]))
+    if len(g.hit_texel):
+        kernel(g.hit_texel, g.hit_uv.astype(np.float64), g.hit_weight.astype(np.float64),
+               np.ascontiguousarray(factor, dtype=np.float64),
+               np.ascontiguousarray(image, dtype=np.float64), out)
+    return out
 
 
 def _segment_sum(index: NDArray, values: NDArray, n: int) -> NDArray:
@@ -91,8 +143,7 @@ def bounce(g: Gathered, rc: NDArray, shape: tuple[int, int], bounces: int
     prev = np.zeros((*shape, e.shape[1]))
     for _ in range(bounces):
         prev = _image(e, rc, g.valid, shape)
-        w = _tint(g.hit_weight, bilinear(prev, g.hit_uv)) * g.hit_dir[:, 2:3]
-        e = g.direct_e + _segment_sum(g.hit_texel, w, len(e))
+        e = g.direct_e + hit_sums(g, prev, g.hit_dir[:, 2:3].astype(np.float64))[:, 0]
     return e, prev
 
 
@@ -117,10 +168,7 @@ def project_sh(g: Gathered, prev: NDArray, bounces: int) -> NDArray[np.float64]:
     if bounces > 0 and len(g.hit_texel):
         from ..sh import sh_basis
 
-        lr = _tint(g.hit_weight, bilinear(prev, g.hit_uv))
-        yk = sh_basis(g.hit_dir.astype(np.float64), 2)
-        for k in range(9):
-            out[:, k] += _segment_sum(g.hit_texel, lr * yk[:, k:k + 1], len(out))
+        out += hit_sums(g, prev, sh_basis(g.hit_dir.astype(np.float64), 2))
     return out
 
 

@@ -234,8 +234,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
     c = 2 * np.pi / S
     dt = stratified(n, S, rng)
-    dw = np.einsum("psi,pij->psj", dt, frames)
-    below = np.einsum("psj,pj->ps", dw, fn) <= 0
+    dw = np.matmul(dt, frames)  # rows of the frames are its axes in world space
+    below = np.matmul(dw, fn[:, :, None])[..., 0] <= 0
     f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
     f = f.reshape(n, S).astype(np.int64)
     blocked = (f >= 0) | below
@@ -243,7 +243,7 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
                                      caster.face_normals[np.maximum(f, 0)]) > 0)
     yk = sh_basis(dt.reshape(-1, 3), 2).reshape(n, S, 9)
     ls = _sky(sky, dw) * blocked[..., None]
-    direct_sh -= c * np.einsum("psk,psc->pkc", yk, ls)
+    direct_sh -= c * np.matmul(yk.transpose(0, 2, 1), ls)
     lz = ls * dt[..., 2:3]
     half = np.stack([direct_e - 2 * c * lz[:, 0::2].sum(1), direct_e - 2 * c * lz[:, 1::2].sum(1)])
     direct_e -= c * lz.sum(1)

@@ -94,9 +94,10 @@ class Lightmap:
 
         Parameters
         ----------
-        points_or_texels : array_like (N, 2)
-            Integer (row, column) texels, or float lightmap UVs (TEXCOORD_1) read bilinearly
-            as a GPU samples the texture.
+        points_or_texels : array_like (N, 2) or (N, 3)
+            Integer (row, column) texels; float lightmap UVs (TEXCOORD_1) read bilinearly as
+            a GPU samples the texture; or world-space surface points (N, 3), each read at the
+            texel whose sample point is nearest (baked lightmaps).
         normals : array_like (N, 3)
             Unit normals in the texel's tangent frame (the normal map's normals).
         encoding : str, optional
@@ -110,8 +111,17 @@ class Lightmap:
         c = self.coefficients(encoding)
         e = check_encoding(encoding or self.basis)
         q = np.asarray(points_or_texels)
+        if q.ndim == 2 and q.shape[1] == 3:  # world points: their nearest texel's sample
+            if self.texels is None:
+                raise ShprobeError("world points need a baked lightmap (texel positions); "
+                                   "a loaded one takes texels or TEXCOORD_1 UVs")
+            from scipy.spatial import cKDTree
+
+            _, i = cKDTree(self.texels.points).query(np.asarray(q, dtype=np.float64))
+            q = self.texels.rc[i]
         if q.ndim != 2 or q.shape[1] != 2:
-            raise ShprobeError(f"texels or UVs must be (N, 2), got {q.shape}")
+            raise ShprobeError(f"texels or UVs must be (N, 2), world points (N, 3); got "
+                               f"{q.shape}")
         if q.dtype.kind in "iu":
             if (q < 0).any() or (q[:, 0] >= self.height).any() or (q[:, 1] >= self.width).any():
                 raise ShprobeError("texel indices outside the lightmap")
