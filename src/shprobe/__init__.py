@@ -87,6 +87,11 @@ _EXPORTS: dict[str, str] = {
     "ProbeGrid": "grids",
     "bake_grid": "grids",
     "GridSettings": "grids",
+    # directional lightmaps (H-basis and rivals on a second UV set)
+    "bake_lightmap": "lightmaps",
+    "LightmapSettings": "lightmaps",
+    "Lightmap": "lightmaps",
+    "load_lightmap": "lightmaps",
 }
 
 __all__ = ["__version__", *_EXPORTS]

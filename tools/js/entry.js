@@ -6,6 +6,6 @@ export {
   BufferAttribute, BufferGeometry, ClampToEdgeWrapping, Color, DataTexture, FloatType, GLSL3,
   HalfFloatType, LightProbe, LinearFilter, LinearSRGBColorSpace, Matrix3, Matrix4, Mesh,
   OrthographicCamera, PerspectiveCamera, PlaneGeometry, RGBAFormat, RepeatWrapping, Scene,
-  ShaderMaterial, SphericalHarmonics3, Vector3, WebGLRenderer,
+  ShaderMaterial, SphericalHarmonics3, Vector3, WebGLRenderTarget, WebGLRenderer,
 } from 'three';
 export { OrbitControls } from 'three/addons/controls/OrbitControls.js';

@@ -15,6 +15,7 @@ from ..errors import ShprobeError
 EXTRAS: dict[str, tuple[str, ...]] = {
     "viewer": ("starlette", "uvicorn"),
     "batch": ("dask", "distributed", "pyarrow", "xxhash"),
+    "lightmaps": ("xatlas", "pyoidn"),
 }
 
 

@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "view": "view",
     "splat": "splat",
     "grid": "grid",
+    "lightmap": "lightmap_figures",  # the lightmap group (cli.lightmap) with its figures
 }
 
 

@@ -28,13 +28,16 @@ def register(group: click.Group) -> None:
                        "(a mesh file, or `room` / `bunny-on-ground`, the reference scenes).")
     @click.option("--hbasis", type=click.Path(dir_okay=False),
                   help="A `shprobe hbasis bake` output for the mesh shown: its H-basis view.")
+    @click.option("--lightmap", type=click.Path(dir_okay=False),
+                  help="A `shprobe lightmap bake` output (.glb): the scene with its normal maps "
+                       "and lightmap, encodings switchable, Fig. 1 / Fig. 5 panels.")
     @click.option("--host", default="127.0.0.1", show_default=True,
                   help="Address to bind (0.0.0.0 exposes the viewer to the network).")
     @click.option("--port", default=0, show_default=True, type=click.IntRange(0, 65535),
                   help="Port (0: a free one).")
     @click.option("--no-browser", is_flag=True, help="Do not open a browser; print the URL.")
-    def view_cmd(probe, layout, preset, mesh, transfer, grid, scene, hbasis, host, port,
-                 no_browser):
+    def view_cmd(probe, layout, preset, mesh, transfer, grid, scene, hbasis, lightmap, host,
+                 port, no_browser):
         """Interactive lighting design in the browser (R&H 2001 §3.3, LH 2007 §4): the probe,
         a mesh lit per pixel by shprobe's GLSL, compare SH / exact / error, drag to rotate,
         edit coefficients, add lights, window, export; PRT relighting with --transfer. Prints
@@ -51,6 +54,11 @@ def register(group: click.Group) -> None:
             raise ShprobeError("give either PROBE or --preset, not both")
         from ..scene.mesh import mesh_file
 
+        if lightmap:  # the lightmap page (viewer.lightmap): cli.view_lightmap
+            from .view_lightmap import view_lightmap
+
+            return view_lightmap(lightmap, (probe, preset, mesh, transfer, grid, scene, hbasis),
+                                 host, port, no_browser)
         if grid or scene:  # the grid page (viewer.grid): cli.view_grid
             from .view_grid import view_grid
 

@@ -1,0 +1,339 @@
+"""The radiance gather: per texel, stratified hemisphere rays traced with Embree, the distant
+sky (SH, lmax 2), an optional sun with shadow rays, and diffuse bounces that read the
+previous bounce's lightmap at the hit points.
+
+Estimator, per texel with tangent frame (x, y, z = N) and S stratified uniform directions ωₛ
+(pdf 1/2π) on the tangent hemisphere:
+
+    L_lm = ∫_Ω+ L_sky y_lm dω  −  (2π/S) Σ_{ωₛ blocked} L_sky(ωₛ) y_lm(ωₛ)
+           + (2π/S) Σ_{ωₛ hits a front face} ρ(q)/π · E_{k−1}(q) · y_lm(ωₛ)  +  E_sun y_lm(s)
+
+The first term is exact (a 15-node hemispherical rule; the integrand is a polynomial of degree
+4), so the unoccluded sky is a control variate: an open texel has no noise at all. The plain
+irradiance E(N) uses the same sum with z = cos θ in place of y_lm; bounce k reads
+E_{k−1} bilinearly from the (dilated) lightmap of the bounce before at the hit's lightmap UV.
+Rays below the geometric face, and hits on back faces, carry no light; a texel whose rays
+mostly hit back faces lies inside geometry and is invalid (dilated over afterwards).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..hbasis import hemisphere_quadrature
+from ..progress import Progress, stage
+from ..scene.raycast import RayCaster
+from ..sh import sh_basis
+from .atlas import Atlas, Texels
+from .settings import LightmapSettings
+
+__all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "join",
+           "sample_albedo", "tile_size"]
+
+#: kept per ray that hits a front face (texel, UV, albedo weight, direction)
+BYTES_PER_HIT = 4 + 8 + 12 + 12
+#: rays traced per Embree batch
+RAYS_PER_BATCH = 1 << 18
+
+
+@dataclass(eq=False)
+class Gathered:
+    """What one gather pass leaves for the bounces and the projection.
+
+    Parameters
+    ----------
+    direct_sh : ndarray (P, 9, 3)
+        Radiance SH in the tangent frame from the sky and sun (occlusion included).
+    direct_e : ndarray (P, 3)
+        Plain irradiance at N from the sky and sun.
+    hit_texel : ndarray (M,)
+        Texel of each front-face hit.
+    hit_uv : ndarray (M, 2)
+        Lightmap UV of the hit point.
+    hit_weight : ndarray (M, 3)
+        (2π/S) · albedo / π at the hit.
+    hit_dir : ndarray (M, 3)
+        Tangent-frame direction of the ray.
+    valid : ndarray (P,) bool
+        False where most rays hit back faces.
+    half_e : ndarray (2, P, 3)
+        The plain direct irradiance from each half of the samples (noise estimate).
+    """
+
+    direct_sh: NDArray[np.float64] = field(repr=False)
+    direct_e: NDArray[np.float64] = field(repr=False)
+    hit_texel: NDArray[np.int64] = field(repr=False)
+    hit_uv: NDArray[np.float32] = field(repr=False)
+    hit_weight: NDArray[np.float32] = field(repr=False)
+    hit_dir: NDArray[np.float32] = field(repr=False)
+    valid: NDArray[np.bool_] = field(repr=False)
+    half_e: NDArray[np.float64] = field(repr=False)
+
+
+def _srgb_free(tex: NDArray, uv: NDArray) -> NDArray:
+    """Bilinear lookup with REPEAT wrapping, glTF UVs (v = 0 at the first row)."""
+    h, w = tex.shape[:2]
+    x = np.asarray(uv[:, 0]) * w - 0.5
+    y = np.asarray(uv[:, 1]) * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    xa, xb, ya, yb = x0 % w, (x0 + 1) % w, y0 % h, (y0 + 1) % h
+    return ((tex[ya, xa] * (1 - fx) + tex[ya, xb] * fx) * (1 - fy)
+            + (tex[yb, xa] * (1 - fx) + tex[yb, xb] * fx) * fy)
+
+
+def sample_albedo(atlas: Atlas, prim: NDArray, face_local: NDArray, bary: NDArray,
+                  override: NDArray | None) -> NDArray[np.float64]:
+    """Diffuse albedo (N, 3) at surface points: the override, else base colour factor ×
+    base colour texture at TEXCOORD_0.
+
+    Parameters
+    ----------
+    atlas : Atlas
+        The baked primitives.
+    prim, face_local : ndarray (N,)
+        Primitive and face within it.
+    bary : ndarray (N, 3)
+        Barycentrics.
+    override : ndarray (3,), optional
+        The settings' albedo.
+
+    Returns
+    -------
+    ndarray (N, 3)
+        Albedo in [0, 1].
+    """
+    out = np.empty((len(prim), 3))
+    if override is not None:
+        out[:] = override
+        return out
+    for i, p in enumerate(atlas.primitives):
+        sel = np.flatnonzero(prim == i)
+        if not len(sel):
+            continue
+        a = np.broadcast_to(np.clip(p.base_color[:3], 0, 1), (len(sel), 3)).copy()
+        if p.base_texture is not None and p.uv0 is not None:
+            uv = (p.uv0[p.faces[face_local[sel]]] * bary[sel][:, :, None]).sum(1)
+            a *= _srgb_free(p.base_texture, uv)
+        out[sel] = a
+    return np.clip(out, 0.0, 1.0)
+
+
+def bilinear(image: NDArray, uv: NDArray) -> NDArray:
+    """Bilinear lookup of a lightmap (H, W, C) at lightmap UVs (N, 2), clamped to the edge.
+
+    Parameters
+    ----------
+    image : ndarray (H, W, C)
+        Texel values, row 0 at v = 0.
+    uv : ndarray (N, 2)
+        Lightmap UVs.
+
+    Returns
+    -------
+    ndarray (N, C)
+        The filtered values.
+    """
+    h, w = image.shape[:2]
+    x = np.clip(np.asarray(uv[:, 0], dtype=np.float64) * w - 0.5, 0, w - 1)
+    y = np.clip(np.asarray(uv[:, 1], dtype=np.float64) * h - 0.5, 0, h - 1)
+    x0 = np.minimum(np.floor(x).astype(np.int64), w - 2 if w > 1 else 0)
+    y0 = np.minimum(np.floor(y).astype(np.int64), h - 2 if h > 1 else 0)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    return ((image[y0, x0] * (1 - fx) + image[y0, x1] * fx) * (1 - fy)
+            + (image[y1, x0] * (1 - fx) + image[y1, x1] * fx) * fy)
+
+
+def stratified(n: int, s: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """(n, s, 3) jittered-stratified uniform directions on the upper hemisphere (z up).
+
+    Parameters
+    ----------
+    n : int
+        Sets (texels).
+    s : int
+        Directions per set (a square is stratified fully; the rest are random).
+    rng : numpy.random.Generator
+        The random source.
+
+    Returns
+    -------
+    ndarray (n, s, 3)
+        Unit directions, pdf 1/(2π) each.
+    """
+    k = int(np.sqrt(s))
+    grid = np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), -1).reshape(-1, 2)
+    cells = np.concatenate([grid / k, np.zeros((s - k * k, 2))])
+    size = np.concatenate([np.full(k * k, 1.0 / k), np.ones(s - k * k)])
+    u = cells[None] + rng.random((n, s, 2)) * size[None, :, None]
+    z = u[..., 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2 * np.pi * u[..., 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+
+
+def _sky(coeffs: NDArray, dirs: NDArray) -> NDArray:
+    return sh_basis(dirs.reshape(-1, 3), 2).reshape(*dirs.shape[:-1], 9) @ coeffs
+
+
+def tile_size(settings: LightmapSettings) -> int:
+    """Texels per tile: one Embree batch of rays. Each tile draws its directions from its own
+    seed (settings.seed, first texel), so a bake is the same however its tiles are run.
+
+    Parameters
+    ----------
+    settings : LightmapSettings
+        The samples per texel.
+
+    Returns
+    -------
+    int
+        Texels per tile.
+    """
+    return max(1, RAYS_PER_BATCH // int(settings.samples))
+
+
+def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
+                settings: LightmapSettings, caster: RayCaster) -> Gathered:
+    """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
+
+    Parameters
+    ----------
+    atlas : Atlas
+        The baked primitives.
+    tx : Texels
+        Covered texels with points and frames.
+    a, b : int
+        The texel range.
+    sky : ndarray (9, C)
+        World-frame radiance SH of the distant environment, C = 3·k channels: k sets of
+        red, green, blue (the bake's transfer adds one set per sky coefficient).
+    settings : LightmapSettings
+        Samples, seed, albedo, sun.
+    caster : RayCaster
+        Over all primitives' faces, in atlas order.
+
+    Returns
+    -------
+    Gathered
+        Direct terms of the range and its front-face hits (texel indices global).
+    """
+    S, n = int(settings.samples), b - a
+    rng = np.random.default_rng([int(settings.seed), int(a)])
+    frames, face = tx.frames[a:b], tx.face[a:b]
+    fn = caster.face_normals[face]
+    origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
+    nodes, w = hemisphere_quadrature(3, 5)
+    l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
+    direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
+    direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
+    c = 2 * np.pi / S
+    dt = stratified(n, S, rng)
+    dw = np.matmul(dt, frames)  # rows of the frames are its axes in world space
+    below = np.matmul(dw, fn[:, :, None])[..., 0] <= 0
+    f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
+    f = f.reshape(n, S).astype(np.int64)
+    blocked = (f >= 0) | below
+    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
+                                     caster.face_normals[np.maximum(f, 0)]) > 0)
+    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(n, S, 9)
+    ls = _sky(sky, dw) * blocked[..., None]
+    direct_sh -= c * np.matmul(yk.transpose(0, 2, 1), ls)
+    lz = ls * dt[..., 2:3]
+    half = np.stack([direct_e - 2 * c * lz[:, 0::2].sum(1), direct_e - 2 * c * lz[:, 1::2].sum(1)])
+    direct_e -= c * lz.sum(1)
+    pi, si = np.nonzero((f >= 0) & ~backface & ~below)
+    gf = f[pi, si]
+    uu, vv = u.reshape(n, S)[pi, si], v.reshape(n, S)[pi, si]
+    bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
+    starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
+    prim = np.searchsorted(starts, gf, side="right") - 1
+    local = gf - starts[prim]
+    huv = np.empty((len(gf), 2))
+    for i in np.unique(prim):
+        sel = prim == i
+        p = atlas.primitives[i]
+        huv[sel] = (p.uv1[p.faces[local[sel]]] * bary[sel][:, :, None]).sum(1)
+    alb = sample_albedo(atlas, prim, local, bary, settings.albedo_rgb)
+    if settings.sun is not None:
+        _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
+    return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
+                    (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
+                    (backface | below).mean(1) <= 0.5, half)
+
+
+def join(parts: list[Gathered]) -> Gathered:
+    """The tiles' gathers, in texel order, as one.
+
+    Parameters
+    ----------
+    parts : list of Gathered
+        From :func:`gather_tile`, ranges in order.
+
+    Returns
+    -------
+    Gathered
+        Their concatenation.
+    """
+    cat = np.concatenate
+    return Gathered(cat([g.direct_sh for g in parts]), cat([g.direct_e for g in parts]),
+                    cat([g.hit_texel for g in parts]), cat([g.hit_uv for g in parts]),
+                    cat([g.hit_weight for g in parts]), cat([g.hit_dir for g in parts]),
+                    cat([g.valid for g in parts]), cat([g.half_e for g in parts], axis=1))
+
+
+def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
+           caster: RayCaster, progress: Progress | None = None) -> Gathered:
+    """Trace every texel's hemisphere once, tile by tile (module docstring).
+
+    Parameters
+    ----------
+    atlas : Atlas
+        The baked primitives.
+    tx : Texels
+        Covered texels with points and frames.
+    sky : ndarray (9, C)
+        World-frame radiance SH, C = 3·k channels (see :func:`gather_tile`).
+    settings : LightmapSettings
+        Samples, seed, albedo, sun.
+    caster : RayCaster
+        Over all primitives' faces, in atlas order.
+    progress : Progress, optional
+        Reporter.
+
+    Returns
+    -------
+    Gathered
+        Direct terms and the front-face hits.
+    """
+    t = tile_size(settings)
+    parts = []
+    with stage(progress, "tracing texel rays", total=tx.count) as bar:
+        for a in range(0, tx.count, t):
+            b = min(tx.count, a + t)
+            parts.append(gather_tile(atlas, tx, a, b, sky, settings, caster))
+            bar.advance(b - a)
+    return join(parts)
+
+
+def _add_sun(frames: NDArray, settings: LightmapSettings, caster: RayCaster, origins: NDArray,
+             fn: NDArray, direct_sh: NDArray, direct_e: NDArray, half: NDArray) -> None:
+    d, rgb = (np.asarray(x, dtype=np.float64) for x in settings.sun)  # type: ignore[union-attr]
+    d = d / np.linalg.norm(d)
+    st = np.einsum("pij,j->pi", frames, d)
+    lit = (st[:, 2] > 0) & (fn @ d > 0)
+    idx = np.flatnonzero(lit)
+    if len(idx):
+        occ = caster.occluded(origins[idx], np.broadcast_to(d, (len(idx), 3)))
+        idx = idx[~occ]
+    # the sun is in the first three channels (the lighting's colours) only: any further
+    # channels are the sky's transfer, which the sun is no part of
+    direct_sh[idx, :, :3] += sh_basis(st[idx], 2)[:, :, None] * rgb
+    e = st[idx, 2:3] * rgb
+    direct_e[idx, :3] += e
+    half[:, idx, :3] += e
