@@ -31,7 +31,7 @@ from .atlas import Atlas, Texels
 from .settings import LightmapSettings
 
 __all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "join",
-           "sample_albedo", "tile_size"]
+           "ray_origins", "sample_albedo", "tile_size"]
 
 #: kept per ray that hits a front face (texel, UV, albedo weight, direction)
 BYTES_PER_HIT = 4 + 8 + 12 + 12
@@ -198,8 +198,29 @@ def tile_size(settings: LightmapSettings) -> int:
     return max(1, RAYS_PER_BATCH // int(settings.samples))
 
 
+def ray_origins(tx: Texels, caster: RayCaster) -> NDArray[np.float64]:
+    """The texels' ray origins: their points moved off their faces (RayCaster.offset_points,
+    10⁻⁴ of the scene's extent).
+
+    Parameters
+    ----------
+    tx : Texels
+        Covered texels.
+    caster : RayCaster
+        Over all primitives' faces.
+
+    Returns
+    -------
+    ndarray (P, 3)
+        World-space origins.
+    """
+    fn = caster.face_normals[tx.face]
+    return caster.offset_points(tx.points, fn, 1e-4 / caster.scale, tx.face)[0]
+
+
 def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
-                settings: LightmapSettings, caster: RayCaster) -> Gathered:
+                settings: LightmapSettings, caster: RayCaster,
+                origins: NDArray | None = None) -> Gathered:
     """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
 
     Parameters
@@ -217,6 +238,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         Samples, seed, albedo, sun.
     caster : RayCaster
         Over all primitives' faces, in atlas order.
+    origins : ndarray (b − a, 3), optional
+        The range's ray origins (:func:`ray_origins`), else computed here.
 
     Returns
     -------
@@ -227,7 +250,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     rng = np.random.default_rng([int(settings.seed), int(a)])
     frames, face = tx.frames[a:b], tx.face[a:b]
     fn = caster.face_normals[face]
-    origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
+    if origins is None:
+        origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
     nodes, w = hemisphere_quadrature(3, 5)
     l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
     direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
@@ -311,12 +335,24 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     Gathered
         Direct terms and the front-face hits.
     """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ..limits import cores
+
     t = tile_size(settings)
-    parts = []
-    with stage(progress, "tracing texel rays", total=tx.count) as bar:
-        for a in range(0, tx.count, t):
-            b = min(tx.count, a + t)
-            parts.append(gather_tile(atlas, tx, a, b, sky, settings, caster))
+    ranges = [(a, min(tx.count, a + t)) for a in range(0, tx.count, t)]
+    # the ray origins of all texels at once: the caster builds its per-part scenes here, not
+    # raced by the threads
+    origins = ray_origins(tx, caster)
+    # tiles in threads: Embree and NumPy's large operations release the GIL, and every tile
+    # has its own seed, so the result does not depend on the order they finish in
+    with stage(progress, "tracing texel rays", total=tx.count) as bar, \
+            ThreadPoolExecutor(max_workers=min(cores(), len(ranges))) as pool:
+        jobs = [pool.submit(gather_tile, atlas, tx, a, b, sky, settings, caster, origins[a:b])
+                for a, b in ranges]
+        parts = []
+        for job, (a, b) in zip(jobs, ranges, strict=True):
+            parts.append(job.result())
             bar.advance(b - a)
     return join(parts)
 
