@@ -277,3 +277,11 @@ def test_a_sun_with_shadows_against_the_path_tracer():
     assert rel["plain"][0] < 0.05
     assert rel["h6"][0] < 0.10
 
+
+
+def test_texels_per_unit_sets_the_density():
+    """The room's 12 m² at 10 texels per metre: about 1,200 covered texels (xatlas's charts
+    and their borders add some)."""
+    lm = bake_lightmap(_room(), SKY, LightmapSettings(texels_per_unit=10.0, samples=4,
+                                                      bounces=0))
+    assert 0.9 * 1200 < lm.texels.count < 1.6 * 1200, lm.texels.count
