@@ -17,6 +17,8 @@ import pytest
 from shprobe.lightmaps import format as fmt
 from shprobe.lightmaps.scenes import game_scene_path
 
+from .test_packaging import dists  # noqa: F401  (the built sdist and wheels, once per run)
+
 REPO = Path(__file__).resolve().parents[1]
 CONSUMERS = REPO / "tests" / "consumers"
 
@@ -118,3 +120,15 @@ def test_gltf_validator_finds_no_issue():
     assert res.returncode == 0, res.stderr[-2000:]
     report = json.loads(res.stdout)["courtyard.glb"]
     assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"]
+
+
+@pytest.mark.slow
+def test_the_wheel_ships_the_game_scene(dists):  # noqa: F811
+    from .test_packaging import wheel_files
+
+    files = wheel_files(dists["wheel"])
+    assert files["shprobe/lightmaps/data/courtyard.glb"] == game_scene_path().read_bytes()
+    viewer = {"shprobe/viewer/static/lightmap.html", "shprobe/viewer/static/lightmap.js",
+              "shprobe/viewer/static/lightmap_gl.js", "shprobe/viewer/static/lightmap_glb.js",
+              "shprobe/viewer/static/lightmap.css"}
+    assert viewer <= set(files)

@@ -207,3 +207,24 @@ def test_shaders_equal_the_reference_on_the_gpu(gpu_results, api, e):
 @pytest.mark.browser
 def test_no_console_errors(gpu_results):
     assert not [m for m in gpu_results["console"] if m.startswith(("error", "pageerror"))]
+
+
+def test_the_shader_command(tmp_path, capsys):
+    """``shprobe lightmap shader``: the functions for a file's own encoding and packing (its
+    ``components``), or for named encodings; a mismatch is one line; outputs are kept."""
+    from shprobe.cli.main import main
+
+    from .lightmap_files import floor_lightmap
+
+    glb = floor_lightmap(tmp_path / "floor.glb", "h6")
+    out = tmp_path / "lm.glsl"
+    assert main(["lightmap", "shader", str(glb), "-o", str(out)]) == 0
+    assert out.read_text() == lightmap_shader("h6", "glsl")
+    assert main(["lightmap", "shader", "--encoding", "sh4", "--encoding", "hl2", "--lang",
+                 "wgsl"]) == 0
+    assert capsys.readouterr().out == lightmap_shader(["sh4", "hl2"], "wgsl")
+    assert main(["lightmap", "shader", str(glb), "--encoding", "sh9"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "stores h6" in err
+    assert main(["lightmap", "shader", str(glb), "-o", str(out)]) != 0
+    assert "exists" in capsys.readouterr().err

@@ -22,6 +22,7 @@ from .lightmap_files import bilinear, floor_lightmap
 from .test_viewer import FLAGS, Served, _need_browser
 
 SHOTS = Path(os.environ.get("SHPROBE_VIEWER_SHOTS", "/tmp"))
+pytestmark = pytest.mark.browser  # the CLI test at the end needs no browser, but is cheap
 
 
 def _srgb(v):

@@ -1,7 +1,8 @@
 """CLI command: ``shprobe lightmap figures OUT.glb -o DIR`` — Habel & Wimmer 2010's Fig. 1 and
 Fig. 5 for a baked scene, and an error-per-encoding heat map (library:
 :func:`shprobe.lightmaps.figures.lightmap_figures`). It joins the ``lightmap`` group of
-:mod:`.lightmap`; :func:`register` adds that group with this command in it."""
+:mod:`.lightmap`; :func:`register` adds that group with this command and ``shader``
+(:mod:`.lightmap_shader`) in it."""
 
 from __future__ import annotations
 
@@ -67,4 +68,6 @@ def register(group: click.Group) -> None:
     group : click.Group
         The top-level group.
     """
+    from . import lightmap_shader  # noqa: F401  (adds ``lightmap shader`` to the group)
+
     _register_group(group)
