@@ -285,3 +285,26 @@ def test_texels_per_unit_sets_the_density():
     lm = bake_lightmap(_room(), SKY, LightmapSettings(texels_per_unit=10.0, samples=4,
                                                       bounces=0))
     assert 0.9 * 1200 < lm.texels.count < 1.6 * 1200, lm.texels.count
+
+
+def test_the_blocked_ray_kernel_equals_its_numpy_reference():
+    from shprobe.lightmaps._kernels import blocked_sums
+    from shprobe.lightmaps.gather import blocked_sums_numpy
+
+    rng = np.random.default_rng(1)
+    n, s, faces, c_count = 6, 16, 10, 6
+    dt = rng.normal(size=(n, s, 3))
+    dt /= np.linalg.norm(dt, axis=2, keepdims=True)
+    dw = rng.normal(size=(n, s, 3))
+    dw /= np.linalg.norm(dw, axis=2, keepdims=True)
+    below = rng.random((n, s)) < 0.2
+    f = np.where(rng.random((n, s)) < 0.5, rng.integers(0, faces, (n, s)), -1)
+    fn = rng.normal(size=(faces, 3))
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    sky = rng.normal(size=(9, c_count))
+    sh, e, half = np.zeros((n, 9, c_count)), np.zeros((n, c_count)), np.zeros((2, n, c_count))
+    front, back = np.empty((n, s), bool), np.empty(n)
+    blocked_sums(dt, dw, below, f, fn, sky, 0.3, sh, e, half, front, back)
+    want = blocked_sums_numpy(dt, dw, below, f, fn, sky, 0.3)
+    for got, ref in zip((-sh, -e, -half, front, back), want, strict=True):
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)

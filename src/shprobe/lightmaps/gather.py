@@ -262,16 +262,17 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     below = np.matmul(dw, fn[:, :, None])[..., 0] <= 0
     f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
     f = f.reshape(n, S).astype(np.int64)
-    blocked = (f >= 0) | below
-    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
-                                     caster.face_normals[np.maximum(f, 0)]) > 0)
-    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(n, S, 9)
-    ls = _sky(sky, dw) * blocked[..., None]
-    direct_sh -= c * np.matmul(yk.transpose(0, 2, 1), ls)
-    lz = ls * dt[..., 2:3]
-    half = np.stack([direct_e - 2 * c * lz[:, 0::2].sum(1), direct_e - 2 * c * lz[:, 1::2].sum(1)])
-    direct_e -= c * lz.sum(1)
-    pi, si = np.nonzero((f >= 0) & ~backface & ~below)
+    direct_sh, direct_e = np.ascontiguousarray(direct_sh), np.ascontiguousarray(direct_e)
+    half = np.stack([direct_e, direct_e])
+    front = np.empty((n, S), bool)
+    back = np.empty(n)
+    from ._kernels import blocked_sums
+
+    blocked_sums(np.ascontiguousarray(dt), np.ascontiguousarray(dw), below, f,
+                 np.ascontiguousarray(caster.face_normals),
+                 np.ascontiguousarray(sky, dtype=np.float64), c, direct_sh, direct_e,
+                 half, front, back)
+    pi, si = np.nonzero(front)
     gf = f[pi, si]
     uu, vv = u.reshape(n, S)[pi, si], v.reshape(n, S)[pi, si]
     bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
@@ -288,7 +289,45 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
     return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
                     (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
-                    (backface | below).mean(1) <= 0.5, half)
+                    back <= 0.5, half)
+
+
+def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
+                       face_normals: NDArray, sky: NDArray, c: float
+                       ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """The control variate's corrections over a tile's rays: the reference of the numba
+    kernel ``_kernels.blocked_sums`` (module docstring's estimator).
+
+    Parameters
+    ----------
+    dt, dw : ndarray (n, S, 3)
+        Ray directions in the tangent frames and in world space.
+    below : ndarray (n, S) bool
+        Rays below their texel's face.
+    f : ndarray (n, S)
+        Face hit, or −1.
+    face_normals : ndarray (F, 3)
+        Unit face normals.
+    sky : ndarray (9, C)
+        World radiance SH.
+    c : float
+        2π / S.
+
+    Returns
+    -------
+    tuple of ndarray
+        The subtrahends of direct_sh (n, 9, C), direct_e (n, C) and half (2, n, C); front-face
+        hits (n, S); the share of back-face hits and rays below (n,).
+    """
+    blocked = (f >= 0) | below
+    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
+                                     face_normals[np.maximum(f, 0)]) > 0)
+    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(*dt.shape[:2], 9)
+    ls = _sky(sky, dw) * blocked[..., None]
+    lz = ls * dt[..., 2:3]
+    return (c * np.matmul(yk.transpose(0, 2, 1), ls), c * lz.sum(1),
+            np.stack([2 * c * lz[:, 0::2].sum(1), 2 * c * lz[:, 1::2].sum(1)]),
+            (f >= 0) & ~backface & ~below, (backface | below).mean(1))
 
 
 def join(parts: list[Gathered]) -> Gathered:
