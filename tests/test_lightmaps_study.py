@@ -97,6 +97,7 @@ def test_denoising_reports_its_change_and_error(study):
 
     without = _errors(evaluate("h6", c, n_ts), e_ref, keep)
     change = 100 * noisy.stats["denoise_change_rel_rms"]
-    print(f"\nH6, 16 rays/texel, {keep.sum()} converged texels: mean error {100 * without[0]:.2f} % without the denoiser, "
-          f"{100 * with_d[0]:.2f} % with it (it changed the map by {change:.1f} % rms)")
+    print(f"\nH6, 16 rays/texel, {keep.sum()} converged texels: mean error "
+          f"{100 * without[0]:.2f} % without the denoiser, {100 * with_d[0]:.2f} % with it "
+          f"(it changed the map by {change:.1f} % rms)")
     assert with_d[0] < without[0]
