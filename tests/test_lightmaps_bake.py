@@ -155,8 +155,9 @@ class _Tracer:
         return (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None]
                 + local[..., 2:] * n[:, None])
 
-    def irradiance(self, p, n, geo, k, bounces):
-        """E at points p for shading normals n on surfaces of geometric normal geo."""
+    def irradiance(self, p, n, geo, k, bounces, sun=None):
+        """E at points p for shading normals n on surfaces of geometric normal geo; ``sun``:
+        (direction towards it, RGB irradiance), with a shadow ray."""
         d = self.cosine(n, k)
         o = np.repeat(p + 1e-4 * geo, k, 0)
         dd = d.reshape(-1, 3)
@@ -172,9 +173,19 @@ class _Tracer:
             front = (fn * dd[hit]).sum(1) < 0
             hit = hit[front]
             q = o[hit] + dist[hit, None] * dd[hit]
-            e = self.irradiance(q, self.fn[face[hit]], self.fn[face[hit]], 16, bounces - 1)
+            e = self.irradiance(q, self.fn[face[hit]], self.fn[face[hit]], 16, bounces - 1,
+                                sun)
             radiance[hit] = ALBEDO / np.pi * e
-        return np.pi * radiance.reshape(len(p), k, 3).mean(1)
+        e = np.pi * radiance.reshape(len(p), k, 3).mean(1)
+        if sun is not None:
+            s, rgb = np.asarray(sun[0], float), np.asarray(sun[1], float)
+            s = s / np.linalg.norm(s)
+            o = (p + 1e-4 * geo).astype(np.float32)
+            free = self.scene.run(o, np.tile(s, (len(p), 1)).astype(np.float32),
+                                  query="OCCLUDED") == -1
+            lit = free & (geo @ s > 0)
+            e = e + np.where(lit, np.maximum(n @ s, 0.0), 0.0)[:, None] * rgb
+        return e
 
 
 @pytest.fixture(scope="module")
@@ -231,3 +242,69 @@ def test_the_hit_kernel_equals_its_numpy_reference():
     factor = rng.normal(size=(m, 9))
     np.testing.assert_allclose(hit_sums(g, image, factor), hit_sums_numpy(g, image, factor),
                                rtol=1e-10, atol=1e-12)
+
+
+def test_a_sun_with_shadows_against_the_path_tracer():
+    """A low sun: the walls shadow part of the floor; the plain lightmap (no band limit) and
+    H6 (the sun's clamped cosine to l ≤ 2) against the tracer with its own shadow rays."""
+    scene = _room()
+    sun = ((0.6, 0.3, 0.75), (2.0, 1.8, 1.5))
+    lm = bake_lightmap(scene, SKY, LightmapSettings(size=40, samples=256, bounces=1, seed=3,
+                                                    sun=sun))
+    tx = lm.texels
+    inner = np.abs(tx.points[:, :2]).max(1) < 0.85
+    pick = np.flatnonzero((tx.prim == 0) & tx.inside & inner)
+    pick = pick[np.random.default_rng(2).choice(len(pick), 40, replace=False)]
+    up = np.tile([0.0, 0, 1], (len(pick), 1))
+    tracer = _Tracer(scene)
+    n_ts = _normal_field(tx.uv0[pick])
+    ref_up = tracer.irradiance(tx.points[pick], up, up, 3000, 1, sun)
+    ref_n = tracer.irradiance(tx.points[pick], n_ts, up, 3000, 1, sun)
+    s = np.asarray(sun[0]) / np.linalg.norm(sun[0])
+    shade = tracer.scene.run((tx.points[pick] + 1e-4 * up).astype(np.float32),
+                             np.tile(s, (len(pick), 1)).astype(np.float32),
+                             query="OCCLUDED") != -1
+    assert 0 < shade.sum() < len(pick)  # some picked texels lie in the walls' shadow
+    rel = {}
+    for enc, n, ref in (("plain", up, ref_up), ("h6", n_ts, ref_n), ("sh9", n_ts, ref_n),
+                        ("h4", n_ts, ref_n)):
+        got = lm.irradiance(tx.rc[pick], n, enc)
+        r = np.abs(got - ref).mean(1) / ref.mean(1)
+        rel[enc] = (r.mean(), np.percentile(r, 95))
+    print("\nbox room under sky and a low sun (40 floor texels, some in shadow):")
+    for enc, (m, p) in rel.items():
+        print(f"{enc:6s} mean {100 * m:5.2f} %   95th pct {100 * p:5.2f} %")
+    assert rel["plain"][0] < 0.05
+    assert rel["h6"][0] < 0.10
+
+
+
+def test_texels_per_unit_sets_the_density():
+    """The room's 12 m² at 10 texels per metre: about 1,200 covered texels (xatlas's charts
+    and their borders add some)."""
+    lm = bake_lightmap(_room(), SKY, LightmapSettings(texels_per_unit=10.0, samples=4,
+                                                      bounces=0))
+    assert 0.9 * 1200 < lm.texels.count < 1.6 * 1200, lm.texels.count
+
+
+def test_the_blocked_ray_kernel_equals_its_numpy_reference():
+    from shprobe.lightmaps._kernels import blocked_sums
+    from shprobe.lightmaps.gather import blocked_sums_numpy
+
+    rng = np.random.default_rng(1)
+    n, s, faces, c_count = 6, 16, 10, 6
+    dt = rng.normal(size=(n, s, 3))
+    dt /= np.linalg.norm(dt, axis=2, keepdims=True)
+    dw = rng.normal(size=(n, s, 3))
+    dw /= np.linalg.norm(dw, axis=2, keepdims=True)
+    below = rng.random((n, s)) < 0.2
+    f = np.where(rng.random((n, s)) < 0.5, rng.integers(0, faces, (n, s)), -1)
+    fn = rng.normal(size=(faces, 3))
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    sky = rng.normal(size=(9, c_count))
+    sh, e, half = np.zeros((n, 9, c_count)), np.zeros((n, c_count)), np.zeros((2, n, c_count))
+    front, back = np.empty((n, s), bool), np.empty(n)
+    blocked_sums(dt, dw, below, f, fn, sky, 0.3, sh, e, half, front, back)
+    want = blocked_sums_numpy(dt, dw, below, f, fn, sky, 0.3)
+    for got, ref in zip((-sh, -e, -half, front, back), want, strict=True):
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)

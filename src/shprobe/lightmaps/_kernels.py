@@ -88,3 +88,66 @@ def hit_sums(texel, uv, weight, factor, image, out):  # pragma: no cover - compi
             v *= weight[m, ch % 3]
             for k in range(nk):
                 out[t, k, ch] += factor[m, k] * v
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _y9(x, y, z, o):  # pragma: no cover - compiled
+    """Real SH l ≤ 2, shprobe's convention (as shprobe.sh's unrolled kernel)."""
+    o[0] = 0.28209479177387814
+    p1 = 0.48860251190291987 * z
+    o[2] = p1
+    o[6] = 1.9364916731037085 * z * p1 - 0.31539156525252
+    o[3] = 0.4886025119029199 * x
+    o[1] = 0.4886025119029199 * y
+    q = 1.0925484305920792 * z
+    o[7] = q * x
+    o[5] = q * y
+    o[8] = 0.5462742152960396 * (x * x - y * y)
+    o[4] = 0.5462742152960396 * (x * y + y * x)
+
+
+@numba.njit(cache=True, nogil=True)
+def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, half,
+                 front, back):  # pragma: no cover - compiled
+    """The control variate's corrections over a tile's rays (the NumPy reference:
+    :func:`shprobe.lightmaps.gather.blocked_sums_numpy`): for every blocked ray (a hit, or
+    below the face) −c · y_k(tangent dir) · L_sky(world dir) into direct_sh, −c · cos θ · L_sky
+    into direct_e and half[s % 2] (× 2); front[p, s] marks front-face hits, back[p] the share
+    of back-face hits and rays below the face."""
+    n, s_count = f.shape
+    nc = sky.shape[1]
+    yt = np.empty(9)
+    yw = np.empty(9)
+    lsky = np.empty(nc)
+    for p in range(n):
+        nback = 0
+        for s in range(s_count):
+            hit = f[p, s] >= 0
+            bf = False
+            if hit:
+                k = f[p, s]
+                d = (dw[p, s, 0] * face_normals[k, 0] + dw[p, s, 1] * face_normals[k, 1]
+                     + dw[p, s, 2] * face_normals[k, 2])
+                bf = d > 0
+            bl = below[p, s]
+            front[p, s] = hit and not bf and not bl
+            if bf or bl:
+                nback += 1
+            if not (hit or bl):
+                continue
+            _y9(dw[p, s, 0], dw[p, s, 1], dw[p, s, 2], yw)
+            _y9(dt[p, s, 0], dt[p, s, 1], dt[p, s, 2], yt)
+            for ch in range(nc):
+                acc = 0.0
+                for j in range(9):
+                    acc += yw[j] * sky[j, ch]
+                lsky[ch] = acc
+            cz = dt[p, s, 2]
+            h = s % 2
+            for ch in range(nc):
+                lv = lsky[ch]
+                for k2 in range(9):
+                    direct_sh[p, k2, ch] -= c * yt[k2] * lv
+                direct_e[p, ch] -= c * lv * cz
+                half[h, p, ch] -= 2.0 * c * lv * cz
+        back[p] = nback / s_count

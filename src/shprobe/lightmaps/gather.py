@@ -31,7 +31,7 @@ from .atlas import Atlas, Texels
 from .settings import LightmapSettings
 
 __all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "join",
-           "sample_albedo", "tile_size"]
+           "ray_origins", "sample_albedo", "tile_size"]
 
 #: kept per ray that hits a front face (texel, UV, albedo weight, direction)
 BYTES_PER_HIT = 4 + 8 + 12 + 12
@@ -198,8 +198,29 @@ def tile_size(settings: LightmapSettings) -> int:
     return max(1, RAYS_PER_BATCH // int(settings.samples))
 
 
+def ray_origins(tx: Texels, caster: RayCaster) -> NDArray[np.float64]:
+    """The texels' ray origins: their points moved off their faces (RayCaster.offset_points,
+    10⁻⁴ of the scene's extent).
+
+    Parameters
+    ----------
+    tx : Texels
+        Covered texels.
+    caster : RayCaster
+        Over all primitives' faces.
+
+    Returns
+    -------
+    ndarray (P, 3)
+        World-space origins.
+    """
+    fn = caster.face_normals[tx.face]
+    return caster.offset_points(tx.points, fn, 1e-4 / caster.scale, tx.face)[0]
+
+
 def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
-                settings: LightmapSettings, caster: RayCaster) -> Gathered:
+                settings: LightmapSettings, caster: RayCaster,
+                origins: NDArray | None = None) -> Gathered:
     """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
 
     Parameters
@@ -217,6 +238,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         Samples, seed, albedo, sun.
     caster : RayCaster
         Over all primitives' faces, in atlas order.
+    origins : ndarray (b − a, 3), optional
+        The range's ray origins (:func:`ray_origins`), else computed here.
 
     Returns
     -------
@@ -227,7 +250,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     rng = np.random.default_rng([int(settings.seed), int(a)])
     frames, face = tx.frames[a:b], tx.face[a:b]
     fn = caster.face_normals[face]
-    origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
+    if origins is None:
+        origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
     nodes, w = hemisphere_quadrature(3, 5)
     l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
     direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
@@ -238,16 +262,17 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     below = np.matmul(dw, fn[:, :, None])[..., 0] <= 0
     f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
     f = f.reshape(n, S).astype(np.int64)
-    blocked = (f >= 0) | below
-    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
-                                     caster.face_normals[np.maximum(f, 0)]) > 0)
-    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(n, S, 9)
-    ls = _sky(sky, dw) * blocked[..., None]
-    direct_sh -= c * np.matmul(yk.transpose(0, 2, 1), ls)
-    lz = ls * dt[..., 2:3]
-    half = np.stack([direct_e - 2 * c * lz[:, 0::2].sum(1), direct_e - 2 * c * lz[:, 1::2].sum(1)])
-    direct_e -= c * lz.sum(1)
-    pi, si = np.nonzero((f >= 0) & ~backface & ~below)
+    direct_sh, direct_e = np.ascontiguousarray(direct_sh), np.ascontiguousarray(direct_e)
+    half = np.stack([direct_e, direct_e])
+    front = np.empty((n, S), bool)
+    back = np.empty(n)
+    from ._kernels import blocked_sums
+
+    blocked_sums(np.ascontiguousarray(dt), np.ascontiguousarray(dw), below, f,
+                 np.ascontiguousarray(caster.face_normals),
+                 np.ascontiguousarray(sky, dtype=np.float64), c, direct_sh, direct_e,
+                 half, front, back)
+    pi, si = np.nonzero(front)
     gf = f[pi, si]
     uu, vv = u.reshape(n, S)[pi, si], v.reshape(n, S)[pi, si]
     bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
@@ -264,7 +289,45 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
     return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
                     (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
-                    (backface | below).mean(1) <= 0.5, half)
+                    back <= 0.5, half)
+
+
+def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
+                       face_normals: NDArray, sky: NDArray, c: float
+                       ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """The control variate's corrections over a tile's rays: the reference of the numba
+    kernel ``_kernels.blocked_sums`` (module docstring's estimator).
+
+    Parameters
+    ----------
+    dt, dw : ndarray (n, S, 3)
+        Ray directions in the tangent frames and in world space.
+    below : ndarray (n, S) bool
+        Rays below their texel's face.
+    f : ndarray (n, S)
+        Face hit, or −1.
+    face_normals : ndarray (F, 3)
+        Unit face normals.
+    sky : ndarray (9, C)
+        World radiance SH.
+    c : float
+        2π / S.
+
+    Returns
+    -------
+    tuple of ndarray
+        The subtrahends of direct_sh (n, 9, C), direct_e (n, C) and half (2, n, C); front-face
+        hits (n, S); the share of back-face hits and rays below (n,).
+    """
+    blocked = (f >= 0) | below
+    backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
+                                     face_normals[np.maximum(f, 0)]) > 0)
+    yk = sh_basis(dt.reshape(-1, 3), 2).reshape(*dt.shape[:2], 9)
+    ls = _sky(sky, dw) * blocked[..., None]
+    lz = ls * dt[..., 2:3]
+    return (c * np.matmul(yk.transpose(0, 2, 1), ls), c * lz.sum(1),
+            np.stack([2 * c * lz[:, 0::2].sum(1), 2 * c * lz[:, 1::2].sum(1)]),
+            (f >= 0) & ~backface & ~below, (backface | below).mean(1))
 
 
 def join(parts: list[Gathered]) -> Gathered:
@@ -311,12 +374,24 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     Gathered
         Direct terms and the front-face hits.
     """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ..limits import cores
+
     t = tile_size(settings)
-    parts = []
-    with stage(progress, "tracing texel rays", total=tx.count) as bar:
-        for a in range(0, tx.count, t):
-            b = min(tx.count, a + t)
-            parts.append(gather_tile(atlas, tx, a, b, sky, settings, caster))
+    ranges = [(a, min(tx.count, a + t)) for a in range(0, tx.count, t)]
+    # the ray origins of all texels at once: the caster builds its per-part scenes here, not
+    # raced by the threads
+    origins = ray_origins(tx, caster)
+    # tiles in threads: Embree and NumPy's large operations release the GIL, and every tile
+    # has its own seed, so the result does not depend on the order they finish in
+    with stage(progress, "tracing texel rays", total=tx.count) as bar, \
+            ThreadPoolExecutor(max_workers=min(cores(), len(ranges))) as pool:
+        jobs = [pool.submit(gather_tile, atlas, tx, a, b, sky, settings, caster, origins[a:b])
+                for a, b in ranges]
+        parts = []
+        for job, (a, b) in zip(jobs, ranges, strict=True):
+            parts.append(job.result())
             bar.advance(b - a)
     return join(parts)
 
