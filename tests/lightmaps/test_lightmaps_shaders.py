@@ -19,7 +19,7 @@ from shprobe.lightmaps import format as fmt
 from shprobe.lightmaps.shaders import MONOMIALS, basis_polynomials, lightmap_shader
 from shprobe.sh import sh_basis
 
-CONSUMERS = Path(__file__).resolve().parent / "consumers"
+CONSUMERS = Path(__file__).resolve().parents[1] / "consumers"
 GLSLANG, CROSS = shutil.which("glslangValidator"), shutil.which("spirv-cross")
 N = 300  # texels per case
 TOL = 2e-5  # of the case's peak |E|: float32 arithmetic on float16 inputs
@@ -145,7 +145,7 @@ def _hlsl_as_glsl_es(e: str, layout, tmp: Path) -> str:
 
 @pytest.fixture(scope="module")
 def gpu_results(tmp_path_factory):
-    from .browser import ORIGIN, chromium_page
+    from tests.support.browser import ORIGIN, chromium_page
 
     tmp = tmp_path_factory.mktemp("hlsl")
     nrm = _normals()
@@ -213,8 +213,7 @@ def test_the_shader_command(tmp_path, capsys):
     """``shprobe lightmap shader``: the functions for a file's own encoding and packing (its
     ``components``), or for named encodings; a mismatch is one line; outputs are kept."""
     from shprobe.cli.main import main
-
-    from .lightmap_files import floor_lightmap
+    from tests.lightmaps.lightmap_files import floor_lightmap
 
     glb = floor_lightmap(tmp_path / "floor.glb", "h6")
     out = tmp_path / "lm.glsl"

@@ -15,8 +15,7 @@ from PIL import Image
 from shprobe.cli.main import main
 from shprobe.lightmaps import load_lightmap
 from shprobe.lightmaps.figures import FigureSettings, lightmap_figures, shade_view
-
-from .lightmap_files import floor_lightmap
+from tests.lightmaps.lightmap_files import floor_lightmap
 
 EYE, TARGET = (-6.0, 3.0, -6.0), (2.0, 0.0, 3.0)
 

@@ -17,9 +17,8 @@ import pytest
 
 from shprobe.lightmaps import format as fmt
 from shprobe.viewer.lightmap import load_lightmap_view
-
-from .lightmap_files import bilinear, floor_lightmap
-from .test_viewer import FLAGS, Served, _need_browser
+from tests.lightmaps.lightmap_files import bilinear, floor_lightmap
+from tests.viewer.test_viewer import FLAGS, Served, _need_browser
 
 SHOTS = Path(os.environ.get("SHPROBE_VIEWER_SHOTS", "/tmp"))
 pytestmark = pytest.mark.browser  # the CLI test at the end needs no browser, but is cheap
