@@ -34,10 +34,12 @@ _EXPORTS: dict[str, str] = {
     "rotate": "sh.rotation",
     "from_quaternion": "sh.rotation",
     "from_euler_zyz": "sh.rotation",
-    # errors
+    # errors and limits
     "ShprobeError": "errors",
+    "Limits": "limits",
     # precomputed radiance transfer
     "bake": "prt",
+    "PrtSettings": "prt",
     "relight": "prt",
     "load_transfer": "prt",
     # probes in, irradiance out
@@ -120,12 +122,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from .lighting.projection import project, project_samples
     from .lighting.reference import error_report, reference_irradiance
     from .lighting.windows import auto_window, min_irradiance, window_factors
+    from .limits import Limits
     from .probes.env import Env, env_from_function, load_env, write_env
     from .probes.environments import procedural_env
     from .probes.images import read_image, write_image
     from .probes.layouts import detect_layout, get_layout
     from .probes.presets import PRESETS, get_preset
-    from .prt import bake, load_transfer, relight
+    from .prt import PrtSettings, bake, load_transfer, relight
     from .scene.camera import Camera
     from .scene.mesh import load_mesh, packaged_bunny
     from .scene.render import render_vertex_colors

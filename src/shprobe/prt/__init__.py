@@ -9,7 +9,8 @@ Modules, in the order a bake runs them:
 - :mod:`.trace`: one traced bake (visibility, the bounce gather, the bounces);
 - :mod:`.criteria`: where a baked transfer needs more vertices or directions;
 - :mod:`.subdivide`: splitting marked edges, conforming;
-- :mod:`.settings`: :class:`Refinement` and its named instances, QUICK (default) and ACCURATE;
+- :mod:`.settings`: :class:`PrtSettings` (a bake's settings, the CLI's defaults) and
+  :class:`Refinement` with its named instances, QUICK (default) and ACCURATE;
 - :mod:`.refine`: the refined bake, a driver of named stages over the three above;
 - :mod:`.baking`: the public :func:`bake` and its time/memory estimate;
 - :mod:`.transfer`: the :class:`Transfer` result, .npz I/O, radiance scale;
@@ -26,16 +27,18 @@ from .baking import BakeEstimate, bake, estimate_bake
 from .directions import sample_directions
 from .geometry import BakeScene, ground_plane, load_scene, mesh_hash
 from .relighting import relight, scene_lighting
-from .settings import ACCURATE, QUICK, REFINEMENTS, Refinement
+from .settings import ACCURATE, DEFAULT_LMAX, QUICK, REFINEMENTS, PrtSettings, Refinement
 from .transfer import MODES, Transfer, load_transfer, unshadowed_transfer
 
 __all__ = [
     "ACCURATE",
+    "DEFAULT_LMAX",
     "MODES",
     "QUICK",
     "REFINEMENTS",
     "BakeEstimate",
     "BakeScene",
+    "PrtSettings",
     "Refinement",
     "Transfer",
     "bake",

@@ -20,55 +20,60 @@ from typing import Any
 from ..errors import ShprobeError
 from ..limits import Cost
 from ..progress import Progress
-from ..sh import check_lmax, num_coeffs
+from ..sh import num_coeffs
 from .geometry import BakeScene, load_scene
 from .refine import bake_refined, stage_progress
-from .settings import QUICK, Refinement, as_refinement
+from .settings import PrtSettings
 from .trace import bake_bytes, check_threads, trace_bake
-from .transfer import MODES, Transfer, check_int, coloured
+from .transfer import Transfer, coloured
 
 __all__ = ["BakeEstimate", "bake", "estimate_bake"]
 
 
-def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
-         bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
-         threads: int | None = None, progress: Progress | None = None, *,
-         mesh_albedo: Any = None, refine: Refinement | str | bool | None = None) -> Transfer:
+def bake(scene: Any, settings: PrtSettings | None = None, progress: Progress | None = None,
+         *, albedo: Any = None, ground: bool = False, mesh_albedo: Any = None,
+         **changes: Any) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
-    scene: a mesh path, a trimesh object, a list of them, or a :class:`BakeScene`
-    (:func:`load_scene`: the way to a ground albedo or resolution of one's own). albedo: one
-    value for every mesh (a number or r,g,b); mesh_albedo: one entry per mesh (number, r,g,b or
-    per-vertex values); ground: add a ground plane (:func:`load_scene`). mode: 'unshadowed' |
-    'shadowed' | 'interreflected' — the most complete model baked: a shadowed bake also gives
-    unshadowed, an interreflected bake also gives shadowed and any fewer bounces
-    (:meth:`Transfer.select`). lmax: degree baked (any lower degree can be used later).
-    samples: ray directions per vertex over the whole sphere (about half are traced).
-    bounces: interreflection bounces (interreflected only). seed: an integer >= 0, picks the
-    random rotation of the direction set. threads: workers for ray casting, kernels and bounce
-    products (default: all cores; :mod:`.trace`). progress: a
-    :class:`~shprobe.progress.Progress` reporter (stages "k/N: what", countable).
+    Parameters
+    ----------
+    scene
+        A mesh path, a trimesh object, a list of them, or a :class:`BakeScene`
+        (:func:`load_scene`: the way to a ground albedo or resolution of one's own).
+    settings
+        The bake's :class:`PrtSettings` (default: its defaults, the CLI's).
+    progress
+        A :class:`shprobe.progress.Progress` reporter (stages "k/N: what", countable).
+    albedo
+        One value for every mesh (a number or r,g,b), when ``scene`` is not a BakeScene.
+    ground
+        Add a ground plane (:func:`load_scene`), when ``scene`` is not a BakeScene.
+    mesh_albedo
+        One entry per mesh (number, r,g,b or per-vertex values).
+    **changes
+        Fields of :class:`PrtSettings` changed from ``settings`` (``mode="interreflected",
+        lmax=2``).
 
-    refine: adaptive refinement of the scene where the transfer varies fast
-    (:mod:`.refine`): a :class:`~.settings.Refinement` (:data:`~.settings.QUICK`,
-    :data:`~.settings.ACCURATE`) or its name, True (QUICK) or False. Default (None): QUICK
-    for a traced bake with ``ground=True``, else none (a :class:`BakeScene` that holds a
-    ground is refined when asked: its ground is refined like every mesh).
-
-    Returns a :class:`Transfer`; its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo
-    is coloured) is the baked model, with transfer · L = exit radiance
-    ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
+    Returns
+    -------
+    Transfer
+        Its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo is coloured) is the
+        baked model, with transfer · L = exit radiance ρ/π ∫ L V max(0, n·ω) dω (+ bounces);
+        ``as_dict()`` summarises it. A scene with a ground is refined by default
+        (:attr:`PrtSettings.refine`).
     """
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    settings = as_refinement(refine)
-    sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
-    if refine is None and mode != "unshadowed" and ground:
-        settings = QUICK
-    if settings is not None:
-        return bake_refined(sc, settings, mode, lmax, samples, bounces, seed, threads, progress)
-    return trace_bake(sc, mode, lmax, samples, bounces, seed, threads,
-                      stage_progress(progress, 1, 1, f"{mode} bake, {sc.n_vertices:,} vertices"))[0]
+    settings = settings if settings is not None else PrtSettings()
+    if not isinstance(settings, PrtSettings):
+        raise ShprobeError(f"settings must be a PrtSettings, got {type(settings).__name__}")
+    if changes:
+        settings = settings.but(**changes)
+    with settings.limits.applied():
+        sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
+        refinement = settings.refinement(sc.n_ground > 0)
+        if refinement is not None:
+            return bake_refined(sc, refinement, settings, progress)
+        return trace_bake(sc, settings, stage_progress(
+            progress, 1, 1, f"{settings.mode} bake, {sc.n_vertices:,} vertices"))[0]
 
 
 @dataclass(frozen=True)
@@ -97,24 +102,36 @@ LMAX_COST = 23.0
 BASE_BYTES = 3e8
 
 
-def estimate_bake(scene: BakeScene, mode: str = "shadowed", lmax: int = 4,
-                  samples: int = 1024, bounces: int = 2,
-                  refine: Refinement | None = None, threads: int | None = None) -> BakeEstimate:
-    """The time and peak memory of ``bake(scene, mode, lmax, samples, bounces, refine=...)``
-    on this machine: time from the measured cost per input vertex and sample (:data:`COST`,
-    scaled by the degree and the threads), memory from the bake's own memory model
-    (:func:`.trace.bake_bytes`, the one its memory check uses) at the final vertex count."""
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    lmax = check_lmax(lmax)
-    nthreads = check_threads(threads)
+def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> BakeEstimate:
+    """The time and peak memory of ``bake(scene, settings)`` on this machine.
+
+    Time from the measured cost per input vertex and sample (:data:`COST`, scaled by the
+    degree and the threads), memory from the bake's own memory model
+    (:func:`.trace.bake_bytes`, the one its memory check uses) at the final vertex count.
+
+    Parameters
+    ----------
+    scene
+        The scene to bake (:func:`load_scene`).
+    settings
+        The bake's settings (default: :class:`PrtSettings`'s defaults).
+
+    Returns
+    -------
+    BakeEstimate
+        Seconds, peak bytes and the final vertex count.
+    """
+    settings = settings if settings is not None else PrtSettings()
+    mode, lmax = settings.mode, settings.lmax
+    nthreads = check_threads(settings.threads)
     k = num_coeffs(lmax)
     if mode == "unshadowed":
         return BakeEstimate(2e-7 * scene.n_vertices * k,
                             BASE_BYTES + bake_bytes(scene.n_vertices, lmax, 0, 0),
                             scene.n_vertices)
-    samples = check_int(samples, 16, "samples per vertex")
-    bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
+    samples = settings.samples
+    bounces = settings.bounces if mode == "interreflected" else 0
+    refine = settings.refinement(scene.n_ground > 0)
     name = None if refine is None else ("accurate" if refine.post_jump is not None
                                         or refine.dense_factor > 8 else "quick")
     per, grow = COST[mode, name]

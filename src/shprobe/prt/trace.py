@@ -35,20 +35,23 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..progress import Progress, track
 from ..scene.raycast import RayCaster
-from ..sh import check_lmax, num_coeffs, sh_basis
+from ..sh import num_coeffs, sh_basis
 from ..sh.rotation import wigner_d
 from .directions import RAYS_PER_CHUNK, ray_origins, ray_source
 from .geometry import BakeScene
-from .hemisphere import ADAPTIVE_LEVELS, adaptive_grid, trace_adaptive
-from .transfer import MODES, Transfer, as_stored, check_int, coloured, times_albedo
+from .hemisphere import (
+    ADAPTIVE_LEVELS,
+    MAX_ADAPTIVE_LEVELS,
+    QUADRATURES,
+    TraceContext,
+    adaptive_grid,
+    trace_adaptive,
+)
+from .settings import PrtSettings
+from .transfer import Transfer, as_stored, check_int, coloured, times_albedo
 
 __all__ = ["MAX_ADAPTIVE_LEVELS", "QUADRATURES", "DenseVertices", "GatherBlocks",
-           "bake_bytes", "check_threads", "trace_bake"]
-
-#: Quadratures of the dense vertices.
-QUADRATURES = ("fibonacci", "adaptive")
-#: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
-MAX_ADAPTIVE_LEVELS = 8
+           "TraceContext", "bake_bytes", "check_threads", "trace_bake"]
 
 #: Bytes of the gather matrix per upward direction of an interreflected bake (CSR values and
 #: indices of the hits' three corners, after repeated entries are merged; measured: 1.4 GB
@@ -124,11 +127,11 @@ def _groups(n_vertices: int, samples: int, dense: DenseVertices | None
     return groups
 
 
-def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int = 0,
-               seed: int = 0, threads: int | None = None, progress: Progress | None = None, *,
+def trace_bake(sc: BakeScene, settings: PrtSettings, progress: Progress | None = None, *,
                dense: DenseVertices | None = None, sets: int = 1, pick: PickFn | None = None,
                keep_gather: bool = False) -> tuple[Transfer, GatherBlocks | None]:
-    """Bake ``sc`` once (module doc) and return the :class:`Transfer` and, with
+    """Bake ``sc`` once (module doc) by ``settings`` (its mode, degree, samples, bounces,
+    seed, threads and limits; not its refinement) and return the :class:`Transfer` and, with
     ``keep_gather`` (an interreflected bake), the bounce gather matrix G as its blocks: bounce
     b+1 = ρ/π · G @ bounce b (:mod:`.refine` reads where each vertex gathers from).
 
@@ -139,15 +142,12 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
     traced again as the dense ones are, their rows of T_0 and of the gather matrix replaced,
     before the bounces (the other vertices' rays are kept; :func:`.criteria.gather_picks`).
     """
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    lmax = check_lmax(lmax)
-    seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
-    nthreads = check_threads(threads)
+    mode, lmax, seed = settings.mode, settings.lmax, settings.seed
+    nthreads = check_threads(settings.threads)
     sets = check_int(sets, 1, "direction sets")
-    traced_mode = mode != "unshadowed"
-    samples = check_int(samples, 16, "samples per vertex") if traced_mode else 0
-    bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
+    traced_mode = settings.traced
+    samples = settings.samples if traced_mode else 0
+    bounces = settings.bounces if mode == "interreflected" else 0
     groups = _groups(sc.n_vertices, samples, dense) if traced_mode else []
     adaptive_q = dense is not None and dense.quadrature == "adaptive"
     levels = int(dense.levels) if dense is not None else ADAPTIVE_LEVELS
@@ -163,7 +163,7 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
                             grids + 16.0 * np.prod(shape) * (pick is not None)
                             + 8.0 * max([0] + [g[1] for g in groups[1:]]) * k * nthreads),
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
-                 "samples")
+                 "samples", limits=settings.limits)
     traced = np.empty((len(counts), *shape), dtype=np.float32)
     adaptive = None
     picked = np.zeros(0, dtype=np.int64)
@@ -180,17 +180,17 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
                         else None)
             rays = [0, 0]  # the adaptive quadrature's rays and vertices
 
+            ctx = TraceContext(sc, caster, fnormals, pmap, lmax, seed, progress)
+
             def trace(rows: NDArray[np.int64], n_dirs: int, group: int, name: str):
                 if group and adaptive_q:
                     t0_g, b_g, n_rays = trace_adaptive(
-                        sc, caster, rows, ray_origins(sc, caster, rows)[1], lmax, seed,
-                        fnormals, pmap, adaptive_grid(n_dirs), levels, progress,
-                        f"{name} (adaptive)")
+                        ctx, rows, ray_origins(sc, caster, rows)[1], adaptive_grid(n_dirs),
+                        levels, f"{name} (adaptive)")
                     rays[0] += n_rays
                     rays[1] += len(rows)
                     return t0_g, b_g
-                return trace_rows(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap,
-                                  sets, progress, name)
+                return trace_rows(ctx, rows, n_dirs, sets, name)
 
             for gi, (rows, n_dirs) in enumerate(groups):
                 t0[rows], b_g = trace(rows, n_dirs, gi, names[gi])
@@ -270,21 +270,21 @@ def gather(blocks: GatherBlocks, prev: NDArray[np.float64],
     return out.reshape(v, k, c)
 
 
-def trace_rows(sc: BakeScene, caster: RayCaster, lmax: int, samples: int, seed: int,
-               fnormals: NDArray[np.float32] | None, rows: NDArray[np.int64],
-               pmap: Callable[..., Iterable[Any]], sets: int = 1,
-               progress: Progress | None = None, description: str = "tracing rays"
+def trace_rows(ctx: TraceContext, rows: NDArray[np.int64], samples: int, sets: int = 1,
+               description: str = "tracing rays"
                ) -> tuple[NDArray[np.float64], GatherBlocks]:
-    """For the vertices ``rows`` (rays cast by ``caster``, over ``sc``'s mesh): the
-    visibility-weighted projection Σ V cos y 4π/N (len(rows), K), and the bounce gather
-    matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather).
-    ``fnormals``: the scene's face normals (float32) when the gather is wanted (its hits on
-    front faces), else None. ``sets`` > 1: each vertex traces one of that many rotated copies of
-    the direction set (:func:`~.directions.rotated_direction_sets`)."""
+    """For the vertices ``rows`` (rays cast by ``ctx.caster`` over ``ctx.sc``'s mesh,
+    ``samples`` directions each): the visibility-weighted projection Σ V cos y 4π/N
+    (len(rows), K), and the bounce gather matrix's rows as (vertex indices, CSR block) per
+    span of ``rows`` (None without gather, i.e. when ``ctx.fnormals`` is None). ``sets`` > 1:
+    each vertex traces one of that many rotated copies of the direction set
+    (:func:`~.directions.rotated_direction_sets`)."""
     from scipy.sparse import coo_matrix
 
     from ._kernels import add_visible
 
+    sc, caster, lmax, seed = ctx.sc, ctx.caster, ctx.lmax, ctx.seed
+    fnormals, pmap, progress = ctx.fnormals, ctx.pmap, ctx.progress
     gather_wanted = fnormals is not None
     step = max(1, RAYS_PER_CHUNK // max(1, samples // 2))
     spans = [(i, min(i + step, len(rows))) for i in range(0, len(rows), step)]

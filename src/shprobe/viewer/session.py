@@ -454,7 +454,7 @@ class Session:
     def transfer_bytes(self, mode: str | None, bounces: int | None) -> bytes:
         t = self.transfer
         if t is None:
-            raise ShprobeError("no transfer: start `shprobe view --transfer T.npz`")
+            raise ShprobeError("no transfer loaded: the session was opened without one")
         T = t.select(mode, bounces)
         v = np.asarray(t.vertices)
         # framed on the object; the ground plane (the last vertices) is seen around it
