@@ -37,8 +37,8 @@ def test_estimate_grows_with_the_work_and_uses_the_memory_model(sphere_obj):
     times = [small.seconds] + [e.seconds for e in more]
     assert times == sorted(times) and len(set(times)) == len(times)
     assert est("shadowed", 2, 1024, threads=1).seconds == pytest.approx(2 * more[0].seconds)
-    # the default refinement of a scene with a ground is QUICK
-    assert est("interreflected", 6, 1024, refine=None) == more[3]
+    # a BakeScene is refined when asked: None is no refinement here
+    assert est("interreflected", 6, 1024, refine=None) == more[2]
     e = more[2]  # unrefined: the bake's own memory model plus the process
     from shprobe.prt.baking import BASE_BYTES
 

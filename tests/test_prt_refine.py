@@ -59,8 +59,8 @@ def cumulative(t, idx, bounces):
 def sphere_bakes():
     m = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
     kw = dict(mode="interreflected", lmax=2, samples=1024, bounces=2, albedo=0.8)
-    uni = bake(load_scene(m, ground=True, ground_resolution=16, albedo=0.8), refine=False,
-               **{k: v for k, v in kw.items() if k != "albedo"})
+    uni = bake(load_scene(m, ground=True, ground_resolution=16, albedo=0.8), **{
+        k: v for k, v in kw.items() if k != "albedo"})
     ref = refined(m, ground_resolution=16, **kw)
     return m, uni, ref
 

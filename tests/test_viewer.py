@@ -530,8 +530,8 @@ def test_prt_frame_equals_relight(browser, tmp_path):
     m = sphere_mesh(2)
     mp = tmp_path / "ball.obj"
     m.export(mp)
-    t = bake(load_scene([str(mp)], ground=True, ground_resolution=8), refine=False,
-             mode="shadowed", lmax=3, samples=64)
+    t = bake(load_scene([str(mp)], ground=True, ground_resolution=8), mode="shadowed", lmax=3,
+             samples=64)
     tp = tmp_path / "ball.npz"
     t.save(tp)
     t = load_transfer(tp)

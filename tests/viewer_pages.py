@@ -70,8 +70,7 @@ def bake_ball(tmp_path: Path, lmax: int = 6, mode: str = "shadowed", bounces: in
     mp = tmp_path / "ball.obj"
     sphere_mesh(2).export(mp)
     kw = {"bounces": bounces} if mode == "interreflected" else {}
-    t = bake(load_scene([str(mp)], ground=True, ground_resolution=8), refine=False, mode=mode,
-             lmax=lmax,
+    t = bake(load_scene([str(mp)], ground=True, ground_resolution=8), mode=mode, lmax=lmax,
              samples=64, **kw)
     out = tmp_path / f"ball_{mode}_l{lmax}.npz"
     t.save(out)

@@ -59,6 +59,8 @@ _EXPORTS: dict[str, str] = {
     "procedural_env": "probes.environments",
     # H-basis (Habel & Wimmer 2010)
     "h_basis": "hbasis",
+    "HBasisSettings": "hbasis",
+    "bake_hbasis": "hbasis",
     "sh_to_h_matrix": "hbasis",
     "read_image": "probes.images",
     "write_image": "probes.images",
@@ -109,7 +111,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
-    from .hbasis import h_basis, sh_to_h_matrix
+    from .hbasis import HBasisSettings, bake_hbasis, h_basis, sh_to_h_matrix
     from .lighting.document import read_coeffs_json
     from .lighting.export import export_coeffs, import_coeffs
     from .lighting.irradiance import (

@@ -123,6 +123,8 @@ def bake_cmd(scene, mode, lmax, samples, bounces, ground, albedo, ground_albedo,
     settings = PrtSettings(mode=mode, lmax=lmax, samples=samples, bounces=bounces, seed=seed,
                            threads=threads, refine=ACCURATE if accurate_contact else refine,
                            limits=limits())
+    # the bake adds the ground (to the scene built here): its default refinement, said
+    settings = settings.but(refine=settings.refinement(ground) or False)
     sc = load_scene(list(scene), ground=ground,
                     ground_albedo=None if ground_albedo is None else parse_albedo(ground_albedo),
                     **albedo_keywords([parse_albedo(a) for a in albedo], len(scene)))

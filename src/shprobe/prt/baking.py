@@ -59,7 +59,7 @@ def bake(scene: Any, settings: PrtSettings | None = None, progress: Progress | N
     Transfer
         Its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo is coloured) is the
         baked model, with transfer · L = exit radiance ρ/π ∫ L V max(0, n·ω) dω (+ bounces);
-        ``as_dict()`` summarises it. A scene with a ground is refined by default
+        ``as_dict()`` summarises it. A traced bake that adds a ground is refined by default
         (:attr:`PrtSettings.refine`).
     """
     settings = settings if settings is not None else PrtSettings()
@@ -69,7 +69,7 @@ def bake(scene: Any, settings: PrtSettings | None = None, progress: Progress | N
         settings = settings.but(**changes)
     with settings.limits.applied():
         sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
-        refinement = settings.refinement(sc.n_ground > 0)
+        refinement = settings.refinement(ground)
         if refinement is not None:
             return bake_refined(sc, refinement, settings, progress)
         return trace_bake(sc, settings, stage_progress(
@@ -131,7 +131,7 @@ def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> Bake
                             scene.n_vertices)
     samples = settings.samples
     bounces = settings.bounces if mode == "interreflected" else 0
-    refine = settings.refinement(scene.n_ground > 0)
+    refine = settings.refinement(False)  # a BakeScene is refined when asked
     name = None if refine is None else ("accurate" if refine.post_jump is not None
                                         or refine.dense_factor > 8 else "quick")
     per, grow = COST[mode, name]

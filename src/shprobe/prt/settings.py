@@ -167,7 +167,8 @@ class PrtSettings:
     refine
         Adaptive refinement of the scene where the transfer varies fast: a
         :class:`Refinement` (QUICK, ACCURATE), its name, True (QUICK), False (none) or None
-        (QUICK for a traced bake of a scene with a ground, else none).
+        (QUICK for a traced bake that adds a ground, ``bake(..., ground=True)``, else none: a
+        :class:`BakeScene` that holds a ground is refined when asked).
     limits
         The memory limit the bake is refused over (:class:`shprobe.limits.Limits`).
     """
@@ -204,12 +205,12 @@ class PrtSettings:
         return self.mode != "unshadowed"
 
     def refinement(self, ground: bool) -> Refinement | None:
-        """The refinement this bake runs on a scene with (or without) a ground.
+        """The refinement this bake runs when it adds (or does not add) a ground.
 
         Parameters
         ----------
         ground
-            Whether the scene holds a ground plane.
+            Whether the bake adds a ground plane to its scene.
 
         Returns
         -------
