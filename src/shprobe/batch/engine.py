@@ -21,7 +21,7 @@ import secrets
 import shutil
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,7 @@ from .inputs import expand_inputs
 from .lock import interruptible, output_lock
 from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
 
-__all__ = ["Engine", "parts_dir", "read_table", "run_batch"]
+__all__ = ["BatchSettings", "Engine", "parts_dir", "read_table", "run_batch"]
 
 #: Progress callback: (done, total) after each probe.
 Progress = Callable[[int, int], None]
@@ -350,26 +350,81 @@ class Engine:
     chunk: int | None = None
 
 
+@dataclass(frozen=True)
+class BatchSettings:
+    """Settings of a batch run (:func:`run_batch`); the defaults are ``shprobe batch``'s.
+
+    Parameters
+    ----------
+    options
+        What each row computes (:class:`BatchOptions`: lmax, clamp, window, reference,
+        thumbnail).
+    layout
+        The probes' layout ('auto': detected per file).
+    engine
+        Where it runs (:class:`Engine`; default a local Dask cluster).
+    flush_rows
+        Rows per part written to the output while the batch runs.
+    flush_seconds
+        Seconds after which the rows so far are written anyway.
+    """
+
+    options: BatchOptions = field(default_factory=BatchOptions)
+    layout: str = "auto"
+    engine: Engine = field(default_factory=Engine)
+    flush_rows: int = 256
+    flush_seconds: float = 30.0
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values (the engine by its scheduler and workers).
+
+        Returns
+        -------
+        dict
+            options, layout, engine, flush_rows, flush_seconds.
+        """
+        e = self.engine
+        return {"options": asdict(self.options), "layout": self.layout,
+                "engine": {"scheduler": e.scheduler, "workers": e.workers, "chunk": e.chunk,
+                           "client": e.client is not None},
+                "flush_rows": self.flush_rows, "flush_seconds": self.flush_seconds}
+
+
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
-              output: str | os.PathLike[str] | None = None, *,
-              options: BatchOptions | None = None, layout: str = "auto",
-              engine: Engine | None = None, force: bool = False,
-              progress: Progress | None = None, flush_rows: int = 256,
-              flush_seconds: float = 30.0):
-    """Compute the batch table of INPUTS (see :func:`shprobe.batch.expand_inputs`) and return
-    it as a ``pyarrow.Table`` (columns: :data:`shprobe.batch.COLUMNS`), sorted by path.
+              output: str | os.PathLike[str] | None = None,
+              settings: BatchSettings | None = None, progress: Progress | None = None, *,
+              force: bool = False, **changes: Any):
+    """Compute the batch table of INPUTS and return it, sorted by path.
 
-    ``options`` (:class:`BatchOptions`): what each row computes (default: lmax 2). ``engine``
-    (:class:`Engine`): where it runs (default: a local Dask cluster). ``progress`` gets one
-    stage counting the probes (:mod:`shprobe.progress`).
+    Parameters
+    ----------
+    inputs
+        Files, folders, globs or lists of paths (:func:`shprobe.batch.expand_inputs`).
+    output
+        A ``.parquet`` table: written in parts (every ``flush_rows`` rows or
+        ``flush_seconds``) and committed atomically, resumable (module doc); None: none.
+    settings
+        The run's :class:`BatchSettings` (default: lmax 2 on a local Dask cluster).
+    progress
+        Gets one stage counting the probes (:mod:`shprobe.progress`).
+    force
+        Start afresh: an existing table made with other options is refused without it.
+    **changes
+        Fields of :class:`BatchSettings` changed from ``settings`` (``options=``,
+        ``engine=``, ``layout=``, ``flush_rows=``, ``flush_seconds=``).
 
-    ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
-    ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
-    made with other options is refused unless ``force``, which starts afresh.
+    Returns
+    -------
+    pyarrow.Table
+        Columns :data:`shprobe.batch.COLUMNS`, one row per probe.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
 
-    o = options or BatchOptions()
+    settings = settings if settings is not None else BatchSettings()
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if changes:
+        settings = replace(settings, **changes)
+    o = settings.options or BatchOptions()
     options = BatchOptions(lmax=int(o.lmax), clamp=bool(o.clamp),
                            reference=None if not o.reference else int(o.reference),
                            thumbnail=int(o.thumbnail or 0), window=bool(o.window),
@@ -383,15 +438,15 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         if out.suffix.lower() != ".parquet":
             raise ShprobeError("the batch table must be a .parquet file", out)
         check_output_path(out, overwrite=True)
+    settings = replace(settings, options=options)
     with output_lock(out), interruptible() as interrupted:
-        return _run(inputs, out, layout, options, meta, force, progress, interrupted,
-                    engine or Engine(), (flush_rows, flush_seconds))
+        return _run(inputs, out, settings, meta, force, progress, interrupted)
 
 
-def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
-         force: bool, progress: Progress | None, interrupted: list[int], engine: Engine,
-         flush_every: tuple[int, float]):
+def _run(inputs, out: Path | None, settings: BatchSettings, meta: dict[str, Any],
+         force: bool, progress: Progress | None, interrupted: list[int]):
     """:func:`run_batch` once the output is locked."""
+    layout, options, engine = settings.layout, settings.options, settings.engine
     old: list[dict[str, Any]] = []
     if out is not None:
         if force:
@@ -407,7 +462,7 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
     pending: list[dict[str, Any]] = []
     last = time.monotonic()
     n_done = 0
-    flush_rows, flush_seconds = flush_every
+    flush_rows, flush_seconds = settings.flush_rows, settings.flush_seconds
     if progress is not None:
         progress.begin(f"prefiltering {total:,} probes", total)
 

@@ -4,24 +4,30 @@ from __future__ import annotations
 
 import click
 
+from ..batch.rows import BatchOptions
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option
+from .common import clamp_option, force_option, layout_option, setting_default
+
+
+def _option_default(name: str):
+    return setting_default(BatchOptions, name)
 
 
 @click.command("batch")
 @click.argument("inputs", nargs=-1, required=True, metavar="INPUTS...")
 @click.option("--output", "-o", required=True, type=click.Path(dir_okay=False),
               help="Parquet table to write (resumed when it exists).")
-@click.option("--lmax", "-n", type=click.IntRange(0, 16), default=2, show_default=True,
-              help="Highest SH band.")
+@click.option("--lmax", "-n", type=click.IntRange(0, 16), default=_option_default("lmax"),
+              show_default=True, help="Highest SH band.")
 @layout_option
 @clamp_option
 @click.option("--reference", type=click.IntRange(2, 256), metavar="GRID",
               help="Add the exact-irradiance error (R&H §3.1 metric, mean and max) on a "
                    "2GRID x GRID normal grid (slow: a hemispherical integral per normal).")
-@click.option("--thumbnails", "thumbnail", type=click.IntRange(0, 1024), default=0,
+@click.option("--thumbnails", "thumbnail", type=click.IntRange(0, 1024),
+              default=_option_default("thumbnail"),
               metavar="WIDTH", help="Add a tone-mapped PNG thumbnail WIDTH pixels wide.")
-@click.option("--window/--no-window", default=True, show_default=True,
+@click.option("--window/--no-window", default=_option_default("window"), show_default=True,
               help="Add the window `auto` would choose (--no-window: skip it; it costs more "
                    "than decoding a 2k probe when the lighting needs one).")
 @click.option("--scheduler", envvar="DASK_SCHEDULER_ADDRESS", metavar="tcp://HOST:PORT",
@@ -47,14 +53,13 @@ def batch_cmd(inputs, output, lmax, layout, clamp, reference, thumbnail, window,
     from .extras import require
 
     require("batch", "batch")
-    from ..batch import BatchOptions, Engine, run_batch
+    from ..batch import BatchSettings, Engine, run_batch
     from .output import progress, wrote
 
-    table = run_batch(inputs, output,
-                      options=BatchOptions(lmax=lmax, clamp=clamp, reference=reference,
-                                           thumbnail=thumbnail, window=window),
-                      layout=layout, engine=Engine(scheduler, workers), force=force,
-                      progress=progress())
+    settings = BatchSettings(options=BatchOptions(lmax=lmax, clamp=clamp, reference=reference,
+                                                  thumbnail=thumbnail, window=window),
+                             layout=layout, engine=Engine(scheduler, workers))
+    table = run_batch(inputs, output, settings, progress(), force=force)
     bad = table.num_rows - table.column("failure").null_count
     wrote(output, f"{table.num_rows} probes, {bad} failed"
           + (" (see the 'failure' column)" if bad else ""))
