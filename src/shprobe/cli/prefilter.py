@@ -94,34 +94,9 @@ def _titled(table, title: str | None):
 
 
 def error_document(report, source: str | None) -> dict:
-    """JSON form of an error report."""
-    from .._version import __version__
-
-    return {
-        "shprobe_version": __version__, "source": source, "n_normals": report.n_normals,
-        "total_intensity": report.total_intensity.tolist(),
-        "refined": bool(getattr(report, "refined", False)),
-        "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
-                  "mean_rel": r.mean_rel, "smape": r.smape,
-                  **_finite({"max_normal": [float(x) for x in r.max_normal],
-                             "max_channel": r.max_channel, "max_tol": r.max_tol,
-                             "max_change": r.max_change, "grid_max_frac": r.grid_max_frac,
-                             "mean_change": r.mean_change}),
-                  **({"max_converged": bool(r.max_change < r.max_tol)}
-                     if getattr(report, "refined", False) else {})} for r in report.rows],
-    }
-
-
-def _finite(d: dict) -> dict:
-    """Drop the entries that are not finite numbers (never write NaN into JSON)."""
-    import math
-
-    def ok(v):
-        if isinstance(v, list):
-            return all(ok(x) for x in v)
-        return not isinstance(v, float) or math.isfinite(v)
-
-    return {k: v for k, v in d.items() if ok(v)}
+    """JSON form of an error report: the library's one document
+    (:meth:`shprobe.lighting.reference.ErrorReport.as_dict`)."""
+    return report.as_dict(source)
 
 
 def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
