@@ -22,6 +22,7 @@ def _option_default(name: str):
 @layout_option
 @clamp_option
 @click.option("--reference", type=click.IntRange(2, 256), metavar="GRID",
+              default=_option_default("reference"),
               help="Add the exact-irradiance error (R&H §3.1 metric, mean and max) on a "
                    "2GRID x GRID normal grid (slow: a hemispherical integral per normal).")
 @click.option("--thumbnails", "thumbnail", type=click.IntRange(0, 1024),
