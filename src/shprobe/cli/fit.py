@@ -163,15 +163,15 @@ def fit_group():
 def grey_ball_cmd(photo, circle, camera_text, albedo, inset, irradiance, no_robust, fmt,
                   output, saturation, residual, fitted, mask, report, force):
     """Lighting from a photo of a diffuse (grey) ball."""
-    from ..fitting import fit_grey_ball
+    from ..fitting import FitSettings, fit_grey_ball
 
     images = {"residual": residual, "fitted": fitted, "rejected": mask,
               "irradiance": irradiance}
     c, cam = _ball(circle, camera_text)
     ph, img, sat = _start(photo, saturation, output, images, report, force)
     with _fitting("the grey ball"):
-        res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
-                            robust=not no_robust, path=photo)
+        res = fit_grey_ball(img, c, cam, FitSettings(saturation=sat, robust=not no_robust),
+                            albedo=albedo, inset=inset, path=photo)
     _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}", ph)
 
 @fit_group.command("chrome-ball")

@@ -20,7 +20,7 @@ reported as rejected. Clipped pixels (saturated, or black) are removed before th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -31,7 +31,7 @@ from ..lighting.coeffs import RH_LABELS
 from ..sh import sh_basis
 from ..sh.zonal import clamped_cosine_factors
 
-__all__ = ["LightingFit", "design_factors", "fit_samples"]
+__all__ = ["MAX_RADIUS", "FitSettings", "LightingFit", "design_factors", "fit_samples"]
 
 #: Per-coefficient condition (see :attr:`LightingFit.conditioning`) above which a coefficient
 #: is reported as poorly determined.
@@ -231,13 +231,87 @@ def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LM
     return X[int(np.argmin(med))]
 
 
-def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
+#: A grey ball of a larger radius (pixels) is fitted on block means of the photo
+#: (:func:`shprobe.fitting.ball.fit_grey_ball`).
+MAX_RADIUS = 512.0
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """How lighting is fitted to pixels (:func:`fit_samples` and the photo fits of
+    :mod:`shprobe.fitting`); the defaults are ``shprobe fit``'s.
+
+    Parameters
+    ----------
+    model
+        'diffuse' (value = ρ E(n)/π) or 'mirror' (value = ρ L(ω)).
+    saturation
+        Pixels with any channel at or above it are clipped and left out (None: none).
+    black
+        Pixels with any channel at or below it are left out (None: none).
+    robust
+        The MM-estimator (outliers rejected), else plain weighted least squares.
+    scale_floor
+        The residual scale never falls below this × the mean |value|.
+    max_iter
+        Iterations of the robust fit.
+    irls_samples
+        The most pixels the robust iterations run on (a fixed random subset).
+    seed
+        Seed of the subsets.
+    max_radius
+        A grey ball of a larger radius (pixels) is fitted on block means (None: never).
+    """
+
+    model: str = "diffuse"
+    saturation: float | None = None
+    black: float | None = None
+    robust: bool = True
+    scale_floor: float = 0.02
+    max_iter: int = 30
+    irls_samples: int = IRLS_SAMPLES
+    seed: int = 0
+    max_radius: float | None = MAX_RADIUS
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            Each field.
+        """
+        return {f: getattr(self, f) for f in self.__dataclass_fields__}
+
+
+def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None = None, *,
                 weights: ArrayLike | None = None, albedo: ArrayLike | float = 1.0,
-                saturation: float | None = None, black: float | None = None,
-                robust: bool = True,
-                scale_floor: float = 0.02, max_iter: int = 30,
-                irls_samples: int = IRLS_SAMPLES, seed: int = 0) -> LightingFit:
+                **changes: Any) -> LightingFit:
     """Fit nine RGB lighting coefficients to pixel values.
+
+    Parameters
+    ----------
+    dirs
+        (P, 3) unit surface normals (diffuse) or reflected directions (mirror).
+    values
+        (P, 3) linear pixel values.
+    settings
+        The fit's :class:`FitSettings` (default: its defaults).
+    weights
+        (P,) prior weights (a chrome ball's solid angle per pixel; default 1).
+    albedo
+        A number (the coefficients are divided by it), or known per-pixel albedo (P,) /
+        (P, 3).
+    **changes
+        Fields of :class:`FitSettings` changed from ``settings`` (``robust=False``).
+
+    Returns
+    -------
+    LightingFit
+        Coefficients, standard errors, weights, rejected pixels, fitted values.
+
+    Notes
+    -----
 
     ``dirs`` (P, 3): unit surface normals (``model="diffuse"``: value = ρ E(n)/π) or
     reflected directions (``model="mirror"``: value = ρ L(ω)). ``values`` (P, 3) linear.
@@ -253,6 +327,11 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     the coefficients and standard errors are that subset's); the weights, rejected pixels,
     fitted values and residuals are over every pixel.
     """
+    s = settings if settings is not None else FitSettings()
+    if changes:
+        s = replace(s, **changes)
+    model, saturation, black, robust = s.model, s.saturation, s.black, s.robust
+    scale_floor, max_iter, irls_samples, seed = s.scale_floor, s.max_iter, s.irls_samples, s.seed
     factors = design_factors(model)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
     y = np.asarray(values, dtype=np.float64)
