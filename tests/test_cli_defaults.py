@@ -17,6 +17,7 @@ from shprobe.grids import GridSettings
 from shprobe.hbasis import HBasisSettings
 from shprobe.prt import DEFAULT_LMAX, PrtSettings
 from shprobe.prt.view import PrtRenderSettings
+from shprobe.report.probe import ReportSettings
 
 
 def _command(path: str) -> click.Command:
@@ -60,6 +61,8 @@ WORKFLOWS = [
         "bounces": ("bounces", None), "lmax": ("lmax", int), "samples": ("samples", None),
         "gather": ("gather", None)}),
     ("hbasis bake", HBasisSettings, {"basis": ("basis", None), "bands": ("bands", None)}),
+    ("report", ReportSettings, {"map_size": ("map_height", None),
+                                "render_size": ("render_size", None)}),
     ("batch", BatchOptions, {
         "lmax": ("lmax", None), "thumbnail": ("thumbnail", None), "window": ("window", None),
         "clamp": ("clamp", None), "reference": ("reference", None)}),

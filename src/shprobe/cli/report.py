@@ -7,7 +7,8 @@ import os
 import click
 
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option
+from ..report.probe import ReportSettings
+from .common import clamp_option, force_option, layout_option, setting_default
 
 
 @click.command("report")
@@ -17,9 +18,11 @@ from .common import clamp_option, force_option, layout_option
 @clamp_option
 @click.option("--mesh", type=click.Path(dir_okay=False),
               help="Mesh for the basis images and the render (default: the unit sphere).")
-@click.option("--render-size", type=click.IntRange(16, 2048), default=256,
+@click.option("--render-size", type=click.IntRange(16, 2048),
+              default=setting_default(ReportSettings, "render_size"),
               show_default=True, help="Side of the basis images and the render, pixels.")
-@click.option("--map-size", type=click.IntRange(2, 256), default=32, show_default=True,
+@click.option("--map-size", type=click.IntRange(2, 256),
+              default=setting_default(ReportSettings, "map_height"), show_default=True,
               help="N: the irradiance maps are 2N×N lat-long; the exact map and the error "
                    "table use the same 2N² normals (32: the normals of `shprobe error`).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
@@ -53,8 +56,9 @@ def report_cmd(probe, layout, clamp, mesh, render_size, map_size, output, force)
         geo, name = load_mesh(mesh), os.path.basename(mesh)
     estimate(reference_cost(src.env, 2 * map_size * map_size, chunk=MAP_CHUNK),
              f"the report's exact irradiance at {2 * map_size * map_size} normals")
-    rep = probe_report(src.env, geo, name, map_height=map_size, render_size=render_size,
-                       progress=progress())
+    rep = probe_report(src.env, geo, name,
+                       ReportSettings(map_height=map_size, render_size=render_size),
+                       progress())
     write_report(output, rep, force)
     wrote(output, f"{len(rep.figures)} figures; window auto: {rep.window.kind}")
 
