@@ -15,6 +15,7 @@ from shprobe.cli.hbasis import hbasis_group
 from shprobe.cli.prt import prt_group
 from shprobe.grids import GridSettings
 from shprobe.hbasis import HBasisSettings
+from shprobe.lighting.workflow import IrradianceSettings, PrefilterSettings
 from shprobe.prt import DEFAULT_LMAX, PrtSettings
 from shprobe.prt.view import PrtRenderSettings
 from shprobe.report.probe import ReportSettings
@@ -61,6 +62,11 @@ WORKFLOWS = [
         "bounces": ("bounces", None), "lmax": ("lmax", int), "samples": ("samples", None),
         "gather": ("gather", None)}),
     ("hbasis bake", HBasisSettings, {"basis": ("basis", None), "bands": ("bands", None)}),
+    ("prefilter", PrefilterSettings, {"lmax": ("lmax", None)}),
+    ("irradiance", IrradianceSettings, {"method": ("method", None),
+                                        "out_layout": ("out_layout", None),
+                                        "exposure": ("exposure",
+                                                     lambda v: None if v == "auto" else v)}),
     ("report", ReportSettings, {"map_size": ("map_height", None),
                                 "render_size": ("render_size", None)}),
     ("batch", BatchOptions, {

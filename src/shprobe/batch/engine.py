@@ -21,7 +21,7 @@ import secrets
 import shutil
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,7 @@ from ..files import atomic_output, check_output_path
 from .inputs import expand_inputs
 from .lock import interruptible, output_lock
 from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
+from .settings import BatchSettings, Engine
 
 __all__ = ["BatchSettings", "Engine", "parts_dir", "read_table", "run_batch"]
 
@@ -333,61 +334,6 @@ def _plugin(keep_heap: bool = False):
         pass
 
     return WarmPlugin(keep_heap)
-
-
-@dataclass(frozen=True)
-class Engine:
-    """Where a batch runs: ``client`` (a ``distributed.Client``) if given; else ``scheduler``:
-    ``"inline"`` runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS``
-    when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
-    processes (default: one per core) × 1 thread is started and closed again. On Dask, each
-    task computes ``chunk`` probes (below 1 means 1; default :func:`chunk_size`: up to 8, fewer
-    for small batches), the largest files first."""
-
-    scheduler: str | None = None
-    workers: int | None = None
-    client: Any = None
-    chunk: int | None = None
-
-
-@dataclass(frozen=True)
-class BatchSettings:
-    """Settings of a batch run (:func:`run_batch`); the defaults are ``shprobe batch``'s.
-
-    Parameters
-    ----------
-    options
-        What each row computes (:class:`BatchOptions`: lmax, clamp, window, reference,
-        thumbnail).
-    layout
-        The probes' layout ('auto': detected per file).
-    engine
-        Where it runs (:class:`Engine`; default a local Dask cluster).
-    flush_rows
-        Rows per part written to the output while the batch runs.
-    flush_seconds
-        Seconds after which the rows so far are written anyway.
-    """
-
-    options: BatchOptions = field(default_factory=BatchOptions)
-    layout: str = "auto"
-    engine: Engine = field(default_factory=Engine)
-    flush_rows: int = 256
-    flush_seconds: float = 30.0
-
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as JSON-able values (the engine by its scheduler and workers).
-
-        Returns
-        -------
-        dict
-            options, layout, engine, flush_rows, flush_seconds.
-        """
-        e = self.engine
-        return {"options": asdict(self.options), "layout": self.layout,
-                "engine": {"scheduler": e.scheduler, "workers": e.workers, "chunk": e.chunk,
-                           "client": e.client is not None},
-                "flush_rows": self.flush_rows, "flush_seconds": self.flush_seconds}
 
 
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],

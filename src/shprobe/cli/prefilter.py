@@ -8,13 +8,18 @@ import click
 
 from ..errors import ShprobeError
 from ..lighting.export import FORMATS as EXPORT_FORMATS
-from .common import force_option, parse_exposure
+from ..lighting.workflow import (
+    IRRADIANCE_METHODS,
+    OUT_LAYOUTS,
+    IrradianceSettings,
+    PrefilterSettings,
+)
+from .common import force_option, parse_exposure, setting_default
 from .output import detail, estimate, progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.lighting.export).
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
-OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
 
 
 def coeff_table(coeffs, title: str | None = None):
@@ -113,7 +118,8 @@ def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
 
 @click.command("prefilter")
 @coeff_source_options
-@click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True,
+@click.option("--lmax", "-n", type=click.IntRange(0, 64),
+              default=setting_default(PrefilterSettings, "lmax"), show_default=True,
               help="Highest SH degree l.")
 @click.option("--format", "-F", "fmt", type=click.Choice(FORMATS), default="table",
               show_default=True, help="Output: R&H Fig. 2 table, JSON, or a shader/engine "
@@ -130,7 +136,7 @@ def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, 
     import json
 
     from ..files import check_output_path, write_text
-    from ..lighting.document import coeffs_document
+    from ..lighting.workflow import lighting_document
 
     if output:
         check_output_path(output, force)  # refuse before the work
@@ -146,8 +152,7 @@ def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, 
             console().print(coeff_table(src.coeffs, title))
         return
     if fmt == "json":
-        text = json.dumps(coeffs_document(src.coeffs, src.source, src.layout), indent=2)
-        text += "\n"
+        text = json.dumps(lighting_document(src), indent=2) + "\n"
     else:
         from ..lighting.export import export_coeffs
 
@@ -162,13 +167,16 @@ def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, 
 @coeff_source_options
 @click.option("--output", "-o", required=True, type=click.Path(dir_okay=False),
               help="Irradiance map to write (.exr .hdr .pfm .tif, or tone-mapped .png).")
-@click.option("--out-layout", type=click.Choice(OUT_LAYOUTS), default="same",
+@click.option("--out-layout", type=click.Choice(OUT_LAYOUTS),
+              default=setting_default(IrradianceSettings, "out_layout"),
               show_default=True, help="Layout of the map (same: the probe's; lat-long for "
               "presets). 'angular' gives the view of R&H Fig. 3.")
 @click.option("--size", help="WxH, or N: NxN/2 for lat-long, NxN for angular, mirror ball "
               "and cube faces (the size of one face). Default 256x128 / 256 / 64.")
-@click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True)
-@click.option("--method", type=click.Choice(("sh", "brute")), default="sh",
+@click.option("--lmax", "-n", type=click.IntRange(0, 64),
+              default=setting_default(PrefilterSettings, "lmax"), show_default=True)
+@click.option("--method", type=click.Choice(IRRADIANCE_METHODS),
+              default=setting_default(IrradianceSettings, "method"),
               show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
               "integral per pixel (slow, exact).")
 @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
@@ -182,42 +190,33 @@ def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout
 
     Linear files (.exr .hdr .pfm .tif) hold E; a .png shows E/π (the radiance a white
     diffuse surface reflects), tone-mapped at --exposure (auto by default, printed)."""
-    import numpy as np
+    from dataclasses import replace
 
-    from ..lighting.irradiance import irradiance_map
-    from ..lighting.reference import MAP_CHUNK, reference_cost, reference_irradiance_map
-    from ..probes.env import write_env
-    from ..probes.figures import exposure_for
+    from ..lighting.workflow import IrradianceSettings, irradiance_map_cost, write_irradiance_map
     from ..probes.images import check_image_output
-    from ..probes.layouts import get_layout
+    from .output import limits
 
     check_image_output(output, force)
-    fixed = parse_exposure(exposure)  # a bad value is refused before the work
+    settings = IrradianceSettings(method=method, out_layout=out_layout,
+                                  exposure=parse_exposure(exposure),  # refused before the work
+                                  limits=limits())
     src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
                          need_env=(method == "brute"))
-    name = out_layout if out_layout != "same" else (src.layout or "latlong")
-    lay = get_layout(name)
-    sz = _grid_size(size, lay.name)
-    if method == "sh":
-        emap = irradiance_map(src.coeffs, lay, sz)
-    else:
-        grid = lay.grid_shape(sz)
-        estimate(reference_cost(src.env, int(lay.valid_mask(grid).sum()), chunk=MAP_CHUNK),
-                 f"the brute-force irradiance map {'x'.join(map(str, grid[::-1]))}")
-        emap = reference_irradiance_map(src.env, lay, sz, progress=progress())
-    shown, note = emap, ""
-    if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
-        from ..probes.env import Env
+    if size is not None:
+        settings = replace(settings, size=_grid_size(size, settings.layout_for(src)[0].name))
+    cost = irradiance_map_cost(src, settings)
+    if cost is not None:
+        lay, sz = settings.layout_for(src)
+        estimate(cost, f"the brute-force irradiance map "
+                       f"{'x'.join(map(str, lay.grid_shape(sz)[::-1]))}")
+    res = write_irradiance_map(src, output, settings, progress(), overwrite=force)
+    note = ""
+    if Path(output).suffix.lower() == ".png":
+        note = (f", E/π at exposure {res.exposure:+.1f} EV"
+                f"{' (auto)' if res.auto_exposure else ''}")
+    wrote(output, f"{res.layout} {'x'.join(map(str, res.grid[::-1]))}, "
+                  f"{method}, lmax {lmax}{note}")
 
-        shown = Env(emap.radiance / np.pi, emap.layout)
-        stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))
-                 if fixed is None else fixed)  # pixels outside a disc do not count
-        note = f", E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}"
-    else:
-        stops = 0.0
-    write_env(output, shown, overwrite=force, exposure=stops)
-    wrote(output, f"{lay.name} {'x'.join(map(str, emap.grid[::-1]))}, {method}, "
-                  f"lmax {lmax}{note}")
 
 @click.command("error")
 @coeff_source_options

@@ -30,8 +30,10 @@ from ..errors import ShprobeError
 from ..lighting.coeffs import RH_LABELS
 from ..sh import sh_basis
 from ..sh.zonal import clamped_cosine_factors
+from .settings import IRLS_SAMPLES, MAX_RADIUS, FitSettings
 
-__all__ = ["MAX_RADIUS", "FitSettings", "LightingFit", "design_factors", "fit_samples"]
+__all__ = ["IRLS_SAMPLES", "MAX_RADIUS", "FitSettings", "LightingFit", "design_factors",
+           "fit_samples"]
 
 #: Per-coefficient condition (see :attr:`LightingFit.conditioning`) above which a coefficient
 #: is reported as poorly determined.
@@ -47,8 +49,6 @@ TILE_TRIALS = 100
 TOP_STARTS = 5
 #: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
 LTS_H = 0.75
-#: Pixels used for the IRLS iterations; the final weighted solve uses every pixel.
-IRLS_SAMPLES = 1 << 16
 _CHUNK = 1 << 19
 #: Albedos a fit accepts: the lighting is the pixels over the albedo, and outside this range
 #: the quotient of ordinary pixel values leaves the floating-point range.
@@ -229,59 +229,6 @@ def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LM
     F = (a_ev @ X.transpose(1, 0, 2).reshape(9, T * C)).reshape(-1, T, C)  # BLAS
     med = np.median(np.sum(((y_ev[:, None, :] - F) / tau) ** 2, axis=2), axis=0)
     return X[int(np.argmin(med))]
-
-
-#: A grey ball of a larger radius (pixels) is fitted on block means of the photo
-#: (:func:`shprobe.fitting.ball.fit_grey_ball`).
-MAX_RADIUS = 512.0
-
-
-@dataclass(frozen=True)
-class FitSettings:
-    """How lighting is fitted to pixels (:func:`fit_samples` and the photo fits of
-    :mod:`shprobe.fitting`); the defaults are ``shprobe fit``'s.
-
-    Parameters
-    ----------
-    model
-        'diffuse' (value = ρ E(n)/π) or 'mirror' (value = ρ L(ω)).
-    saturation
-        Pixels with any channel at or above it are clipped and left out (None: none).
-    black
-        Pixels with any channel at or below it are left out (None: none).
-    robust
-        The MM-estimator (outliers rejected), else plain weighted least squares.
-    scale_floor
-        The residual scale never falls below this × the mean |value|.
-    max_iter
-        Iterations of the robust fit.
-    irls_samples
-        The most pixels the robust iterations run on (a fixed random subset).
-    seed
-        Seed of the subsets.
-    max_radius
-        A grey ball of a larger radius (pixels) is fitted on block means (None: never).
-    """
-
-    model: str = "diffuse"
-    saturation: float | None = None
-    black: float | None = None
-    robust: bool = True
-    scale_floor: float = 0.02
-    max_iter: int = 30
-    irls_samples: int = IRLS_SAMPLES
-    seed: int = 0
-    max_radius: float | None = MAX_RADIUS
-
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as JSON-able values.
-
-        Returns
-        -------
-        dict
-            Each field.
-        """
-        return {f: getattr(self, f) for f in self.__dataclass_fields__}
 
 
 def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None = None, *,
