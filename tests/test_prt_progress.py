@@ -40,9 +40,10 @@ def test_estimate_grows_with_the_work_and_uses_the_memory_model(sphere_obj):
     # a BakeScene is refined when asked: None is no refinement here
     assert est("interreflected", 6, 1024, refine=None) == more[2]
     e = more[2]  # unrefined: the bake's own memory model plus the process
-    from shprobe.prt.baking import BASE_BYTES
+    from shprobe.prt.baking import BASE_BYTES, TRACE_BYTES
 
-    assert e.bytes == pytest.approx(BASE_BYTES + bake_bytes(sc.n_vertices, 6, 1024, 3, 1, 2))
+    assert e.bytes == pytest.approx(BASE_BYTES + TRACE_BYTES
+                                    + bake_bytes(sc.n_vertices, 6, 1024, 3, 1, 2))
     assert str(e).startswith("about ") and ("B" in str(e))
 
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..errors import ShprobeError
 from ..limits import Cost
 from ..progress import Progress
@@ -89,17 +91,57 @@ class BakeEstimate(Cost):
 
 
 #: Seconds per (input vertex × sample) of a bake at lmax 2 on two threads, by mode and
-#: refinement, and the final vertices as a multiple of the input's: measured on the bench scene
-#: (bunny + ground, 6,728 vertices, 1024 samples, 2 bounces; bench/bench_prt.py,
+#: refinement, and the final vertices as a multiple of the input's at lmax 2: measured on the
+#: bench scene (bunny + ground, 6,728 vertices, 1024 samples, 2 bounces; bench/bench_prt.py,
 #: bench/bench_prt_contact.py --timing) on the 2-core box.
 COST = {("shadowed", None): (3.5e-8, 1.0), ("interreflected", None): (1.2e-7, 1.0),
         ("shadowed", "quick"): (7.0e-7, 1.6), ("interreflected", "quick"): (6.1e-6, 12.0),
         ("shadowed", "accurate"): (1.5e-6, 2.0), ("interreflected", "accurate"): (5.8e-5, 34.0)}
+#: The final vertices of a quick refinement as a multiple of the input's, by degree: a higher
+#: degree sees sharper jumps in the transfer and splits more (bunny + ground, 1024 samples,
+#: bench/bench_prt_memory.py); read linearly between the degrees, flat beyond them.
+GROWTH = {("shadowed", "quick"): ((2, 1.59), (6, 2.17), (10, 2.81), (16, 2.81)),
+          ("interreflected", "quick"): ((2, 12.2), (6, 15.6), (10, 15.6), (16, 15.6))}
 #: The time of a bake grows with the SH degree as (LMAX_COST + K) (K = (lmax + 1)²): the
 #: quick interreflected bunny takes 42 s at lmax 2 and 94 s at lmax 6.
 LMAX_COST = 23.0
-#: Resident memory of the process besides the bake's arrays (Python, numpy, Embree's BVH).
-BASE_BYTES = 3e8
+#: Resident memory of the process besides the bake's arrays (Python, numpy, trimesh, the
+#: scene): an unshadowed bake of the bunny peaks at 115 MB.
+BASE_BYTES = 1.15e8
+#: What a traced bake adds to it besides its arrays: Embree's BVH, the compiled kernels and
+#: the workers' ray chunks (a shadowed bake of the bunny at lmax 2 peaks at 240 MB).
+TRACE_BYTES = 1.25e8
+
+
+#: Bytes per cell (final vertex × coefficient × channel) a refined bake holds besides
+#: :func:`.trace.bake_bytes` (fitted: 98 and 96 bytes per cell in all, shadowed and
+#: interreflected, on the bunny + ground at lmax 2 to 10; bench/bench_prt_memory.py).
+REFINE_CELL_BYTES = {"shadowed": 70.0, "interreflected": 48.0}
+
+
+def growth(mode: str, refinement: str | None, lmax: int) -> float:
+    """The final vertices of a bake as a multiple of its input's (:data:`GROWTH`, else the
+    lmax-2 figure of :data:`COST`).
+
+    Parameters
+    ----------
+    mode
+        The bake's mode.
+    refinement
+        None, 'quick' or 'accurate'.
+    lmax
+        The degree baked.
+
+    Returns
+    -------
+    float
+        The factor.
+    """
+    table = GROWTH.get((mode, refinement))
+    if table is None:
+        return COST[mode, refinement][1]
+    degrees = [d for d, _ in table]
+    return float(np.interp(lmax, degrees, [g for _, g in table]))
 
 
 def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> BakeEstimate:
@@ -134,10 +176,16 @@ def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> Bake
     refine = settings.refinement(False)  # a BakeScene is refined when asked
     name = None if refine is None else ("accurate" if refine.post_jump is not None
                                         or refine.dense_factor > 8 else "quick")
-    per, grow = COST[mode, name]
-    n = int(scene.n_vertices * grow)
+    per = COST[mode, name][0]
+    n = int(scene.n_vertices * growth(mode, name, lmax))
     seconds = (per * scene.n_vertices * samples * (LMAX_COST + k) / (LMAX_COST + 9)
                * (max(1, bounces) / 2 if mode == "interreflected" else 1) * 2 / nthreads)
     channels = 3 if coloured(scene.albedo) else 1
-    nbytes = BASE_BYTES + bake_bytes(n, lmax, samples, bounces + 1, channels, nthreads)
+    layers = bounces + 1
+    nbytes = BASE_BYTES + TRACE_BYTES + bake_bytes(n, lmax, samples, layers, channels, nthreads)
+    if refine is not None:
+        # a round's layers and sums still held while the next bakes, the rounds' criteria and
+        # the groups' sums of the final bake; the contact's SH rows dense_factor× longer
+        nbytes += (REFINE_CELL_BYTES[mode] * n * num_coeffs(lmax) * channels
+                   + 8.0 * refine.dense_factor * samples * k * nthreads)
     return BakeEstimate(seconds, nbytes, n)

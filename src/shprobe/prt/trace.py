@@ -54,10 +54,17 @@ __all__ = ["MAX_ADAPTIVE_LEVELS", "QUADRATURES", "DenseVertices", "GatherBlocks"
            "TraceContext", "bake_bytes", "check_threads", "trace_bake"]
 
 #: Bytes of the gather matrix per upward direction of an interreflected bake (CSR values and
-#: indices of the hits' three corners, after repeated entries are merged; measured: 1.4 GB
-#: resident for the bunny's 82k-vertex quick bake at lmax 6, 4.0 GB for the 234k-vertex
-#: accurate one at lmax 2).
-GATHER_BYTES_PER_RAY = 24.0
+#: indices of the hits' three corners, after repeated entries are merged, and the COO blocks
+#: they are built from; fitted to the peak resident memory of the bunny + ground quick bakes,
+#: bench/bench_prt_memory.py).
+GATHER_BYTES_PER_RAY = 10.5
+#: Bytes per cell (vertex × coefficient × channel) a traced bake holds besides its float32
+#: layers: the float64 visibility sums and their albedo-weighted copy (24), and in a bake
+#: with bounces the bounce's product, its output and the running total (12 more): 28 bytes
+#: per cell for a shadowed bake, 48 for an interreflected one, as measured (unrefined bunny +
+#: ground, lmax 2 to 16).
+CELL_WORK_BYTES = 24.0
+BOUNCE_CELL_BYTES = 12.0
 #: The bounce gather matrix G as blocks of rows: (vertex indices, CSR rows (n, V)).
 GatherBlocks = list[tuple[NDArray[np.int64], Any]]
 #: ``pick(direct, cumulative, blocks, albedo)`` → vertex indices to trace as the dense ones.
@@ -98,13 +105,15 @@ def check_threads(threads: Any) -> int:
 def bake_bytes(n_vertices: int, lmax: int, samples: int, layers: int, channels: int = 1,
                threads: int = 1, extra: float = 0.0) -> float:
     """Bytes a traced bake holds (the cost model of :func:`trace_bake`'s memory check and of
-    :func:`shprobe.prt.baking.estimate_bake`): the stored layers (float32), the float64 running
-    sums, one worker block of SH rows per thread, for an interreflected bake (``layers`` > 1)
-    the gather matrix (:data:`GATHER_BYTES_PER_RAY` per upward direction), and ``extra`` (the
-    picks' sums, the adaptive grids)."""
+    :func:`shprobe.prt.baking.estimate_bake`): the stored layers (float32), the float64 sums
+    and bounce products (:data:`CELL_WORK_BYTES`, :data:`BOUNCE_CELL_BYTES`), one worker block
+    of SH rows per thread, for an interreflected bake (``layers`` > 1) the gather matrix
+    (:data:`GATHER_BYTES_PER_RAY` per upward direction), and ``extra`` (the picks' sums, the
+    adaptive grids)."""
     cells = float(n_vertices) * num_coeffs(lmax) * channels
     gather = GATHER_BYTES_PER_RAY * 0.5 * samples * n_vertices if layers > 1 else 0.0
-    return (4.0 * cells * layers + 16.0 * cells * (layers > 0)
+    return (cells * (4.0 * layers + CELL_WORK_BYTES * (layers > 0)
+                     + BOUNCE_CELL_BYTES * (layers > 1))
             + 8.0 * samples * num_coeffs(lmax) * threads + gather + extra)
 
 
