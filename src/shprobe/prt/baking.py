@@ -100,7 +100,7 @@ COST = {("shadowed", None): (3.5e-8, 1.0), ("interreflected", None): (1.2e-7, 1.
 #: The final vertices of a quick refinement as a multiple of the input's, by degree: a higher
 #: degree sees sharper jumps in the transfer and splits more (bunny + ground, 1024 samples,
 #: bench/bench_prt_memory.py); read linearly between the degrees, flat beyond them.
-GROWTH = {("shadowed", "quick"): ((2, 1.59), (6, 2.17), (10, 2.81), (16, 2.81)),
+GROWTH = {("shadowed", "quick"): ((2, 1.59), (6, 2.17), (10, 2.81), (16, 5.57)),
           ("interreflected", "quick"): ((2, 12.2), (6, 15.6), (10, 15.6), (16, 15.6))}
 #: The time of a bake grows with the SH degree as (LMAX_COST + K) (K = (lmax + 1)²): the
 #: quick interreflected bunny takes 42 s at lmax 2 and 94 s at lmax 6.
@@ -113,10 +113,11 @@ BASE_BYTES = 1.15e8
 TRACE_BYTES = 1.25e8
 
 
-#: Bytes per cell (final vertex × coefficient × channel) a refined bake holds besides
-#: :func:`.trace.bake_bytes` (fitted: 98 and 96 bytes per cell in all, shadowed and
-#: interreflected, on the bunny + ground at lmax 2 to 10; bench/bench_prt_memory.py).
-REFINE_CELL_BYTES = {"shadowed": 70.0, "interreflected": 48.0}
+#: A refined bake's peak memory beyond the bases, by mode: bytes per cell (final vertex ×
+#: coefficient × channel) and per final vertex at 1024 samples (its rays, the gather of an
+#: interreflected bake, the mesh's tables), least-squares fits to the peak resident memory of
+#: the quick bakes of the bunny + ground at lmax 2, 6, 10 and 16 (bench/bench_prt_memory.py).
+REFINED_BYTES = {"shadowed": (54.2, 2790.0), "interreflected": (105.5, 5204.0)}
 
 
 def growth(mode: str, refinement: str | None, lmax: int) -> float:
@@ -182,10 +183,15 @@ def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> Bake
                * (max(1, bounces) / 2 if mode == "interreflected" else 1) * 2 / nthreads)
     channels = 3 if coloured(scene.albedo) else 1
     layers = bounces + 1
-    nbytes = BASE_BYTES + TRACE_BYTES + bake_bytes(n, lmax, samples, layers, channels, nthreads)
-    if refine is not None:
-        # a round's layers and sums still held while the next bakes, the rounds' criteria and
-        # the groups' sums of the final bake; the contact's SH rows dense_factor× longer
-        nbytes += (REFINE_CELL_BYTES[mode] * n * num_coeffs(lmax) * channels
-                   + 8.0 * refine.dense_factor * samples * k * nthreads)
+    if refine is None:
+        nbytes = (BASE_BYTES + TRACE_BYTES
+                  + bake_bytes(n, lmax, samples, layers, channels, nthreads))
+    else:
+        # the final geometry's cells and vertices at the rates fitted to the refined bakes
+        # (they hold a round's arrays while the next bakes, the rounds' criteria and edge
+        # tables, the final bake's groups), and the contact's SH rows dense_factor× longer
+        per_cell, per_vertex = REFINED_BYTES[mode]
+        nbytes = (BASE_BYTES + TRACE_BYTES + per_cell * n * k * channels
+                  + per_vertex * n * samples / 1024.0
+                  + 8.0 * refine.dense_factor * samples * k * nthreads)
     return BakeEstimate(seconds, nbytes, n)
