@@ -91,6 +91,11 @@ _EXPORTS: dict[str, str] = {
     "ProbeGrid": "grids",
     "bake_grid": "grids",
     "GridSettings": "grids",
+    # the workflows' settings (the CLI's defaults)
+    "PrefilterSettings": "lighting.workflow",
+    "IrradianceSettings": "lighting.workflow",
+    "FitSettings": "fitting.settings",
+    "ReportSettings": "report.probe",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -111,6 +116,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
+    from .fitting.settings import FitSettings
     from .hbasis import HBasisSettings, bake_hbasis, h_basis, sh_to_h_matrix
     from .lighting.document import read_coeffs_json
     from .lighting.export import export_coeffs, import_coeffs
@@ -124,6 +130,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .lighting.projection import project, project_samples
     from .lighting.reference import error_report, reference_irradiance
     from .lighting.windows import auto_window, min_irradiance, window_factors
+    from .lighting.workflow import IrradianceSettings, PrefilterSettings
     from .limits import Limits
     from .probes.env import Env, env_from_function, load_env, write_env
     from .probes.environments import procedural_env
@@ -131,6 +138,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .probes.layouts import detect_layout, get_layout
     from .probes.presets import PRESETS, get_preset
     from .prt import PrtSettings, bake, load_transfer, relight
+    from .report.probe import ReportSettings
     from .scene.camera import Camera
     from .scene.mesh import load_mesh, packaged_bunny
     from .scene.render import render_vertex_colors
