@@ -135,10 +135,26 @@ def bake_count(refinement: Refinement) -> int:
 
 def bake_refined(scene: BakeScene, refinement: Refinement, settings: PrtSettings,
                  progress: Progress | None = None) -> Transfer:
-    """Bake ``scene`` (:func:`~.geometry.load_scene`; its ground plane, if any, is refined
-    like every mesh) by ``settings`` with adaptive refinement by ``refinement`` (module doc).
-    The returned transfer's ``metadata['refine']`` holds the refinement and the rounds
-    (:class:`RefineRound` as dicts)."""
+    """Bake ``scene`` with adaptive refinement (module doc).
+
+    Parameters
+    ----------
+    scene
+        The scene (:func:`~.geometry.load_scene`; its ground plane, if any, is refined like
+        every mesh).
+    refinement
+        How the scene is refined (:data:`~.settings.QUICK`, :data:`~.settings.ACCURATE`).
+    settings
+        The bake's :class:`~.settings.PrtSettings` (a traced mode).
+    progress
+        A :class:`shprobe.progress.Progress` reporter (stages "k/N: <bake>: <stage>").
+
+    Returns
+    -------
+    Transfer
+        Over the refined geometry (input vertices first); ``metadata['refine']`` holds the
+        refinement and the rounds (:class:`RefineRound` as dicts).
+    """
     if not settings.traced:
         raise ShprobeError(f"refinement needs a traced bake (shadowed or interreflected), not "
                            f"{settings.mode!r}")

@@ -150,6 +150,28 @@ def trace_bake(sc: BakeScene, settings: PrtSettings, progress: Progress | None =
     albedo)`` with the layers (V, K, C) and the gather blocks; the vertices it returns are
     traced again as the dense ones are, their rows of T_0 and of the gather matrix replaced,
     before the bounces (the other vertices' rays are kept; :func:`.criteria.gather_picks`).
+
+    Parameters
+    ----------
+    sc
+        The scene (:func:`~.geometry.load_scene`).
+    settings
+        Mode, degree, samples, bounces, seed, threads and limits (its refinement unused).
+    progress
+        A :class:`shprobe.progress.Progress` reporter.
+    dense
+        Vertices traced with more directions (:class:`DenseVertices`), or None.
+    sets
+        Rotated copies of the direction set (1: one set).
+    pick
+        The picks' callback (above), or None.
+    keep_gather
+        Return the gather blocks too (an interreflected bake).
+
+    Returns
+    -------
+    tuple
+        (the :class:`Transfer`, the gather blocks or None).
     """
     mode, lmax, seed = settings.mode, settings.lmax, settings.seed
     nthreads = check_threads(settings.threads)
