@@ -19,6 +19,7 @@ from shprobe.lighting.workflow import IrradianceSettings, PrefilterSettings
 from shprobe.prt import DEFAULT_LMAX, PrtSettings
 from shprobe.prt.view import PrtRenderSettings
 from shprobe.report.probe import ReportSettings
+from shprobe.scene.workflow import RenderSettings
 
 
 def _command(path: str) -> click.Command:
@@ -67,6 +68,10 @@ WORKFLOWS = [
                                         "out_layout": ("out_layout", None),
                                         "exposure": ("exposure",
                                                      lambda v: None if v == "auto" else v)}),
+    ("render", RenderSettings, {
+        "mode": ("mode", None), "size": ("size", _parse_size), "azimuth": ("azimuth", None),
+        "elevation": ("elevation", None), "fov": ("fov", None), "ortho": ("ortho", None),
+        "exposure": ("exposure", lambda v: None if v == "auto" else float(v))}),
     ("report", ReportSettings, {"map_size": ("map_height", None),
                                 "render_size": ("render_size", None)}),
     ("batch", BatchOptions, {

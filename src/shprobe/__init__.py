@@ -96,6 +96,8 @@ _EXPORTS: dict[str, str] = {
     "IrradianceSettings": "lighting.workflow",
     "FitSettings": "fitting.settings",
     "ReportSettings": "report.probe",
+    "RenderSettings": "scene.workflow",
+    "render_image": "scene.workflow",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -142,6 +144,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .scene.camera import Camera
     from .scene.mesh import load_mesh, packaged_bunny
     from .scene.render import render_vertex_colors
+    from .scene.workflow import RenderSettings, render_image
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh.zonal import (

@@ -11,15 +11,22 @@ import click
 
 from ..errors import ShprobeError
 from ..lighting.export import FORMATS
+from ..scene.workflow import RENDER_MODES, RenderSettings
 from .common import (
     ROTATE_HELP,
     force_option,
     parse_exposure,
     parse_floats,
     parse_size,
+    setting_default,
 )
 from .output import progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
+
+
+def _default(name: str):
+    return setting_default(RenderSettings, name)
+
 
 WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
                "with KIND one of hann, lanczos, gaussian, laplacian.")
@@ -71,15 +78,17 @@ def export_path(output: str | None, source: str, options: dict[str, Any], fmt: s
 
 def camera_options(fn):
     opts = [
-        click.option("--size", default="512x512", show_default=True, help="Image size WxH."),
-        click.option("--azimuth", default=0.0, show_default=True,
+        click.option("--size", default="{}x{}".format(*_default("size")), show_default=True,
+                     help="Image size WxH."),
+        click.option("--azimuth", default=_default("azimuth"), show_default=True,
                      help="Orbit angle about +Y in degrees (0: camera on +Z looking along -Z)."),
-        click.option("--elevation", default=0.0, show_default=True,
+        click.option("--elevation", default=_default("elevation"), show_default=True,
                      help="Orbit elevation in degrees."),
-        click.option("--fov", default=40.0, show_default=True,
+        click.option("--fov", default=_default("fov"), show_default=True,
                      help="Vertical field of view in degrees (perspective)."),
-        click.option("--ortho", is_flag=True, help="Orthographic camera."),
-        click.option("--mode", type=click.Choice(["pixel", "vertex"]), default="pixel",
+        click.option("--ortho", is_flag=True, default=_default("ortho"),
+                     help="Orthographic camera."),
+        click.option("--mode", type=click.Choice(list(RENDER_MODES)), default=_default("mode"),
                      show_default=True,
                      help="Shade per pixel, or per vertex and interpolate (R&H procedural)."),
     ]
@@ -154,17 +163,18 @@ def render_cmd(probe, layout, clamp, preset, coeffs_file, mesh, sphere, size, az
     albedo * E(n) / pi, E from the coefficients (eq. 7, 11-13). The background shows the
     probe when one is given. PNG tone map: exposure in stops, clamp, sRGB."""
     from ..probes.images import check_image_output
-    from ..progress import Steps
-    from ..scene.render import render
+    from ..scene.workflow import render_image
 
-    check_image_output(output, force)
-    stops = parse_exposure(exposure)  # a bad value is refused before the work
-    if exr:
-        check_image_output(exr, force)
+    for path in (output, exr):  # refused before any work (render_image checks them too)
+        if path:
+            check_image_output(path, force)
+    settings = RenderSettings(mode=mode, size=parse_size(size), azimuth=azimuth,
+                              elevation=elevation, fov=fov, ortho=ortho,
+                              albedo=parse_floats(albedo, 3, "albedo") if albedo else None,
+                              exposure=parse_exposure(exposure))  # refused before the work
     coeffs, name, env = load_source(probe, preset, coeffs_file, layout, clamp, lmax)
     coeffs, wdesc = edit(coeffs, {"lmax": lmax, "window": window, "rotate": rotate})
     geo = load_geometry(mesh, sphere)
-    cam = make_camera(size, azimuth, elevation, fov, ortho)
     if background is None:
         bg = env
     elif background.lower() == "env":
@@ -175,28 +185,14 @@ def render_cmd(probe, layout, clamp, preset, coeffs_file, mesh, sphere, size, az
         bg = None
     else:
         bg = parse_floats(background, 3, "background colour")
-    alb = parse_floats(albedo, 3, "albedo") if albedo else None
-    with Steps(progress(), 2) as step:
-        step(f"rendering {cam.width}x{cam.height} ({mode} shading)")
-        res = render(geo, coeffs, cam, mode=mode, albedo=alb, background=bg)
-        step("writing")
-        auto = stops is None
-        if auto:
-            from ..probes.tonemap import auto_exposure
-
-            stops = auto_exposure(res.image[res.mask] if res.mask.any() else res.image,
-                                  1.0)
-        from ..files import transaction
-
-        with transaction():  # the image and its EXR: both or neither
-            res.save(output, exposure=stops, overwrite=force)
-            if exr:
-                res.save(exr, overwrite=force)
+    res = render_image(geo, coeffs, output, settings, progress(), background=bg,
+                       linear_copy=exr, overwrite=force)
+    stops, auto = res.exposure, res.auto
     ldr = output.lower().endswith((".png", ".jpg", ".jpeg"))
     wrote([output, *([exr] if exr else [])],
-          f"{cam.width}x{cam.height} {mode} shading of "
+          f"{res.width}x{res.height} {mode} shading of "
           f"{'sphere' if geo is None else os.path.basename(mesh)} under {name}, "
-          f"{100 * res.mask.mean():.1f}% object pixels"
+          f"{100 * res.object_fraction:.1f}% object pixels"
           + (f", exposure {stops:+.2f} stops{' (auto)' if auto else ''}" if ldr else "")
           + (f"; {wdesc}" if wdesc else ""))
 
