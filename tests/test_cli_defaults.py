@@ -13,6 +13,7 @@ from shprobe.batch.rows import BatchOptions
 from shprobe.cli.grid import grid
 from shprobe.cli.hbasis import hbasis_group
 from shprobe.cli.prt import prt_group
+from shprobe.fitting import FitSettings
 from shprobe.grids import GridSettings
 from shprobe.hbasis import HBasisSettings
 from shprobe.lighting.workflow import IrradianceSettings, PrefilterSettings
@@ -72,6 +73,8 @@ WORKFLOWS = [
         "mode": ("mode", None), "size": ("size", _parse_size), "azimuth": ("azimuth", None),
         "elevation": ("elevation", None), "fov": ("fov", None), "ortho": ("ortho", None),
         "exposure": ("exposure", lambda v: None if v == "auto" else float(v))}),
+    ("fit grey-ball", FitSettings, {"no_robust": ("robust", lambda v: not v),
+                                    "saturation": ("saturation", None)}),
     ("report", ReportSettings, {"map_size": ("map_height", None),
                                 "render_size": ("render_size", None)}),
     ("batch", BatchOptions, {

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import click
 
+from ..fitting.settings import FitSettings
 from ..lighting.export import FORMATS as EXPORT_FORMATS
-from .common import force_option
+from .common import force_option, setting_default
 from .output import progress, verbosity, wrote
 
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
@@ -18,8 +19,10 @@ def _outputs(f):
                      "(json: its document plus a 'fit' object)."),
         click.option("--output", "-o", type=click.Path(dir_okay=False),
                      help="Write the coefficients to FILE instead of stdout."),
-        click.option("--saturation", type=float, help="Pixels with a channel >= this are "
-                     "clipped [default: 0.999 for 8/16-bit photos, none for HDR]."),
+        click.option("--saturation", type=float,
+                     default=setting_default(FitSettings, "saturation"),
+                     help="Pixels with a channel >= this are clipped [default: 0.999 for "
+                     "8/16-bit photos, none for HDR]."),
         click.option("--residual", type=click.Path(dir_okay=False),
                      help="Residual image photo - fit (.exr .pfm .tif; linear, signed)."),
         click.option("--fitted", type=click.Path(dir_okay=False),
