@@ -101,7 +101,7 @@ COST = {("shadowed", None): (3.5e-8, 1.0), ("interreflected", None): (1.2e-7, 1.
 #: degree sees sharper jumps in the transfer and splits more (bunny + ground, 1024 samples,
 #: bench/bench_prt_memory.py); read linearly between the degrees, flat beyond them.
 GROWTH = {("shadowed", "quick"): ((2, 1.59), (6, 2.17), (10, 2.81), (16, 5.57)),
-          ("interreflected", "quick"): ((2, 12.2), (6, 15.6), (10, 18.1), (16, 18.1))}
+          ("interreflected", "quick"): ((2, 12.2), (6, 15.6), (10, 18.1), (16, 22.5))}
 #: The time of a bake grows with the SH degree as (LMAX_COST + K) (K = (lmax + 1)²): the
 #: quick interreflected bunny takes 42 s at lmax 2 and 94 s at lmax 6.
 LMAX_COST = 23.0
@@ -117,7 +117,7 @@ TRACE_BYTES = 1.25e8
 #: coefficient × channel) and per final vertex at 1024 samples (its rays, the gather of an
 #: interreflected bake, the mesh's tables), least-squares fits to the peak resident memory of
 #: the quick bakes of the bunny + ground at lmax 2, 6, 10 and 16 (bench/bench_prt_memory.py).
-REFINED_BYTES = {"shadowed": (54.2, 2790.0), "interreflected": (99.0, 5323.0)}
+REFINED_BYTES = {"shadowed": (54.2, 2790.0), "interreflected": (97.8, 5357.0)}
 
 
 def growth(mode: str, refinement: str | None, lmax: int) -> float:
