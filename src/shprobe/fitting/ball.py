@@ -206,24 +206,6 @@ class BallFit:
     binning: int = 1
     photo: NDArray[np.float32] | None = None
     blind_angle: float = 0.0
-
-    def as_dict(self, source: str | None = None) -> dict[str, Any]:
-        """The fit's JSON document (``shprobe fit … --format json``,
-        :func:`shprobe.fitting.report.fit_document`).
-
-        Parameters
-        ----------
-        source
-            What the photo came from, for people, or None.
-
-        Returns
-        -------
-        dict
-            Coefficients, standard errors, conditioning and how the pixels were used.
-        """
-        from .report import fit_document
-
-        return fit_document(self, source)
     blind_solid_angle: float = 0.0
     info: dict[str, Any] = field(default_factory=dict)
 

@@ -33,24 +33,6 @@ class ObjectFit:
     vertex_albedo: NDArray[np.float64] | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
-    def as_dict(self, source: str | None = None) -> dict[str, Any]:
-        """The fit's JSON document (``shprobe fit … --format json``,
-        :func:`shprobe.fitting.report.fit_document`).
-
-        Parameters
-        ----------
-        source
-            What the photo came from, for people, or None.
-
-        Returns
-        -------
-        dict
-            Coefficients, standard errors, conditioning and how the pixels were used.
-        """
-        from .report import fit_document
-
-        return fit_document(self, source)
-
     @property
     def coeffs(self) -> NDArray[np.float64]:
         return self.fit.coeffs
