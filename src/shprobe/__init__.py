@@ -34,10 +34,12 @@ _EXPORTS: dict[str, str] = {
     "rotate": "sh.rotation",
     "from_quaternion": "sh.rotation",
     "from_euler_zyz": "sh.rotation",
-    # errors
+    # errors and limits
     "ShprobeError": "errors",
+    "Limits": "limits",
     # precomputed radiance transfer
     "bake": "prt",
+    "PrtSettings": "prt",
     "relight": "prt",
     "load_transfer": "prt",
     # probes in, irradiance out
@@ -57,6 +59,8 @@ _EXPORTS: dict[str, str] = {
     "procedural_env": "probes.environments",
     # H-basis (Habel & Wimmer 2010)
     "h_basis": "hbasis",
+    "HBasisSettings": "hbasis",
+    "bake_hbasis": "hbasis",
     "sh_to_h_matrix": "hbasis",
     "read_image": "probes.images",
     "write_image": "probes.images",
@@ -92,6 +96,13 @@ _EXPORTS: dict[str, str] = {
     "LightmapSettings": "lightmaps",
     "Lightmap": "lightmaps",
     "load_lightmap": "lightmaps",
+    # the workflows' settings (the CLI's defaults)
+    "PrefilterSettings": "lighting.workflow",
+    "IrradianceSettings": "lighting.workflow",
+    "FitSettings": "fitting.settings",
+    "ReportSettings": "report.probe",
+    "RenderSettings": "scene.workflow",
+    "render_image": "scene.workflow",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -112,7 +123,8 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .errors import ShprobeError
-    from .hbasis import h_basis, sh_to_h_matrix
+    from .fitting.settings import FitSettings
+    from .hbasis import HBasisSettings, bake_hbasis, h_basis, sh_to_h_matrix
     from .lighting.document import read_coeffs_json
     from .lighting.export import export_coeffs, import_coeffs
     from .lighting.irradiance import (
@@ -125,15 +137,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from .lighting.projection import project, project_samples
     from .lighting.reference import error_report, reference_irradiance
     from .lighting.windows import auto_window, min_irradiance, window_factors
+    from .lighting.workflow import IrradianceSettings, PrefilterSettings
+    from .limits import Limits
     from .probes.env import Env, env_from_function, load_env, write_env
     from .probes.environments import procedural_env
     from .probes.images import read_image, write_image
     from .probes.layouts import detect_layout, get_layout
     from .probes.presets import PRESETS, get_preset
-    from .prt import bake, load_transfer, relight
+    from .prt import PrtSettings, bake, load_transfer, relight
+    from .report.probe import ReportSettings
     from .scene.camera import Camera
     from .scene.mesh import load_mesh, packaged_bunny
     from .scene.render import render_vertex_colors
+    from .scene.workflow import RenderSettings, render_image
     from .sh import lmax_of, num_coeffs, sh_basis, sh_index, sh_lm
     from .sh.rotation import from_euler_zyz, from_quaternion, rotate, wigner_d
     from .sh.zonal import (

@@ -2,23 +2,30 @@
 estimates the bytes it needs from its arguments and file headers and refuses, in one line
 naming the estimate and the limit, what would not fit.
 
-The limit is the machine's available memory (``/proc/meminfo`` MemAvailable, else total
-physical memory) less a margin, or ``SHPROBE_MAX_MEMORY`` (bytes, or with a K/M/G/T suffix;
-the CLI's ``--max-memory`` sets it) when that is lower. Work that is naturally chunked stays
-under [`CHUNK_BYTES`][shprobe.limits.CHUNK_BYTES] per chunk instead of being refused.
+The limit is a [`Limits`][shprobe.limits.Limits] object: its ``max_memory`` (bytes), else the
+machine's available memory (``/proc/meminfo`` MemAvailable, else total physical memory) less a
+margin, or ``SHPROBE_MAX_MEMORY`` (bytes, or with a K/M/G/T suffix) when that is lower. A workflow
+takes its limits in its settings (``PrtSettings(limits=Limits(max_memory=2 << 30))``) and
+applies them to everything it calls with [`Limits.applied`][shprobe.limits.Limits.applied]; the CLI
+builds one from ``--max-memory``. Work that is naturally chunked stays under
+[`CHUNK_BYTES`][shprobe.limits.CHUNK_BYTES] per chunk instead of being refused.
 """
 
 from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
 from .errors import ShprobeError
 
-__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "MAX_PAIRS", "Cost", "check_disk", "check_memory",
-           "check_pairs", "cores", "format_bytes", "format_seconds", "memory_limit", "pairs_limit",
+__all__ = ["CHUNK_BYTES", "LONG_JOB_SECONDS", "MAX_PAIRS", "Cost", "Limits", "check_disk",
+           "check_memory", "check_pairs",
+           "cores", "format_bytes", "format_seconds", "memory_limit", "pairs_limit",
            "parse_bytes"]
 
 #: Working-set target of one chunk of chunked work (samples, rows, normals).
@@ -79,40 +86,141 @@ def _available() -> int:
         return 8 << 30
 
 
-def memory_limit() -> int:
-    """Bytes one operation may allocate: 80 % of the available memory, or
-    ``SHPROBE_MAX_MEMORY`` when set and lower.
+@dataclass(frozen=True)
+class Limits:
+    """How much one operation may use: refused beforehand, in one line, when its estimate
+    is over.
+
+    Parameters
+    ----------
+    max_memory
+        Bytes one operation may plan for; None: 80 % of the available memory (lowered by
+        ``SHPROBE_MAX_MEMORY`` when set). A value above the available memory's 80 % does not
+        raise the limit.
+    """
+
+    max_memory: int | None = None
+
+    def __post_init__(self) -> None:
+        m = self.max_memory
+        if m is not None and (isinstance(m, bool) or not isinstance(m, int) or m <= 0):
+            raise ShprobeError(f"max_memory must be a positive number of bytes, got {m!r}")
+
+    @classmethod
+    def parse(cls, max_memory: str | int | None) -> Limits:
+        """Limits from a size as people write it ('2G', '512M', bytes) or None.
+
+        Parameters
+        ----------
+        max_memory
+            The memory limit ('512M', '2G', a number of bytes) or None (the default).
+
+        Returns
+        -------
+        Limits
+            The limits.
+        """
+        return cls(None if max_memory is None else parse_bytes(str(max_memory)))
+
+    def memory(self) -> int:
+        """Bytes one operation may allocate.
+
+        Returns
+        -------
+        int
+            80 % of the available memory, or ``max_memory`` / ``SHPROBE_MAX_MEMORY`` when
+            set and lower.
+        """
+        limit = int(0.8 * _available())
+        env = os.environ.get("SHPROBE_MAX_MEMORY")
+        if env:
+            limit = min(limit, parse_bytes(env))
+        if self.max_memory is not None:
+            limit = min(limit, int(self.max_memory))
+        return limit
+
+    @contextmanager
+    def applied(self) -> Iterator[Limits]:
+        """Apply these limits to every check made inside the block (in this thread or task),
+        also by the functions a workflow calls without passing them on.
+
+        Returns
+        -------
+        contextmanager
+            A context manager yielding these limits.
+        """
+        token = _ACTIVE.set(self)
+        try:
+            yield self
+        finally:
+            _ACTIVE.reset(token)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The limits as JSON-able values.
+
+        Returns
+        -------
+        dict
+            ``{"max_memory": bytes or None}``.
+        """
+        return {"max_memory": self.max_memory}
+
+
+#: The limits in force (:meth:`Limits.applied`): a context variable, so a limit applied by
+#: one call or thread never reaches another.
+_ACTIVE: ContextVar[Limits | None] = ContextVar("shprobe_limits", default=None)
+
+
+def active_limits() -> Limits:
+    """The limits applied by the innermost [`Limits.applied`][shprobe.limits.Limits.applied] block,
+    else the defaults.
+
+    Returns
+    -------
+    Limits
+        The limits in force.
+    """
+    return _ACTIVE.get() or Limits()
+
+
+def memory_limit(limits: Limits | None = None) -> int:
+    """Bytes one operation may allocate ([`Limits.memory`][shprobe.limits.Limits.memory] of
+    ``limits``, else of the limits in force).
+
+    Parameters
+    ----------
+    limits
+        The limits to read; None: `active_limits`.
 
     Returns
     -------
     int
-        Bytes one operation may allocate.
+        The limit in bytes.
     """
-    limit = int(0.8 * _available())
-    env = os.environ.get("SHPROBE_MAX_MEMORY")
-    if env:
-        limit = min(limit, parse_bytes(env))
-    return limit
+    return (limits or active_limits()).memory()
 
 
-def check_memory(nbytes: float, what: str, where: Any = None) -> None:
+def check_memory(nbytes: float, what: str, where: Any = None,
+                 limits: Limits | None = None) -> None:
     """Refuse ``what`` when its estimated ``nbytes`` exceed
     [`memory_limit`][shprobe.limits.memory_limit].
 
     Parameters
     ----------
     nbytes
-        The estimated bytes.
+        The estimate, in bytes.
     what
-        The work, named in the error.
+        The work, as the refusal names it.
     where
-        The file concerned, named in the error.
+        The file concerned, if any.
+    limits
+        The limits to check against; None: the limits in force.
     """
-    limit = memory_limit()
+    limit = memory_limit(limits)
     if nbytes > limit:
         raise ShprobeError(
             f"{what} would need about {format_bytes(nbytes)}, over the limit of "
-            f"{format_bytes(limit)} (available memory, or SHPROBE_MAX_MEMORY / --max-memory)",
+            f"{format_bytes(limit)} (available memory, or the max_memory limit)",
             where)
 
 

@@ -109,6 +109,43 @@ def numbered(progress: Progress | None, index: int, count: int) -> Progress | No
     return None if progress is None else Numbered(progress, index, count)
 
 
+class Prefixed:
+    """A reporter that shows another's stages as "<prefix>: …": for a call that is one named
+    part of its caller's job (one bake among several: "final bake: tracing rays")."""
+
+    __slots__ = ("prefix", "progress")
+
+    def __init__(self, progress: Progress, prefix: str) -> None:
+        self.progress, self.prefix = progress, str(prefix)
+
+    def begin(self, description: str, total: float | None = None) -> None:
+        self.progress.begin(f"{self.prefix}: {description}", total)
+
+    def update(self, done: float) -> None:
+        self.progress.update(done)
+
+    def end(self) -> None:
+        self.progress.end()
+
+
+def prefixed(progress: Progress | None, prefix: str) -> Progress | None:
+    """``progress`` with its stages labelled "prefix: …" (None stays None).
+
+    Parameters
+    ----------
+    progress
+        The reporter, or None (quiet).
+    prefix
+        What every stage's description starts with.
+
+    Returns
+    -------
+    Progress or None
+        The labelling reporter, or None.
+    """
+    return None if progress is None else Prefixed(progress, prefix)
+
+
 class Stage:
     """Handle on the stage under way: counts work done and forwards it to the reporter."""
 

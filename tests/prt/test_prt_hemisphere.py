@@ -8,10 +8,15 @@ import numpy as np
 import pytest
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import load_transfer
+from shprobe.prt import PrtSettings, load_transfer
 from shprobe.prt.directions import OFFSET_FRACTION, sample_directions
 from shprobe.prt.geometry import BakeScene, mesh_hash
-from shprobe.prt.hemisphere import adaptive_grid, equal_area_hemisphere, trace_adaptive
+from shprobe.prt.hemisphere import (
+    TraceContext,
+    adaptive_grid,
+    equal_area_hemisphere,
+    trace_adaptive,
+)
 from shprobe.prt.trace import DenseVertices, trace_bake
 from shprobe.scene.raycast import RayCaster
 from shprobe.sh import sh_basis
@@ -73,7 +78,7 @@ def adaptive_row(sc: BakeScene, grid: int, levels: int, seed: int = 0, lmax: int
     c = RayCaster(sc.vertices, sc.faces)
     rows = np.array([8])
     org = c.local(sc.vertices[rows] + [0.0, 0.0, 1e-7])
-    return trace_adaptive(sc, c, rows, org, lmax, seed, None, map, grid, levels)
+    return trace_adaptive(TraceContext(sc, c, None, map, lmax, seed), rows, org, grid, levels)
 
 
 @pytest.mark.parametrize(("h", "x0", "tol"), [(1.0, -5.0, 2e-3), (0.2, -0.3, 2e-4),
@@ -111,7 +116,7 @@ def test_bake_dense_adaptive_matches_trace(tmp_path):
     corners all see the same open sky below (the floor patch is ~1e-5 of it); metadata says
     which quadrature ran."""
     sc, quad = slab_scene(0.2, -0.3)
-    t = trace_bake(sc, "interreflected", lmax=2, samples=1024, bounces=1,
+    t = trace_bake(sc, PrtSettings(mode="interreflected", lmax=2, samples=1024, bounces=1),
                    dense=DenseVertices(vertex_mask(sc, 8), 32768, "adaptive"))[0]
     meta = t.metadata["dense_quadrature"]["adaptive"]
     assert meta["grid"] == 128 and meta["levels"] == 3 and meta["rays_per_vertex"] > 128**2
@@ -145,7 +150,7 @@ def test_adaptive_bad_levels_and_memory(monkeypatch):
             DenseVertices(vertex_mask(sc, 8), 64, "adaptive", bad)
     monkeypatch.setenv("SHPROBE_MAX_MEMORY", "64M")
     with pytest.raises(ShprobeError, match="would need about"):
-        trace_bake(sc, "shadowed", 1, 1024, threads=1,
+        trace_bake(sc, PrtSettings(mode="shadowed", lmax=1, samples=1024, threads=1),
                    dense=DenseVertices(vertex_mask(sc, 8), 32768, "adaptive", 8))
 
 

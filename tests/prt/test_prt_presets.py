@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import ACCURATE, QUICK, REFINEMENTS, Refinement, bake, load_scene
+from shprobe.prt import ACCURATE, QUICK, REFINEMENTS, PrtSettings, Refinement, bake, load_scene
 from shprobe.prt.refine import bake_refined
 
 GOLDEN = {'accurate': {'abs': [635.59651, 713.04061, 741.22795],
@@ -87,8 +87,9 @@ def sphere():
 @pytest.mark.parametrize("name", ["quick", "accurate"])
 def test_presets_reproduce_the_bakes_they_replace(name):
     sc = load_scene(sphere(), ground=True, ground_resolution=8)
-    t = bake_refined(sc, REFINEMENTS[name].but(max_rounds=1), "interreflected", lmax=2,
-                     samples=64, bounces=2, threads=2)
+    t = bake_refined(sc, REFINEMENTS[name].but(max_rounds=1),
+                     PrtSettings(mode="interreflected", lmax=2, samples=64, bounces=2,
+                                 threads=2))
     check(summary(t), GOLDEN[name])
 
 

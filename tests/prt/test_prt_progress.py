@@ -11,26 +11,31 @@ import sys
 import pytest
 
 from shprobe.cli.main import main
-from shprobe.prt import QUICK, estimate_bake, load_scene
+from shprobe.prt import QUICK, PrtSettings, estimate_bake, load_scene
 from shprobe.prt.trace import bake_bytes
 
 
 def test_estimate_grows_with_the_work_and_uses_the_memory_model(sphere_obj):
     sc = load_scene(str(sphere_obj), ground=True)
-    small = estimate_bake(sc, "shadowed", 2, 256, refine=None, threads=2)
+
+    def est(mode, lmax, samples, refine=False, threads=2):
+        return estimate_bake(sc, PrtSettings(mode=mode, lmax=lmax, samples=samples,
+                                             refine=refine, threads=threads))
+
+    small = est("shadowed", 2, 256)
     assert small.vertices == sc.n_vertices
-    more = [estimate_bake(sc, "shadowed", 2, 1024, refine=None, threads=2),
-            estimate_bake(sc, "shadowed", 6, 1024, refine=None, threads=2),
-            estimate_bake(sc, "interreflected", 6, 1024, refine=None, threads=2),
-            estimate_bake(sc, "interreflected", 6, 1024, refine=QUICK, threads=2)]
+    more = [est("shadowed", 2, 1024), est("shadowed", 6, 1024),
+            est("interreflected", 6, 1024), est("interreflected", 6, 1024, refine=QUICK)]
     times = [small.seconds] + [e.seconds for e in more]
     assert times == sorted(times) and len(set(times)) == len(times)
-    assert estimate_bake(sc, "shadowed", 2, 1024, threads=1).seconds == pytest.approx(
-        2 * more[0].seconds)
+    assert est("shadowed", 2, 1024, threads=1).seconds == pytest.approx(2 * more[0].seconds)
+    # a BakeScene is refined when asked: None is no refinement here
+    assert est("interreflected", 6, 1024, refine=None) == more[2]
     e = more[2]  # unrefined: the bake's own memory model plus the process
-    from shprobe.prt.baking import BASE_BYTES
+    from shprobe.prt.baking import BASE_BYTES, TRACE_BYTES
 
-    assert e.bytes == pytest.approx(BASE_BYTES + bake_bytes(sc.n_vertices, 6, 1024, 3, 1, 2))
+    assert e.bytes == pytest.approx(BASE_BYTES + TRACE_BYTES
+                                    + bake_bytes(sc.n_vertices, 6, 1024, 3, 1, 2))
     assert str(e).startswith("about ") and ("B" in str(e))
 
 

@@ -12,7 +12,18 @@ import trimesh
 from bench.prt_gather import Gather
 
 from shprobe.errors import ShprobeError
-from shprobe.prt import ACCURATE, QUICK, BakeScene, bake, load_scene, load_transfer, relight
+from shprobe.prt import (
+    ACCURATE,
+    QUICK,
+    BakeScene,
+    PrtSettings,
+    bake,
+    load_scene,
+    load_transfer,
+    relight,
+)
+from shprobe.prt import PrtSettings as P
+from shprobe.prt.criteria import Gathered
 from shprobe.prt.refine import bake_refined
 from shprobe.prt.subdivide import edge_table as _edges
 from shprobe.prt.subdivide import split_edges
@@ -29,8 +40,9 @@ def refined(scene, *, preset=QUICK, mode="interreflected", lmax=4, samples=1024,
     builds it (a BakeScene is taken as it is)."""
     sc = scene if isinstance(scene, BakeScene) else load_scene(
         scene, albedo=albedo, ground=ground, ground_resolution=ground_resolution)
-    return bake_refined(sc, preset.but(**settings) if settings else preset, mode, lmax,
-                        samples, bounces, seed, threads, progress)
+    return bake_refined(sc, preset.but(**settings) if settings else preset,
+                        PrtSettings(mode=mode, lmax=lmax, samples=samples, bounces=bounces,
+                                    seed=seed, threads=threads), progress)
 
 
 def mask_of(n, rows):
@@ -144,7 +156,7 @@ def test_refined_bake_is_the_default_with_a_ground_and_loads_against_its_mesh(tm
     assert "refine" not in plain.metadata and plain.n_vertices == 42 + 65 * 65
     with pytest.raises(ShprobeError, match="traced"):
         refined(str(p), mode="unshadowed")
-    with pytest.raises(ShprobeError, match="traced"):
+    with pytest.raises(ShprobeError, match="unknown PRT mode"):
         refined(str(p), mode="glossy")
 
 
@@ -158,15 +170,17 @@ def test_dense_vertices_get_their_own_direction_set():
     mask = np.zeros(sc.n_vertices, dtype=bool)
     mask[::3] = True
     lo, hi = (bake(sc, mode="shadowed", lmax=2, samples=s) for s in (64, 256))
-    mixed = trace_bake(sc, "shadowed", 2, 64, dense=DenseVertices(mask, 256))[0]
+    mixed = trace_bake(sc, P(mode="shadowed", lmax=2, samples=64),
+                       dense=DenseVertices(mask, 256))[0]
     np.testing.assert_array_equal(mixed.traced[0][mask], hi.traced[0][mask])
     np.testing.assert_array_equal(mixed.traced[0][~mask], lo.traced[0][~mask])
     assert mixed.metadata["dense_vertices"] == mask.sum()
     a = bake(sc, mode="interreflected", lmax=2, samples=64, bounces=2)
-    b = trace_bake(sc, "interreflected", 2, 64, 2, dense=DenseVertices(mask, 64))[0]
+    b = trace_bake(sc, P(mode="interreflected", lmax=2, samples=64, bounces=2),
+                   dense=DenseVertices(mask, 64))[0]
     np.testing.assert_allclose(b.traced, a.traced, rtol=1e-6, atol=1e-7)
     with pytest.raises(ShprobeError, match="dense"):
-        trace_bake(sc, "shadowed", 2, 64, dense=DenseVertices(mask[1:], 64))
+        trace_bake(sc, P(mode="shadowed", lmax=2, samples=64), dense=DenseVertices(mask[1:], 64))
 
 
 def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
@@ -187,7 +201,8 @@ def test_direction_sets_give_neighbours_their_own_rotation_of_the_directions():
     f = np.concatenate([np.stack([q[:-1, :-1], q[:-1, 1:], q[1:, :-1]], -1).reshape(-1, 3),
                         np.stack([q[1:, :-1], q[:-1, 1:], q[1:, 1:]], -1).reshape(-1, 3)])
     plane = trimesh.Trimesh(v, f, process=False)
-    one, many = (trace_bake(load_scene(plane, albedo=1.0), "shadowed", 2, 64, sets=s)[0]
+    one, many = (trace_bake(load_scene(plane, albedo=1.0), P(mode="shadowed", lmax=2, samples=64),
+                              sets=s)[0]
                  for s in (1, 64))
     exact = unshadowed_transfer(one.normals, 2) / np.pi  # ρ/π ∫ max(0, n·ω) y dω, ρ = 1
     t1, tn = (np.asarray(t.traced[0], dtype=np.float64) for t in (one, many))
@@ -269,7 +284,8 @@ def test_gather_matrix_row_is_the_form_factor_of_what_the_vertex_sees():
 
     h, a = 0.05, 0.5
     sc = _plate_scene(h)
-    t, blocks = trace_bake(sc, "interreflected", 2, 4096, 2, 0, 1, keep_gather=True)
+    t, blocks = trace_bake(sc, P(mode="interreflected", lmax=2, samples=4096, bounces=2,
+                                    seed=0, threads=1), keep_gather=True)
     c = int(np.argmin(np.linalg.norm(sc.vertices, axis=1)))
     x = a / h
     q = x / np.sqrt(1 + x * x)
@@ -398,7 +414,7 @@ def test_picked_vertices_baked_as_if_dense_from_the_start(quadrature):
     seeds = np.zeros(sc.n_vertices, dtype=bool)
     seeds[[0, 5, 44, 60]] = True
     extra = np.array([2, 7, 50, 51, 70])
-    args = (sc, "interreflected", 1, 128, 2, 4, 1)
+    args = (sc, P(mode="interreflected", lmax=1, samples=128, bounces=2, seed=4, threads=1))
     calls = []
 
     def pick(direct, cum, blocks, alb):
@@ -462,8 +478,8 @@ def test_post_split_marks_against_explicit_loops():
     edges = np.array([(a, b) for a in range(nv) for b in range(a + 1, nv)
                       if rng.random() < 0.3])
     tol, share_tol = 0.3, 0.02
-    marked, hit = post_split_marks(t0, edges, direct, cum, blocks, alb, gath, tol, share_tol,
-                                   floor=0.5)
+    marked, hit = post_split_marks(t0, edges, Gathered(direct, cum, blocks, alb), gath, tol,
+                                   share_tol, floor=0.5)
 
     lvl = np.linalg.norm(cum.reshape(nv, -1), axis=1)
     scale = np.maximum(lvl, 0.5 * np.median(lvl))
@@ -522,7 +538,7 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_densel
 
     sc = BakeScene(post.vertices, post.normals, post.faces, post.albedo,
                    mesh_hash(post.vertices, post.faces))
-    plain, _ = trace_bake(sc, "interreflected", 1, 64, 1)
+    plain, _ = trace_bake(sc, P(mode="interreflected", lmax=1, samples=64, bounces=1))
     diff = np.linalg.norm((plain.traced[0] - post.traced[0])[n:].reshape(
         post.n_vertices - n, -1), axis=1)
     assert (diff > 1e-4).sum() >= rf["post_dense"]
@@ -539,7 +555,7 @@ def test_post_pass_splits_among_what_the_contact_leans_on_and_traces_them_densel
             {"vertices": rc["post_dense"], "samples": factor * 64} if factor else None)
         sc = BakeScene(cheap.vertices, cheap.normals, cheap.faces, cheap.albedo,
                        mesh_hash(cheap.vertices, cheap.faces))
-        plain, _ = trace_bake(sc, "interreflected", 1, 64, 1)
+        plain, _ = trace_bake(sc, P(mode="interreflected", lmax=1, samples=64, bounces=1))
         nc = cheap.n_vertices - n
         same = np.abs(plain.traced[0] - cheap.traced[0])[n:].reshape(nc, -1).max(1) < 1e-6
         assert nc - rc["post_dense"] - rc["dense_picked"] <= same.sum() <= nc - rc["post_dense"]

@@ -4,9 +4,9 @@ exact-irradiance error and thumbnail) computed on Dask and written to Parquet, r
 See docs/batch.md. Layer: above hbasis / prt / fitting, below the CLI.
 """
 
-from .engine import Engine, parts_dir, read_table, run_batch
+from .engine import BatchSettings, Engine, parts_dir, read_table, run_batch
 from .inputs import expand_inputs
 from .rows import COLUMNS, BatchOptions, content_hash, probe_row, schema
 
-__all__ = ["COLUMNS", "BatchOptions", "Engine", "content_hash", "expand_inputs", "parts_dir",
-           "probe_row", "read_table", "run_batch", "schema"]
+__all__ = ["COLUMNS", "BatchOptions", "BatchSettings", "Engine", "content_hash",
+           "expand_inputs", "parts_dir", "probe_row", "read_table", "run_batch", "schema"]

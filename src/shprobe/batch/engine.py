@@ -21,7 +21,7 @@ import secrets
 import shutil
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +31,9 @@ from ..limits import check_disk
 from .inputs import expand_inputs
 from .lock import interruptible, output_lock
 from .rows import COLUMNS, RENAMED, SCHEMA_VERSION, BatchOptions, empty_row, probe_row, schema
+from .settings import BatchSettings, Engine
 
-__all__ = ["Engine", "parts_dir", "read_table", "run_batch"]
+__all__ = ["BatchSettings", "Engine", "parts_dir", "read_table", "run_batch"]
 
 #: Progress callback: (done, total) after each probe.
 Progress = Callable[[int, int], None]
@@ -372,80 +373,43 @@ def _plugin(keep_heap: bool = False):
     return WarmPlugin(keep_heap)
 
 
-@dataclass(frozen=True)
-class Engine:
-    """Where a batch runs: ``client`` (a ``distributed.Client``) if given; else ``scheduler``:
-    ``"inline"`` runs in this process, ``"tcp://HOST:PORT"`` (or ``$DASK_SCHEDULER_ADDRESS``
-    when ``scheduler`` is None) uses that Dask cluster, otherwise a local cluster of ``workers``
-    processes (default: one per core) × 1 thread is started and closed again. On Dask, each
-    task computes ``chunk`` probes (below 1 means 1; default `chunk_size`: up to 8, fewer
-    for small batches), the largest files first.
-
-    Parameters
-    ----------
-    scheduler
-        "inline", "tcp://HOST:PORT", or None (``$DASK_SCHEDULER_ADDRESS``, else a local
-        cluster).
-    workers
-        Processes of a local cluster (default: one per core).
-    client
-        A ``distributed.Client`` to use instead.
-    chunk
-        Probes per Dask task (default: up to 8).
-    """
-
-    scheduler: str | None = None
-    workers: int | None = None
-    client: Any = None
-    chunk: int | None = None
-
-
 def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
-              output: str | os.PathLike[str] | None = None, *,
-              options: BatchOptions | None = None, layout: str = "auto",
-              engine: Engine | None = None, force: bool = False,
-              progress: Progress | None = None, flush_rows: int = 256,
-              flush_seconds: float = 30.0):
-    """Compute the batch table of INPUTS (see
-    [`shprobe.batch.expand_inputs`][shprobe.batch.expand_inputs]) and return it as a
-    ``pyarrow.Table`` (columns: [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS]), sorted by path.
-
-    ``options`` ([`BatchOptions`][shprobe.batch.BatchOptions]): what each row computes (default:
-    lmax 2). ``engine`` ([`Engine`][shprobe.batch.Engine]): where it runs (default: a local Dask
-    cluster). ``progress`` gets one stage counting the probes (`shprobe.progress`).
-
-    ``output`` (``.parquet``): written in parts (every ``flush_rows`` rows or
-    ``flush_seconds``) and committed atomically, resumable (module doc). An existing table
-    made with other options is refused unless ``force``, which starts afresh.
+              output: str | os.PathLike[str] | None = None,
+              settings: BatchSettings | None = None, progress: Progress | None = None, *,
+              force: bool = False, **changes: Any):
+    """Compute the batch table of INPUTS and return it, sorted by path.
 
     Parameters
     ----------
     inputs
-        Probe files, folders or glob patterns.
+        Files, folders, globs or lists of paths
+        ([`shprobe.batch.expand_inputs`][shprobe.batch.expand_inputs]).
     output
-        The ``.parquet`` table, written in parts and committed atomically; None keeps it in
-        memory.
-    options
-        What each row computes (default: lmax 2).
-    layout
-        The probes' layout, or "auto".
-    engine
-        Where it runs (default: a local Dask cluster).
-    force
-        Start afresh over a table made with other options.
+        A ``.parquet`` table: written in parts (every ``flush_rows`` rows or
+        ``flush_seconds``) and committed atomically, resumable (module doc); None: none.
+    settings
+        The run's [`BatchSettings`][shprobe.batch.BatchSettings] (default: lmax 2 on a local Dask
+        cluster).
     progress
-        Told about the probes done.
-    flush_rows, flush_seconds
-        How often a part is written.
+        Gets one stage counting the probes (`shprobe.progress`).
+    force
+        Start afresh: an existing table made with other options is refused without it.
+    **changes
+        Fields of [`BatchSettings`][shprobe.batch.BatchSettings] changed from ``settings``
+        (``options=``, ``engine=``, ``layout=``, ``flush_rows=``, ``flush_seconds=``).
 
     Returns
     -------
     pyarrow.Table
-        One row per probe, sorted by path.
+        Columns [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS], one row per probe.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
 
-    o = options or BatchOptions()
+    settings = settings if settings is not None else BatchSettings()
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if changes:
+        settings = replace(settings, **changes)
+    o = settings.options or BatchOptions()
     options = BatchOptions(lmax=int(o.lmax), clamp=bool(o.clamp),
                            reference=None if not o.reference else int(o.reference),
                            thumbnail=int(o.thumbnail or 0), window=bool(o.window),
@@ -459,15 +423,15 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         if out.suffix.lower() != ".parquet":
             raise ShprobeError("the batch table must be a .parquet file", out)
         check_output_path(out, overwrite=True)
+    settings = replace(settings, options=options)
     with output_lock(out), interruptible() as interrupted:
-        return _run(inputs, out, layout, options, meta, force, progress, interrupted,
-                    engine or Engine(), (flush_rows, flush_seconds))
+        return _run(inputs, out, settings, meta, force, progress, interrupted)
 
 
-def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dict[str, Any],
-         force: bool, progress: Progress | None, interrupted: list[int], engine: Engine,
-         flush_every: tuple[int, float]):
+def _run(inputs, out: Path | None, settings: BatchSettings, meta: dict[str, Any],
+         force: bool, progress: Progress | None, interrupted: list[int]):
     """[`run_batch`][shprobe.batch.run_batch] once the output is locked."""
+    layout, options, engine = settings.layout, settings.options, settings.engine
     old: list[dict[str, Any]] = []
     if out is not None:
         if force:
@@ -486,7 +450,7 @@ def _run(inputs, out: Path | None, layout: str, options: BatchOptions, meta: dic
     pending: list[dict[str, Any]] = []
     last = time.monotonic()
     n_done = 0
-    flush_rows, flush_seconds = flush_every
+    flush_rows, flush_seconds = settings.flush_rows, settings.flush_seconds
     if progress is not None:
         progress.begin(f"prefiltering {total:,} probes", total)
 

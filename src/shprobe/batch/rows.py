@@ -345,9 +345,10 @@ def probe_row(path: str, layout: str = "auto", options: BatchOptions | None = No
             from ..probes.env import load_env
 
             env = load_env(path, None if fp.layout is None else fp.layout, clamp=opt.clamp)
-            rep = error_report(env, (opt.lmax,), normal_grid=opt.reference).row(opt.lmax)
-            row.update(reference_grid=int(opt.reference), error_mean=rep.mean_frac,
-                       error_max=rep.max_frac)
+            doc = error_report(env, (opt.lmax,), normal_grid=opt.reference).as_dict()
+            rep = doc["rows"][0]
+            row.update(reference_grid=int(opt.reference), error_mean=rep["mean_frac"],
+                       error_max=rep["max_frac"])
         if thumb:
             row["thumbnail"], row["thumbnail_exposure"] = thumb[0].png()
         for k in ("dominant_strength", "window_strength", "error_mean", "error_max"):

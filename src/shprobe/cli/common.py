@@ -39,6 +39,25 @@ def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[f
     return vals
 
 
+def setting_default(settings_type: type, name: str):
+    """The default of field ``name`` of a settings dataclass: the one defaults table the CLI's
+    options read (``tests/test_cli_defaults.py`` checks they agree)."""
+    import dataclasses
+
+    f = settings_type.__dataclass_fields__[name]
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    return f.default_factory()  # type: ignore[misc]
+
+
+def parse_albedo(text: str):
+    """One ``--albedo`` value: a grey number or r,g,b."""
+    v = parse_floats(text, what="albedo")
+    if len(v) not in (1, 3):
+        raise ShprobeError(f"albedo {text!r} must be one number or r,g,b")
+    return v[0] if len(v) == 1 else tuple(v)
+
+
 def parse_vector(text: str, what: str = "direction"):
     """'x,y,z' → a unit vector (numpy array), via `shprobe.sh.rotation.unit_vectors`
     (overflow-safe; zero and non-finite vectors refused in one line)."""

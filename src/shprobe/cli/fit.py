@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import click
 
+from ..fitting.settings import FitSettings
 from ..lighting.export import FORMATS as EXPORT_FORMATS
-from .common import force_option
+from .common import force_option, setting_default
 from .output import progress, verbosity, wrote
 
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
@@ -19,8 +20,10 @@ def _outputs(f):
                      "(json: its document plus a 'fit' object)."),
         click.option("--output", "-o", type=click.Path(dir_okay=False),
                      help="Write the coefficients to FILE instead of stdout."),
-        click.option("--saturation", type=float, help="Pixels with a channel >= this are "
-                     "clipped [default: 0.999 for 8/16-bit photos, none for HDR]."),
+        click.option("--saturation", type=float,
+                     default=setting_default(FitSettings, "saturation"),
+                     help="Pixels with a channel >= this are clipped [default: 0.999 for "
+                     "8/16-bit photos, none for HDR]."),
         click.option("--residual", type=click.Path(dir_okay=False),
                      help="Residual image photo - fit (.exr .pfm .tif; linear, signed)."),
         click.option("--fitted", type=click.Path(dir_okay=False),
@@ -144,119 +147,121 @@ def _table_text(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
+
+@click.group("fit")
+def fit_group():
+    """SH lighting (nine RGB coefficients L_lm) from photos of a grey ball, a chrome ball,
+    or any diffuse object of known shape (R&H 2001 §2–3 run backwards)."""
+
+@fit_group.command("grey-ball")
+@click.argument("photo", type=click.Path(dir_okay=False))
+@_ball_options
+@click.option("--albedo", type=float, default=1.0, show_default=True,
+              help="The ball's albedo x exposure (1: coefficients carry that scale).")
+@click.option("--inset", type=float, default=1.0, show_default=True,
+              help="Leave out pixels within this many px of the outline.")
+@click.option("--irradiance", type=click.Path(dir_okay=False),
+              help="Fitted irradiance E(n) on the ball (.exr .pfm .tif .png).")
+@click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
+@_outputs
+def grey_ball_cmd(photo, circle, camera_text, albedo, inset, irradiance, no_robust, fmt,
+                  output, saturation, residual, fitted, mask, report, force):
+    """Lighting from a photo of a diffuse (grey) ball."""
+    from ..fitting import FitSettings, fit_grey_ball
+
+    images = {"residual": residual, "fitted": fitted, "rejected": mask,
+              "irradiance": irradiance}
+    c, cam = _ball(circle, camera_text)
+    ph, img, sat = _start(photo, saturation, output, images, report, force)
+    with _fitting("the grey ball"):
+        res = fit_grey_ball(img, c, cam, FitSettings(saturation=sat, robust=not no_robust),
+                            albedo=albedo, inset=inset, path=photo)
+    _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}", ph)
+
+@fit_group.command("chrome-ball")
+@click.argument("photo", type=click.Path(dir_okay=False))
+@_ball_options
+@click.option("--reflectance", type=float, default=1.0, show_default=True,
+              help="The mirror's reflectance x exposure.")
+@click.option("--inset", type=float, default=0.5, show_default=True,
+              help="Leave out pixels within this many px of the outline (the blind spot "
+              "behind the ball grows with it).")
+@_outputs
+def chrome_ball_cmd(photo, circle, camera_text, reflectance, inset, fmt, output,
+                    saturation, residual, fitted, mask, report, force):
+    """Lighting from a photo of a mirror (chrome) ball."""
+    from ..fitting import fit_chrome_ball
+
+    images = {"residual": residual, "fitted": fitted, "rejected": mask}
+    c, cam = _ball(circle, camera_text)
+    ph, img, sat = _start(photo, saturation, output, images, report, force)
+    with _fitting("the chrome ball"):
+        res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
+                              inset=inset, path=photo)
+    _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}", ph)
+
+@fit_group.command("normals")
+@click.argument("photo", type=click.Path(dir_okay=False))
+@click.argument("normal_map", type=click.Path(dir_okay=False))
+@click.option("--albedo", type=float, default=1.0, show_default=True)
+@click.option("--irradiance", type=click.Path(dir_okay=False),
+              help="Fitted irradiance E(n) image.")
+@click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
+@_outputs
+def normals_cmd(photo, normal_map, albedo, irradiance, no_robust, fmt, output, saturation,
+                residual, fitted, mask, report, force):
+    """Lighting from a photo and a per-pixel normal map (float image, e.g. .exr, holding
+    unit normals in the lighting's frame; zero = background)."""
+    from ..fitting import fit_normals, read_normal_map
+
+    images = {"residual": residual, "fitted": fitted, "rejected": mask,
+              "irradiance": irradiance}
+    ph, img, sat = _start(photo, saturation, output, images, report, force)
+    nrm = read_normal_map(normal_map)
+    if nrm.shape[:2] != img.shape[:2]:
+        from ..errors import ShprobeError
+
+        raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
+                           f"{img.shape[1]}x{img.shape[0]}", normal_map)
+    with _fitting("the normal map's pixels"):
+        res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
+    _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}", ph)
+
+@fit_group.command("mesh")
+@click.argument("photo", type=click.Path(dir_okay=False))
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.option("--projection", type=click.Choice(("perspective", "orthographic")),
+              default="perspective", show_default=True)
+@click.option("--fov", type=float, default=40.0, show_default=True,
+              help="Vertical field of view, degrees.")
+@click.option("--azimuth", type=float, default=0.0, show_default=True)
+@click.option("--elevation", type=float, default=0.0, show_default=True)
+@click.option("--distance", type=float, help="Camera distance [default: framing fit].")
+@click.option("--margin", type=float, default=1.1, show_default=True)
+@click.option("--albedo", type=float, default=1.0, show_default=True)
+@click.option("--irradiance", type=click.Path(dir_okay=False),
+              help="Fitted irradiance E(n) image.")
+@click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
+@_outputs
+def mesh_cmd(photo, mesh, projection, fov, azimuth, elevation, distance, margin, albedo,
+             irradiance, no_robust, fmt, output, saturation, residual, fitted, mask,
+             report, force):
+    """Lighting from a photo of a diffuse mesh seen by the renderer's camera (`shprobe
+    render` options: the photo's size is the camera's)."""
+    from ..fitting import fit_mesh
+    from ..scene import Camera, load_mesh
+
+    images = {"residual": residual, "fitted": fitted, "rejected": mask,
+              "irradiance": irradiance}
+    ph, img, sat = _start(photo, saturation, output, images, report, force)
+    m = load_mesh(mesh)
+    cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
+                 distance, None, margin)
+    with _fitting(f"the {len(m.vertices):,}-vertex mesh"):
+        res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
+    _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}", ph)
+
+
 def register(group: click.Group) -> None:
     """Add the ``fit`` group."""
-
-    @group.group("fit")
-    def fit_group():
-        """SH lighting (nine RGB coefficients L_lm) from photos of a grey ball, a chrome ball,
-        or any diffuse object of known shape (R&H 2001 §2–3 run backwards)."""
-
-    @fit_group.command("grey-ball")
-    @click.argument("photo", type=click.Path(dir_okay=False))
-    @_ball_options
-    @click.option("--albedo", type=float, default=1.0, show_default=True,
-                  help="The ball's albedo x exposure (1: coefficients carry that scale).")
-    @click.option("--inset", type=float, default=1.0, show_default=True,
-                  help="Leave out pixels within this many px of the outline.")
-    @click.option("--irradiance", type=click.Path(dir_okay=False),
-                  help="Fitted irradiance E(n) on the ball (.exr .pfm .tif .png).")
-    @click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
-    @_outputs
-    def grey_ball_cmd(photo, circle, camera_text, albedo, inset, irradiance, no_robust, fmt,
-                      output, saturation, residual, fitted, mask, report, force):
-        """Lighting from a photo of a diffuse (grey) ball."""
-        from ..fitting import fit_grey_ball
-
-        images = {"residual": residual, "fitted": fitted, "rejected": mask,
-                  "irradiance": irradiance}
-        c, cam = _ball(circle, camera_text)
-        ph, img, sat = _start(photo, saturation, output, images, report, force)
-        with _fitting("the grey ball"):
-            res = fit_grey_ball(img, c, cam, albedo=albedo, saturation=sat, inset=inset,
-                                robust=not no_robust, path=photo)
-        _emit(res, img, photo, fmt, output, images, report, force, f"grey ball: {photo}", ph)
-
-    @fit_group.command("chrome-ball")
-    @click.argument("photo", type=click.Path(dir_okay=False))
-    @_ball_options
-    @click.option("--reflectance", type=float, default=1.0, show_default=True,
-                  help="The mirror's reflectance x exposure.")
-    @click.option("--inset", type=float, default=0.5, show_default=True,
-                  help="Leave out pixels within this many px of the outline (the blind spot "
-                  "behind the ball grows with it).")
-    @_outputs
-    def chrome_ball_cmd(photo, circle, camera_text, reflectance, inset, fmt, output,
-                        saturation, residual, fitted, mask, report, force):
-        """Lighting from a photo of a mirror (chrome) ball."""
-        from ..fitting import fit_chrome_ball
-
-        images = {"residual": residual, "fitted": fitted, "rejected": mask}
-        c, cam = _ball(circle, camera_text)
-        ph, img, sat = _start(photo, saturation, output, images, report, force)
-        with _fitting("the chrome ball"):
-            res = fit_chrome_ball(img, c, cam, reflectance=reflectance, saturation=sat,
-                                  inset=inset, path=photo)
-        _emit(res, img, photo, fmt, output, images, report, force, f"chrome ball: {photo}", ph)
-
-    @fit_group.command("normals")
-    @click.argument("photo", type=click.Path(dir_okay=False))
-    @click.argument("normal_map", type=click.Path(dir_okay=False))
-    @click.option("--albedo", type=float, default=1.0, show_default=True)
-    @click.option("--irradiance", type=click.Path(dir_okay=False),
-                  help="Fitted irradiance E(n) image.")
-    @click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
-    @_outputs
-    def normals_cmd(photo, normal_map, albedo, irradiance, no_robust, fmt, output, saturation,
-                    residual, fitted, mask, report, force):
-        """Lighting from a photo and a per-pixel normal map (float image, e.g. .exr, holding
-        unit normals in the lighting's frame; zero = background)."""
-        from ..fitting import fit_normals, read_normal_map
-
-        images = {"residual": residual, "fitted": fitted, "rejected": mask,
-                  "irradiance": irradiance}
-        ph, img, sat = _start(photo, saturation, output, images, report, force)
-        nrm = read_normal_map(normal_map)
-        if nrm.shape[:2] != img.shape[:2]:
-            from ..errors import ShprobeError
-
-            raise ShprobeError(f"normal map is {nrm.shape[1]}x{nrm.shape[0]} but the photo is "
-                               f"{img.shape[1]}x{img.shape[0]}", normal_map)
-        with _fitting("the normal map's pixels"):
-            res = fit_normals(img, nrm, albedo=albedo, saturation=sat, robust=not no_robust)
-        _emit(res, img, photo, fmt, output, images, report, force, f"normal map: {photo}", ph)
-
-    @fit_group.command("mesh")
-    @click.argument("photo", type=click.Path(dir_okay=False))
-    @click.argument("mesh", type=click.Path(dir_okay=False))
-    @click.option("--projection", type=click.Choice(("perspective", "orthographic")),
-                  default="perspective", show_default=True)
-    @click.option("--fov", type=float, default=40.0, show_default=True,
-                  help="Vertical field of view, degrees.")
-    @click.option("--azimuth", type=float, default=0.0, show_default=True)
-    @click.option("--elevation", type=float, default=0.0, show_default=True)
-    @click.option("--distance", type=float, help="Camera distance [default: framing fit].")
-    @click.option("--margin", type=float, default=1.1, show_default=True)
-    @click.option("--albedo", type=float, default=1.0, show_default=True)
-    @click.option("--irradiance", type=click.Path(dir_okay=False),
-                  help="Fitted irradiance E(n) image.")
-    @click.option("--no-robust", is_flag=True, help="Plain least squares (no IRLS).")
-    @_outputs
-    def mesh_cmd(photo, mesh, projection, fov, azimuth, elevation, distance, margin, albedo,
-                 irradiance, no_robust, fmt, output, saturation, residual, fitted, mask,
-                 report, force):
-        """Lighting from a photo of a diffuse mesh seen by the renderer's camera (`shprobe
-        render` options: the photo's size is the camera's)."""
-        from ..fitting import fit_mesh
-        from ..scene import Camera, load_mesh
-
-        images = {"residual": residual, "fitted": fitted, "rejected": mask,
-                  "irradiance": irradiance}
-        ph, img, sat = _start(photo, saturation, output, images, report, force)
-        m = load_mesh(mesh)
-        cam = Camera(img.shape[1], img.shape[0], projection, azimuth, elevation, fov,
-                     distance, None, margin)
-        with _fitting(f"the {len(m.vertices):,}-vertex mesh"):
-            res = fit_mesh(img, m, cam, albedo=albedo, saturation=sat, robust=not no_robust)
-        _emit(res, img, photo, fmt, output, images, report, force, f"mesh {mesh}: {photo}", ph)
-
+    group.add_command(fit_group)

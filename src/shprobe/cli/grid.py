@@ -8,8 +8,20 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from .common import clamp_option, force_option, layout_option, parse_floats
+from ..grids.settings import GridSettings
+from .common import (
+    clamp_option,
+    force_option,
+    layout_option,
+    parse_albedo,
+    parse_floats,
+    setting_default,
+)
 from .sources import PRESET_NAMES
+
+
+def _default(name: str):
+    return setting_default(GridSettings, name)
 
 
 @click.group("grid")
@@ -58,14 +70,14 @@ def parse_bounds(text: str):
 @click.option("--albedo", multiple=True, metavar="RHO|R,G,B",
               help="Diffuse albedo: once for every mesh, or once per mesh in the order of "
                    "SCENE. Default: a mesh's own colours and materials, else 0.8.")
-@click.option("--bounces", type=int, default=2, show_default=True,
+@click.option("--bounces", type=int, default=_default("bounces"), show_default=True,
               help="Diffuse interreflection bounces (0: the environment past the scene only).")
-@click.option("--lmax", type=click.Choice(["1", "2"]), default="2", show_default=True,
-              help="SH degree of each probe (L1: 4 coefficients, L2: 9).")
-@click.option("--samples", type=int, default=4096, show_default=True,
+@click.option("--lmax", type=click.Choice(["1", "2"]), default=str(_default("lmax")),
+              show_default=True, help="SH degree of each probe (L1: 4 coefficients, L2: 9).")
+@click.option("--samples", type=int, default=_default("samples"), show_default=True,
               help="Rays per probe: the accuracy option (docs/grids.md gives its cost and "
                    "gain).")
-@click.option("--gather", type=int, default=2, show_default=True,
+@click.option("--gather", type=int, default=_default("gather"), show_default=True,
               help="Rays from each surface a probe ray meets, gathering that surface's own "
                    "light (0: read it from the grid, faster, up to 13 % high beside walls).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
@@ -80,12 +92,9 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     moved out, and depth maps that keep the interpolation from leaking through walls."""
     from ..files import check_output_path
     from ..grids import GridSettings, bake_grid, estimate_grid_bake
-    from ..grids.bake import grid_bounds
+    from ..grids.bake import grid_scene
     from ..grids.io import save_grid
-    from ..grids.scenes import named_scene
-    from ..prt import load_scene
-    from .output import detail, estimate, progress, wrote
-    from .prt import albedo_arguments
+    from .output import detail, estimate, limits, progress, wrote
     from .sources import resolve_coeffs
 
     check_output_path(output, force)
@@ -94,34 +103,19 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
     settings = GridSettings(resolution=parse_resolution(resolution),
                             bounds=None if bounds is None else parse_bounds(bounds),
                             lmax=int(lmax), bounces=bounces, samples=samples,
-                            gather=gather)
-    given = [n for n, v in (("--lighting", probe), ("--preset", preset),
-                            ("--coeffs", coeffs_file)) if v]
-    if len(given) != 1:
-        raise ShprobeError("give exactly one lighting source: --lighting PROBE, --preset NAME "
-                           f"or --coeffs FILE (got {', '.join(given) or 'none'})")
+                            gather=gather, limits=limits())
     light = resolve_coeffs(probe, preset, coeffs_file, layout=layout, clamp=clamp,
-                           lmax=8 if probe else None, need_env=False)
-    where = scene[0] if len(scene) == 1 else None
-    named = [named_scene(s) for s in scene]
-    if settings.bounds is None and len(scene) == 1 and named[0] is not None:
-        settings = GridSettings(**{**settings.__dict__, "bounds": named[0][1]})
-    try:
-        sc = load_scene([s if n is None else n[0] for s, n in zip(scene, named, strict=True)],
-                        **albedo_arguments(albedo, len(scene)))
-    except ShprobeError as e:
-        raise ShprobeError(e.message, e.path or where) from None
-    if len(sc.faces) == 0:
-        raise ShprobeError("the scene has no faces", where)
-    box = grid_bounds(sc, settings)
-    est = estimate_grid_bake(len(sc.faces), settings)
+                           lmax=8 if probe else None, need_env=False,
+                           probe_flag="--lighting PROBE")
+    sc, settings = grid_scene(scene, settings, [parse_albedo(a) for a in albedo])
     nx, ny, nz = settings.resolution
-    estimate(est, f"bake of a {nx}x{ny}x{nz} grid, {samples} rays per probe")
-    g = bake_grid(sc, light, GridSettings(**{**settings.__dict__, "bounds": box}),
-                  progress=progress())
+    estimate(estimate_grid_bake(len(sc.faces), settings),
+             f"bake of a {nx}x{ny}x{nz} grid, {samples} rays per probe")
+    g = bake_grid(sc, light, settings, progress=progress())
     save_grid(output, g, overwrite=force)
-    detail(f"{g.meta['moved']} probes moved out of geometry, {g.meta['invalid']} invalid "
-           f"(filled from neighbours); bake {g.meta['seconds']:.1f} s")
+    meta = g.as_dict()["meta"]
+    detail(f"{meta['moved']} probes moved out of geometry, {meta['invalid']} invalid "
+           f"(filled from neighbours); bake {meta['seconds']:.1f} s")
     wrote(output, f"{nx}x{ny}x{nz} grid, lmax {lmax}, {bounces} bounces")
 
 

@@ -7,9 +7,10 @@ from pathlib import Path
 import click
 
 from ..errors import ShprobeError
-from ..progress import Steps, stage
-from .common import ROTATE_HELP, force_option, parse_rotation
-from .output import estimate, progress, wrote
+from ..hbasis.baking import BASES, HBasisSettings, bake_hbasis
+from ..progress import stage
+from .common import ROTATE_HELP, force_option, parse_rotation, setting_default
+from .output import estimate, limits, progress, wrote
 
 table_option = click.option("--table", "show_table", is_flag=True,
                             help="Also print the result's tables (markdown) on stdout.")
@@ -78,8 +79,10 @@ def _lighting(probe: Path):
 @click.argument("probe", type=click.Path(path_type=Path))
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Output .npz (h, sh9, frames, handedness, t_h, mesh_hash, L).")
-@click.option("--basis", type=click.Choice(["h6", "h4"]), default="h6", show_default=True)
-@click.option("--bands", type=click.IntRange(2, 16), default=4, show_default=True,
+@click.option("--basis", type=click.Choice(list(BASES)),
+              default=setting_default(HBasisSettings, "basis"), show_default=True)
+@click.option("--bands", type=click.IntRange(2, 16),
+              default=setting_default(HBasisSettings, "bands"), show_default=True,
               help="SH bands of the irradiance projected into H (2: paper's T_h; 4: + App. A).")
 @force_option
 def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, force: bool) -> None:
@@ -88,18 +91,18 @@ def bake_cmd(mesh: Path, probe: Path, output: Path, basis: str, bands: int, forc
     probe's radiance SH L (l ≤ 16), so `hbasis render MESH FILE.npz` can use it directly."""
     from ..files import check_output_path
     from ..hbasis.bakefile import save_bake
-    from ..hbasis.normalmap import bake_mesh
+    from ..progress import numbered
     from ..scene.mesh import load_mesh
 
     check_output_path(output, force)
+    settings = HBasisSettings(basis=basis, bands=bands, limits=limits())
     m = load_mesh(mesh)  # bad input is refused here, in one line, before any stage
     light = _lighting(probe)
-    with Steps(progress(), 2) as step:
-        step(f"baking {basis.upper()} at {len(m.vertices):,} vertices")
-        bk = bake_mesh(m, light, n=6 if basis == "h6" else 4, bands=bands)
-        step("writing")
+    bk = bake_hbasis(m, light, settings, numbered(progress(), 1, 2))
+    with stage(progress(), "writing", index=2, count=2):
         save_bake(output, bk, overwrite=force)
-    wrote(output, f"{len(m.vertices)} vertices × {bk.h.shape[1]} × 3")
+    summary = bk.as_dict()
+    wrote(output, f"{summary['vertices']} vertices × {summary['coefficients']} × 3")
 
 
 #: Largest brute-force reference `hbasis render` starts (pixels × probe texels): minutes.

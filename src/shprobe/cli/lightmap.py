@@ -1,6 +1,6 @@
 """CLI commands: the ``shprobe lightmap`` group and ``shprobe lightmap bake`` (directional
-lightmaps, H&W 2010 §4.2–4.3; library: :mod:`shprobe.lightmaps`). Other modules add their
-commands to :data:`lightmap` (``from shprobe.cli.lightmap import lightmap``)."""
+lightmaps, H&W 2010 §4.2–4.3; library: [`shprobe.lightmaps`][shprobe.lightmaps]). Other modules add
+their commands to `lightmap` (``from shprobe.cli.lightmap import lightmap``)."""
 
 from __future__ import annotations
 

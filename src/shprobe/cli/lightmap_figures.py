@@ -1,8 +1,8 @@
 """CLI command: ``shprobe lightmap figures OUT.glb -o DIR`` — Habel & Wimmer 2010's Fig. 1 and
 Fig. 5 for a baked scene, and an error-per-encoding heat map (library:
-:func:`shprobe.lightmaps.figures.lightmap_figures`). It joins the ``lightmap`` group of
-:mod:`.lightmap`; :func:`register` adds that group with this command and ``shader``
-(:mod:`.lightmap_shader`) in it."""
+`shprobe.lightmaps.figures.lightmap_figures`). It joins the ``lightmap`` group of
+`shprobe.cli.lightmap`; `register` adds that group with this command and ``shader``
+(`shprobe.cli.lightmap_shader`) in it."""
 
 from __future__ import annotations
 

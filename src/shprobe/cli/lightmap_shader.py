@@ -1,6 +1,6 @@
 """CLI command: ``shprobe lightmap shader`` — the GLSL / HLSL / WGSL functions that shade with
 a lightmap's coefficient textures at the normal-map normal (library:
-:func:`shprobe.lightmaps.shaders.lightmap_shader`). Joins the ``lightmap`` group."""
+`shprobe.lightmaps.shaders.lightmap_shader`). Joins the ``lightmap`` group."""
 
 from __future__ import annotations
 

@@ -46,7 +46,7 @@ class LazyGroup(click.Group):
 @click.version_option(__version__, "--version", "-V", prog_name="shprobe")
 @click.option("--max-memory", metavar="SIZE", default=None,
               help="Refuse work estimated to need more memory than SIZE (e.g. 2G); default: "
-                   "80 % of the available memory (or SHPROBE_MAX_MEMORY).")
+                   "80 % of the available memory (lowered by SHPROBE_MAX_MEMORY).")
 @click.option("-q", "--quiet", is_flag=True, help="Print no progress and no 'wrote …' line.")
 @click.option("-v", "--verbose", is_flag=True, help="Print more detail about the work done.")
 @click.pass_context
@@ -57,19 +57,38 @@ def cli(ctx: click.Context, max_memory: str | None, quiet: bool, verbose: bool) 
 
     Start with `shprobe demo`, which needs no files.
     """
+    from ..limits import Limits
     from .output import Verbosity
 
-    ctx.obj = Verbosity(quiet=quiet, verbose=verbose and not quiet)
-    if max_memory is not None:
-        import os
+    limits = Limits.parse(max_memory)
+    ctx.obj = Verbosity(quiet=quiet, verbose=verbose and not quiet, limits=limits)
+    # the workflows take the limits in their settings; every other check the command makes
+    # (readers, estimates) reads them from this scope, which ends with the command
+    ctx.with_resource(limits.applied())
 
-        from ..limits import parse_bytes
 
-        os.environ["SHPROBE_MAX_MEMORY"] = str(parse_bytes(max_memory))
+#: Setting names the library's messages use → the CLI flags that set them.
+SETTING_FLAGS: dict[str, str] = {
+    "the max_memory limit": "--max-memory",
+    "sh_degree": "--sh-degree",
+    "albedo given": "--albedo given",
+    "azimuth must be": "--azimuth must be",
+    "elevation must be": "--elevation must be",
+    "turntable needs": "--turntable needs",
+}
+
+
+def cli_terms(message: str) -> str:
+    """A library message in the CLI's terms: each setting it names becomes its flag."""
+    import re
+
+    for name, flag in SETTING_FLAGS.items():
+        message = re.sub(rf"(?<![\w-]){re.escape(name)}(?![\w-])", flag, message)
+    return message
 
 
 def _err(msg: str) -> None:
-    click.echo(f"shprobe: error: {msg}", err=True)
+    click.echo(f"shprobe: error: {cli_terms(msg)}", err=True)
 
 
 def _on_signal(signum: int, frame) -> None:
@@ -92,7 +111,6 @@ def main(argv: list[str] | None = None) -> int:
                 signal.signal(sig, _on_signal)
             except ValueError:  # not the main thread (e.g. called from a worker)
                 pass
-    saved = os.environ.get("SHPROBE_MAX_MEMORY")  # --max-memory holds for this call only
     try:
         rv = cli.main(args=argv, prog_name="shprobe", standalone_mode=False)
     except click.exceptions.Exit as e:
@@ -129,11 +147,6 @@ def main(argv: list[str] | None = None) -> int:
         _err(f"internal error {type(e).__name__}{': ' + msg if msg else ''} — please report "
              "it (run with SHPROBE_DEBUG=1 for the traceback)")
         return 70
-    finally:
-        if saved is None:
-            os.environ.pop("SHPROBE_MAX_MEMORY", None)
-        else:
-            os.environ["SHPROBE_MAX_MEMORY"] = saved
     return rv if isinstance(rv, int) else 0
 
 

@@ -28,6 +28,7 @@ class Verbosity:
     verbose: bool = False
     started: float = field(default_factory=time.monotonic)
     reporter: Any = None  # the command's one terminal reporter, made on first use
+    limits: Any = None  # the shprobe.limits.Limits built from --max-memory
 
 
 def verbosity() -> Verbosity:
@@ -36,6 +37,15 @@ def verbosity() -> Verbosity:
     root = ctx.find_root() if ctx is not None else None
     obj = getattr(root, "obj", None)
     return obj if isinstance(obj, Verbosity) else Verbosity()
+
+
+def limits():
+    """The [`shprobe.limits.Limits`][shprobe.limits.Limits] of this command (from ``--max-memory``),
+    which the command passes to the workflow it calls."""
+    from ..limits import Limits
+
+    v = verbosity()
+    return v.limits if isinstance(v.limits, Limits) else Limits()
 
 
 def progress():
@@ -92,7 +102,7 @@ def estimate(cost, what: str) -> None:
     makes)."""
     from ..limits import check_memory
 
-    check_memory(cost.nbytes, what)
+    check_memory(cost.nbytes, what, limits=limits())
     v = verbosity()
     if not v.quiet and (cost.long or v.verbose):
         click.echo(f"{what}: {cost}", err=True)

@@ -8,13 +8,18 @@ import click
 
 from ..errors import ShprobeError
 from ..lighting.export import FORMATS as EXPORT_FORMATS
-from .common import force_option, parse_exposure
+from ..lighting.workflow import (
+    IRRADIANCE_METHODS,
+    OUT_LAYOUTS,
+    IrradianceSettings,
+    PrefilterSettings,
+)
+from .common import force_option, parse_exposure, setting_default
 from .output import detail, estimate, progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
 #: --format choices of `shprobe prefilter` (all but table/json go to shprobe.lighting.export).
 FORMATS = ("table", "json", *(f for f in EXPORT_FORMATS if f != "json"))
-OUT_LAYOUTS = ("same", "latlong", "angular", "mirrorball", "cube")
 
 
 def coeff_table(coeffs, title: str | None = None):
@@ -94,34 +99,9 @@ def _titled(table, title: str | None):
 
 
 def error_document(report, source: str | None) -> dict:
-    """JSON form of an error report."""
-    from .._version import __version__
-
-    return {
-        "shprobe_version": __version__, "source": source, "n_normals": report.n_normals,
-        "total_intensity": report.total_intensity.tolist(),
-        "refined": bool(getattr(report, "refined", False)),
-        "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
-                  "mean_rel": r.mean_rel, "smape": r.smape,
-                  **_finite({"max_normal": [float(x) for x in r.max_normal],
-                             "max_channel": r.max_channel, "max_tol": r.max_tol,
-                             "max_change": r.max_change, "grid_max_frac": r.grid_max_frac,
-                             "mean_change": r.mean_change}),
-                  **({"max_converged": bool(r.max_change < r.max_tol)}
-                     if getattr(report, "refined", False) else {})} for r in report.rows],
-    }
-
-
-def _finite(d: dict) -> dict:
-    """Drop the entries that are not finite numbers (never write NaN into JSON)."""
-    import math
-
-    def ok(v):
-        if isinstance(v, list):
-            return all(ok(x) for x in v)
-        return not isinstance(v, float) or math.isfinite(v)
-
-    return {k: v for k, v in d.items() if ok(v)}
+    """JSON form of an error report: the library's one document
+    ([`shprobe.lighting.reference.ErrorReport.as_dict`][shprobe.lighting.ErrorReport.as_dict])."""
+    return report.as_dict(source)
 
 
 def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
@@ -135,230 +115,230 @@ def _grid_size(text: str | None, layout: str) -> int | tuple[int, int]:
     return (w, h) if layout == "latlong" else w
 
 
+
+@click.command("prefilter")
+@coeff_source_options
+@click.option("--lmax", "-n", type=click.IntRange(0, 64),
+              default=setting_default(PrefilterSettings, "lmax"), show_default=True,
+              help="Highest SH degree l.")
+@click.option("--format", "-F", "fmt", type=click.Choice(FORMATS), default="table",
+              show_default=True, help="Output: R&H Fig. 2 table, JSON, or a shader/engine "
+              "format (shprobe.lighting.export).")
+@click.option("--output", "-o", type=click.Path(dir_okay=False),
+              help="Write to FILE instead of stdout.")
+@force_option
+def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, force):
+    """Prefilter a light probe into SH lighting coefficients L_lm (R&H 2001 eq. 10).
+
+    PROBE is an environment map (.hdr .exr .pfm .tif .png .jpg) in any layout; --preset
+    or --coeffs give coefficients without an image.
+    """
+    import json
+
+    from ..files import check_output_path, write_text
+    from ..lighting.workflow import lighting_document
+
+    if output:
+        check_output_path(output, force)  # refuse before the work
+    src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
+    if fmt == "table":
+        if output:
+            write_text(output, coeff_text(src.coeffs), force)
+            wrote(output, f"table, lmax {lmax}")
+        else:
+            from .common import console
+
+            title = f"{src.source}  (layout {src.layout})" if src.layout else src.source
+            console().print(coeff_table(src.coeffs, title))
+        return
+    if fmt == "json":
+        text = json.dumps(lighting_document(src), indent=2) + "\n"
+    else:
+        from ..lighting.export import export_coeffs
+
+        text = export_coeffs(src.coeffs, fmt, source=src.source)
+    if output:
+        write_text(output, text, force)
+        wrote(output, f"{fmt}, lmax {lmax}")
+    else:
+        click.echo(text, nl=not text.endswith("\n"))
+
+@click.command("irradiance")
+@coeff_source_options
+@click.option("--output", "-o", required=True, type=click.Path(dir_okay=False),
+              help="Irradiance map to write (.exr .hdr .pfm .tif, or tone-mapped .png).")
+@click.option("--out-layout", type=click.Choice(OUT_LAYOUTS),
+              default=setting_default(IrradianceSettings, "out_layout"),
+              show_default=True, help="Layout of the map (same: the probe's; lat-long for "
+              "presets). 'angular' gives the view of R&H Fig. 3.")
+@click.option("--size", help="WxH, or N: NxN/2 for lat-long, NxN for angular, mirror ball "
+              "and cube faces (the size of one face). Default 256x128 / 256 / 64.")
+@click.option("--lmax", "-n", type=click.IntRange(0, 64),
+              default=setting_default(PrefilterSettings, "lmax"), show_default=True)
+@click.option("--method", type=click.Choice(IRRADIANCE_METHODS),
+              default=setting_default(IrradianceSettings, "method"),
+              show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
+              "integral per pixel (slow, exact).")
+@click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+              help="PNG only: exposure in stops; auto maps the 99th percentile of the "
+              "largest channel to white (at most 1 % of the pixels clip). The PNG shows "
+              "E/π, the radiance a white diffuse surface reflects; linear files hold E.")
+@force_option
+def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout, size,
+                   lmax, method, exposure, force):
+    """Write an irradiance environment map E(n) (R&H 2001 §3.1).
+
+    Linear files (.exr .hdr .pfm .tif) hold E; a .png shows E/π (the radiance a white
+    diffuse surface reflects), tone-mapped at --exposure (auto by default, printed)."""
+    from dataclasses import replace
+
+    from ..lighting.workflow import IrradianceSettings, irradiance_map_cost, write_irradiance_map
+    from ..probes.images import check_image_output
+    from .output import limits
+
+    check_image_output(output, force)
+    settings = IrradianceSettings(method=method, out_layout=out_layout,
+                                  exposure=parse_exposure(exposure),  # refused before the work
+                                  limits=limits())
+    src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
+                         need_env=(method == "brute"))
+    if size is not None:
+        settings = replace(settings, size=_grid_size(size, settings.layout_for(src)[0].name))
+    cost = irradiance_map_cost(src, settings)
+    if cost is not None:
+        lay, sz = settings.layout_for(src)
+        estimate(cost, f"the brute-force irradiance map "
+                       f"{'x'.join(map(str, lay.grid_shape(sz)[::-1]))}")
+    res = write_irradiance_map(src, output, settings, progress(), overwrite=force)
+    note = ""
+    if Path(output).suffix.lower() == ".png":
+        note = (f", E/π at exposure {res.exposure:+.1f} EV"
+                f"{' (auto)' if res.auto_exposure else ''}")
+    wrote(output, f"{res.layout} {'x'.join(map(str, res.grid[::-1]))}, "
+                  f"{method}, lmax {lmax}{note}")
+
+
+@click.command("error")
+@coeff_source_options
+@click.option("--lmax-max", type=click.IntRange(0, 32), default=4, show_default=True,
+              help="Report lmax = 1 .. this value.")
+@click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
+              show_default=True, help="Normals: the centres of a 2N×N lat-long grid (the "
+              "mean's quadrature; the max is refined on the sphere from them).")
+@click.option("--tol", type=float, default=None, metavar="FRACTION",
+              help="Stated tolerance of the max, as a fraction of ∫L dω; the refinement "
+              "stops when a level moves the max by less. Default: the library's, 1e-5 "
+              "(0.001 percentage points).")
+@click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
+              default="table", show_default=True)
+def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, tol, fmt):
+    """Error of the SH irradiance against the exact hemispherical integral, as a fraction
+    of the total intensity ∫L dω (R&H 2001 §3.1)."""
+    import json
+
+    from ..lighting.reference import error_report, reference_cost
+
+    src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
+    if src.env.layout.name != "latlong":  # lat-long maps: row sums, milliseconds
+        estimate(reference_cost(src.env, 2 * grid_h * grid_h),
+                 f"the exact irradiance at {2 * grid_h * grid_h} normals")
+    # lat-long: row sums, milliseconds; other layouts: the brute-force stage, counted
+    rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
+                       normal_grid=grid_h, progress=progress(),
+                       **({} if tol is None else {"tol": tol}))
+    if fmt == "json":
+        click.echo(json.dumps(error_document(rep, src.source), indent=2))
+    else:
+        from .common import console
+
+        console().print(error_table(rep, f"{src.source}: SH irradiance vs brute force, "
+                                          f"mean over {rep.n_normals} normals, max refined "
+                                          "on the sphere"))
+
+@click.command("demo")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="shprobe-demo",
+              show_default=True, help="Folder for the pictures (created if missing).")
+@click.option("--size", default="256x128", show_default=True,
+              help="Size WxH (or N for NxN/2) of the procedural lat-long environment.")
+@click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
+              help="Exposure of the PNGs in stops; auto maps the 99th percentile of the "
+              "largest channel of the sky and E/π together to white.")
+@click.option("--table", "show_table", is_flag=True,
+              help="Also print the coefficient and error tables (the error table is "
+              "always in the closing line's summary).")
+@force_option
+def demo_cmd(out_dir, size, exposure, show_table, force):
+    """The main job with no files: a procedural sky → SH coefficients → irradiance map,
+    a labelled side-by-side picture and the error against the exact integral. The PNGs
+    show E/π (the radiance a white diffuse surface reflects) at the sky's exposure, so
+    the two compare."""
+    import numpy as np
+
+    from ..files import check_output_path, write_json
+    from ..lighting.document import coeffs_document
+    from ..lighting.irradiance import irradiance_map
+    from ..lighting.projection import project
+    from ..lighting.reference import error_report
+    from ..probes.environments import procedural_env
+    from ..probes.figures import Panel, exposure_for, figure
+    from ..probes.images import write_image
+    from ..progress import Steps
+
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ShprobeError("exists and is not a folder", out)
+    names = ["probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
+             "coefficients.json"]
+    for n in names:  # refuse before writing anything
+        check_output_path(out / n, force)
+    fixed = parse_exposure(exposure)
+    w, h = _grid_size(size, "latlong")
+    with Steps(progress(), 4) as step:
+        step("the procedural sky and its SH coefficients (R&H eq. 10)")
+        env = procedural_env(w, h)
+        coeffs = project(env, 2)
+        step("its irradiance map (R&H eq. 7)")
+        emap = irradiance_map(coeffs, "latlong", (w, h))
+        shown = emap.radiance / np.pi
+        stops = (exposure_for(np.concatenate([env.radiance, shown], axis=1))
+                 if fixed is None else fixed)
+        side = figure([Panel(env.radiance, "procedural sky: radiance L",
+                             units="relative radiance", exposure=stops),
+                       Panel(shown, "irradiance E/π (SH, lmax 2)",
+                             units="white diffuse radiance", exposure=stops)],
+                      title="probe | its SH irradiance map (lat-long, +Y up)")
+        bar = step(f"writing {len(names)} files", total=len(names))
+        from ..files import transaction
+
+        with transaction():  # the five files together or none
+            write_image(out / "probe.exr", env.radiance, overwrite=force)
+            write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
+            write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
+            bar.set(3)
+            side.save(out / "side_by_side.png", overwrite=force)
+            write_json(out / "coefficients.json",
+                       coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
+            bar.set(5)
+        step("the error against the exact irradiance (R&H §3.1)")
+        rep = error_report(env)
+    if show_table:
+        from .common import console
+
+        con = console()
+        con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
+                                      "(R&H 2001 Fig. 2 layout)"))
+        con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
+    detail("the .pngs show E/π, the radiance of a white diffuse surface, at the sky's "
+           "exposure")
+    e2 = rep.row(2)
+    wrote([out / n for n in names],
+          f"E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}; lmax 2 "
+          f"error {100 * e2.mean_frac:.2g} % mean, {100 * e2.max_frac:.2g} % max of ∫L dω")
+
+
 def register(group: click.Group) -> None:
     """Add ``prefilter``, ``irradiance``, ``error`` and ``demo`` to the top-level group."""
-
-    @group.command("prefilter")
-    @coeff_source_options
-    @click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True,
-                  help="Highest SH degree l.")
-    @click.option("--format", "-F", "fmt", type=click.Choice(FORMATS), default="table",
-                  show_default=True, help="Output: R&H Fig. 2 table, JSON, or a shader/engine "
-                  "format (shprobe.lighting.export).")
-    @click.option("--output", "-o", type=click.Path(dir_okay=False),
-                  help="Write to FILE instead of stdout.")
-    @force_option
-    def prefilter_cmd(probe, layout, clamp, preset, coeffs_file, lmax, fmt, output, force):
-        """Prefilter a light probe into SH lighting coefficients L_lm (R&H 2001 eq. 10).
-
-        PROBE is an environment map (.hdr .exr .pfm .tif .png .jpg) in any layout; --preset
-        or --coeffs give coefficients without an image.
-        """
-        import json
-
-        from ..files import check_output_path, write_text
-        from ..lighting.document import coeffs_document
-
-        if output:
-            check_output_path(output, force)  # refuse before the work
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp)
-        if fmt == "table":
-            if output:
-                write_text(output, coeff_text(src.coeffs), force)
-                wrote(output, f"table, lmax {lmax}")
-            else:
-                from .common import console
-
-                title = f"{src.source}  (layout {src.layout})" if src.layout else src.source
-                console().print(coeff_table(src.coeffs, title))
-            return
-        if fmt == "json":
-            text = json.dumps(coeffs_document(src.coeffs, src.source, src.layout), indent=2)
-            text += "\n"
-        else:
-            from ..lighting.export import export_coeffs
-
-            text = export_coeffs(src.coeffs, fmt, source=src.source)
-        if output:
-            write_text(output, text, force)
-            wrote(output, f"{fmt}, lmax {lmax}")
-        else:
-            click.echo(text, nl=not text.endswith("\n"))
-
-    @group.command("irradiance")
-    @coeff_source_options
-    @click.option("--output", "-o", required=True, type=click.Path(dir_okay=False),
-                  help="Irradiance map to write (.exr .hdr .pfm .tif, or tone-mapped .png).")
-    @click.option("--out-layout", type=click.Choice(OUT_LAYOUTS), default="same",
-                  show_default=True, help="Layout of the map (same: the probe's; lat-long for "
-                  "presets). 'angular' gives the view of R&H Fig. 3.")
-    @click.option("--size", help="WxH, or N: NxN/2 for lat-long, NxN for angular, mirror ball "
-                  "and cube faces (the size of one face). Default 256x128 / 256 / 64.")
-    @click.option("--lmax", "-n", type=click.IntRange(0, 64), default=2, show_default=True)
-    @click.option("--method", type=click.Choice(("sh", "brute")), default="sh",
-                  show_default=True, help="sh: eq. 7 from L_lm; brute: the hemispherical "
-                  "integral per pixel (slow, exact).")
-    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
-                  help="PNG only: exposure in stops; auto maps the 99th percentile of the "
-                  "largest channel to white (at most 1 % of the pixels clip). The PNG shows "
-                  "E/π, the radiance a white diffuse surface reflects; linear files hold E.")
-    @force_option
-    def irradiance_cmd(probe, layout, clamp, preset, coeffs_file, output, out_layout, size,
-                       lmax, method, exposure, force):
-        """Write an irradiance environment map E(n) (R&H 2001 §3.1).
-
-        Linear files (.exr .hdr .pfm .tif) hold E; a .png shows E/π (the radiance a white
-        diffuse surface reflects), tone-mapped at --exposure (auto by default, printed)."""
-        import numpy as np
-
-        from ..lighting.irradiance import irradiance_map
-        from ..lighting.reference import MAP_CHUNK, reference_cost, reference_irradiance_map
-        from ..probes.env import write_env
-        from ..probes.figures import exposure_for
-        from ..probes.images import check_image_output
-        from ..probes.layouts import get_layout
-
-        check_image_output(output, force)
-        fixed = parse_exposure(exposure)  # a bad value is refused before the work
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, lmax, clamp,
-                             need_env=(method == "brute"))
-        name = out_layout if out_layout != "same" else (src.layout or "latlong")
-        lay = get_layout(name)
-        sz = _grid_size(size, lay.name)
-        if method == "sh":
-            emap = irradiance_map(src.coeffs, lay, sz)
-        else:
-            grid = lay.grid_shape(sz)
-            estimate(reference_cost(src.env, int(lay.valid_mask(grid).sum()), chunk=MAP_CHUNK),
-                     f"the brute-force irradiance map {'x'.join(map(str, grid[::-1]))}")
-            emap = reference_irradiance_map(src.env, lay, sz, progress=progress())
-        shown, note = emap, ""
-        if Path(output).suffix.lower() == ".png":  # the one rule: an LDR picture shows E/π
-            from ..probes.env import Env
-
-            shown = Env(emap.radiance / np.pi, emap.layout)
-            stops = (exposure_for(shown.radiance, mask=lay.valid_mask(emap.grid))
-                     if fixed is None else fixed)  # pixels outside a disc do not count
-            note = f", E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}"
-        else:
-            stops = 0.0
-        write_env(output, shown, overwrite=force, exposure=stops)
-        wrote(output, f"{lay.name} {'x'.join(map(str, emap.grid[::-1]))}, {method}, "
-                      f"lmax {lmax}{note}")
-
-    @group.command("error")
-    @coeff_source_options
-    @click.option("--lmax-max", type=click.IntRange(0, 32), default=4, show_default=True,
-                  help="Report lmax = 1 .. this value.")
-    @click.option("--normals", "grid_h", type=click.IntRange(2, 512), default=32,
-                  show_default=True, help="Normals: the centres of a 2N×N lat-long grid (the "
-                  "mean's quadrature; the max is refined on the sphere from them).")
-    @click.option("--tol", type=float, default=None, metavar="FRACTION",
-                  help="Stated tolerance of the max, as a fraction of ∫L dω; the refinement "
-                  "stops when a level moves the max by less. Default: the library's, 1e-5 "
-                  "(0.001 percentage points).")
-    @click.option("--format", "-F", "fmt", type=click.Choice(("table", "json")),
-                  default="table", show_default=True)
-    def error_cmd(probe, layout, clamp, preset, coeffs_file, lmax_max, grid_h, tol, fmt):
-        """Error of the SH irradiance against the exact hemispherical integral, as a fraction
-        of the total intensity ∫L dω (R&H 2001 §3.1)."""
-        import json
-
-        from ..lighting.reference import error_report, reference_cost
-
-        src = resolve_coeffs(probe, preset, coeffs_file, layout, 0, clamp, need_env=True)
-        if src.env.layout.name != "latlong":  # lat-long maps: row sums, milliseconds
-            estimate(reference_cost(src.env, 2 * grid_h * grid_h),
-                     f"the exact irradiance at {2 * grid_h * grid_h} normals")
-        # lat-long: row sums, milliseconds; other layouts: the brute-force stage, counted
-        rep = error_report(src.env, tuple(range(min(1, lmax_max), lmax_max + 1)),
-                           normal_grid=grid_h, progress=progress(),
-                           **({} if tol is None else {"tol": tol}))
-        if fmt == "json":
-            click.echo(json.dumps(error_document(rep, src.source), indent=2))
-        else:
-            from .common import console
-
-            console().print(error_table(rep, f"{src.source}: SH irradiance vs brute force, "
-                                              f"mean over {rep.n_normals} normals, max refined "
-                                              "on the sphere"))
-
-    @group.command("demo")
-    @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="shprobe-demo",
-                  show_default=True, help="Folder for the pictures (created if missing).")
-    @click.option("--size", default="256x128", show_default=True,
-                  help="Size WxH (or N for NxN/2) of the procedural lat-long environment.")
-    @click.option("--exposure", default="auto", show_default=True, metavar="auto|STOPS",
-                  help="Exposure of the PNGs in stops; auto maps the 99th percentile of the "
-                  "largest channel of the sky and E/π together to white.")
-    @click.option("--table", "show_table", is_flag=True,
-                  help="Also print the coefficient and error tables (the error table is "
-                  "always in the closing line's summary).")
-    @force_option
-    def demo_cmd(out_dir, size, exposure, show_table, force):
-        """The main job with no files: a procedural sky → SH coefficients → irradiance map,
-        a labelled side-by-side picture and the error against the exact integral. The PNGs
-        show E/π (the radiance a white diffuse surface reflects) at the sky's exposure, so
-        the two compare."""
-        import numpy as np
-
-        from ..files import check_output_path, write_json
-        from ..lighting.document import coeffs_document
-        from ..lighting.irradiance import irradiance_map
-        from ..lighting.projection import project
-        from ..lighting.reference import error_report
-        from ..probes.environments import procedural_env
-        from ..probes.figures import Panel, exposure_for, figure
-        from ..probes.images import write_image
-        from ..progress import Steps
-
-        out = Path(out_dir)
-        if out.exists() and not out.is_dir():
-            raise ShprobeError("exists and is not a folder", out)
-        names = ["probe.exr", "irradiance.exr", "irradiance.png", "side_by_side.png",
-                 "coefficients.json"]
-        for n in names:  # refuse before writing anything
-            check_output_path(out / n, force)
-        fixed = parse_exposure(exposure)
-        w, h = _grid_size(size, "latlong")
-        with Steps(progress(), 4) as step:
-            step("the procedural sky and its SH coefficients (R&H eq. 10)")
-            env = procedural_env(w, h)
-            coeffs = project(env, 2)
-            step("its irradiance map (R&H eq. 7)")
-            emap = irradiance_map(coeffs, "latlong", (w, h))
-            shown = emap.radiance / np.pi
-            stops = (exposure_for(np.concatenate([env.radiance, shown], axis=1))
-                     if fixed is None else fixed)
-            side = figure([Panel(env.radiance, "procedural sky: radiance L",
-                                 units="relative radiance", exposure=stops),
-                           Panel(shown, "irradiance E/π (SH, lmax 2)",
-                                 units="white diffuse radiance", exposure=stops)],
-                          title="probe | its SH irradiance map (lat-long, +Y up)")
-            bar = step(f"writing {len(names)} files", total=len(names))
-            from ..files import transaction
-
-            with transaction():  # the five files together or none
-                write_image(out / "probe.exr", env.radiance, overwrite=force)
-                write_image(out / "irradiance.exr", emap.radiance, overwrite=force)
-                write_image(out / "irradiance.png", shown, overwrite=force, exposure=stops)
-                bar.set(3)
-                side.save(out / "side_by_side.png", overwrite=force)
-                write_json(out / "coefficients.json",
-                           coeffs_document(coeffs, "procedural", "latlong"), overwrite=force)
-                bar.set(5)
-            step("the error against the exact irradiance (R&H §3.1)")
-            rep = error_report(env)
-        if show_table:
-            from .common import console
-
-            con = console()
-            con.print(coeff_table(coeffs, "procedural sky: lighting coefficients L_lm "
-                                          "(R&H 2001 Fig. 2 layout)"))
-            con.print(error_table(rep, "error vs brute force (fraction of ∫L dω)"))
-        detail("the .pngs show E/π, the radiance of a white diffuse surface, at the sky's "
-               "exposure")
-        e2 = rep.row(2)
-        wrote([out / n for n in names],
-              f"E/π at exposure {stops:+.1f} EV{' (auto)' if fixed is None else ''}; lmax 2 "
-              f"error {100 * e2.mean_frac:.2g} % mean, {100 * e2.max_frac:.2g} % max of ∫L dω")
+    group.add_command(prefilter_cmd)
+    group.add_command(irradiance_cmd)
+    group.add_command(error_cmd)
+    group.add_command(demo_cmd)

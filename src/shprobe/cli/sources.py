@@ -56,9 +56,11 @@ def coeff_source_options(fn: Callable) -> Callable:
 def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = None,
                    coeffs_file: str | None = None, layout: str = "auto",
                    lmax: int | None = 2, clamp: bool = False, need_env: bool = False,
-                   cone: tuple[Any, float] | None = None) -> Lighting:
+                   cone: tuple[Any, float] | None = None, probe_flag: str = "PROBE"
+                   ) -> Lighting:
     """`shprobe.lighting.source.resolve_lighting` for commands: the option names in the
-    messages, and an LDR probe's warning as one line on stderr."""
+    messages (``probe_flag``: how the command takes the probe), and an LDR probe's warning as
+    one line on stderr."""
     from ..lighting.source import SourceChoiceError, resolve_lighting
 
     try:
@@ -68,9 +70,12 @@ def resolve_coeffs(probe: str | list[str] | None = None, preset: str | None = No
     except SourceChoiceError as e:
         if e.need_env:
             raise ShprobeError(f"this command needs a probe image, not {e.given[0]}") from None
-        raise ShprobeError("give exactly one lighting source: PROBE, --preset NAME, "
+        flags = {"a probe": probe_flag, "a preset": "--preset", "a coefficient file":
+                 "--coeffs", "a cone light": "--cone"}
+        raise ShprobeError(f"give exactly one lighting source: {probe_flag}, --preset NAME, "
                            "--coeffs FILE" + (" or --cone X,Y,Z,APERTURE" if cone else "")
-                           + f" (got {', '.join(e.given) or 'none'})") from None
+                           + f" (got {', '.join(flags.get(g, g) for g in e.given) or 'none'})"
+                           ) from None
 
 
 __all__ = ["coeff_source_options", "resolve_coeffs"]

@@ -1,5 +1,5 @@
 """CLI: ``shprobe view --lightmap OUT.glb``, the lightmap page of the viewer
-(:mod:`shprobe.viewer.lightmap`): the file is read before the URL is printed, so a bad one is
+(`shprobe.viewer.lightmap`): the file is read before the URL is printed, so a bad one is
 one line and a non-zero exit, with no server started."""
 
 from __future__ import annotations

@@ -25,13 +25,14 @@ from .ball import (
 from .circle import Circle, check_circle, detect_circle, parse_circle
 from .objects import ObjectFit, fit_mesh, fit_normals, read_normal_map
 from .photo import Photo, read_photo
-from .solve import LightingFit, design_factors, fit_samples
+from .solve import FitSettings, LightingFit, design_factors, fit_samples
 
 __all__ = [
     "BallCamera",
     "BallFit",
     "BallPixels",
     "Circle",
+    "FitSettings",
     "LightingFit",
     "ObjectFit",
     "Photo",

@@ -16,7 +16,7 @@ whose outline is then a circle; off-centre the true outline is an ellipse).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -25,10 +25,11 @@ from numpy.typing import NDArray
 from ..errors import ShprobeError
 from ..scene.camera import MIN_FOV
 from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
-from .solve import LightingFit, check_level, fit_samples
+from .solve import MAX_RADIUS as _MAX_RADIUS
+from .solve import FitSettings, LightingFit, check_level, fit_samples
 
 #: Largest ball radius (px) a grey-ball fit works at; bigger balls are block-averaged.
-MAX_RADIUS = 512.0
+MAX_RADIUS = _MAX_RADIUS  # the one value, from .solve
 
 __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_grey_ball",
            "parse_ball_camera"]
@@ -332,11 +333,38 @@ def _locate(img: NDArray, circle: Circle | None, path) -> Circle:
 
 
 def fit_grey_ball(image: NDArray, circle: Circle | None = None,
-                  camera: BallCamera | None = None, *, albedo: float = 1.0,
-                  saturation: float | None = None, inset: float = 1.0, robust: bool = True,
-                  max_radius: float | None = MAX_RADIUS, path=None) -> BallFit:
+                  camera: BallCamera | None = None, settings: FitSettings | None = None, *,
+                  albedo: float = 1.0, inset: float = 1.0, path=None,
+                  **changes: Any) -> BallFit:
     """Nine RGB lighting coefficients from a photo of a diffuse (grey) ball (R&H 2001 §2–3).
 
+    Parameters
+    ----------
+    image
+        The photo (H, W, 3), linear.
+    circle
+        The ball's outline, or None (detected).
+    camera
+        The camera model (default: orthographic).
+    settings
+        The fit's [`FitSettings`][shprobe.fitting.FitSettings] (saturation, robust, max_radius, …).
+    albedo
+        The ball's albedo × exposure, by which the coefficients are divided.
+    inset
+        Pixels within this many pixels of the outline are left out.
+    path
+        The file the photo came from, for messages.
+    **changes
+        Fields of [`FitSettings`][shprobe.fitting.FitSettings] changed from ``settings``
+        (``robust=False``).
+
+    Returns
+    -------
+    BallFit
+        The fit, the circle, the camera and the pixels used.
+
+    Notes
+    -----
     ``circle`` None detects the ball. Pixels whose centre lies within ``inset`` px of the
     outline (blended with the background) are left out. ``albedo``: the ball's albedo ×
     exposure, by which the coefficients are divided (1: the coefficients carry that scale).
@@ -376,10 +404,14 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     BallFit
         The nine RGB coefficients, their standard errors and conditioning, and the fit's pixels.
     """
+    s = settings if settings is not None else FitSettings()
+    if changes:
+        s = replace(s, **changes)
+    saturation = s.saturation
     img = _image(image, path)
     c = _locate(img, circle, path)
     cam = camera or BallCamera()
-    f = _binning(c, img.shape, max_radius)
+    f = _binning(c, img.shape, s.max_radius)
     work, cw, inset_w = img, c, inset
     if f > 1:  # block means; a block holding a clipped pixel stays clipped
         work = _reduce(img, f)
@@ -396,8 +428,7 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     if saturation is not None and np.all(np.any(vals >= saturation, axis=1)):
         raise ShprobeError("every pixel of the ball is saturated (clipped): nothing to fit",
                            path)
-    fit = fit_samples(px.normals, vals, model="diffuse", albedo=albedo,
-                      saturation=saturation, black=0.0, robust=robust)
+    fit = fit_samples(px.normals, vals, replace(s, model="diffuse", black=0.0), albedo=albedo)
     out = BallFit(fit, cw, cam, px, "grey", binning=f, photo=work if f > 1 else None)
     out.info["circle_full"] = c
     return out

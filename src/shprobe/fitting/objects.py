@@ -5,7 +5,7 @@ with the albedo per vertex fitted jointly (up to the usual global scale)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..scene import Camera, trace
-from .solve import LightingFit, fit_samples
+from .solve import FitSettings, LightingFit, fit_samples
 
 __all__ = ["ObjectFit", "fit_mesh", "fit_normals", "read_normal_map"]
 
@@ -233,8 +233,10 @@ def fit_mesh(images: ArrayLike | Sequence[ArrayLike], mesh, cameras: Camera | Se
             if lab.shape != (nv,) or lab.dtype.kind not in "iu" or lab.min() < 0:
                 raise ShprobeError(f"groups must be {nv} non-negative integer labels, got "
                                    f"shape {lab.shape}")
-        return _fit_albedo(d, y, np.concatenate(faces), np.concatenate(barys), mesh, lab,
-                           views, shapes, saturation, robust, albedo_rounds)
+        return _fit_albedo((d, y, np.concatenate(faces), np.concatenate(barys)), mesh, lab,
+                           (views, shapes),
+                           FitSettings(saturation=saturation, black=0.0, robust=robust),
+                           albedo_rounds)
     a = np.asarray(albedo, dtype=np.float64)
     if a.ndim >= 1 and a.shape[0] != (0 if mesh is None else len(mesh.vertices)):
         raise ShprobeError(f"per-vertex albedo needs one row per vertex, got shape {a.shape}")
@@ -257,7 +259,13 @@ def _bary_matrix(face: NDArray, bary: NDArray, mesh):
                              shape=(P, len(mesh.vertices)))
 
 
-def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robust, rounds):
+def _fit_albedo(samples, mesh, labels, seen_by, settings: FitSettings, rounds: int):
+    """The joint fit of lighting and albedo (`fit_object`'s alternating least squares):
+    ``samples`` = (normals, values, faces, barycentrics) of the pixels, ``seen_by`` = (views,
+    shapes) of the images."""
+    d, y, face, bary = samples
+    views, shapes = seen_by
+    robust = settings.robust
     from scipy import sparse
     from scipy.sparse import diags
     from scipy.sparse.linalg import spsolve
@@ -275,8 +283,8 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
     for it in range(1, rounds + 1):
         rp = np.maximum(B @ rho, 1e-6)
         # the robust fit picks the outliers once; later rounds reuse its weights
-        fit = fit_samples(d, y, albedo=rp, saturation=saturation, black=0.0,
-                          robust=robust and it == 1, weights=None if it == 1 else w)
+        fit = fit_samples(d, y, replace(settings, robust=robust and it == 1), albedo=rp,
+                          weights=None if it == 1 else w)
         w = fit.weights.astype(np.float64) * ~fit.clipped
         shade = fit.fitted / np.maximum(rp, 1e-6)  # A·L per pixel and channel
         new = np.ones((V, C))
@@ -294,7 +302,7 @@ def _fit_albedo(d, y, face, bary, mesh, labels, views, shapes, saturation, robus
         if change < 1e-5:
             break
     rp = np.maximum(B @ rho, 1e-6)
-    fit = fit_samples(d, y, albedo=rp, saturation=saturation, black=0.0, robust=robust)
+    fit = fit_samples(d, y, settings, albedo=rp)
     out = ObjectFit(fit, views, shapes, d, vertex_albedo=rho[labels])
     out.info.update(albedo_iterations=it, albedo_change=change, groups=G)
     return out

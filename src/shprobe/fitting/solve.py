@@ -20,7 +20,7 @@ reported as rejected. Clipped pixels (saturated, or black) are removed before th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -30,8 +30,10 @@ from ..errors import ShprobeError
 from ..lighting.coeffs import RH_LABELS
 from ..sh import sh_basis
 from ..sh.zonal import clamped_cosine_factors
+from .settings import IRLS_SAMPLES, MAX_RADIUS, FitSettings
 
-__all__ = ["LightingFit", "design_factors", "fit_samples"]
+__all__ = ["IRLS_SAMPLES", "MAX_RADIUS", "FitSettings", "LightingFit", "design_factors",
+           "fit_samples"]
 
 #: Per-coefficient condition (see :attr:`LightingFit.conditioning`) above which a coefficient
 #: is reported as poorly determined.
@@ -47,8 +49,6 @@ TILE_TRIALS = 100
 TOP_STARTS = 5
 #: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
 LTS_H = 0.75
-#: Pixels used for the IRLS iterations; the final weighted solve uses every pixel.
-IRLS_SAMPLES = 1 << 16
 _CHUNK = 1 << 19
 #: Albedos a fit accepts: the lighting is the pixels over the albedo, and outside this range
 #: the quotient of ordinary pixel values leaves the floating-point range.
@@ -273,13 +273,35 @@ def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LM
     return X[int(np.argmin(med))]
 
 
-def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
+def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None = None, *,
                 weights: ArrayLike | None = None, albedo: ArrayLike | float = 1.0,
-                saturation: float | None = None, black: float | None = None,
-                robust: bool = True,
-                scale_floor: float = 0.02, max_iter: int = 30,
-                irls_samples: int = IRLS_SAMPLES, seed: int = 0) -> LightingFit:
+                **changes: Any) -> LightingFit:
     """Fit nine RGB lighting coefficients to pixel values.
+
+    Parameters
+    ----------
+    dirs
+        (P, 3) unit surface normals (diffuse) or reflected directions (mirror).
+    values
+        (P, 3) linear pixel values.
+    settings
+        The fit's [`FitSettings`][shprobe.fitting.FitSettings] (default: its defaults).
+    weights
+        (P,) prior weights (a chrome ball's solid angle per pixel; default 1).
+    albedo
+        A number (the coefficients are divided by it), or known per-pixel albedo (P,) /
+        (P, 3).
+    **changes
+        Fields of [`FitSettings`][shprobe.fitting.FitSettings] changed from ``settings``
+        (``robust=False``).
+
+    Returns
+    -------
+    LightingFit
+        Coefficients, standard errors, weights, rejected pixels, fitted values.
+
+    Notes
+    -----
 
     ``dirs`` (P, 3): unit surface normals (``model="diffuse"``: value = ρ E(n)/π) or
     reflected directions (``model="mirror"``: value = ρ L(ω)). ``values`` (P, 3) linear.
@@ -325,6 +347,11 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, *, model: str = "diffuse",
     LightingFit
         The nine RGB coefficients, residual, rejected fraction, standard errors, conditioning.
     """
+    s = settings if settings is not None else FitSettings()
+    if changes:
+        s = replace(s, **changes)
+    model, saturation, black, robust = s.model, s.saturation, s.black, s.robust
+    scale_floor, max_iter, irls_samples, seed = s.scale_floor, s.max_iter, s.irls_samples, s.seed
     factors = design_factors(model)
     d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
     y = np.asarray(values, dtype=np.float64)

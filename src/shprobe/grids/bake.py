@@ -20,7 +20,10 @@ Chebyshev test of `shprobe.grids.visibility`.
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -30,7 +33,7 @@ from ..errors import ShprobeError
 from ..limits import Cost, check_memory, cores
 from ..progress import Progress, Steps
 from ..prt.directions import sample_directions
-from ..prt.geometry import BakeScene, load_scene
+from ..prt.geometry import BakeScene, albedo_keywords, load_scene
 from ..sh.basis import sh_basis
 from ..sh.indexing import lmax_of, num_coeffs
 from .grid import ProbeGrid, cell_centres
@@ -39,7 +42,7 @@ from .placement import TEST_RAYS, dilate, place_probes
 from .rays import ProbeTracer
 from .settings import GridSettings, check_bounds
 
-__all__ = ["bake_grid", "estimate_grid_bake", "grid_bounds"]
+__all__ = ["bake_grid", "estimate_grid_bake", "grid_bounds", "grid_scene"]
 
 #: Rays per second and core of the probe tracer, and hit-point lookups per second and core of
 #: a bounce (measured on the room and the bunny on a 2-core box, rounded down).
@@ -82,6 +85,44 @@ def grid_bounds(scene: BakeScene, settings: GridSettings) -> NDArray[np.float64]
     return b
 
 
+def grid_scene(scene: Sequence[str | os.PathLike[str] | Any], settings: GridSettings,
+               albedo: Sequence[Any] = ()) -> tuple[BakeScene, GridSettings]:
+    """The scene of a grid bake and its settings with the bounds filled in.
+
+    Parameters
+    ----------
+    scene
+        Mesh paths or objects, or the name of a reference scene (``room``,
+        ``bunny-on-ground``: `shprobe.grids.scenes.named_scene`, with its own bounds).
+    settings
+        The bake's settings; ``bounds`` None: the reference scene's bounds, else the scene's
+        bounding box (`grid_bounds`).
+    albedo
+        Albedo values: none (each mesh's own), one (every mesh) or one per mesh in order.
+
+    Returns
+    -------
+    tuple
+        (the [`BakeScene`][shprobe.prt.BakeScene], the settings with their bounds).
+    """
+    from .scenes import named_scene
+
+    scene = list(scene)
+    where = os.fspath(scene[0]) if len(scene) == 1 and isinstance(
+        scene[0], str | os.PathLike) else None
+    named = [named_scene(s) if isinstance(s, str | os.PathLike) else None for s in scene]
+    if settings.bounds is None and len(scene) == 1 and named[0] is not None:
+        settings = replace(settings, bounds=named[0][1])
+    try:
+        sc = load_scene([s if n is None else n[0] for s, n in zip(scene, named, strict=True)],
+                        **albedo_keywords(albedo, len(scene)))
+    except ShprobeError as e:
+        raise ShprobeError(e.message, e.path or where) from None
+    if len(sc.faces) == 0:
+        raise ShprobeError("the scene has no faces", where)
+    return sc, replace(settings, bounds=grid_bounds(sc, settings))
+
+
 def _fmt(x: NDArray) -> str:
     return "(" + ", ".join(f"{float(a):.4g}" for a in x) + ")"
 
@@ -121,31 +162,37 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
 
 def bake_grid(scene: Any, lighting: Any, settings: GridSettings,
               progress: Progress | None = None) -> ProbeGrid:
-    """Bake an irradiance volume of ``scene`` (anything
-    [`shprobe.prt.load_scene`][shprobe.prt.load_scene] takes: a mesh path, trimesh, BakeScene or
-    list of them; its per-vertex albedo as the renderer reads it) under ``lighting`` (a
-    `shprobe.lighting.source.Lighting` — a probe image is then used directly — or SH coefficients
-    (K, 3)) with ``settings`` (module doc).
+    """Bake an irradiance volume (module doc).
 
     Parameters
     ----------
     scene
-        A mesh path, trimesh, BakeScene or a list of them.
+        Anything [`shprobe.prt.load_scene`][shprobe.prt.load_scene] takes: a mesh path, trimesh,
+        BakeScene or list of them (its per-vertex albedo as the renderer reads it); `grid_scene`
+        also resolves the reference scenes' names.
     lighting
-        A ``Lighting`` (a probe image is used directly) or SH coefficients (K, 3).
+        A `shprobe.lighting.source.Lighting` (a probe image is then used directly) or
+        SH coefficients (K, 3).
     settings
-        The grid's resolution, bounds, samples, bounces and leak control.
+        The bake's [`GridSettings`][shprobe.grids.GridSettings] (its limits apply to everything the
+        bake does).
     progress
-        Told about each step.
+        A [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter.
 
     Returns
     -------
     ProbeGrid
-        The baked grid.
+        The grid; ``as_dict()`` summarises it.
     """
-    t0 = time.monotonic()
     if not isinstance(settings, GridSettings):
         raise ShprobeError("bake_grid needs a GridSettings")
+    with settings.limits.applied():
+        return _bake_grid(scene, lighting, settings, progress)
+
+
+def _bake_grid(scene: Any, lighting: Any, settings: GridSettings,
+               progress: Progress | None) -> ProbeGrid:
+    t0 = time.monotonic()
     sc = scene if isinstance(scene, BakeScene) else load_scene(scene)
     if len(sc.faces) == 0:
         raise ShprobeError("the scene has no faces")

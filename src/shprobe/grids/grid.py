@@ -178,6 +178,23 @@ class ProbeGrid:
         y = sh_basis(n, self.lmax)
         return np.maximum(np.einsum("...k,...kc->...c", y, c), 0.0)
 
+    def as_dict(self) -> dict[str, Any]:
+        """A JSON-able summary of the grid (not its arrays): what the CLI prints from.
+
+        Returns
+        -------
+        dict
+            resolution, lmax, bounds, whether it has leak control, and how it was baked
+            (``meta``: bounces, samples, lighting, probes moved and invalid, seconds, …).
+        """
+        import json
+
+        lo, hi = self.bounds
+        return {"resolution": list(self.resolution), "lmax": int(self.lmax),
+                "bounds": [np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist()],
+                "leak_control": self.depth is not None,
+                "meta": json.loads(json.dumps(dict(self.meta), default=str))}
+
     def __repr__(self) -> str:
         nx, ny, nz = self.resolution
         lo, hi = self.bounds

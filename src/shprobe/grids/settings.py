@@ -4,13 +4,14 @@ any work."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from ..limits import Limits
 
 __all__ = ["MAX_RESOLUTION", "GridSettings"]
 
@@ -20,7 +21,7 @@ MAX_RESOLUTION = 512
 
 @dataclass(frozen=True)
 class GridSettings:
-    """The bake of a probe grid.
+    """The bake of a probe grid; the defaults are ``shprobe grid bake``'s.
 
     Parameters
     ----------
@@ -51,6 +52,8 @@ class GridSettings:
         surface itself (0: read it from the grid of the bounce before, DDGI's recursion,
         which lights the foot of a wall as the nearest probe sees it; docs/grids.md gives
         both).
+    limits
+        The memory limit the bake is refused over (`shprobe.limits.Limits`).
     """
 
     resolution: tuple[int, int, int]
@@ -64,6 +67,7 @@ class GridSettings:
     inside_fraction: float = 0.25
     seed: int = 0
     gather: int = 2
+    limits: Limits = field(default_factory=Limits, compare=False)
 
     def __post_init__(self) -> None:
         res = tuple(self.resolution) if not isinstance(self.resolution, str) else ()
@@ -87,6 +91,20 @@ class GridSettings:
             v = getattr(self, name)
             if not isinstance(v, int | float) or not math.isfinite(v) or not lo <= v <= hi:
                 raise ShprobeError(f"grid {name} must be a number in [{lo}, {hi}], got {v!r}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            Each field (bounds as two corners or None).
+        """
+        d = {f: getattr(self, f) for f in self.__dataclass_fields__ if f != "limits"}
+        d["resolution"] = list(self.resolution)
+        d["bounds"] = None if self.bounds is None else np.asarray(self.bounds).tolist()
+        d["limits"] = self.limits.as_dict()
+        return d
 
     @property
     def n_probes(self) -> int:

@@ -16,6 +16,7 @@ Conventions: docs/hbasis.md.
 
 from __future__ import annotations
 
+from .baking import HBasisSettings, bake_hbasis
 from .basis import (
     T_H4_PAPER,
     T_H_CLOSED_FORM,
@@ -31,8 +32,10 @@ from .rivals import HemiBasis, all_bases, get_basis
 __all__ = [
     "T_H4_PAPER",
     "T_H_CLOSED_FORM",
+    "HBasisSettings",
     "HemiBasis",
     "all_bases",
+    "bake_hbasis",
     "evaluate_h",
     "get_basis",
     "h_basis",

@@ -16,7 +16,7 @@ files: `shprobe.hbasis.bakefile`; rendering against the exact reference: `shprob
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,6 +73,18 @@ class NormalMapBake:
     def basis(self) -> str:
         """"H6" or "H4"."""
         return f"H{self.h.shape[1]}"
+
+    def as_dict(self) -> dict[str, Any]:
+        """A JSON-able summary of the bake (not its arrays).
+
+        Returns
+        -------
+        dict
+            basis, vertices, channels, bands and the mesh hash.
+        """
+        return {"basis": self.basis, "vertices": int(self.h.shape[0]),
+                "coefficients": int(self.h.shape[1]), "channels": int(self.h.shape[2]),
+                "bands": self.bands, "mesh_hash": self.mesh_hash}
 
     def __repr__(self) -> str:
         mesh = f", mesh {self.mesh_hash[:12]}…" if self.mesh_hash else ""

@@ -131,7 +131,7 @@ def render_normal_mapped(mesh: trimesh.Trimesh, lighting: Env | ArrayLike, size:
     layers.update(tangent_normals=full(vt), frames=full(fp))
     E = full(ref)
     hits.bary = full(bary)  # the float64 weights used above
-    return render_result(hits, E / np.pi, E, cam, "normal-mapped", normals=full(nw),
+    return render_result(hits, (E / np.pi, E), cam, "normal-mapped", normals=full(nw),
                          layers=layers, info={"rel_rms": rel})
 
 

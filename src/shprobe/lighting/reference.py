@@ -310,6 +310,29 @@ class ErrorRow:
     grid_max_frac: float = float("nan")
     mean_change: float = float("nan")
 
+    def as_dict(self, refined: bool = False) -> dict[str, Any]:
+        """The row as JSON-able values; the entries that are not finite numbers (a quantity
+        not measured) are left out: a non-finite number is never written.
+
+        Parameters
+        ----------
+        refined
+            Whether the report refined its maxima (adds ``max_converged``).
+
+        Returns
+        -------
+        dict
+            lmax, mean_frac, max_frac, mean_rel, smape and, when measured, max_normal,
+            max_channel, max_tol, max_change, grid_max_frac, mean_change.
+        """
+        return {"lmax": self.lmax, "mean_frac": self.mean_frac, "max_frac": self.max_frac,
+                "mean_rel": self.mean_rel, "smape": self.smape,
+                **_finite({"max_normal": [float(x) for x in self.max_normal],
+                           "max_channel": self.max_channel, "max_tol": self.max_tol,
+                           "max_change": self.max_change, "grid_max_frac": self.grid_max_frac,
+                           "mean_change": self.mean_change}),
+                **({"max_converged": bool(self.max_change < self.max_tol)} if refined else {})}
+
     def __repr__(self) -> str:
         n = ", ".join(f"{x:+.3f}" for x in self.max_normal)
         tol = (f"tol {100 * self.max_tol:.1g}" if not self.max_change >= self.max_tol else
@@ -346,6 +369,41 @@ class ErrorReport:
             if r.lmax == lmax:
                 return r
         raise KeyError(lmax)
+
+    def as_dict(self, source: str | None = None) -> dict[str, Any]:
+        """The error report's one document (``shprobe error --format json``, the viewer's
+        error view and the batch table read it).
+
+        Parameters
+        ----------
+        source
+            What the lighting came from, for people (a path, a preset name), or None.
+
+        Returns
+        -------
+        dict
+            shprobe_version, source, n_normals, total_intensity, refined and one row per
+            degree ([`ErrorRow.as_dict`][shprobe.lighting.ErrorRow.as_dict]).
+        """
+        from .._version import __version__
+
+        return {"shprobe_version": __version__, "source": source,
+                "n_normals": int(self.n_normals),
+                "total_intensity": np.asarray(self.total_intensity, float).tolist(),
+                "refined": bool(self.refined),
+                "rows": [r.as_dict(self.refined) for r in self.rows]}
+
+
+def _finite(d: dict[str, Any]) -> dict[str, Any]:
+    """The entries that are finite numbers (or lists of them), or not numbers at all."""
+    import math
+
+    def ok(v: Any) -> bool:
+        if isinstance(v, list):
+            return all(ok(x) for x in v)
+        return not isinstance(v, float) or math.isfinite(v)
+
+    return {k: v for k, v in d.items() if ok(v)}
 
 
 def _normal_grid(h: int = 32) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -108,11 +108,12 @@ _FIT, _PROBE, _PROBE_XY = _quadratic_design()
 
 def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
                points: NDArray[np.float64], values: NDArray[np.float64], *, step: float,
-               tol: float, starts: int = 4, min_levels: int = 2,
-               max_levels: int = 40, polish: bool = True) -> SphereMax:
+               tol: float, starts: int = 4, levels: tuple[int, int] = (2, 40),
+               polish: bool = True) -> SphereMax:
     """Maximise ``f`` ((M, 3) unit vectors → (M,)) on the sphere from grid ``points`` (N, 3)
     with known ``values`` (N,): ``starts`` seeds by `pick_starts` (2·``step`` apart),
-    compass search from h = ``step`` (about the grid spacing), halving h per level.
+    compass search from h = ``step`` (about the grid spacing), halving h per level, at least
+    ``levels[0]`` and at most ``levels[1]`` levels.
 
     Each compass move also fits a quadratic to the 9 values around a start and tries the
     model's best point within 2h (a Newton-like jump). A level ends when no start improves by
@@ -124,6 +125,7 @@ def refine_max(f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     (narrow tops at kinks).
     ``change`` reports the larger of the two.
     """
+    min_levels, max_levels = (int(x) for x in levels)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     vals = np.asarray(values, dtype=np.float64).reshape(-1)
     g = int(np.argmax(vals))

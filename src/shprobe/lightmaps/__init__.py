@@ -1,12 +1,14 @@
 """Directional lightmaps (Habel & Wimmer 2010, §4.2–4.3): scenes baked into H-basis and rival
 coefficient textures on a second UV set, with global illumination.
 
-* :mod:`.format` — the ``SHPROBE_lightmap`` glTF extension and the reference evaluation.
-* :mod:`.scene` — glTF / OBJ scenes with base colour and normal maps.
-* :mod:`.tangents` — MikkTSpace-style tangents, texel frames.
-* :mod:`.atlas` — TEXCOORD_1 or xatlas, rasterisation to texels.
-* :mod:`.gather` — the Embree radiance gather; :mod:`.encode` — bounces, SH, encodings.
-* :mod:`.bake` — ``bake_lightmap`` and the ``Lightmap`` result; :mod:`.io` — .glb out and in.
+* `shprobe.lightmaps.format` — the ``SHPROBE_lightmap`` glTF extension and the reference evaluation.
+* `shprobe.lightmaps.scene` — glTF / OBJ scenes with base colour and normal maps.
+* `shprobe.lightmaps.tangents` — MikkTSpace-style tangents, texel frames.
+* `shprobe.lightmaps.atlas` — TEXCOORD_1 or xatlas, rasterisation to texels.
+* `shprobe.lightmaps.gather` — the Embree radiance gather; `shprobe.lightmaps.encode` — bounces, SH,
+  encodings.
+* `shprobe.lightmaps.bake` — ``bake_lightmap`` and the ``Lightmap`` result; `shprobe.lightmaps.io` —
+  .glb out and in.
 
 Manual: docs/lightmaps.md.
 """

@@ -1,5 +1,5 @@
 """Numba kernel of the lightmap rasteriser (compiled once, cached on disk); the reference is
-the per-texel definition in :func:`shprobe.lightmaps.atlas.rasterize`'s docstring, checked
+the per-texel definition in `shprobe.lightmaps.atlas.rasterize`'s docstring, checked
 against a brute-force NumPy evaluation in the tests."""
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ def raster(tri, width, height, face, bary, dist, count):  # pragma: no cover - c
 @numba.njit(cache=True, nogil=True)
 def hit_sums(texel, uv, weight, factor, image, out):  # pragma: no cover - compiled
     """out[t, k, ch] += factor[m, k] · weight[m, ch % 3] · bilinear(image, uv[m])[ch] for every
-    hit m of texel t: :func:`shprobe.lightmaps.encode.hit_sums_numpy`'s sums, one pass and no
+    hit m of texel t: `shprobe.lightmaps.encode.hit_sums_numpy`'s sums, one pass and no
     temporaries. image (H, W, C) with clamp-to-edge bilinear taps at texel centres."""
     h, w, nc = image.shape
     nk = factor.shape[1]
@@ -110,7 +110,7 @@ def _y9(x, y, z, o):  # pragma: no cover - compiled
 def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, half,
                  front, back):  # pragma: no cover - compiled
     """The control variate's corrections over a tile's rays (the NumPy reference:
-    :func:`shprobe.lightmaps.gather.blocked_sums_numpy`): for every blocked ray (a hit, or
+    `shprobe.lightmaps.gather.blocked_sums_numpy`): for every blocked ray (a hit, or
     below the face) −c · y_k(tangent dir) · L_sky(world dir) into direct_sh, −c · cos θ · L_sky
     into direct_e and half[s % 2] (× 2); front[p, s] marks front-face hits, back[p] the share
     of back-face hits and rays below the face."""

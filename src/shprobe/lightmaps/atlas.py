@@ -7,7 +7,7 @@ u = (c + ½)/W, v = (r + ½)/H. A texel whose centre lies inside a triangle samp
 a texel whose centre lies outside every triangle but within 0.75 texels of one (conservative
 coverage: small triangles and chart borders) samples the closest point of the closest such
 triangle. Every sample point is then pulled into its triangle's interior (each barycentric
-coordinate at least :data:`EDGE_PULL`): a point exactly on an edge may lie on another surface
+coordinate at least `EDGE_PULL`): a point exactly on an edge may lie on another surface
 (a floor's edge under a wall) and see nothing but that surface. Texels no triangle reaches are
 filled later by dilation.
 """
@@ -256,7 +256,7 @@ def texels(atlas: Atlas) -> Texels:
     Parameters
     ----------
     atlas : Atlas
-        From :func:`build_atlas`.
+        From `build_atlas`.
 
     Returns
     -------

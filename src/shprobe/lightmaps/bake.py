@@ -68,7 +68,8 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
     Parameters
     ----------
     scene : LightmapScene or path
-        The scene (a .glb / .gltf / .obj path is read with :func:`load_scene`).
+        The scene (a .glb / .gltf / .obj path is read with
+        [`load_scene`][shprobe.lightmaps.load_scene]).
     lighting : Lighting or array_like (K ≥ 9, 3)
         The distant environment's radiance SH (cut to lmax 2), e.g. from
         ``shprobe.lighting.resolve_lighting``.

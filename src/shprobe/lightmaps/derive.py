@@ -1,7 +1,8 @@
 """The encodings a stored lightmap implies: what the viewer and the figures can show from one
 ``SHPROBE_lightmap`` file.
 
-A .glb holds one encoding (:mod:`.format`). Others follow from it exactly where the format's
+A .glb holds one encoding (`shprobe.lightmaps.format`). Others follow from it exactly where the
+format's
 definitions allow:
 
 * every encoding gives ``plain`` — its own E at the unperturbed normal n = (0, 0, 1), i.e.
@@ -9,7 +10,7 @@ definitions allow:
 * ``h6`` gives ``h4`` (its first four coefficients: the H-basis is hierarchical, H&W §4.1);
 * ``sh9`` gives ``sh4`` (bands l ≤ 1) and, through the radiance SH it was made from
   (E_lm = Â_l L_lm), ``hl2``, ``h4`` and ``h6`` as the bake derives them
-  (:func:`.encode.encodings_from_sh`).
+  (`shprobe.lightmaps.encode.encodings_from_sh`).
 """
 
 from __future__ import annotations
@@ -29,15 +30,17 @@ def implied_encodings(encoding: str, coeffs: NDArray) -> dict[str, NDArray[np.fl
     Parameters
     ----------
     encoding : str
-        The stored encoding (one of :data:`.format.ENCODINGS`).
+        The stored encoding (one of
+        [`shprobe.lightmaps.format.ENCODINGS`][shprobe.lightmaps.ENCODINGS]).
     coeffs : ndarray, shape (..., n, 3)
         Its coefficients (already multiplied by the file's scale).
 
     Returns
     -------
     dict
-        Encoding name → coefficients (..., n', 3), in :data:`.format.ENCODINGS` order; the
-        stored encoding's own coefficients are the input, unchanged.
+        Encoding name → coefficients (..., n', 3), in
+        [`shprobe.lightmaps.format.ENCODINGS`][shprobe.lightmaps.ENCODINGS] order; the stored
+        encoding's own coefficients are the input, unchanged.
     """
     e = fmt.check_encoding(encoding)
     c = np.asarray(coeffs, dtype=np.float64)

@@ -79,7 +79,7 @@ def hit_sums_numpy(g: Gathered, image: NDArray, factor: NDArray) -> NDArray:
 
 
 def hit_sums(g: Gathered, image: NDArray, factor: NDArray) -> NDArray:
-    """:func:`hit_sums_numpy` by the numba kernel (one pass over the hits).
+    """`hit_sums_numpy` by the numba kernel (one pass over the hits).
 
     Parameters
     ----------

@@ -1,14 +1,15 @@
 """Pictures of a baked lightmap, as Habel & Wimmer 2010 show theirs: Fig. 1 (plain lightmap ·
 H6 without albedo · H6 with albedo), Fig. 5 (H4 beside H6) and an error-per-encoding heat map.
 
-The scene of the .glb is ray-cast (Embree primary rays, :class:`shprobe.scene.raycast.RayCaster`)
-from one pinhole camera; at every pixel the surface point's TEXCOORD_0 gives the normal map's
-tangent-space normal n and the base colour, its TEXCOORD_1 the lightmap's coefficients (read
-bilinearly, as a GPU samples them), and E(n) = Σ cᵢ Bᵢ(n) (H&W eq. 15) is what a shader
-computes (:mod:`.shaders`). Every panel of a figure has one exposure, chosen so that none
-clips: pixel = (albedo or 1) · E / π · 2^exposure, sRGB.
+The scene of the .glb is ray-cast (Embree primary rays,
+[`shprobe.scene.raycast.RayCaster`][shprobe.scene.RayCaster]) from one pinhole camera; at every
+pixel the surface point's TEXCOORD_0 gives the normal map's tangent-space normal n and the base
+colour, its TEXCOORD_1 the lightmap's coefficients (read bilinearly, as a GPU samples them), and
+E(n) = Σ cᵢ Bᵢ(n) (H&W eq. 15) is what a shader computes (`shprobe.lightmaps.shaders`). Every panel
+of a figure has one exposure, chosen so that none clips: pixel = (albedo or 1) · E / π · 2^exposure,
+sRGB.
 
-The encodings shown are those the stored one implies (:mod:`.derive`; bake with
+The encodings shown are those the stored one implies (`shprobe.lightmaps.derive`; bake with
 ``--basis sh9`` to have all six). The error map compares each with the richest of them (L2 SH
 where stored, else the stored encoding): |E − E_ref| / mean E_ref per pixel, mean and 95th
 percentile in each panel's title (H&W §5's study on the scene's own pixels).
@@ -40,7 +41,7 @@ _BACKGROUND = 0.12
 
 @dataclass(frozen=True)
 class FigureSettings:
-    """Settings of :func:`lightmap_figures`.
+    """Settings of `lightmap_figures`.
 
     Parameters
     ----------

@@ -54,7 +54,7 @@ dilates every chart so that no filter tap reads an empty texel.
 
 ``components`` names, for each of the 4 channels R, G, B, A of the texture, the pair
 ``[coefficient index i, colour c]`` (c = 0, 1, 2 for red, green, blue) it holds, or ``null``
-(stored as 0). The writer's packing (:func:`texture_layout`) is, per colour channel,
+(stored as 0). The writer's packing (`texture_layout`) is, per colour channel,
 coefficients 4 to a texture: for colour c and j = 0 .. ⌈n/4⌉ − 1 the texture number
 c·⌈n/4⌉ + j holds coefficients 4j .. 4j + 3 of colour c. So h6 has 6 textures (R: c0..c3,
 R: c4 c5 – –, G: ..., B: ...), sh9 9, h4 / sh4 / hl2 3; ``plain`` (n = 1) is the exception:
@@ -97,10 +97,10 @@ matter; without ``TEXCOORD_0`` the bake uses x = normalize(a × N) with a = (0, 
 
 Python reference
 ----------------
-:func:`basis_values` and :func:`evaluate` are the reference the GLSL/HLSL/WGSL functions are
-tested against; :func:`add_lightmap` / :func:`read_lightmap` put a lightmap into / take it out
-of a glTF document (JSON dict + BIN bytes) and :func:`encode_glb` / :func:`parse_glb` /
-:func:`write_glb` / :func:`read_glb` handle the container.
+[`basis_values`][shprobe.lightmaps.basis_values] and [`evaluate`][shprobe.lightmaps.evaluate] are
+the reference the GLSL/HLSL/WGSL functions are tested against; `add_lightmap` / `read_lightmap` put
+a lightmap into / take it out of a glTF document (JSON dict + BIN bytes) and `encode_glb` /
+`parse_glb` / `write_glb` / `read_glb` handle the container.
 """
 
 from __future__ import annotations
@@ -135,7 +135,8 @@ HL2_DIRECTIONS.flags.writeable = False
 
 
 def check_encoding(encoding: str) -> str:
-    """The encoding's canonical name, or one :class:`ShprobeError` naming the known ones.
+    """The encoding's canonical name, or one [`ShprobeError`][shprobe.errors.ShprobeError] naming
+    the known ones.
 
     Parameters
     ----------
@@ -145,7 +146,7 @@ def check_encoding(encoding: str) -> str:
     Returns
     -------
     str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     """
     e = str(encoding).lower()
     if e not in N_COEFFS:
@@ -159,7 +160,7 @@ def basis_values(encoding: str, normals_tangent: ArrayLike) -> NDArray[np.float6
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     normals_tangent : array_like, shape (..., 3)
         Unit normals in the texel's tangent frame.
 
@@ -196,7 +197,7 @@ def evaluate(encoding: str, coeffs: ArrayLike, normals_tangent: ArrayLike) -> ND
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     coeffs : array_like, shape (..., n, C)
         Coefficients (n on axis −2, colours last), already multiplied by the file's scale.
     normals_tangent : array_like, shape (..., 3)
@@ -220,7 +221,7 @@ def texture_layout(encoding: str) -> list[list[tuple[int, int] | None]]:
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
 
     Returns
     -------
@@ -245,11 +246,11 @@ def pack(encoding: str, coeffs: ArrayLike,
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     coeffs : array_like, shape (H, W, n, 3)
         Stored values (irradiance divided by the scale); must be finite and within half range.
     layout : list, optional
-        Packing; default :func:`texture_layout`.
+        Packing; default `texture_layout`.
 
     Returns
     -------
@@ -275,16 +276,16 @@ def pack(encoding: str, coeffs: ArrayLike,
 
 def unpack(encoding: str, textures: list[NDArray],
            layout: list[list[tuple[int, int] | None]] | None = None) -> NDArray[np.float32]:
-    """RGBA16F textures → coefficient images (H, W, n, 3) float32 (inverse of :func:`pack`).
+    """RGBA16F textures → coefficient images (H, W, n, 3) float32 (inverse of `pack`).
 
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     textures : list of ndarray, each (H, W, 4)
         The textures in ``layout`` order.
     layout : list, optional
-        Packing; default :func:`texture_layout`.
+        Packing; default `texture_layout`.
 
     Returns
     -------
@@ -315,7 +316,7 @@ class StoredLightmap:
     Parameters
     ----------
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     coeffs : ndarray, shape (H, W, n, 3)
         Irradiance coefficients (already multiplied by ``scale``), float32.
     scale : float
@@ -361,7 +362,7 @@ def add_lightmap(doc: dict, binary: bytearray, encoding: str, coeffs: ArrayLike,
     binary : bytearray
         The BIN chunk, extended in place (4-byte aligned).
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     coeffs : array_like, shape (H, W, n, 3)
         Irradiance coefficients.
     primitives : list of (mesh, primitive)
@@ -391,7 +392,7 @@ def add_lightmap(doc: dict, binary: bytearray, encoding: str, coeffs: ArrayLike,
 
 
 def read_lightmap(doc: dict, binary: bytes, where: Any = None) -> StoredLightmap:
-    """The lightmap of a glTF document (inverse of :func:`add_lightmap`).
+    """The lightmap of a glTF document (inverse of `add_lightmap`).
 
     Parameters
     ----------
@@ -452,7 +453,7 @@ def add_textures(doc: dict, binary: bytearray, encoding: str, coeffs: NDArray,
     binary : bytearray
         The BIN chunk, extended in place.
     encoding : str
-        One of :data:`ENCODINGS`.
+        One of [`ENCODINGS`][shprobe.lightmaps.ENCODINGS].
     coeffs : ndarray (H, W, n, 3)
         Coefficients.
     scale : float

@@ -239,7 +239,7 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     caster : RayCaster
         Over all primitives' faces, in atlas order.
     origins : ndarray (b − a, 3), optional
-        The range's ray origins (:func:`ray_origins`), else computed here.
+        The range's ray origins (`ray_origins`), else computed here.
 
     Returns
     -------
@@ -336,7 +336,7 @@ def join(parts: list[Gathered]) -> Gathered:
     Parameters
     ----------
     parts : list of Gathered
-        From :func:`gather_tile`, ranges in order.
+        From `gather_tile`, ranges in order.
 
     Returns
     -------
@@ -361,7 +361,7 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     tx : Texels
         Covered texels with points and frames.
     sky : ndarray (9, C)
-        World-frame radiance SH, C = 3·k channels (see :func:`gather_tile`).
+        World-frame radiance SH, C = 3·k channels (see `gather_tile`).
     settings : LightmapSettings
         Samples, seed, albedo, sun.
     caster : RayCaster

@@ -92,7 +92,7 @@ def read_glb(path: str | os.PathLike[str]) -> tuple[dict, bytes]:
     Returns
     -------
     tuple of (dict, bytes)
-        As :func:`parse_glb`.
+        As `parse_glb`.
     """
     p = os.fspath(path)
     try:

@@ -1,5 +1,6 @@
 """Lightmaps in files: the baked scene written as a .glb with TEXCOORD_1, TANGENT and the
-``SHPROBE_lightmap`` coefficient textures (:mod:`.format`), and :func:`load_lightmap`."""
+``SHPROBE_lightmap`` coefficient textures (`shprobe.lightmaps.format`), and
+[`load_lightmap`][shprobe.lightmaps.load_lightmap]."""
 
 from __future__ import annotations
 
@@ -173,7 +174,8 @@ def _embed_images(b: _Buf, source: str | None) -> None:
 
 def write_lightmap_glb(lm: Lightmap, path: str | os.PathLike[str],
                        overwrite: bool = False) -> None:
-    """Write the scene of a baked lightmap with its coefficient textures (:mod:`.format`).
+    """Write the scene of a baked lightmap with its coefficient textures
+    (`shprobe.lightmaps.format`).
 
     Parameters
     ----------

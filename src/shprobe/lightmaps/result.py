@@ -1,4 +1,5 @@
-"""The result of a lightmap bake, :class:`Lightmap`, and :func:`load_lightmap`."""
+"""The result of a lightmap bake, [`Lightmap`][shprobe.lightmaps.Lightmap], and
+[`load_lightmap`][shprobe.lightmaps.load_lightmap]."""
 
 from __future__ import annotations
 
@@ -43,7 +44,8 @@ class Lightmap:
     transfer : dict, optional
         With ``transfer``: encoding name → (H, W, n, 9, 3) matrices from the sky's radiance
         SH (lmax 2, per colour) to the coefficients, shadows and bounces included (LH 2007
-        §4, per texel); :meth:`relight` applies them. A sun is not part of them.
+        §4, per texel); [`relight`][shprobe.lightmaps.Lightmap.relight] applies them. A sun is not
+        part of them.
     """
 
     encodings: dict[str, NDArray[np.float32]] = field(repr=False)
@@ -186,8 +188,8 @@ class Lightmap:
 
 
 def load_lightmap(path: str | os.PathLike[str]) -> Lightmap:
-    """Read a lightmap .glb written by :meth:`Lightmap.save` (or any ``SHPROBE_lightmap``
-    file).
+    """Read a lightmap .glb written by [`Lightmap.save`][shprobe.lightmaps.Lightmap.save] (or any
+    ``SHPROBE_lightmap`` file).
 
     Parameters
     ----------

@@ -2,8 +2,9 @@
 their materials' base colour (factor and texture) and normal maps.
 
 Every (node, mesh primitive) instance of a TRIANGLES primitive becomes one
-:class:`Primitive` in world space (a mesh used by two nodes needs two lightmap regions).
-Textures are decoded to float arrays: base colour sRGB → linear, normal maps as stored.
+[`Primitive`][shprobe.lightmaps.Primitive] in world space (a mesh used by two nodes needs two
+lightmap regions). Textures are decoded to float arrays: base colour sRGB → linear, normal maps as
+stored.
 """
 
 from __future__ import annotations

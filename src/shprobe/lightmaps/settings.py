@@ -1,4 +1,5 @@
-"""How a lightmap is baked: one frozen settings type, :class:`LightmapSettings`."""
+"""How a lightmap is baked: one frozen settings type,
+[`LightmapSettings`][shprobe.lightmaps.LightmapSettings]."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ def _positive_int(name: str, v: Any, low: int, high: int | None = None) -> int:
 
 @dataclass(frozen=True)
 class LightmapSettings:
-    """Settings of :func:`shprobe.lightmaps.bake_lightmap`.
+    """Settings of [`shprobe.lightmaps.bake_lightmap`][shprobe.lightmaps.bake_lightmap].
 
     Parameters
     ----------

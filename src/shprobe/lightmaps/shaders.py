@@ -5,13 +5,14 @@ The lightmap's texel frame is the normal map's tangent frame (H&W §4.3), so a p
 needs no matrix: it decodes the normal map into a tangent-space unit normal n, samples the
 coefficient textures at ``TEXCOORD_1`` and returns E(n) = Σᵢ cᵢ Bᵢ(n) per colour channel.
 The diffuse colour is then ``baseColor / π · E · scale`` (``scale`` from the extension
-object; see :mod:`.format`).
+object; see `shprobe.lightmaps.format`).
 
-Every basis of :data:`.format.ENCODINGS` is a polynomial of degree ≤ 2 in (x, y, z), and the
-code here is generated from :func:`.format.basis_values` itself: its monomial coefficients
-are recovered by a least-squares fit at points off the sphere (exact, since the reference does
-not normalise its input; a basis that were not such a polynomial would be refused), so the
-shaders and the reference cannot drift apart.
+Every basis of [`shprobe.lightmaps.format.ENCODINGS`][shprobe.lightmaps.ENCODINGS] is a polynomial
+of degree ≤ 2 in (x, y, z), and the code here is generated from
+[`shprobe.lightmaps.format.basis_values`][shprobe.lightmaps.basis_values] itself: its monomial
+coefficients are recovered by a least-squares fit at points off the sphere (exact, since the
+reference does not normalise its input; a basis that were not such a polynomial would be refused),
+so the shaders and the reference cannot drift apart.
 
 For an encoding ``E`` with ``k`` textures (``len(format.texture_layout(E))``, or the layout a
 file names), each language gets::
@@ -50,12 +51,12 @@ def _monomials(p: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def basis_polynomials(encoding: str) -> NDArray[np.float64]:
-    """The encoding's basis functions as coefficients on :data:`MONOMIALS`.
+    """The encoding's basis functions as coefficients on `MONOMIALS`.
 
     Parameters
     ----------
     encoding : str
-        One of :data:`.format.ENCODINGS`.
+        One of [`shprobe.lightmaps.format.ENCODINGS`][shprobe.lightmaps.ENCODINGS].
 
     Returns
     -------
@@ -177,13 +178,13 @@ def lightmap_shader(encodings: str | Sequence[str], language: str = "glsl",
     Parameters
     ----------
     encodings : str or sequence of str
-        One or more of :data:`.format.ENCODINGS`; each gets its functions (module docstring),
-        the normal-map decoder is emitted once.
+        One or more of [`shprobe.lightmaps.format.ENCODINGS`][shprobe.lightmaps.ENCODINGS]; each
+        gets its functions (module docstring), the normal-map decoder is emitted once.
     language : str
         ``"glsl"``, ``"hlsl"`` or ``"wgsl"``.
     layouts : dict, optional
         Per encoding, the textures' ``components`` as a file names them (lists of 4 items,
-        each ``(coefficient, colour)`` or None); default :func:`.format.texture_layout`.
+        each ``(coefficient, colour)`` or None); default `shprobe.lightmaps.format.texture_layout`.
 
     Returns
     -------

@@ -1,7 +1,7 @@
 """Per-vertex tangent frames: MikkTSpace-style tangents of TEXCOORD_0 and the texel frames.
 
 glTF requires normal maps' tangents to be MikkTSpace's (Mikkelsen 2008) when a primitive
-brings none. :func:`vertex_tangents` computes the same construction per vertex: each face's
+brings none. `vertex_tangents` computes the same construction per vertex: each face's
 tangent and bitangent from its position and UV differences, accumulated with the face's
 corner angle as weight, made orthogonal to the vertex normal (Gram–Schmidt), the handedness w
 the sign of (N × T)·B. MikkTSpace additionally splits vertices where the handedness or a

@@ -1,5 +1,5 @@
-"""The gather on a Dask cluster: the texels' tiles (:func:`.gather.tile_size`) run as tasks,
-each on a worker's own ray caster; since every tile draws from its own seed the result equals
+"""The gather on a Dask cluster: the texels' tiles (`shprobe.lightmaps.gather.tile_size`) run as
+tasks, each on a worker's own ray caster; since every tile draws from its own seed the result equals
 the local bake's exactly."""
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def _task(key: str, atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
 
 def gather_on_dask(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
                    scheduler: str, progress: Progress | None = None) -> Gathered:
-    """:func:`shprobe.lightmaps.gather.gather` with its tiles on the Dask scheduler at
+    """`shprobe.lightmaps.gather.gather` with its tiles on the Dask scheduler at
     ``scheduler`` (as ``shprobe batch --scheduler`` runs its chunks).
 
     Parameters

@@ -1,5 +1,6 @@
 """The ``transfer`` object of the ``SHPROBE_lightmap`` extension (specified in
-:mod:`.format`): per texel, the matrices from the sky's SH (lmax 2) to the coefficients."""
+`shprobe.lightmaps.format`): per texel, the matrices from the sky's SH (lmax 2) to the
+coefficients."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ __all__ = ["add_transfer", "read_transfer"]
 
 
 def add_transfer(doc: dict, binary: bytearray, transfer: ArrayLike) -> dict:
-    """Add the transfer of a lightmap already added by :func:`add_lightmap` (module doc).
+    """Add the transfer of a lightmap already added by `add_lightmap` (module doc).
 
     Parameters
     ----------

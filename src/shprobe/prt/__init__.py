@@ -9,8 +9,9 @@ Modules, in the order a bake runs them:
 - `shprobe.prt.trace`: one traced bake (visibility, the bounce gather, the bounces);
 - `shprobe.prt.criteria`: where a baked transfer needs more vertices or directions;
 - `shprobe.prt.subdivide`: splitting marked edges, conforming;
-- `shprobe.prt.settings`: [`Refinement`][shprobe.prt.Refinement] and its named instances, QUICK
-  (default) and ACCURATE;
+- `shprobe.prt.settings`: [`PrtSettings`][shprobe.prt.PrtSettings] (a bake's settings, the CLI's
+  defaults) and [`Refinement`][shprobe.prt.Refinement] with its named instances, QUICK (default) and
+  ACCURATE;
 - `shprobe.prt.refine`: the refined bake, a driver of named stages over the three above;
 - `shprobe.prt.baking`: the public [`bake`][shprobe.prt.bake] and its time/memory estimate;
 - `shprobe.prt.transfer`: the [`Transfer`][shprobe.prt.Transfer] result, .npz I/O, radiance scale;
@@ -27,16 +28,18 @@ from .baking import BakeEstimate, bake, estimate_bake
 from .directions import sample_directions
 from .geometry import BakeScene, ground_plane, load_scene, mesh_hash
 from .relighting import relight, scene_lighting
-from .settings import ACCURATE, QUICK, REFINEMENTS, Refinement
+from .settings import ACCURATE, DEFAULT_LMAX, QUICK, REFINEMENTS, PrtSettings, Refinement
 from .transfer import MODES, Transfer, load_transfer, unshadowed_transfer
 
 __all__ = [
     "ACCURATE",
+    "DEFAULT_LMAX",
     "MODES",
     "QUICK",
     "REFINEMENTS",
     "BakeEstimate",
     "BakeScene",
+    "PrtSettings",
     "Refinement",
     "Transfer",
     "bake",

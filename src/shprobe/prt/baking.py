@@ -17,58 +17,68 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..errors import ShprobeError
 from ..limits import Cost
 from ..progress import Progress
-from ..sh import check_lmax, num_coeffs
+from ..sh import num_coeffs
 from .geometry import BakeScene, load_scene
 from .refine import bake_refined, stage_progress
-from .settings import QUICK, Refinement, as_refinement
+from .settings import PrtSettings
 from .trace import bake_bytes, check_threads, trace_bake
-from .transfer import MODES, Transfer, check_int, coloured
+from .transfer import Transfer, coloured
 
 __all__ = ["BakeEstimate", "bake", "estimate_bake"]
 
 
-def bake(scene: Any, mode: str = "shadowed", lmax: int = 4, samples: int = 1024,
-         bounces: int = 2, albedo: Any = None, seed: int = 0, ground: bool = False,
-         threads: int | None = None, progress: Progress | None = None, *,
-         mesh_albedo: Any = None, refine: Refinement | str | bool | None = None) -> Transfer:
+def bake(scene: Any, settings: PrtSettings | None = None, progress: Progress | None = None,
+         *, albedo: Any = None, ground: bool = False, mesh_albedo: Any = None,
+         **changes: Any) -> Transfer:
     """Bake per-vertex transfer vectors (Lisle & Huang 2007 §4).
 
-    scene: a mesh path, a trimesh object, a list of them, or a [`BakeScene`][shprobe.prt.BakeScene]
-    ([`load_scene`][shprobe.prt.load_scene]: the way to a ground albedo or resolution of one's own).
-    albedo: one value for every mesh (a number or r,g,b); mesh_albedo: one entry per mesh (number,
-    r,g,b or per-vertex values); ground: add a ground plane
-    ([`load_scene`][shprobe.prt.load_scene]). mode: 'unshadowed' | 'shadowed' | 'interreflected' —
-    the most complete model baked: a shadowed bake also gives unshadowed, an interreflected bake
-    also gives shadowed and any fewer bounces ([`Transfer.select`][shprobe.prt.Transfer.select]).
-    lmax: degree baked (any lower degree can be used later). samples: ray directions per vertex over
-    the whole sphere (about half are traced). bounces: interreflection bounces (interreflected
-    only). seed: an integer >= 0, picks the random rotation of the direction set. threads: workers
-    for ray casting, kernels and bounce products (default: all cores; `shprobe.prt.trace`).
-    progress: a [`Progress`][shprobe.progress.Progress] reporter (stages "k/N: what", countable).
+    Parameters
+    ----------
+    scene
+        A mesh path, a trimesh object, a list of them, or a [`BakeScene`][shprobe.prt.BakeScene]
+        ([`load_scene`][shprobe.prt.load_scene]: the way to a ground albedo or resolution of one's
+        own).
+    settings
+        The bake's [`PrtSettings`][shprobe.prt.PrtSettings] (default: its defaults, the CLI's).
+    progress
+        A [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter (stages "k/N: what",
+        countable).
+    albedo
+        One value for every mesh (a number or r,g,b), when ``scene`` is not a BakeScene.
+    ground
+        Add a ground plane ([`load_scene`][shprobe.prt.load_scene]), when ``scene`` is not a
+        BakeScene.
+    mesh_albedo
+        One entry per mesh (number, r,g,b or per-vertex values).
+    **changes
+        Fields of [`PrtSettings`][shprobe.prt.PrtSettings] changed from ``settings``
+        (``mode="interreflected", lmax=2``).
 
-    refine: adaptive refinement of the scene where the transfer varies fast
-    (`shprobe.prt.refine`): a [`Refinement`][shprobe.prt.Refinement] ([`QUICK`][shprobe.prt.QUICK],
-    [`ACCURATE`][shprobe.prt.ACCURATE]) or its name, True (QUICK) or False. Default (None): QUICK
-    for a traced bake with ``ground=True``, else none (a [`BakeScene`][shprobe.prt.BakeScene] that
-    holds a ground is refined when asked: its ground is refined like every mesh).
-
-    Returns a [`Transfer`][shprobe.prt.Transfer]; its ``transfer`` ((V, K) float32, or (V, K, 3)
-    when the albedo is coloured) is the baked model, with transfer · L = exit radiance
-    ρ/π ∫ L V max(0, n·ω) dω (+ bounces).
+    Returns
+    -------
+    Transfer
+        Its ``transfer`` ((V, K) float32, or (V, K, 3) when the albedo is coloured) is the
+        baked model, with transfer · L = exit radiance ρ/π ∫ L V max(0, n·ω) dω (+ bounces);
+        ``as_dict()`` summarises it. A traced bake that adds a ground is refined by default
+        (`PrtSettings.refine`).
     """
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    settings = as_refinement(refine)
-    sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
-    if refine is None and mode != "unshadowed" and ground:
-        settings = QUICK
-    if settings is not None:
-        return bake_refined(sc, settings, mode, lmax, samples, bounces, seed, threads, progress)
-    return trace_bake(sc, mode, lmax, samples, bounces, seed, threads,
-                      stage_progress(progress, 1, 1, f"{mode} bake, {sc.n_vertices:,} vertices"))[0]
+    settings = settings if settings is not None else PrtSettings()
+    if not isinstance(settings, PrtSettings):
+        raise ShprobeError(f"settings must be a PrtSettings, got {type(settings).__name__}")
+    if changes:
+        settings = settings.but(**changes)
+    with settings.limits.applied():
+        sc = load_scene(scene, albedo=albedo, ground=ground, mesh_albedo=mesh_albedo)
+        refinement = settings.refinement(ground)
+        if refinement is not None:
+            return bake_refined(sc, refinement, settings, progress)
+        return trace_bake(sc, settings, stage_progress(
+            progress, 1, 1, f"{settings.mode} bake, {sc.n_vertices:,} vertices"))[0]
 
 
 @dataclass(frozen=True)
@@ -85,43 +95,107 @@ class BakeEstimate(Cost):
 
 
 #: Seconds per (input vertex × sample) of a bake at lmax 2 on two threads, by mode and
-#: refinement, and the final vertices as a multiple of the input's: measured on the bench scene
-#: (bunny + ground, 6,728 vertices, 1024 samples, 2 bounces; bench/bench_prt.py,
+#: refinement, and the final vertices as a multiple of the input's at lmax 2: measured on the
+#: bench scene (bunny + ground, 6,728 vertices, 1024 samples, 2 bounces; bench/bench_prt.py,
 #: bench/bench_prt_contact.py --timing) on the 2-core box.
 COST = {("shadowed", None): (3.5e-8, 1.0), ("interreflected", None): (1.2e-7, 1.0),
         ("shadowed", "quick"): (7.0e-7, 1.6), ("interreflected", "quick"): (6.1e-6, 12.0),
         ("shadowed", "accurate"): (1.5e-6, 2.0), ("interreflected", "accurate"): (5.8e-5, 34.0)}
+#: The final vertices of a quick refinement as a multiple of the input's, by degree: a higher
+#: degree sees sharper jumps in the transfer and splits more (bunny + ground, 1024 samples,
+#: bench/bench_prt_memory.py); read linearly between the degrees, flat beyond them.
+GROWTH = {("shadowed", "quick"): ((2, 1.59), (6, 2.17), (10, 2.81), (16, 5.57)),
+          ("interreflected", "quick"): ((2, 12.2), (6, 15.6), (10, 18.1), (16, 22.5))}
 #: The time of a bake grows with the SH degree as (LMAX_COST + K) (K = (lmax + 1)²): the
 #: quick interreflected bunny takes 42 s at lmax 2 and 94 s at lmax 6.
 LMAX_COST = 23.0
-#: Resident memory of the process besides the bake's arrays (Python, numpy, Embree's BVH).
-BASE_BYTES = 3e8
+#: Resident memory of the process besides the bake's arrays (Python, numpy, trimesh, the
+#: scene): an unshadowed bake of the bunny peaks at 115 MB.
+BASE_BYTES = 1.15e8
+#: What a traced bake adds to it besides its arrays: Embree's BVH, the compiled kernels and
+#: the workers' ray chunks (a shadowed bake of the bunny at lmax 2 peaks at 240 MB).
+TRACE_BYTES = 1.25e8
 
 
-def estimate_bake(scene: BakeScene, mode: str = "shadowed", lmax: int = 4,
-                  samples: int = 1024, bounces: int = 2,
-                  refine: Refinement | None = None, threads: int | None = None) -> BakeEstimate:
-    """The time and peak memory of ``bake(scene, mode, lmax, samples, bounces, refine=...)``
-    on this machine: time from the measured cost per input vertex and sample (`COST`,
-    scaled by the degree and the threads), memory from the bake's own memory model
-    (`shprobe.prt.trace.bake_bytes`, the one its memory check uses) at the final vertex count."""
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    lmax = check_lmax(lmax)
-    nthreads = check_threads(threads)
+#: A refined bake's peak memory beyond the bases, by mode: bytes per cell (final vertex ×
+#: coefficient × channel) and per final vertex at 1024 samples (its rays, the gather of an
+#: interreflected bake, the mesh's tables), least-squares fits to the peak resident memory of
+#: the quick bakes of the bunny + ground at lmax 2, 6, 10 and 16 (bench/bench_prt_memory.py).
+REFINED_BYTES = {"shadowed": (54.2, 2790.0), "interreflected": (97.8, 5357.0)}
+
+
+def growth(mode: str, refinement: str | None, lmax: int) -> float:
+    """The final vertices of a bake as a multiple of its input's (`GROWTH`, else the
+    lmax-2 figure of `COST`).
+
+    Parameters
+    ----------
+    mode
+        The bake's mode.
+    refinement
+        None, 'quick' or 'accurate'.
+    lmax
+        The degree baked.
+
+    Returns
+    -------
+    float
+        The factor.
+    """
+    table = GROWTH.get((mode, refinement))
+    if table is None:
+        return COST[mode, refinement][1]
+    degrees = [d for d, _ in table]
+    return float(np.interp(lmax, degrees, [g for _, g in table]))
+
+
+def estimate_bake(scene: BakeScene, settings: PrtSettings | None = None) -> BakeEstimate:
+    """The time and peak memory of ``bake(scene, settings)`` on this machine.
+
+    Time from the measured cost per input vertex and sample (`COST`, scaled by the
+    degree and the threads), memory from the bake's own memory model
+    (`shprobe.prt.trace.bake_bytes`, the one its memory check uses) at the final vertex count.
+
+    Parameters
+    ----------
+    scene
+        The scene to bake ([`load_scene`][shprobe.prt.load_scene]).
+    settings
+        The bake's settings (default: [`PrtSettings`][shprobe.prt.PrtSettings]'s defaults).
+
+    Returns
+    -------
+    BakeEstimate
+        Seconds, peak bytes and the final vertex count.
+    """
+    settings = settings if settings is not None else PrtSettings()
+    mode, lmax = settings.mode, settings.lmax
+    nthreads = check_threads(settings.threads)
     k = num_coeffs(lmax)
     if mode == "unshadowed":
         return BakeEstimate(2e-7 * scene.n_vertices * k,
                             BASE_BYTES + bake_bytes(scene.n_vertices, lmax, 0, 0),
                             scene.n_vertices)
-    samples = check_int(samples, 16, "samples per vertex")
-    bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
+    samples = settings.samples
+    bounces = settings.bounces if mode == "interreflected" else 0
+    refine = settings.refinement(False)  # a BakeScene is refined when asked
     name = None if refine is None else ("accurate" if refine.post_jump is not None
                                         or refine.dense_factor > 8 else "quick")
-    per, grow = COST[mode, name]
-    n = int(scene.n_vertices * grow)
+    per = COST[mode, name][0]
+    n = int(scene.n_vertices * growth(mode, name, lmax))
     seconds = (per * scene.n_vertices * samples * (LMAX_COST + k) / (LMAX_COST + 9)
                * (max(1, bounces) / 2 if mode == "interreflected" else 1) * 2 / nthreads)
     channels = 3 if coloured(scene.albedo) else 1
-    nbytes = BASE_BYTES + bake_bytes(n, lmax, samples, bounces + 1, channels, nthreads)
+    layers = bounces + 1
+    if refine is None:
+        nbytes = (BASE_BYTES + TRACE_BYTES
+                  + bake_bytes(n, lmax, samples, layers, channels, nthreads))
+    else:
+        # the final geometry's cells and vertices at the rates fitted to the refined bakes
+        # (they hold a round's arrays while the next bakes, the rounds' criteria and edge
+        # tables, the final bake's groups), and the contact's SH rows dense_factor× longer
+        per_cell, per_vertex = REFINED_BYTES[mode]
+        nbytes = (BASE_BYTES + TRACE_BYTES + per_cell * n * k * channels
+                  + per_vertex * n * samples / 1024.0
+                  + 8.0 * refine.dense_factor * samples * k * nthreads)
     return BakeEstimate(seconds, nbytes, n)

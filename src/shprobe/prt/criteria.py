@@ -29,7 +29,7 @@ interpolated light is wrong however many rays are traced. These measures say whe
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,7 +38,7 @@ from .subdivide import edge_table
 from .trace import GatherBlocks
 from .transfer import Transfer
 
-__all__ = ["GATHER_FLOOR", "gather_errors", "gather_importance", "gather_picks",
+__all__ = ["GATHER_FLOOR", "Gathered", "gather_errors", "gather_importance", "gather_picks",
            "post_split_marks", "transfer_jumps"]
 
 #: Gathering vertices dimmer than this fraction of the scene's median ‖T‖ are judged as if that
@@ -150,18 +150,28 @@ def _leaned_on(share: NDArray[np.float64], blocks: GatherBlocks,
     return imp
 
 
+class Gathered(NamedTuple):
+    """What a final bake's gather saw (`gather_picks`' inputs): the shadowed and the
+    cumulative layers (V, K, C), the gather blocks and the albedo."""
+
+    direct: NDArray[np.float64]
+    cumulative: NDArray[np.float64]
+    blocks: GatherBlocks
+    albedo: NDArray[np.float64]
+
+
 def post_split_marks(traced0: NDArray[np.float64], edges: NDArray[np.int64],
-                     direct: NDArray[np.float64], cumulative: NDArray[np.float64],
-                     blocks: GatherBlocks, albedo: NDArray[np.float64],
-                     gatherers: NDArray[np.bool_], jump: float, share_tol: float = 2e-4,
-                     floor: float = GATHER_FLOOR) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+                     gathered: Gathered, gatherers: NDArray[np.bool_], jump: float,
+                     share_tol: float = 2e-4, floor: float = GATHER_FLOOR
+                     ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """The post-pass's edges (module doc, post-pass): an edge is marked where both ends carry more
     than ``share_tol`` of a gatherer's exit transfer (`gather_picks`' measure, with
     max(‖T_0(c)‖, ‖T(c)‖) as c's level; ``gatherers``: the contact's dense vertices and the
     picks) and the final bake's shadowed transfer ``traced0`` (V, K, C) jumps across it by more
     than ``jump`` of its brighter end (ends dimmer than 2 % of the median ‖T_0‖ count no jump).
-    ``direct``, ``cumulative``, ``blocks``, ``albedo``: as `gather_picks`' from the final
-    bake. Returns (marked edges (E,), the vertices that qualify (V,))."""
+    ``gathered``: `gather_picks`' inputs from the final bake. Returns (marked edges
+    (E,), the vertices that qualify (V,))."""
+    direct, cumulative, blocks, albedo = gathered
     share = _exit_share(cumulative, albedo, floor)
     hit = _leaned_on(share, blocks, gatherers,
                      np.maximum(_norms(direct), _norms(cumulative))) > share_tol

@@ -21,7 +21,8 @@ from ..errors import ShprobeError
 from ..scene.mesh import as_mesh, mesh_hash, mesh_vertex_albedo
 from ..sh.rotation import unit_vectors
 
-__all__ = ["DEFAULT_ALBEDO", "BakeScene", "ground_plane", "load_scene", "mesh_hash"]
+__all__ = ["DEFAULT_ALBEDO", "BakeScene", "albedo_keywords", "ground_plane", "load_scene",
+           "mesh_hash"]
 
 #: Albedo used where none is given.
 DEFAULT_ALBEDO = 0.8
@@ -117,6 +118,34 @@ def _one_value(albedo: Any, what: str) -> Any:
                            f"{'shape ' + str(shape) if shape else 'a ragged list'}); give "
                            "per-mesh or per-vertex albedo as mesh_albedo=[one entry per mesh]")
     return albedo
+
+
+def albedo_keywords(values: Sequence[Any], n_meshes: int) -> dict[str, Any]:
+    """Albedo values as given for a scene of ``n_meshes`` meshes → the
+    [`load_scene`][shprobe.prt.load_scene] keywords: none (the defaults), one (``albedo``: every
+    mesh and the ground) or one per mesh in order (``mesh_albedo``).
+
+    Parameters
+    ----------
+    values
+        The albedo values: numbers or r,g,b triples.
+    n_meshes
+        The meshes of the scene.
+
+    Returns
+    -------
+    dict
+        {}, {"albedo": value} or {"mesh_albedo": [values]}.
+    """
+    values = list(values)
+    if not values:
+        return {}
+    if len(values) == 1:
+        return {"albedo": values[0]}
+    if len(values) != n_meshes:
+        raise ShprobeError(f"albedo given {len(values)} times for {n_meshes} meshes: give it "
+                           "once (every mesh) or once per mesh, in order")
+    return {"mesh_albedo": values}
 
 
 def load_scene(scene: Any, albedo: Any = None, ground: bool = False,

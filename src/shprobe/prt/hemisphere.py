@@ -25,6 +25,7 @@ the smallest feature found, the levels how finely its edges are resolved.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,27 @@ from ..sh.rotation import frame_from_normal
 from .directions import RAYS_PER_CHUNK
 from .geometry import BakeScene
 from .transfer import vertex_hash
+
+
+@dataclass(frozen=True)
+class TraceContext:
+    """What every ray-tracing pass of one bake reads: the scene, its ray caster, the face
+    normals (float32) when the bounce gather is wanted (else None), the map that runs the
+    workers, the degree, the seed and the progress reporter."""
+
+    sc: BakeScene
+    caster: RayCaster
+    fnormals: NDArray[np.float32] | None
+    pmap: Callable[..., Iterable[Any]]
+    lmax: int
+    seed: int
+    progress: Progress | None = None
+
+
+#: Quadratures of the dense vertices.
+QUADRATURES = ("fibonacci", "adaptive")
+#: The most levels of the adaptive refinement (each halves the finest cell).
+MAX_ADAPTIVE_LEVELS = 8
 
 __all__ = ["ADAPTIVE_LEVELS", "adaptive_grid", "equal_area_hemisphere", "trace_adaptive"]
 
@@ -93,19 +115,18 @@ def _turned_frames(normals: NDArray[np.float64], rows: NDArray[np.int64], seed: 
     return np.stack([c * t + s * b, c * b - s * t, f[:, :, 2]], axis=-1)
 
 
-def trace_adaptive(sc: BakeScene, caster: RayCaster, rows: NDArray[np.int64],
-                   origins: NDArray[np.float32], lmax: int, seed: int,
-                   fnormals: NDArray[np.float32] | None, pmap: Callable[..., Iterable[Any]],
-                   grid: int, levels: int = ADAPTIVE_LEVELS, progress: Progress | None = None,
+def trace_adaptive(ctx: TraceContext, rows: NDArray[np.int64], origins: NDArray[np.float32],
+                   grid: int, levels: int = ADAPTIVE_LEVELS,
                    description: str = "tracing rays (adaptive)"
                    ) -> tuple[NDArray[np.float64], list[tuple[NDArray[np.int64], Any]], int]:
     """The unscaled shadowed rows Σ_escaping w y(ω) (len(rows), K) of the vertices ``rows`` by
     the adaptive quadrature of the module doc (``grid`` G cells per side, ``levels`` of
     refinement), their gather matrix's CSR blocks (vertex indices, (n, V) rows of Σ w β over
-    front-face hits; [] without ``gather``) as `shprobe.prt.trace.trace_rows` returns them,
-    and the number of rays traced. ``origins``: the rows' ray origins (float32, the caster's
-    frame); ``fnormals``: the scene's face normals (float32) when the gather is wanted, else
-    None."""
+    front-face hits; [] without gather, i.e. ``ctx.fnormals`` None) as
+    `shprobe.prt.trace.trace_rows` returns them, and the number of rays traced.
+    ``origins``: the rows' ray origins (float32, the caster's frame)."""
+    sc, caster, lmax, seed = ctx.sc, ctx.caster, ctx.lmax, ctx.seed
+    fnormals, pmap, progress = ctx.fnormals, ctx.pmap, ctx.progress
     gather = fnormals is not None
     from scipy.sparse import coo_matrix
 

@@ -33,8 +33,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
-from ..progress import Progress
+from ..progress import Progress, numbered, prefixed
 from .criteria import (
+    Gathered,
     gather_errors,
     gather_importance,
     gather_picks,
@@ -42,10 +43,10 @@ from .criteria import (
     transfer_jumps,
 )
 from .geometry import BakeScene
-from .settings import Refinement
+from .settings import PrtSettings, Refinement
 from .subdivide import closed_edges, edge_table, split_closed
 from .trace import DenseVertices, GatherBlocks, trace_bake
-from .transfer import Transfer, check_int
+from .transfer import Transfer
 
 __all__ = ["RefineRound", "bake_count", "bake_refined"]
 
@@ -59,43 +60,34 @@ class RefineRound:
     seconds: float
 
 
-@dataclass(frozen=True)
-class _Job:
-    """What every stage of one refined bake reads."""
+def _bounced(settings: PrtSettings) -> bool:
+    """An interreflected bake with bounces: the gather criteria apply."""
+    return settings.mode == "interreflected" and settings.bounces > 0
 
-    settings: Refinement
-    mode: str
-    lmax: int
-    samples: int
-    bounces: int
-    seed: int
-    threads: int | None
-    n_input: int  # vertices of the unrefined scene
-    min_edge: float  # edges no longer than this are not split
 
-    @property
-    def bounced(self) -> bool:
-        return self.mode == "interreflected" and self.bounces > 0
-
-    @property
-    def picks(self) -> tuple[float, ...]:
-        s = self.settings
-        return s.dense_picks if self.bounced and s.dense_factor > 1 else ()
+def _picks(settings: PrtSettings, refinement: Refinement) -> tuple[float, ...]:
+    """The pick thresholds the final bake uses (none unless bounced with dense vertices)."""
+    r = refinement
+    return r.dense_picks if _bounced(settings) and r.dense_factor > 1 else ()
 
 
 @dataclass
 class _Geometry:
     """The scene as the rounds leave it: ``raw`` its unnormalised interpolated normals
-    (`split_closed`), ``touched`` (V,) the vertices of split edges."""
+    (`split_closed`), ``touched`` (V,) the vertices of split edges;
+    ``n_input`` the vertices of the unrefined scene, ``min_edge`` the length edges must exceed
+    to be split."""
 
     scene: BakeScene
     raw: NDArray[np.float64]
     touched: NDArray[np.bool_]
     rounds: list[RefineRound]
+    n_input: int
+    min_edge: float
 
-    def dense(self, n_input: int) -> NDArray[np.bool_]:
+    def dense(self) -> NDArray[np.bool_]:
         """The contact: the input vertices the refinement touched."""
-        return self.touched & (np.arange(len(self.touched)) < n_input)
+        return self.touched & (np.arange(len(self.touched)) < self.n_input)
 
     def split(self, sel: NDArray[np.int64], edges: NDArray[np.int64],
               face_edges: NDArray[np.int64], max_vertices: int, touch: bool) -> int:
@@ -130,72 +122,74 @@ class _Picker:
         return got if self.trace else got[:0]
 
 
-class _Named:
+def stage_progress(progress: Progress | None, index: int, count: int, what: str
+                   ) -> Progress | None:
     """Progress of one bake among several: its stages read 'k/N: <bake>: <stage>'."""
-
-    def __init__(self, progress: Progress, prefix: str) -> None:
-        self._progress, self._prefix = progress, prefix
-
-    def begin(self, description: str, total: float | None = None) -> None:
-        self._progress.begin(f"{self._prefix}: {description}", total)
-
-    def update(self, done: float) -> None:
-        self._progress.update(done)
-
-    def end(self) -> None:
-        self._progress.end()
+    return prefixed(numbered(progress, index, count), what)
 
 
-def stage_progress(progress: Progress | None, index: int, count: int, what: str) -> Progress | None:
-    return None if progress is None else _Named(progress, f"{index}/{count}: {what}")
-
-
-def bake_count(settings: Refinement) -> int:
+def bake_count(refinement: Refinement) -> int:
     """The most bakes a refined bake runs: the rounds, the final bake, the post-pass's."""
-    return settings.max_rounds + 1 + (settings.post_jump is not None)
+    return refinement.max_rounds + 1 + (refinement.post_jump is not None)
 
 
-def bake_refined(scene: BakeScene, settings: Refinement, mode: str = "interreflected",
-                 lmax: int = 4, samples: int = 1024, bounces: int = 2, seed: int = 0,
-                 threads: int | None = None, progress: Progress | None = None) -> Transfer:
-    """Bake ``scene`` ([`load_scene`][shprobe.prt.load_scene]; its ground plane, if any, is refined
-    like every mesh) with adaptive refinement by ``settings`` (module doc). Other arguments as
-    `trace_bake`. The returned transfer's ``metadata['refine']`` holds the
-    settings and the rounds (`RefineRound` as dicts)."""
-    if mode not in ("shadowed", "interreflected"):
+def bake_refined(scene: BakeScene, refinement: Refinement, settings: PrtSettings,
+                 progress: Progress | None = None) -> Transfer:
+    """Bake ``scene`` with adaptive refinement (module doc).
+
+    Parameters
+    ----------
+    scene
+        The scene ([`load_scene`][shprobe.prt.load_scene]; its ground plane, if any, is refined like
+        every mesh).
+    refinement
+        How the scene is refined ([`QUICK`][shprobe.prt.QUICK], [`ACCURATE`][shprobe.prt.ACCURATE]).
+    settings
+        The bake's [`PrtSettings`][shprobe.prt.PrtSettings] (a traced mode).
+    progress
+        A [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter (stages "k/N: <bake>:
+        <stage>").
+
+    Returns
+    -------
+    Transfer
+        Over the refined geometry (input vertices first); ``metadata['refine']`` holds the
+        refinement and the rounds (`RefineRound` as dicts).
+    """
+    if not settings.traced:
         raise ShprobeError(f"refinement needs a traced bake (shadowed or interreflected), not "
-                           f"{mode!r}")
+                           f"{settings.mode!r}")
     diag = float(np.linalg.norm(np.ptp(scene.vertices, axis=0)))
-    job = _Job(settings, mode, lmax, check_int(samples, 16, "samples per vertex"),
-               check_int(bounces, 0, "bounces"), seed, threads, scene.n_vertices,
-               settings.min_edge_fraction * diag)
-    count = bake_count(settings)
-    geo = _Geometry(scene, scene.normals, np.zeros(scene.n_vertices, dtype=bool), [])
-    t = _subdivide(job, geo, progress, count)
+    geo = _Geometry(scene, scene.normals, np.zeros(scene.n_vertices, dtype=bool), [],
+                    scene.n_vertices, refinement.min_edge_fraction * diag)
+    count = bake_count(refinement)
+    t = _subdivide(settings, refinement, geo, progress, count)
     picker, blocks = None, None
     if t is None:
         t0 = time.perf_counter()
-        screen = settings.post_jump is not None
-        t, blocks, picker = _final_bake(job, geo, None, screen,
+        screen = refinement.post_jump is not None
+        t, blocks, picker = _final_bake(settings, refinement, geo, None, screen,
                                         stage_progress(progress, count - screen, count,
                                                f"{'screening' if screen else 'final'} bake, "
                                                f"{geo.scene.n_vertices:,} vertices"))
         geo.rounds.append(RefineRound(geo.scene.n_vertices, 0, time.perf_counter() - t0))
     post: dict[str, Any] = {}
     if picker is not None and picker.seen and blocks is not None:
-        t, post = _post_pass(job, geo, t, blocks, picker, progress, count)
+        t, post = _post_pass(settings, refinement, geo, (t, blocks, picker),
+                             (progress, count))
     meta = dict(t.metadata)
-    s = settings
-    dense = geo.dense(job.n_input)
+    s = refinement
+    dense = geo.dense()
     meta["refine"] = {
         "settings": s.name, "tol": s.tol, "min_edge_fraction": s.min_edge_fraction,
-        "max_rounds": s.max_rounds, "gather_tol": s.gather_tol if job.bounced else None,
+        "max_rounds": s.max_rounds, "gather_tol": s.gather_tol if _bounced(settings) else None,
         "gather_gate": s.gather_gate, "gather_floor": s.gather_floor,
         "base_mesh_hash": scene.mesh_hash, "dense_factor": s.dense_factor,
         # what the final bake ran (no dense vertices: Fibonacci everywhere)
         "dense_quadrature": "adaptive" if "dense_quadrature" in t.metadata else "fibonacci",
         "dense_vertices": int(dense.sum()) if s.dense_factor > 1 else 0,
-        "dense_picks": list(job.picks), "dense_picked": int(t.metadata.get("dense_picked", 0)),
+        "dense_picks": list(_picks(settings, refinement)),
+        "dense_picked": int(t.metadata.get("dense_picked", 0)),
         **post,
         "rounds": [{"vertices": x.vertices, "split": x.split, "seconds": round(x.seconds, 3)}
                    for x in geo.rounds],
@@ -204,79 +198,84 @@ def bake_refined(scene: BakeScene, settings: Refinement, mode: str = "interrefle
     return replace(t, metadata=meta)
 
 
-def _subdivide(job: _Job, geo: _Geometry, progress: Progress | None, count: int
-               ) -> Transfer | None:
+def _subdivide(settings: PrtSettings, refinement: Refinement, geo: _Geometry,
+               progress: Progress | None, count: int) -> Transfer | None:
     """Stage 1 (module doc): the rounds, splitting ``geo`` in place. Returns the last
     driving bake when it is already the final one (full samples, no dense vertices), else
     None (the final bake is still to run)."""
-    s = job.settings
-    drive = max(64, job.samples // 4)
+    s = refinement
+    drive = max(64, settings.samples // 4)
+    driving = settings.but(samples=min(drive, settings.samples))
     for r in range(s.max_rounds):
         t0 = time.perf_counter()
         sc = geo.scene
-        t, blocks = trace_bake(sc, job.mode, job.lmax, min(drive, job.samples), job.bounces,
-                               job.seed, job.threads,
+        t, blocks = trace_bake(sc, driving,
                                stage_progress(progress, r + 1, count,
-                                      f"refinement round {r + 1}, {sc.n_vertices:,} vertices"),
-                               keep_gather=job.bounced)
+                                              f"refinement round {r + 1}, "
+                                              f"{sc.n_vertices:,} vertices"),
+                               keep_gather=_bounced(settings))
         secs = time.perf_counter() - t0
         edges, face_edges = edge_table(sc.faces)
         over = transfer_jumps(t)[1] > s.tol
-        if job.bounced and blocks is not None:
+        if _bounced(settings) and blocks is not None:
             imp = gather_importance(t, blocks, s.gather_floor)
             over |= gather_errors(t, edges, imp, s.gather_gate) > s.gather_tol
         length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
-        marked = over & (length > job.min_edge)
+        marked = over & (length > geo.min_edge)
         geo.rounds.append(RefineRound(sc.n_vertices, int(marked.sum()), secs))
         if not marked.any():
-            final = drive >= job.samples and not (s.dense_factor > 1
-                                                   and geo.dense(job.n_input).any())
+            final = drive >= settings.samples and not (s.dense_factor > 1
+                                                   and geo.dense().any())
             return t if final else None
         geo.split(closed_edges(marked, face_edges), edges, face_edges, s.max_vertices, True)
     return None
 
 
-def _final_bake(job: _Job, geo: _Geometry, extra: NDArray[np.bool_] | None, screen: bool,
-                progress: Progress | None
+def _final_bake(settings: PrtSettings, refinement: Refinement, geo: _Geometry,
+                extra: NDArray[np.bool_] | None, screen: bool, progress: Progress | None
                 ) -> tuple[Transfer, GatherBlocks | None, _Picker | None]:
     """Stage 2 (module doc): the final geometry with the full samples, the contact dense;
     ``extra``: the post-pass's new vertices traced on their own grid; ``screen``: the bake the
     post-pass reads (its picks found, not traced; the gather kept)."""
-    s = job.settings
-    contact = geo.dense(job.n_input)
+    s = refinement
+    samples = settings.samples
+    contact = geo.dense()
     own = extra is not None and 0 < s.post_dense < s.dense_factor
     mask = contact if extra is None or own else contact | extra
     dense = None
     if s.dense_factor > 1 and mask.any():
-        dense = DenseVertices(mask, s.dense_factor * job.samples, s.dense_quadrature,
+        dense = DenseVertices(mask, s.dense_factor * samples, s.dense_quadrature,
                               s.adaptive_levels, extra if own else None,
-                              s.post_dense * job.samples)
+                              s.post_dense * samples)
     picker = None
-    if job.picks and mask.any():
-        picker = _Picker(contact, job.picks, s.gather_floor, trace=not screen)
-    t, blocks = trace_bake(geo.scene, job.mode, job.lmax, job.samples, job.bounces, job.seed,
-                           job.threads, progress, dense=dense, sets=s.direction_sets,
+    picks = _picks(settings, refinement)
+    if picks and mask.any():
+        picker = _Picker(contact, picks, s.gather_floor, trace=not screen)
+    t, blocks = trace_bake(geo.scene, settings, progress, dense=dense, sets=s.direction_sets,
                            pick=picker, keep_gather=screen and picker is not None)
     return t, blocks, picker
 
 
-def _post_pass(job: _Job, geo: _Geometry, t: Transfer, blocks: GatherBlocks,
-               picker: _Picker, progress: Progress | None, count: int
-               ) -> tuple[Transfer, dict[str, Any]]:
+def _post_pass(settings: PrtSettings, refinement: Refinement, geo: _Geometry,
+               screened: tuple[Transfer, GatherBlocks, _Picker],
+               where: tuple[Progress | None, int]) -> tuple[Transfer, dict[str, Any]]:
     """Stage 3 (module doc): split among what the contact leans on where the screening bake's
-    shadowed transfer jumps, and bake again with the picks traced."""
-    s = job.settings
+    (``screened``: its transfer, gather blocks and picker) shadowed transfer jumps, and bake
+    again with the picks traced; ``where``: the progress and the count of bakes."""
+    t, blocks, picker = screened
+    progress, count = where
+    s = refinement
     sc = geo.scene
     edges, face_edges = edge_table(sc.faces)
-    gatherers = geo.dense(job.n_input)
+    gatherers = geo.dense()
     gatherers[picker.seen["picked"]] = True
     seen = picker.seen
     marked, hit = post_split_marks(
-        np.asarray(t.traced[0], dtype=np.float64), edges, seen["direct"], seen["cumulative"],
-        blocks, seen["albedo"], gatherers, float(s.post_jump), float(s.post_share),
-        s.gather_floor)
+        np.asarray(t.traced[0], dtype=np.float64), edges,
+        Gathered(seen["direct"], seen["cumulative"], blocks, seen["albedo"]), gatherers,
+        float(s.post_jump), float(s.post_share), s.gather_floor)
     length = np.linalg.norm(sc.vertices[edges[:, 0]] - sc.vertices[edges[:, 1]], axis=1)
-    marked &= length > job.min_edge
+    marked &= length > geo.min_edge
     last = geo.rounds[-1]
     geo.rounds[-1] = RefineRound(last.vertices, int(marked.sum()), last.seconds)
     post = {"post_jump": float(s.post_jump), "post_share": float(s.post_share),
@@ -291,7 +290,7 @@ def _post_pass(job: _Job, geo: _Geometry, t: Transfer, blocks: GatherBlocks,
         extra = np.zeros(geo.scene.n_vertices, dtype=bool)
         extra[sc.n_vertices:] = gatherers[edges[sel]].all(1) & (s.post_dense > 0)
         post["post_dense"] = int(extra.sum())
-    t, _, _ = _final_bake(job, geo, extra, False,
+    t, _, _ = _final_bake(settings, refinement, geo, extra, False,
                           stage_progress(progress, count, count,
                                  f"final bake, {geo.scene.n_vertices:,} vertices"))
     geo.rounds.append(RefineRound(geo.scene.n_vertices, 0, time.perf_counter() - t0))

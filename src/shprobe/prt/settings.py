@@ -1,5 +1,7 @@
-"""How a traced bake with a ground refines its scene: one frozen settings type,
-[`Refinement`][shprobe.prt.Refinement], and its two named instances.
+"""The settings of a PRT bake: [`PrtSettings`][shprobe.prt.PrtSettings] (what
+[`shprobe.prt.bake`][shprobe.prt.bake] takes, its defaults the CLI's), and how a traced bake with a
+ground refines its scene: one frozen type, [`Refinement`][shprobe.prt.Refinement], and its two named
+instances.
 
 - [`QUICK`][shprobe.prt.QUICK]: the default of every traced bake with a ground. The scene is split
   where the transfer jumps or where a close gatherer leans on a coarse triangle, and the contact's
@@ -13,16 +15,26 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import ShprobeError
-from .hemisphere import ADAPTIVE_LEVELS
-from .trace import MAX_ADAPTIVE_LEVELS, QUADRATURES
+from ..limits import Limits
+from ..sh import check_lmax
+from .hemisphere import ADAPTIVE_LEVELS, MAX_ADAPTIVE_LEVELS, QUADRATURES
+from .transfer import MODES, check_int
 
-__all__ = ["ACCURATE", "QUICK", "REFINEMENTS", "Refinement", "as_refinement"]
+__all__ = ["ACCURATE", "DEFAULT_LMAX", "QUICK", "REFINEMENTS", "PrtSettings", "Refinement",
+           "as_refinement"]
+
+#: The SH degree a bake stores by default, in the library and the CLI alike: a quick
+#: interreflected bake of the packaged bunny on a ground takes about a minute and a half on
+#: two cores at lmax 6 and enough memory to run beside other work (docs/prt.md), and the
+#: degrees 0..6 serve every model and lighting the tour shows; higher degrees are a named
+#: choice (``lmax=10``).
+DEFAULT_LMAX = 6
 
 
 @dataclass(frozen=True)
@@ -127,3 +139,121 @@ def as_refinement(value: Any, default: Refinement = QUICK) -> Refinement | None:
         return REFINEMENTS[value]
     raise ShprobeError(f"refine must be a Refinement, True, False, None or one of "
                        f"{', '.join(map(repr, REFINEMENTS))}, got {value!r}")
+
+
+def _check_threads(threads: Any) -> int | None:
+    return None if threads is None else check_int(threads, 1, "threads")
+
+
+@dataclass(frozen=True)
+class PrtSettings:
+    """Settings of a PRT bake (Lisle & Huang 2007 §4): what [`shprobe.prt.bake`][shprobe.prt.bake]
+    takes. The defaults are the CLI's (``shprobe prt bake``); accuracy is a named choice.
+
+    Parameters
+    ----------
+    mode
+        'unshadowed' | 'shadowed' | 'interreflected': the most complete model baked. A
+        shadowed bake also gives unshadowed, an interreflected bake also gives shadowed and any
+        fewer bounces.
+    lmax
+        SH degree baked (any lower degree can be used later);
+        [`DEFAULT_LMAX`][shprobe.prt.DEFAULT_LMAX].
+    samples
+        Ray directions per vertex over the whole sphere (about half are traced); >= 16.
+    bounces
+        Interreflection bounces (interreflected only).
+    seed
+        An integer >= 0: picks the random rotation of the direction set.
+    threads
+        Workers for ray casting, kernels and bounce products (None: all cores).
+    refine
+        Adaptive refinement of the scene where the transfer varies fast: a
+        [`Refinement`][shprobe.prt.Refinement] (QUICK, ACCURATE), its name, True (QUICK), False
+        (none) or None (QUICK for a traced bake that adds a ground, ``bake(..., ground=True)``, else
+        none: a [`BakeScene`][shprobe.prt.BakeScene] that holds a ground is refined when asked).
+    limits
+        The memory limit the bake is refused over
+        ([`shprobe.limits.Limits`][shprobe.limits.Limits]).
+    """
+
+    mode: str = "shadowed"
+    lmax: int = DEFAULT_LMAX
+    samples: int = 1024
+    bounces: int = 2
+    seed: int = 0
+    threads: int | None = None
+    refine: Refinement | str | bool | None = None
+    limits: Limits = field(default_factory=Limits, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ShprobeError(f"unknown PRT mode {self.mode!r}; choose one of "
+                               f"{', '.join(MODES)}")
+        object.__setattr__(self, "lmax", check_lmax(self.lmax))
+        object.__setattr__(self, "seed", check_int(self.seed, 0, "seed"))
+        object.__setattr__(self, "threads", _check_threads(self.threads))
+        if self.traced:
+            object.__setattr__(self, "samples", check_int(self.samples, 16,
+                                                          "samples per vertex"))
+        if self.mode == "interreflected":
+            object.__setattr__(self, "bounces", check_int(self.bounces, 0, "bounces"))
+        if self.refine is not None and not isinstance(self.refine, bool | Refinement):
+            object.__setattr__(self, "refine", as_refinement(self.refine))
+        if not isinstance(self.limits, Limits):
+            raise ShprobeError(f"limits must be a shprobe.limits.Limits, got {self.limits!r}")
+
+    @property
+    def traced(self) -> bool:
+        """Whether the bake traces rays (shadowed or interreflected)."""
+        return self.mode != "unshadowed"
+
+    def refinement(self, ground: bool) -> Refinement | None:
+        """The refinement this bake runs when it adds (or does not add) a ground.
+
+        Parameters
+        ----------
+        ground
+            Whether the bake adds a ground plane to its scene.
+
+        Returns
+        -------
+        Refinement or None
+            QUICK, ACCURATE or a custom refinement; None: no refinement.
+        """
+        if self.refine is None:
+            return QUICK if self.traced and ground else None
+        got = as_refinement(self.refine)
+        if got is not None and not self.traced:
+            raise ShprobeError("refinement needs a traced bake (mode shadowed or "
+                               "interreflected)")
+        return got
+
+    def but(self, **changes: Any) -> PrtSettings:
+        """A copy with some settings changed.
+
+        Parameters
+        ----------
+        **changes
+            Fields and their new values.
+
+        Returns
+        -------
+        PrtSettings
+            The changed copy.
+        """
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            Each field; a refinement by its name.
+        """
+        r = self.refine
+        return {"mode": self.mode, "lmax": self.lmax, "samples": self.samples,
+                "bounces": self.bounces, "seed": self.seed, "threads": self.threads,
+                "refine": r.name if isinstance(r, Refinement) else r,
+                "limits": self.limits.as_dict()}

@@ -35,26 +35,36 @@ from ..errors import ShprobeError
 from ..limits import check_memory
 from ..progress import Progress, track
 from ..scene.raycast import RayCaster
-from ..sh import check_lmax, num_coeffs, sh_basis
+from ..sh import num_coeffs, sh_basis
 from ..sh.rotation import wigner_d
 from .directions import RAYS_PER_CHUNK, ray_origins, ray_source
 from .geometry import BakeScene
-from .hemisphere import ADAPTIVE_LEVELS, adaptive_grid, trace_adaptive
-from .transfer import MODES, Transfer, as_stored, check_int, coloured, times_albedo
+from .hemisphere import (
+    ADAPTIVE_LEVELS,
+    MAX_ADAPTIVE_LEVELS,
+    QUADRATURES,
+    TraceContext,
+    adaptive_grid,
+    trace_adaptive,
+)
+from .settings import PrtSettings
+from .transfer import Transfer, as_stored, check_int, coloured, times_albedo
 
 __all__ = ["MAX_ADAPTIVE_LEVELS", "QUADRATURES", "DenseVertices", "GatherBlocks",
-           "bake_bytes", "check_threads", "trace_bake"]
-
-#: Quadratures of the dense vertices.
-QUADRATURES = ("fibonacci", "adaptive")
-#: The most levels of :mod:`.hemisphere`'s refinement (each halves the finest cell).
-MAX_ADAPTIVE_LEVELS = 8
+           "TraceContext", "bake_bytes", "check_threads", "trace_bake"]
 
 #: Bytes of the gather matrix per upward direction of an interreflected bake (CSR values and
-#: indices of the hits' three corners, after repeated entries are merged; measured: 1.4 GB
-#: resident for the bunny's 82k-vertex quick bake at lmax 6, 4.0 GB for the 234k-vertex
-#: accurate one at lmax 2).
-GATHER_BYTES_PER_RAY = 24.0
+#: indices of the hits' three corners, after repeated entries are merged, and the COO blocks
+#: they are built from; fitted to the peak resident memory of the bunny + ground quick bakes,
+#: bench/bench_prt_memory.py).
+GATHER_BYTES_PER_RAY = 10.5
+#: Bytes per cell (vertex × coefficient × channel) a traced bake holds besides its float32
+#: layers: the float64 visibility sums and their albedo-weighted copy (24), and in a bake
+#: with bounces the bounce's product, its output and the running total (12 more): 28 bytes
+#: per cell for a shadowed bake, 48 for an interreflected one, as measured (unrefined bunny +
+#: ground, lmax 2 to 16).
+CELL_WORK_BYTES = 24.0
+BOUNCE_CELL_BYTES = 12.0
 #: The bounce gather matrix G as blocks of rows: (vertex indices, CSR rows (n, V)).
 GatherBlocks = list[tuple[NDArray[np.int64], Any]]
 #: ``pick(direct, cumulative, blocks, albedo)`` → vertex indices to trace as the dense ones.
@@ -96,12 +106,14 @@ def bake_bytes(n_vertices: int, lmax: int, samples: int, layers: int, channels: 
                threads: int = 1, extra: float = 0.0) -> float:
     """Bytes a traced bake holds (the cost model of `trace_bake`'s memory check and of
     [`shprobe.prt.baking.estimate_bake`][shprobe.prt.estimate_bake]): the stored layers (float32),
-    the float64 running sums, one worker block of SH rows per thread, for an interreflected bake
-    (``layers`` > 1) the gather matrix (`GATHER_BYTES_PER_RAY` per upward direction), and ``extra``
-    (the picks' sums, the adaptive grids)."""
+    the float64 sums and bounce products (`CELL_WORK_BYTES`, `BOUNCE_CELL_BYTES`), one worker block
+    of SH rows per thread, for an interreflected bake (``layers`` > 1) the gather matrix
+    (`GATHER_BYTES_PER_RAY` per upward direction), and ``extra`` (the picks' sums, the
+    adaptive grids)."""
     cells = float(n_vertices) * num_coeffs(lmax) * channels
     gather = GATHER_BYTES_PER_RAY * 0.5 * samples * n_vertices if layers > 1 else 0.0
-    return (4.0 * cells * layers + 16.0 * cells * (layers > 0)
+    return (cells * (4.0 * layers + CELL_WORK_BYTES * (layers > 0)
+                     + BOUNCE_CELL_BYTES * (layers > 1))
             + 8.0 * samples * num_coeffs(lmax) * threads + gather + extra)
 
 
@@ -124,13 +136,13 @@ def _groups(n_vertices: int, samples: int, dense: DenseVertices | None
     return groups
 
 
-def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int = 0,
-               seed: int = 0, threads: int | None = None, progress: Progress | None = None, *,
+def trace_bake(sc: BakeScene, settings: PrtSettings, progress: Progress | None = None, *,
                dense: DenseVertices | None = None, sets: int = 1, pick: PickFn | None = None,
                keep_gather: bool = False) -> tuple[Transfer, GatherBlocks | None]:
-    """Bake ``sc`` once (module doc) and return the [`Transfer`][shprobe.prt.Transfer] and, with
-    ``keep_gather`` (an interreflected bake), the bounce gather matrix G as its blocks: bounce
-    b+1 = ρ/π · G @ bounce b (`shprobe.prt.refine` reads where each vertex gathers from).
+    """Bake ``sc`` once (module doc) by ``settings`` (its mode, degree, samples, bounces,
+    seed, threads and limits; not its refinement) and return the [`Transfer`][shprobe.prt.Transfer]
+    and, with ``keep_gather`` (an interreflected bake), the bounce gather matrix G as its blocks:
+    bounce b+1 = ρ/π · G @ bounce b (`shprobe.prt.refine` reads where each vertex gathers from).
 
     ``sets`` > 1: each vertex traces one of that many rotated copies of the direction set
     (`rotated_direction_sets`). ``pick`` (an interreflected bake with dense
@@ -138,16 +150,35 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
     albedo)`` with the layers (V, K, C) and the gather blocks; the vertices it returns are
     traced again as the dense ones are, their rows of T_0 and of the gather matrix replaced,
     before the bounces (the other vertices' rays are kept; `shprobe.prt.criteria.gather_picks`).
+
+    Parameters
+    ----------
+    sc
+        The scene ([`load_scene`][shprobe.prt.load_scene]).
+    settings
+        Mode, degree, samples, bounces, seed, threads and limits (its refinement unused).
+    progress
+        A [`shprobe.progress.Progress`][shprobe.progress.Progress] reporter.
+    dense
+        Vertices traced with more directions (`DenseVertices`), or None.
+    sets
+        Rotated copies of the direction set (1: one set).
+    pick
+        The picks' callback (above), or None.
+    keep_gather
+        Return the gather blocks too (an interreflected bake).
+
+    Returns
+    -------
+    tuple
+        (the [`Transfer`][shprobe.prt.Transfer], the gather blocks or None).
     """
-    if mode not in MODES:
-        raise ShprobeError(f"unknown PRT mode {mode!r}; choose one of {', '.join(MODES)}")
-    lmax = check_lmax(lmax)
-    seed = check_int(seed, 0, "seed")  # numpy's seeding refuses negatives
-    nthreads = check_threads(threads)
+    mode, lmax, seed = settings.mode, settings.lmax, settings.seed
+    nthreads = check_threads(settings.threads)
     sets = check_int(sets, 1, "direction sets")
-    traced_mode = mode != "unshadowed"
-    samples = check_int(samples, 16, "samples per vertex") if traced_mode else 0
-    bounces = check_int(bounces, 0, "bounces") if mode == "interreflected" else 0
+    traced_mode = settings.traced
+    samples = settings.samples if traced_mode else 0
+    bounces = settings.bounces if mode == "interreflected" else 0
     groups = _groups(sc.n_vertices, samples, dense) if traced_mode else []
     adaptive_q = dense is not None and dense.quadrature == "adaptive"
     levels = int(dense.levels) if dense is not None else ADAPTIVE_LEVELS
@@ -163,7 +194,7 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
                             grids + 16.0 * np.prod(shape) * (pick is not None)
                             + 8.0 * max([0] + [g[1] for g in groups[1:]]) * k * nthreads),
                  f"a {mode} bake of {sc.n_vertices} vertices at lmax {lmax} with {samples} "
-                 "samples")
+                 "samples", limits=settings.limits)
     traced = np.empty((len(counts), *shape), dtype=np.float32)
     adaptive = None
     picked = np.zeros(0, dtype=np.int64)
@@ -180,17 +211,17 @@ def trace_bake(sc: BakeScene, mode: str, lmax: int, samples: int, bounces: int =
                         else None)
             rays = [0, 0]  # the adaptive quadrature's rays and vertices
 
+            ctx = TraceContext(sc, caster, fnormals, pmap, lmax, seed, progress)
+
             def trace(rows: NDArray[np.int64], n_dirs: int, group: int, name: str):
                 if group and adaptive_q:
                     t0_g, b_g, n_rays = trace_adaptive(
-                        sc, caster, rows, ray_origins(sc, caster, rows)[1], lmax, seed,
-                        fnormals, pmap, adaptive_grid(n_dirs), levels, progress,
-                        f"{name} (adaptive)")
+                        ctx, rows, ray_origins(sc, caster, rows)[1], adaptive_grid(n_dirs),
+                        levels, f"{name} (adaptive)")
                     rays[0] += n_rays
                     rays[1] += len(rows)
                     return t0_g, b_g
-                return trace_rows(sc, caster, lmax, n_dirs, seed, fnormals, rows, pmap,
-                                  sets, progress, name)
+                return trace_rows(ctx, rows, n_dirs, sets, name)
 
             for gi, (rows, n_dirs) in enumerate(groups):
                 t0[rows], b_g = trace(rows, n_dirs, gi, names[gi])
@@ -270,21 +301,21 @@ def gather(blocks: GatherBlocks, prev: NDArray[np.float64],
     return out.reshape(v, k, c)
 
 
-def trace_rows(sc: BakeScene, caster: RayCaster, lmax: int, samples: int, seed: int,
-               fnormals: NDArray[np.float32] | None, rows: NDArray[np.int64],
-               pmap: Callable[..., Iterable[Any]], sets: int = 1,
-               progress: Progress | None = None, description: str = "tracing rays"
+def trace_rows(ctx: TraceContext, rows: NDArray[np.int64], samples: int, sets: int = 1,
+               description: str = "tracing rays"
                ) -> tuple[NDArray[np.float64], GatherBlocks]:
-    """For the vertices ``rows`` (rays cast by ``caster``, over ``sc``'s mesh): the
-    visibility-weighted projection Σ V cos y 4π/N (len(rows), K), and the bounce gather
-    matrix's rows as (vertex indices, CSR block) per span of ``rows`` (None without gather).
-    ``fnormals``: the scene's face normals (float32) when the gather is wanted (its hits on
-    front faces), else None. ``sets`` > 1: each vertex traces one of that many rotated copies of
-    the direction set (`rotated_direction_sets`)."""
+    """For the vertices ``rows`` (rays cast by ``ctx.caster`` over ``ctx.sc``'s mesh,
+    ``samples`` directions each): the visibility-weighted projection Σ V cos y 4π/N
+    (len(rows), K), and the bounce gather matrix's rows as (vertex indices, CSR block) per
+    span of ``rows`` (None without gather, i.e. when ``ctx.fnormals`` is None). ``sets`` > 1:
+    each vertex traces one of that many rotated copies of the direction set
+    (`rotated_direction_sets`)."""
     from scipy.sparse import coo_matrix
 
     from ._kernels import add_visible
 
+    sc, caster, lmax, seed = ctx.sc, ctx.caster, ctx.lmax, ctx.seed
+    fnormals, pmap, progress = ctx.fnormals, ctx.pmap, ctx.progress
     gather_wanted = fnormals is not None
     step = max(1, RAYS_PER_CHUNK // max(1, samples // 2))
     spans = [(i, min(i + step, len(rows))) for i in range(0, len(rows), step)]

@@ -64,6 +64,15 @@ def as_stored(t: NDArray[np.float64]) -> NDArray[np.float32]:
     return np.asarray(t[..., 0] if t.shape[-1] == 1 else t, dtype=np.float32)
 
 
+def _jsonable(value: Any) -> Any:
+    """numpy scalars and arrays as JSON values (as_dict)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)
+
+
 def check_int(value: Any, minimum: int, what: str) -> int:
     """``value`` as an int, refusing bools, non-integers and values below ``minimum``."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
@@ -137,6 +146,21 @@ class Transfer:
     @cached_property
     def _unshadowed(self) -> NDArray[np.float32]:
         return as_stored(times_albedo(unshadowed_transfer(self.normals, self.lmax), self.albedo))
+
+    def as_dict(self) -> dict[str, Any]:
+        """A JSON-able summary of the bake (not its arrays): what the CLI prints and the
+        viewer and batch serialise.
+
+        Returns
+        -------
+        dict
+            mode, models, lmax, vertices, faces, bounces, mesh hash and the bake's metadata
+            (samples, seed, refinement rounds, …).
+        """
+        return {"mode": self.mode, "models": list(self.modes), "lmax": int(self.lmax),
+                "vertices": int(self.n_vertices), "faces": len(self.faces),
+                "bounces": self.max_bounces, "mesh_hash": self.mesh_hash,
+                "metadata": json.loads(json.dumps(self.metadata, default=_jsonable))}
 
     def select(self, mode: str | None = None, bounces: int | None = None,
                lmax: int | None = None) -> NDArray[np.float32]:

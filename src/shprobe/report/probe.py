@@ -21,7 +21,7 @@ from __future__ import annotations
 import base64
 import html
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +70,21 @@ class ProbeReport:
     minimum: Any  # shprobe.lighting.windows.IrradianceMinimum
     window: Any  # shprobe.lighting.windows.WindowChoice
     figures: dict[str, Figure] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """A JSON-able summary of the report (not its page): the source, the coefficients,
+        the error report's document, the non-negativity certificate and the window.
+
+        Returns
+        -------
+        dict
+            source, coeffs, errors, nonnegative, window, figures (their names), html_bytes.
+        """
+        return {"source": self.source, "coeffs": np.asarray(self.coeffs, float).tolist(),
+                "errors": self.errors.as_dict(self.source),
+                "nonnegative": bool(getattr(self.minimum, "nonnegative", False)),
+                "window": str(getattr(self.window, "kind", None)),
+                "figures": list(self.figures), "html_bytes": len(self.html.encode())}
 
     def __repr__(self) -> str:
         return (f"ProbeReport({self.source!r}, {len(self.figures)} figures, "
@@ -147,37 +162,65 @@ def check_map_cost(pixels: float, map_height: int, where: Any = None) -> None:
                 "use a smaller --map-size or a smaller probe")
 
 
-def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
-                 map_height: int = 32, render_size: int = 256,
-                 progress: Progress | None = None) -> ProbeReport:
-    """Build the report of ``env``.
+@dataclass(frozen=True)
+class ReportSettings:
+    """Settings of a probe report ([`probe_report`][shprobe.report.probe_report]); the defaults are
+    ``shprobe report``'s.
 
-    ``mesh``: a trimesh mesh for the basis images and the render (None: the unit sphere);
-    ``mesh_name``: its name on the page. ``map_height``: rows of the lat-long irradiance maps
-    (2N × N normals; the exact map and the error table use the same normals). ``render_size``:
-    side of the basis images and the render. ``progress`` gets the job's
-    `REPORT_STAGES` stages "k/N: …" (the brute-force integral counted inside its stage).
+    Parameters
+    ----------
+    map_height
+        Rows N of the lat-long irradiance maps (2N × N normals; the exact map and the error
+        table use the same normals), 2..256.
+    render_size
+        Side of the basis images and the render, pixels (16..MAX_RENDER).
+    """
+
+    map_height: int = 32
+    render_size: int = 256
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            map_height, render_size.
+        """
+        return {"map_height": self.map_height, "render_size": self.render_size}
+
+
+def probe_report(env: Env, mesh: Any = None, mesh_name: str | None = None,
+                 settings: ReportSettings | None = None, progress: Progress | None = None,
+                 **changes: Any) -> ProbeReport:
+    """Build the report of ``env``.
 
     Parameters
     ----------
     env
         The probe.
     mesh
-        A trimesh mesh for the basis images and the render; None for the unit sphere.
+        A trimesh mesh for the basis images and the render (None: the unit sphere).
     mesh_name
-        The mesh's name on the page.
-    map_height
-        Rows of the lat-long irradiance maps.
-    render_size
-        Side of the basis images and the render, pixels.
+        Its name on the page.
+    settings
+        The report's [`ReportSettings`][shprobe.report.ReportSettings] (default: its defaults).
     progress
-        Told about each stage.
+        Gets the job's `REPORT_STAGES` stages "k/N: …" (the brute-force integral
+        counted inside its stage).
+    **changes
+        Fields of [`ReportSettings`][shprobe.report.ReportSettings] changed from ``settings``
+        (``map_height=16``).
 
     Returns
     -------
     ProbeReport
-        The page's content; [`write_report`][shprobe.report.write_report] writes it.
+        The page and what it shows (``as_dict()`` summarises it).
     """
+    s = settings if settings is not None else ReportSettings()
+    if changes:
+        s = replace(s, **changes)
+    map_height, render_size = s.map_height, s.render_size
     h = int(map_height)
     if not 2 <= h <= 256:  # the brute-force integral is 2N² normals × every probe pixel
         raise ShprobeError(f"map height {h} must be 2..256")

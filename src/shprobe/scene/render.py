@@ -363,41 +363,18 @@ def render(mesh: trimesh.Trimesh | None, coeffs: ArrayLike, camera: Camera | Non
     rad = np.zeros((P, C), np.float32)
     alb = _albedo_per_pixel(mesh, albedo, hits, hit, C)
     rad[hit] = E[hit] / np.float32(np.pi) if alb is None else alb * E[hit] / np.float32(np.pi)
-    return render_result(hits, rad, E, camera, mode, background)
+    return render_result(hits, (rad, E), camera, mode, background)
 
 
-def render_result(hits: Hits, radiance: NDArray, irradiance: NDArray, camera: Camera, mode: str,
-                  background: Any = None, normals: NDArray | None = None,
+def render_result(hits: Hits, shading: tuple[NDArray, NDArray], camera: Camera, mode: str,
+                  background: Any = None, *, normals: NDArray | None = None,
                   layers: dict[str, NDArray] | None = None,
                   info: dict[str, Any] | None = None) -> RenderResult:
     """A [`RenderResult`][shprobe.scene.RenderResult] from flat per-pixel buffers (P, ...) of
-    ``hits`` (radiance and irradiance (P, C); ``normals`` (P, 3), default the hits' shading normals;
-    ``layers`` (P, ...) each), with ``background`` filled in where the rays missed.
-
-    Parameters
-    ----------
-    hits
-        The rays' hits.
-    radiance, irradiance
-        (P, C) per hit pixel.
-    camera
-        The camera.
-    mode
-        "pixel" or "vertex".
-    background
-        None (black), a colour or an Env.
-    normals
-        (P, 3) shading normals (default: the hits').
-    layers
-        Further (P, ...) per-pixel buffers.
-    info
-        Scalars about the render.
-
-    Returns
-    -------
-    RenderResult
-        The full-frame images.
-    """
+    ``hits`` (``shading``: radiance and irradiance (P, C); ``normals`` (P, 3), default the hits'
+    shading normals; ``layers`` (P, ...) each), with ``background`` filled in where the rays
+    missed."""
+    radiance, irradiance = shading
     hit = hits.face >= 0
     img = radiance.copy()
     if background is not None:
@@ -451,7 +428,7 @@ def render_vertex_colors(mesh: trimesh.Trimesh, vertex_radiance: ArrayLike,
     hit = hits.face >= 0
     rad = np.zeros((hit.size, C), np.float32)
     rad[hit] = _interp(vr, mesh, hits, hit)
-    return render_result(hits, rad, np.zeros_like(rad), camera, "vertex-colors", background)
+    return render_result(hits, (rad, np.zeros_like(rad)), camera, "vertex-colors", background)
 
 
 # ----------------------------------------------------------------------------- basis images

@@ -273,9 +273,9 @@ def _degree(settings: TransformSettings, degree: int, where) -> int:
     if d is None:
         return degree
     if not 0 <= d <= 3:
-        raise ShprobeError(f"--sh-degree must be 0–3, got {d}")
+        raise ShprobeError(f"sh_degree must be 0–3, got {d}")
     if d > degree:
-        raise ShprobeError(f"--sh-degree {d} is above the file's SH degree {degree}", where)
+        raise ShprobeError(f"sh_degree {d} is above the file's SH degree {degree}", where)
     return d
 
 

@@ -1,10 +1,10 @@
 """The lightmap view (``shprobe view --lightmap OUT.glb``): a baked scene drawn with its
 normal maps and its ``SHPROBE_lightmap``, shaded per pixel by the library's generated GLSL
-(:func:`shprobe.lightmaps.shaders.lightmap_shader`, Habel & Wimmer 2010 eq. 15).
+(`shprobe.lightmaps.shaders.lightmap_shader`, Habel & Wimmer 2010 eq. 15).
 
 The page reads the .glb itself (geometry, materials, the stored coefficient textures as the
 file holds them) and gets from the server what the library adds: the GLSL, the encodings the
-stored one implies (:func:`shprobe.lightmaps.derive.implied_encodings`, as RGBA16F textures
+stored one implies (`shprobe.lightmaps.derive.implied_encodings`, as RGBA16F textures
 packed like the file's) and a default exposure. It shows one encoding, or H&W's Fig. 1
 (plain lightmap · H6 without albedo · H6 with albedo) and Fig. 5 (H4 beside H6) as panels of
 one camera, with the texel grid as an overlay.
@@ -69,7 +69,7 @@ class LightmapView:
         return float(np.clip(math.log2(0.8 / peak), -30.0, 30.0)) if peak > 0 else 0.0
 
     def payload(self) -> bytes:
-        """The page's data in one :func:`pack_binary` message: the head (encodings, layouts,
+        """The page's data in one `pack_binary` message: the head (encodings, layouts,
         GLSL, size, scale, exposure) and, per implied encoding, its RGBA16F textures
         (``"<encoding>_<t>"``, stored values: × ``scale`` for irradiance)."""
         if self._payload is not None:

@@ -47,8 +47,7 @@ def compare_data(src: Source, progress: Progress | None = None) -> dict[str, Any
             # E_lm of the probe at lmax N: the page's per-pixel SH at each lmax 1..N
             "irradiance": glsl_uniform_values(src.coeffs, MAX_LMAX).tolist(),
             "maps": maps, "total_intensity": total_intensity(env).tolist(),
-            "rows": [{"lmax": r.lmax, "mean_frac": r.mean_frac, "max_frac": r.max_frac,
-                      "mean_rel": r.mean_rel} for r in rep.rows]}
+            "rows": rep.as_dict()["rows"]}
 
 
 #: the H-basis view's panels, in order, with their captions (the page shows them as given)
