@@ -38,17 +38,25 @@ print(json.dumps({"estimate": est.nbytes, "est_seconds": est.seconds,
 """
 
 
-#: Reads the bunny once, so that shprobe's mesh cache holds it: the first read of a mesh file
-#: parses it with trimesh, a one-off transient (about 0.37 GB for the packaged bunny) that is
-#: not the bake's and that a bake from the cache does not repeat.
-WARM = ("from shprobe.prt import load_scene; from shprobe.scene.mesh import bunny_path; "
-        "load_scene([str(bunny_path())], ground=True)")
+#: A small bake of the same kind first, in its own process: shprobe's mesh cache then holds the
+#: bunny and numba's on-disk cache the bake's kernels. The first read of a mesh file (trimesh's
+#: parse) and a kernel's first compilation are one-off transients (together up to ~0.4 GB)
+#: that a user's second bake does not repeat and that the estimate does not count.
+WARM = r"""
+import sys
+from shprobe.prt import PrtSettings, bake, load_scene
+from shprobe.scene.mesh import bunny_path
+mode, lmax, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+s = PrtSettings(mode=mode, lmax=lmax, samples=64, threads=threads)
+bake(load_scene([str(bunny_path())], ground=True), s.but(refine=False))
+"""
 
 
 def measure(mode: str, lmax: int, samples: int = 1024, threads: int = 2) -> dict:
     """Run one bake in a subprocess (the mesh cache warmed first); its estimate and peak RSS
     (bytes) and more."""
-    subprocess.run([sys.executable, "-c", WARM], capture_output=True, check=True)
+    subprocess.run([sys.executable, "-c", WARM, mode, str(lmax), str(threads)],
+                   capture_output=True, check=True)
     r = subprocess.run([sys.executable, "-c", CHILD, mode, str(lmax), str(samples),
                         str(threads)], capture_output=True, text=True, check=True)
     return json.loads(r.stdout.strip().splitlines()[-1])

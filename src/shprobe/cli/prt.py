@@ -209,7 +209,8 @@ def render_cmd(transfer, probe, preset, coeffs_file, cone, rotate, lmax, mode, b
     if turntable is None:
         wrote(output, "PRT frame")
     else:
-        wrote([result.paths[0], result.paths[-1]], f"{turntable} turntable frames")
+        # every frame named, so the line reads "36 files in frames/: f_000.png … f_035.png"
+        wrote(list(result.paths), "turntable frames")
 
 
 def register(group: click.Group) -> None:

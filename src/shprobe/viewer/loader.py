@@ -231,8 +231,8 @@ def inline_loader(probe: str | None, layout: str, mesh: str | None) -> Loader | 
         if not path:
             continue
         conn = _Conn()
-        args = ((conn, probe, layout, None, None) if which == "probe"
-                else (conn, None, layout, mesh, name))
+        args = ((conn, probe, layout, None) if which == "probe"
+                else (conn, None, layout, (mesh, name)))
         worker = _Worker(_load_child, (*args, 0, go if which == "probe" else None, None,
                                        False))
         worker.start()
@@ -283,12 +283,12 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
                 os._exit(0)
             # sent after the probe's coefficients: the server reads that pipe first (a
             # payload larger than a pipe's buffer sent now would wait for it: a deadlock)
-            _load_child(pconn, probe, layout, None, None, go=go, then=(mconn, data, stamp))
+            _load_child(pconn, probe, layout, None, go=go, then=(mconn, data, stamp))
     if probe and mesh:
         pid = os.fork()
         if pid == 0:  # the mesh's process
             pconn.close()
-            _load_child(mconn, None, layout, mesh, mesh_name)
+            _load_child(mconn, None, layout, (mesh, mesh_name))
 
         def stop(signum: int, frame: Any) -> None:  # terminate() ends the mesh's process too
             try:  # (it holds the loader's sentinel: a join would wait for it)
@@ -299,8 +299,9 @@ def _loader(pconn: Any, mconn: Any, probe: str | None, layout: str, mesh: str | 
 
         signal.signal(signal.SIGTERM, stop)
         mconn.close()
-        _load_child(pconn, probe, layout, None, None, wait=pid, go=go)
-    _load_child(pconn if probe else mconn, probe, layout, mesh, mesh_name, go=go)
+        _load_child(pconn, probe, layout, None, wait=pid, go=go)
+    _load_child(pconn if probe else mconn, probe, layout,
+                (mesh, mesh_name) if mesh else None, go=go)
 
 
 def _send_mesh(conn: Any, data: bytes, stamp: dict[str, float]) -> None:
@@ -313,12 +314,13 @@ def _send_mesh(conn: Any, data: bytes, stamp: dict[str, float]) -> None:
         pass
 
 
-def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
-                mesh_name: str | None, wait: int = 0, go: Go | None = None,
+def _load_child(conn: Any, probe: str | None, layout: str,
+                mesh: tuple[str, str | None] | None, wait: int = 0, go: Go | None = None,
                 then: tuple[Any, bytes, dict[str, float]] | None = None,
                 forked: bool = True) -> None:
     """In the loader's process (or its fork): the probe's lmax-2 coefficients, the page's
-    mesh arrays (or, given ``then``, the cached ones down their own pipe, read next), then —
+    mesh arrays (``mesh``: its path and shown name; or, given ``then``, the cached ones down
+    their own pipe, read next), then —
     once ``go`` is set, or `ENV_WAIT` seconds later — the [`Env`][shprobe.probes.env.Env], its
     lmax-`MAX_LMAX` coefficients and the background texture, each sent when ready
     (with wall-clock stamps); a failure is one ("error", line) message. A forked process ends
@@ -338,7 +340,8 @@ def _load_child(conn: Any, probe: str | None, layout: str, mesh: str | None,
             conn.send(("source", src.coeffs2, src.layout_name,
                        {**stamps, "source_done": time.time()}))
         if mesh:
-            data = cached_mesh_payload(mesh, mesh_name or os.path.basename(mesh))
+            path, shown = mesh
+            data = cached_mesh_payload(path, shown or os.path.basename(path))
             conn.send(("mesh", data, {"geometry_done": time.time()}))
         conn.send(("ready", {}))
         if then is not None:  # the server reads this pipe next
