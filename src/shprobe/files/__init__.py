@@ -1,12 +1,15 @@
 """Files in and out: inputs checked before reading (``inputs``), safe outputs written to a
 temporary name and renamed into place (``outputs``), checked ``.npz`` archives (``npz``) and
-the on-disk cache (``cache``). Every public name is importable from ``shprobe.files``."""
+the on-disk cache (``cache``). Every public name is importable from ``shprobe.files``, the
+constants too (``__all__``, which the manual lists, holds the functions and classes)."""
 
-from .cache import CACHE_ENV, CACHE_KEEP, cache_dir, file_digest, read_cache, write_cache
+from .cache import CACHE_ENV as CACHE_ENV
+from .cache import CACHE_KEEP as CACHE_KEEP
+from .cache import cache_dir, file_digest, read_cache, write_cache
 from .inputs import open_regular, read_text, regular_file
 from .npz import load_npz, npz_headers, save_npz
+from .outputs import STALE_SECONDS as STALE_SECONDS
 from .outputs import (
-    STALE_SECONDS,
     Transaction,
     atomic_output,
     check_output_path,
@@ -17,9 +20,6 @@ from .outputs import (
 )
 
 __all__ = [
-    "CACHE_ENV",
-    "CACHE_KEEP",
-    "STALE_SECONDS",
     "Transaction",
     "atomic_output",
     "cache_dir",
