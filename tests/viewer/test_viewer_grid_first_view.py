@@ -71,7 +71,6 @@ def test_first_frame_in_the_browser_shows_both_settings(room, tmp_path):
     centre is lit, not the background), and its mean E with leak control on and off side by
     side, as the library computes them."""
     from tests.support.browser import chromium_page
-
     from tests.viewer.test_viewer_grid import GridServed
 
     r, g = room
