@@ -213,35 +213,25 @@ def test_bench_imports_nothing_from_tests():
             assert name.split(".")[0] != "tests", f"bench/{p.name} imports {name}"
 
 
-#: Modules other branches of this round are splitting (PRT as stages, the viewer's session):
-#: an entry that is no longer over the limit fails the test, so the list only shrinks.
-OVER_LIMIT_FOR_NOW: set[str] = set()
+#: Modules over the limit for now, each with its reason: an entry that is no longer over the
+#: limit fails the test, so the list only shrinks.
+OVER_LIMIT_FOR_NOW: dict[str, str] = {
+    "batch/engine.py": "being edited on another branch; split after that branch is merged",
+    "fitting/solve.py": "being edited on another branch; split after that branch is merged",
+}
 MAX_LINES = 500
 
 
-def _docstring_lines(tree: ast.Module) -> int:
-    """Lines of the module's, its classes' and its functions' docstrings."""
-    n = 0
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
-            first = node.body[0] if node.body else None
-            if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
-                    and isinstance(first.value.value, str)):
-                n += first.end_lineno - first.lineno + 1
-    return n
-
-
 def test_no_hand_written_module_over_500_lines():
-    """One concept per module: none over 500 lines, except generated ones (first line says
-    GENERATED). Docstrings do not count: the numpydoc sections every public name carries
-    (Parameters, Returns) document the concept, they do not add one."""
+    """One concept per module: none over 500 lines, every line counted (docstrings too), except
+    generated ones (first line says GENERATED)."""
     over, fine = [], []
     for p in sorted(SRC.rglob("*.py")):
         text = p.read_text()
         if text.startswith('"""GENERATED'):
             continue
         rel = str(p.relative_to(SRC))
-        n = text.count("\n") - _docstring_lines(ast.parse(text))
+        n = text.count("\n")
         if n > MAX_LINES and rel not in OVER_LIMIT_FOR_NOW:
             over.append(f"{rel} ({n} lines)")
         if n <= MAX_LINES and rel in OVER_LIMIT_FOR_NOW:

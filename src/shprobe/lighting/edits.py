@@ -14,7 +14,7 @@ value is one [`ShprobeError`][shprobe.errors.ShprobeError] line naming the optio
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ShprobeError
+from .edit_parts import Blend, BlendResolver, Rotation
 from .edit_values import (
     MAX_ITEMS,
     MAX_VALUE,
@@ -32,7 +33,6 @@ from .edit_values import (
     lm_key,
     num_text,
     number,
-    numbers,
     nums_text,
     obj,
     shown,
@@ -40,96 +40,13 @@ from .edit_values import (
 )
 from .windows import WindowSpec, parse_window, window_text
 
-__all__ = ["MAX_VALUE", "Blend", "EditSpec", "Rotation"]
+__all__ = ["MAX_VALUE", "Blend", "BlendResolver", "EditSpec", "Rotation"]
 
 #: Highest degree an edit may have (``shprobe edit --lmax``).
 MAX_EDIT_LMAX = 64
 
 #: names of blended probes in JSON: ids the caller resolves, never a path
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
-
-
-# ----------------------------------------------------------------------------- parts
-
-
-@dataclass(frozen=True)
-class Blend:
-    """Another lighting added with ``weight``: ``kind`` 'preset' (an R&H preset name), 'file'
-    (a probe image or coefficient file, command line only) or 'probe' (an id the caller
-    resolves: the viewer's loaded probes)."""
-
-    kind: str
-    name: str
-    weight: float = 1.0
-
-    def text(self, probe_names: Mapping[str, str] | None = None) -> str:
-        if self.kind == "preset":
-            return f"preset:{self.name}:{num_text(self.weight)}"
-        if self.kind == "probe":
-            name = (probe_names or {}).get(self.name)
-            if name is None:
-                raise ShprobeError(f"blend probe {self.name} is not loaded (load it again)")
-            return f"{name}:{num_text(self.weight)}"
-        return f"{self.name}:{num_text(self.weight)}"
-
-
-@dataclass(frozen=True)
-class Rotation:
-    """A rotation of the lighting: ``kind`` 'axis' (values AX, AY, AZ, DEGREES, right-hand
-    rule), 'euler' (ZYZ, degrees) or 'quat' (W, X, Y, Z)."""
-
-    kind: str
-    values: Floats
-
-    def matrix(self) -> NDArray[np.float64]:
-        """The 3×3 rotation matrix (`shprobe.sh.rotation`)."""
-        from ..sh.rotation import from_axis_angle, from_euler_zyz, from_quaternion, one_rotation
-
-        v = self.values
-        if self.kind == "axis":
-            return np.asarray(from_axis_angle(v[:3], v[3]), np.float64)
-        if self.kind == "euler":
-            a, b, g = np.radians(v)
-            return np.asarray(one_rotation(from_euler_zyz(a, b, g)), np.float64)
-        return np.asarray(one_rotation(from_quaternion(v)), np.float64)
-
-    def text(self) -> str:
-        if self.kind == "axis":
-            return f"{nums_text(self.values[:3])}:{num_text(self.values[3])}"
-        return f"{self.kind}:{nums_text(self.values)}"
-
-    def json(self) -> dict[str, Any]:
-        if self.kind == "axis":
-            return {"axis": list(self.values[:3]), "degrees": self.values[3]}
-        return {self.kind: list(self.values)}
-
-    @staticmethod
-    def parse(text: str) -> Rotation:
-        """One ``--rotate`` value: AX,AY,AZ:DEGREES, euler:A,B,G or quat:W,X,Y,Z."""
-        kind, sep, rest = str(text).partition(":")
-        k = kind.strip().lower()
-        if sep and k == "euler":
-            return Rotation("euler", numbers(rest, "ZYZ Euler angles", (3,)))
-        if sep and k == "quat":
-            q = numbers(rest, "quaternion (w,x,y,z)", (4,))
-            if not any(q):
-                raise ShprobeError("quaternion (w,x,y,z) must be non-zero")
-            return Rotation("quat", q)
-        if not sep or not rest:
-            raise ShprobeError(f"rotation {shown(text)}: expected AX,AY,AZ:DEGREES (e.g. "
-                               "0,1,0:90), euler:A,B,G or quat:W,X,Y,Z")
-        return Rotation("axis", (*vector(kind, "rotation axis"),
-                                 number(rest, "rotation angle")))
-
-    @staticmethod
-    def from_json(v: Any) -> Rotation:
-        r = obj(v, "rotation", ("axis", "degrees", "euler", "quat"))
-        if "euler" in r and len(r) == 1:
-            return Rotation("euler", numbers(r["euler"], "ZYZ Euler angles", (3,)))
-        if "quat" in r and len(r) == 1:
-            return Rotation.parse("quat:" + nums_text(numbers(r["quat"], "quaternion", (4,))))
-        return Rotation("axis", (*vector(r.get("axis"), "rotation axis"),
-                                 number(r.get("degrees"), "rotation angle")))
 
 
 # ----------------------------------------------------------------------------- the spec
@@ -530,6 +447,3 @@ _OPTIONS = {"lmax": False, "weight": False, "blend": True, "directional": True, 
             "scale_band": True, "negate_band": True, "rotate": True, "window": False}
 _JSON_KEYS = ("lmax", "weight", "blends", "directional", "cone", "sky", "scale", "scale_band",
               "set", "set_band", "negate", "negate_band", "rotation", "window")
-
-#: (blend, lmax) → its coefficients at ``lmax`` (K, C)
-BlendResolver = Callable[[Blend, int], NDArray[np.float64]]

@@ -12,11 +12,15 @@
 * `shprobe.scene.render` — [`render`][shprobe.scene.render.render],
   [`render_vertex_colors`][shprobe.scene.render_vertex_colors],
   [`RenderResult`][shprobe.scene.RenderResult], [`basis_images`][shprobe.scene.basis_images].
+* `shprobe.scene.primary` — [`trace`][shprobe.scene.trace]: the primary rays' first hits.
+* `shprobe.scene.images` — [`relight`][shprobe.scene.relight],
+  [`basis_visual`][shprobe.scene.basis_visual], [`save_image`][shprobe.scene.save_image].
 """
 
 from __future__ import annotations
 
 from .camera import Camera
+from .images import basis_visual, relight, save_image
 from .mesh import (
     as_mesh,
     bounding_sphere,
@@ -29,19 +33,9 @@ from .mesh import (
     sample_texture,
     sphere_mesh,
 )
+from .primary import Hits, trace
 from .raycast import RayCaster
-from .render import (
-    Hits,
-    RenderResult,
-    basis_images,
-    basis_visual,
-    relight,
-    render,
-    render_result,
-    render_vertex_colors,
-    save_image,
-    trace,
-)
+from .render import RenderResult, basis_images, render, render_result, render_vertex_colors
 
 __all__ = [
     "Camera",

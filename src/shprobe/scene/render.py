@@ -1,5 +1,6 @@
-"""Rendering diffuse objects from SH lighting (R&H 2001 §3.2): primary rays through the one
-ray caster (`shprobe.scene.raycast`), per-pixel and per-vertex shading, basis images.
+"""Rendering diffuse objects from SH lighting (R&H 2001 §3.2): primary rays
+(`shprobe.scene.primary`, through the one ray caster), per-pixel and per-vertex shading, basis
+images; relighting, Fig. 4 colouring and saving in `shprobe.scene.images` (re-exported here).
 
 Outgoing radiance of a diffuse surface of albedo ρ is ρ E(n) / π with the irradiance
 E(n) = Σ Â_l L_lm y_lm(n) (R&H eq. 7); for lmax ≤ 2 it is evaluated as the quadratic form
@@ -30,8 +31,8 @@ from ..errors import ShprobeError
 from ..lighting.irradiance import shade_irradiance
 from ..probes.tonemap import tonemap
 from .camera import Camera
+from .images import basis_visual, relight, save_image
 from .mesh import (
-    bounding_sphere,
     mesh_face_colors,
     mesh_material_color,
     mesh_texture,
@@ -39,7 +40,7 @@ from .mesh import (
     sample_texture,
     sphere_mesh,
 )
-from .raycast import RayCaster
+from .primary import Hits, trace
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -56,108 +57,6 @@ __all__ = [
     "save_image",
     "trace",
 ]
-
-# ----------------------------------------------------------------------------- primary rays
-
-
-@dataclass
-class Hits:
-    """First hits of the primary rays (flat over pixels; miss → face −1).
-
-    Attributes
-    ----------
-    face
-        (P,) triangle index, −1 for a miss.
-    bary
-        (P, 3) barycentric weights.
-    position
-        (P, 3) hit points.
-    geo_normal
-        (P, 3) the triangles' normals.
-    normal
-        (P, 3) interpolated shading normals.
-    directions
-        (P, 3) the rays' directions.
-    """
-
-    face: NDArray[np.int64]  # (P,) triangle index, -1 where the ray misses
-    bary: NDArray[np.float32]  # (P, 3) barycentric weights of the face's 3 vertices
-    position: NDArray[np.float64]  # (P, 3) hit point (0 where missed)
-    geo_normal: NDArray[np.float64]  # (P, 3) geometric normal facing the camera
-    normal: NDArray[np.float32]  # (P, 3) smooth shading normal (unit; 0 where missed)
-    directions: NDArray[np.float64]  # (P, 3) ray directions
-
-
-def trace(mesh: trimesh.Trimesh | None, camera: Camera, caster: RayCaster | None = None,
-          frame: tuple[ArrayLike, float] | None = None) -> Hits:
-    """Cast the camera's primary rays through [`RayCaster`][shprobe.scene.RayCaster] (built here
-    unless ``caster``, one over this mesh, is given) on a mesh, or the analytic unit sphere at the
-    origin when ``mesh`` is None. The camera frames ``frame`` = (centre, radius) — by default
-    the mesh's bounding sphere.
-
-    Parameters
-    ----------
-    mesh
-        A mesh, or None for the analytic unit sphere.
-    camera
-        The camera.
-    caster
-        A ray caster already built over this mesh.
-    frame
-        (centre, radius) the camera frames (default: the mesh's bounding sphere).
-
-    Returns
-    -------
-    Hits
-        Per pixel: hit or not, face, barycentrics, position and normal.
-    """
-    center, radius = bounding_sphere(mesh) if frame is None else frame
-    origins, dirs = camera.rays(center, radius)
-    P = origins.shape[0]
-    if mesh is None:
-        return _trace_sphere(origins, dirs)
-    caster = caster or RayCaster.from_mesh(mesh)
-    prim, u, v = caster.first_hit(origins, dirs)
-    face = prim.astype(np.int64)
-    hit = face >= 0
-    fh = face[hit]
-    u, v = u[hit], v[hit]
-    bary = np.zeros((P, 3), np.float32)
-    bary[hit] = np.stack([1.0 - u - v, u, v], axis=-1)  # Embree: p = (1-u-v)v0 + u v1 + v v2
-    tri = np.asarray(mesh.faces)[fh]
-    V = np.asarray(mesh.vertices, dtype=np.float64)
-    b = bary[hit].astype(np.float64)
-    pos = np.zeros((P, 3))
-    pos[hit] = np.einsum("pk,pkj->pj", b, V[tri])
-    vn = np.asarray(mesh.vertex_normals, dtype=np.float32)
-    n = np.einsum("pk,pkj->pj", bary[hit], vn[tri])
-    fnorm = np.asarray(mesh.face_normals, dtype=np.float64)[fh]
-    # face the camera: flip both normals on back faces
-    back = np.einsum("pj,pj->p", fnorm, dirs[hit]) > 0.0
-    fnorm[back] *= -1.0
-    n[back] *= -1.0
-    ln = np.linalg.norm(n, axis=-1, keepdims=True)
-    bad = ln[:, 0] < 1e-12
-    n = np.where(bad[:, None], fnorm.astype(np.float32), n / np.maximum(ln, 1e-30))
-    normal = np.zeros((P, 3), np.float32)
-    normal[hit] = n
-    geo = np.zeros((P, 3))
-    geo[hit] = fnorm
-    return Hits(face, bary, pos, geo, normal, dirs)
-
-
-def _trace_sphere(origins: NDArray, dirs: NDArray) -> Hits:
-    # |o + t d|² = 1 with |d| = 1: t = −o·d − √((o·d)² − |o|² + 1)
-    od = np.einsum("pj,pj->p", origins, dirs)
-    disc = od * od - np.einsum("pj,pj->p", origins, origins) + 1.0
-    hit = disc >= 0.0
-    t = -od - np.sqrt(np.maximum(disc, 0.0))
-    pos = np.where(hit[:, None], origins + t[:, None] * dirs, 0.0)
-    n = pos / np.maximum(np.linalg.norm(pos, axis=-1, keepdims=True), 1e-30)
-    face = np.where(hit, 0, -1).astype(np.int64)
-    P = origins.shape[0]
-    return Hits(face, np.zeros((P, 3), np.float32), pos, n, n.astype(np.float32), dirs)
-
 
 # ----------------------------------------------------------------------------- render
 
@@ -464,78 +363,3 @@ def basis_images(mesh: trimesh.Trimesh | None, camera: Camera | None = None, lma
 
     K = num_coeffs(lmax)
     return render(mesh, np.eye(K), camera, mode=mode, albedo=albedo, background=None)
-
-
-def relight(basis: ArrayLike, coeffs: ArrayLike) -> NDArray[np.float32]:
-    """Σ_k L_kc · basis_k: an image (H, W, C) from basis images (H, W, K) and lighting
-    (K, C).
-
-    Parameters
-    ----------
-    basis
-        (H, W, K) basis images.
-    coeffs
-        (K, C) lighting coefficients.
-
-    Returns
-    -------
-    ndarray of shape (H, W, C), float32
-        The relit image.
-    """
-    b = np.asarray(basis, dtype=np.float32)
-    c = np.asarray(coeffs, dtype=np.float32)
-    if c.ndim == 1:
-        c = c[:, None]
-    if b.shape[-1] != c.shape[0]:
-        raise ShprobeError(f"{b.shape[-1]} basis images but {c.shape[0]} coefficients")
-    return b @ c
-
-
-def basis_visual(values: ArrayLike, scale: float | None = None) -> NDArray[np.float32]:
-    """R&H Fig. 4 colouring of a signed image (H, W): positive green, negative blue, linear,
-    divided by ``scale`` (default: its own max |value|).
-
-    Parameters
-    ----------
-    values
-        (H, W) signed image.
-    scale
-        The value shown at full intensity (default: its max |value|).
-
-    Returns
-    -------
-    ndarray of shape (H, W, 3), float32
-        Positive green, negative blue.
-    """
-    v = np.asarray(values, dtype=np.float32)
-    s = float(np.abs(v).max()) if scale is None else float(scale)
-    v = v / (s if s > 0 else 1.0)
-    return np.stack([np.zeros_like(v), np.maximum(v, 0), np.maximum(-v, 0)], -1)
-
-
-# ----------------------------------------------------------------------------- output
-
-
-def save_image(path: str | os.PathLike[str], image: ArrayLike, exposure: float = 0.0,
-               overwrite: bool = False) -> None:
-    """Write a render with [`shprobe.probes.images.write_image`][shprobe.probes.images.write_image]:
-    ``.png`` tone-mapped by `tonemap` (× 2^exposure, clamp, sRGB, 8 bits),
-    ``.exr``/``.hdr``/``.pfm`` linear. Radiance is never negative: where a truncated SH irradiance
-    dips below zero (per-vertex shading interpolates it unclamped) the file holds 0, so that
-    shprobe's readers (``fit``) accept what ``render`` writes.
-
-    Parameters
-    ----------
-    path
-        The output file; its suffix picks the format.
-    image
-        (H, W, C) linear radiance.
-    exposure
-        Stops applied before tone mapping (PNG only).
-    overwrite
-        Replace an existing file.
-    """
-    from ..probes.images import write_image
-
-    write_image(path, np.maximum(np.asarray(image, dtype=np.float32), 0.0),
-                overwrite=overwrite, exposure=exposure)
