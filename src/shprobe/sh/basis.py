@@ -29,13 +29,15 @@ the LH interior recurrence with the normalising constants K_lm folded into each 
 
 from __future__ import annotations
 
+import itertools
+import threading
 from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..limits import check_memory
+from ..limits import check_memory, cores
 from . import _xp
 from .indexing import (
     NEAR_UNIT,
@@ -138,6 +140,11 @@ F32_ARITHMETIC_LMAX = 128
 #: overwriting it would only double the memory traffic.
 STREAM_MIN_BYTES = 32 << 20
 
+#: Outputs of at least this many values per core are filled by one thread per core, each
+#: writing its own block of rows (on 2 cores a thread's start and join, ~0.1 ms, is a tenth
+#: of what this many values take).
+PARALLEL_MIN_VALUES = 1 << 18
+
 
 def _stream_start(out: NDArray[np.floating]) -> int:
     """−1 (plain stores) below ``STREAM_MIN_BYTES``; else the first flat index of ``out``
@@ -234,22 +241,50 @@ def sh_basis(
     with np.errstate(over="ignore", invalid="ignore"):
         sq = float(np.dot(flat.reshape(-1), flat.reshape(-1)))
     if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
-
         flat = unit_vectors(flat, "directions").astype(d.dtype)
+    _fill_rows(flat, out.reshape(-1, K), lmax, stream and _stream_start(out) >= 0, not stream)
+    return out
+
+
+def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int, stream: bool,
+               fresh: bool) -> None:
+    """out (N, K) = the basis of flat (N, 3): large outputs split into one block of rows per
+    core, each block filled by the numba kernel in its own thread (the kernels release the
+    GIL); smaller ones in the calling thread (a thread's start costs more than they take)."""
+    n = flat.shape[0]
+    parts = min(cores(), out.size // PARALLEL_MIN_VALUES, n // 4)
+    if parts <= 1:
+        _kernel_rows(flat, out, lmax, stream, fresh)
+        return
+    cuts = [n * i // parts // 4 * 4 for i in range(parts)] + [n]
+    threads = [threading.Thread(target=_kernel_rows,
+                                args=(flat[i0:i1], out[i0:i1], lmax, stream, fresh))
+               for i0, i1 in itertools.pairwise(cuts[1:])]
+    for t in threads:
+        t.start()
+    try:
+        _kernel_rows(flat[:cuts[1]], out[:cuts[1]], lmax, stream, fresh)
+    finally:
+        for t in threads:
+            t.join()
+
+
+def _kernel_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
+                 stream: bool, fresh: bool) -> None:
+    """One block of rows through the numba kernel of ``lmax`` (streaming stores if
+    ``stream``; ``fresh``: ``out`` was just allocated)."""
+    a0 = ((-out.ctypes.data) % 64) // out.itemsize if stream else -1
     if lmax <= 8:
-        a0 = _stream_start(out) if stream else -1
         if a0 >= 0:
             from ._kernels_unrolled import STREAM_KERNELS
 
-            STREAM_KERNELS[lmax](flat, out.reshape(-1, K), a0)
+            STREAM_KERNELS[lmax](flat, out, a0)
         else:
             from ._kernels_unrolled import KERNELS
 
-            KERNELS[lmax](flat, out.reshape(-1, K))
-        return out
+            KERNELS[lmax](flat, out)
+        return
     from ._kernels import sh_rows
 
     f32 = out.dtype == np.float32 and lmax <= F32_ARITHMETIC_LMAX
-    sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64),
-            out.reshape(-1, K), _stream_start(out) if stream else -1, not stream)
-    return out
+    sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64), out, a0, fresh)
