@@ -5,7 +5,12 @@ public functions, one implementation written against the array API standard (via
 The public functions dispatch at their top: :func:`namespace` returns ``None`` for NumPy
 input (lists, numbers, ``np.ndarray``), which keeps the numba path untouched, and the
 array-API namespace otherwise. Nothing here imports torch, JAX or array-api-compat until an
-array of theirs arrives, so ``import shprobe`` stays light.
+array of theirs arrives (or a NumPy function runs a reference formula here through
+:func:`numpy_namespace`), so ``import shprobe`` stays light.
+
+These functions are the one definition of each formula: the NumPy public functions run them
+on NumPy (array-api-compat's namespace) or call a numba kernel tested against them
+(docs/architecture.md, "Kernels and their references").
 
 The basis is the normalised recurrence of :mod:`shprobe.sh.basis` (Lisle & Huang 2007 §2.1)
 written with whole-array operations: P̄_lm(z) by the interior recurrence, (x + iy)^m by the
@@ -35,8 +40,8 @@ def namespace(*arrays: Any) -> Any:
     except ImportError:  # pragma: no cover - depends on the installed extras
         if any(type(a).__module__.split(".")[0] in ("torch", "jax", "jaxlib", "cupy")
                for a in others):
-            raise ShprobeError("torch/JAX arrays need array-api-compat: "
-                               "pip install 'shprobe[torch]' or 'shprobe[jax]'") from None
+            raise ShprobeError("torch/JAX arrays need array-api-compat (a core dependency "
+                               "of shprobe): pip install array-api-compat") from None
         return None
     arrs = [a for a in others if aac.is_array_api_obj(a) and not aac.is_numpy_array(a)]
     if not arrs:
@@ -45,6 +50,14 @@ def namespace(*arrays: Any) -> Any:
         return aac.array_namespace(*arrs)
     except TypeError as e:
         raise ShprobeError(f"arrays of different libraries cannot be mixed: {e}") from None
+
+
+def numpy_namespace() -> Any:
+    """The array-API namespace of NumPy (array-api-compat's wrapper), on which the NumPy
+    public functions run the reference formulas of this module."""
+    import array_api_compat.numpy as npx
+
+    return npx
 
 
 def device_of(x: Any) -> Any:
@@ -160,7 +173,7 @@ def sh_basis(xp: Any, d: Any, lmax: int) -> Any:
 
 
 def _unstack3(xp: Any, d: Any) -> tuple[Any, Any, Any]:
-    flat = xp.reshape(xp.moveaxis(d, -1, 0), (3, -1))
+    flat = xp.asarray(xp.reshape(xp.moveaxis(d, -1, 0), (3, -1)), copy=True)
     shape = tuple(d.shape[:-1])
     return tuple(xp.reshape(flat[i, :], shape) for i in range(3))  # type: ignore[return-value]
 

@@ -65,31 +65,35 @@ def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
 
 
 def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
-    """Reference numpy implementation of :func:`sh_basis` (vectorised over directions)."""
+    """The reference of ``sh_basis``: the array-API recurrence run on NumPy.
+
+    Parameters
+    ----------
+    dirs : array_like
+        (..., 3) directions, float32 or float64 (other types become float64).
+    lmax : int
+        Maximum degree, 0 ≤ lmax ≤ 1024.
+
+    Returns
+    -------
+    numpy.ndarray
+        (..., (lmax+1)²) values in the type of ``dirs``, computed in float64 by
+        ``shprobe.sh._xp.sh_basis`` (the one definition of the basis, on NumPy through
+        array-api-compat; whole-array operations, no numba: the probe loader uses it).
+    """
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
-    out_dtype = d.dtype
-    x, y, z = (np.asarray(d[..., i], dtype=np.float64) for i in range(3))
-    out = np.empty((*d.shape[:-1], num_coeffs(lmax)), dtype=np.float64)
-    a, b = recurrence_tables(lmax)
-    sqrt2 = np.sqrt(2.0)
-    c = np.ones_like(x)  # Re (x+iy)^m
-    s = np.zeros_like(x)  # Im (x+iy)^m
-    pmm = np.full_like(x, 0.5 / np.sqrt(np.pi))
-    for m in range(lmax + 1):
-        if m > 0:
-            c, s = x * c - y * s, x * s + y * c
-            pmm = pmm * np.sqrt((2.0 * m + 1.0) / (2.0 * m))
-        p2 = pmm
-        _store(out, m, m, p2, c, s, sqrt2)
-        if m + 1 <= lmax:
-            p1 = np.sqrt(2.0 * m + 3.0) * z * pmm
-            _store(out, m + 1, m, p1, c, s, sqrt2)
-            for l in range(m + 2, lmax + 1):
-                p = a[l, m] * (z * p1 - b[l, m] * p2)
-                _store(out, l, m, p, c, s, sqrt2)
-                p2, p1 = p1, p
-    return out.astype(out_dtype, copy=False)
+    xp = _xp.numpy_namespace()
+    flat = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    out = np.empty((flat.shape[0], num_coeffs(lmax)), dtype=d.dtype)
+    for i in range(0, flat.shape[0], _REFERENCE_ROWS):  # temporaries that stay in cache
+        out[i:i + _REFERENCE_ROWS] = _xp.sh_basis(xp, flat[i:i + _REFERENCE_ROWS], lmax)
+    return out.reshape(*d.shape[:-1], num_coeffs(lmax))
+
+
+#: Directions per whole-array pass of ``sh_basis_numpy``: its temporaries (32 kB columns)
+#: come from the allocator's free lists, not from fresh pages faulted in.
+_REFERENCE_ROWS = 4096
 
 
 def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
@@ -116,15 +120,6 @@ def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
         out[:, k0 + m[1:]] = (sign * Y[1:].real).T
         out[:, k0 - m[1:]] = (sign * Y[1:].imag).T
     return out.reshape(*d.shape[:-1], num_coeffs(lmax))
-
-
-def _store(out, l, m, p, c, s, sqrt2):
-    k0 = l * (l + 1)
-    if m == 0:
-        out[..., k0] = p
-    else:
-        out[..., k0 + m] = sqrt2 * p * c
-        out[..., k0 - m] = sqrt2 * p * s
 
 
 #: Largest degree at which float32 output is computed in float32 arithmetic. The z-polynomials
