@@ -61,6 +61,9 @@ def numpy_namespace() -> Any:
 
 
 def device_of(x: Any) -> Any:
+    """The device of array ``x`` (None for None: NumPy's host)."""
+    if x is None:
+        return None
     import array_api_compat as aac
 
     return aac.device(x)
@@ -76,18 +79,29 @@ def is_tracing(x: Any) -> bool:
     return isinstance(x, jax.core.Tracer)
 
 
+def _is_numpy(xp: Any) -> bool:
+    return getattr(xp, "__name__", "") == "array_api_compat.numpy"
+
+
 def float_dtype(xp: Any, *arrays: Any) -> Any:
-    """The floating dtype of the first floating array among ``arrays``, else the
-    namespace's default float."""
+    """The floating dtype of the first floating array among ``arrays`` (NumPy arrays count
+    when ``xp`` is NumPy's namespace), else the namespace's default float."""
     for a in arrays:
-        if a is not None and hasattr(a, "dtype") and not isinstance(a, _PLAIN):
-            if xp.isdtype(a.dtype, "real floating"):
+        if a is None or isinstance(a, (list, tuple, int, float, bool)):
+            continue
+        if isinstance(a, (np.ndarray, np.generic)):
+            if _is_numpy(xp) and a.dtype in (np.float32, np.float64):
                 return a.dtype
+            continue
+        if hasattr(a, "dtype") and xp.isdtype(a.dtype, "real floating"):
+            return a.dtype
     return xp.asarray(0.0).dtype
 
 
 def first_array(*arrays: Any) -> Any:
-    return next(a for a in arrays if a is not None and not isinstance(a, _PLAIN))
+    """The first argument that is an array of a non-NumPy library (None when all are
+    NumPy-like: NumPy's namespace)."""
+    return next((a for a in arrays if a is not None and not isinstance(a, _PLAIN)), None)
 
 
 def asarray(xp: Any, x: Any, dtype: Any, like: Any) -> Any:
@@ -203,7 +217,8 @@ def band_factors(xp: Any, factors: Any, lmax: int, dtype: Any, like: Any) -> Any
 
 
 def convolve(xp: Any, coeffs: Any, factors: Any) -> Any:
-    """Band l times ``factors[l]`` for (..., K, C) or (K,) coefficients of ``xp``."""
+    """Band l times ``factors[l]`` for (..., K, C) or (K,) coefficients of ``xp`` (the
+    Funk–Hecke convolution with a zonal kernel); NaN or infinity in either is refused."""
     from .indexing import lmax_of
 
     dt = float_dtype(xp, coeffs, factors)
@@ -211,8 +226,10 @@ def convolve(xp: Any, coeffs: Any, factors: Any) -> Any:
     c = asarray(xp, coeffs, dt, like)
     if c.ndim == 0:
         raise ShprobeError("coefficients must have shape (..., K, C) or (K,)")
+    check_finite(xp, c, "coefficients")
     lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
     per_k = band_factors(xp, factors, lmax, dt, like)
+    check_finite(xp, per_k, "band factors")
     return c * (per_k if c.ndim == 1 else per_k[..., None])
 
 
