@@ -87,6 +87,8 @@ def project_samples(xp: Any, dirs: Any, values: Any, weights: Any, lmax: int) ->
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"directions must have shape (S, 3), got {tuple(d.shape)}")
     d = xp.reshape(d, (-1, 3))
+    if d.shape[0] == 0:
+        raise ShprobeError("project_samples needs at least one sample, got 0 directions")
     one = v.ndim == 1
     v = xp.reshape(v, (d.shape[0], -1)) if v.shape[0] == d.shape[0] else v
     if weights is None:

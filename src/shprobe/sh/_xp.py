@@ -46,10 +46,38 @@ def namespace(*arrays: Any) -> Any:
     arrs = [a for a in others if aac.is_array_api_obj(a) and not aac.is_numpy_array(a)]
     if not arrs:
         return None
+    for a in arrs:
+        _check_storage(a)
     try:
         return aac.array_namespace(*arrs)
     except TypeError as e:
         raise ShprobeError(f"arrays of different libraries cannot be mixed: {e}") from None
+
+
+def _check_storage(a: Any) -> None:
+    """Refuse, in one line, tensors whose values cannot be read or computed with: torch's
+    meta tensors (no data) and sparse layouts (the formulas need strided arrays)."""
+    if getattr(a, "is_meta", False):
+        raise ShprobeError("meta tensors hold no values: move the tensor to a real device "
+                           "(.to('cpu') or a GPU) first")
+    layout = getattr(a, "layout", None)
+    if layout is not None and type(a).__module__.split(".")[0] == "torch":
+        import torch
+
+        if layout != torch.strided:
+            raise ShprobeError(f"{layout} tensors are not supported: pass tensor.to_dense()")
+
+
+def work_dtype(xp: Any, dt: Any) -> Any:
+    """The dtype the formulas compute in for input of dtype ``dt``: float16 and bfloat16 are
+    widened to float32 (their range ends at 65504 / their precision at 3 digits, which the
+    recurrences pass; the result is cast back), other dtypes are kept."""
+    for name in ("float16", "bfloat16"):
+        if getattr(xp, name, None) is not None and dt == getattr(xp, name):
+            return xp.float32
+    if str(dt).rsplit(".", 1)[-1] in ("float16", "bfloat16"):
+        return xp.float32
+    return dt
 
 
 def numpy_namespace() -> Any:

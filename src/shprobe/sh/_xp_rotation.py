@@ -33,6 +33,9 @@ def from_quaternion(xp: Any, q: Any) -> Any:
     if q.ndim < 1 or q.shape[-1] != 4:
         raise ShprobeError(
             f"quaternions must have shape (..., 4) as (w, x, y, z), got {tuple(q.shape)}")
+    dt = q.dtype
+    if _xp.work_dtype(xp, dt) != dt:
+        return xp.astype(from_quaternion(xp, xp.astype(q, _xp.work_dtype(xp, dt))), dt)
     _xp.check_finite(xp, q, "quaternions")
     n2 = xp.sum(q * q, axis=-1, keepdims=True)
     if not _xp.is_tracing(n2) and bool(xp.any(n2 == 0)):
@@ -48,9 +51,16 @@ def from_quaternion(xp: Any, q: Any) -> Any:
 def from_euler_zyz(xp: Any, alpha: Any, beta: Any, gamma: Any) -> Any:
     """R = Rz(γ) Ry(β) Rz(α) (the NumPy path's convention), broadcast over the angles."""
     dt = _xp.float_dtype(xp, alpha, beta, gamma)
+    work = _xp.work_dtype(xp, dt)
     like = _xp.first_array(alpha, beta, gamma)
-    a, b, g = (_xp.asarray(xp, t, dt, like) for t in (alpha, beta, gamma))
-    shape = np.broadcast_shapes(tuple(a.shape), tuple(b.shape), tuple(g.shape))
+    a, b, g = (_xp.asarray(xp, t, work, like) for t in (alpha, beta, gamma))
+    try:
+        shape = np.broadcast_shapes(tuple(a.shape), tuple(b.shape), tuple(g.shape))
+    except ValueError:
+        raise ShprobeError(f"Euler angles of shapes {tuple(a.shape)}, {tuple(b.shape)} and "
+                           f"{tuple(g.shape)} do not broadcast") from None
+    for t, name in ((a, "alpha"), (b, "beta"), (g, "gamma")):
+        _xp.check_finite(xp, t, f"Euler angles ({name})")
     a, b, g = (xp.broadcast_to(t, shape) for t in (a, b, g))
     zero, one = xp.zeros_like(a), xp.ones_like(a)
 
@@ -63,7 +73,7 @@ def from_euler_zyz(xp: Any, alpha: Any, beta: Any, gamma: Any) -> Any:
 
     cb, sb = xp.cos(b), xp.sin(b)
     ry = mat([[cb, zero, sb], [zero, one, zero], [-sb, zero, cb]])
-    return xp.matmul(xp.matmul(rz(g), ry), rz(a))
+    return xp.astype(xp.matmul(xp.matmul(rz(g), ry), rz(a)), dt)
 
 
 def as_matrix(xp: Any, rotation: Any) -> Any:
@@ -161,7 +171,12 @@ def wigner_blocks(xp: Any, R: Any, lmax: int) -> list[Any]:
 
 
 def wigner_d(xp: Any, rotation: Any, lmax: int) -> Any:
-    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy :func:`wigner_d`)."""
+    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy :func:`wigner_d`),
+    computed in float32 for float16/bfloat16 rotations and cast back."""
+    dt = rotation.dtype
+    work = _xp.work_dtype(xp, dt)
+    if work != dt:
+        return xp.astype(wigner_d(xp, xp.astype(rotation, work), lmax), dt)
     R = as_matrix(xp, rotation)
     blocks = wigner_blocks(xp, R, lmax)
     batch = tuple(R.shape[:-2])
@@ -201,6 +216,12 @@ def rotate(xp: Any, coeffs: Any, rotation: Any) -> Any:
     if hasattr(rotation, "as_matrix") and not hasattr(rotation, "dtype"):
         rotation = np.asarray(rotation.as_matrix(), dtype=np.float64)  # scipy Rotation
     dt = _xp.float_dtype(xp, coeffs, rotation)
+    work = _xp.work_dtype(xp, dt)
+    if work != dt:  # float16 / bfloat16: computed in float32, cast back
+        like = _xp.first_array(coeffs, rotation)
+        c32, r32 = (x if isinstance(x, np.ndarray) or not hasattr(x, "dtype")
+                    else _xp.asarray(xp, x, work, like) for x in (coeffs, rotation))
+        return xp.astype(rotate(xp, c32, r32), dt)
     like = _xp.first_array(coeffs, rotation)
     c = _xp.asarray(xp, coeffs, dt, like)
     if c.ndim == 0:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import itertools
 import threading
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -89,6 +90,25 @@ def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
     for i in range(0, flat.shape[0], _REFERENCE_ROWS):  # temporaries that stay in cache
         out[i:i + _REFERENCE_ROWS] = _xp.sh_basis(xp, flat[i:i + _REFERENCE_ROWS], lmax)
     return out.reshape(*d.shape[:-1], num_coeffs(lmax))
+
+
+def _sh_basis_xp(xp: Any, dirs: Any, lmax: int) -> Any:
+    """``sh_basis`` of a torch tensor or JAX array: its memory estimated first (the K columns
+    and their stacked copy), computed in float32 for float16/bfloat16 input and in float64
+    for float32 input above ``F32_ARITHMETIC_LMAX`` (where P̄ passes the type's range), then
+    cast back to the input's type."""
+    dt = _xp.float_dtype(xp, dirs)
+    d = _xp.asarray(xp, dirs, dt, dirs)
+    if d.ndim < 1 or d.shape[-1] != 3:
+        raise ShprobeError(f"directions must have shape (..., 3), got {tuple(d.shape)}")
+    work = _xp.work_dtype(xp, dt)
+    if work == xp.float32 and lmax > F32_ARITHMETIC_LMAX:
+        work = xp.float64
+    n = int(np.prod(tuple(d.shape[:-1])))
+    check_memory(3.0 * n * num_coeffs(lmax) * np.dtype(str(work).rsplit(".", 1)[-1]).itemsize,
+                 f"SH values of {n} directions to lmax {lmax}")
+    y = _xp.sh_basis(xp, xp.astype(d, work) if work != dt else d, lmax)
+    return xp.astype(y, dt) if work != dt else y
 
 
 #: Directions per whole-array pass of ``sh_basis_numpy``: its temporaries (32 kB columns)
@@ -214,8 +234,7 @@ def sh_basis(
     if xp is not None:
         if out is not None:
             raise ShprobeError("out= is for NumPy arrays only")
-        dt = _xp.float_dtype(xp, dirs)
-        return _xp.sh_basis(xp, _xp.asarray(xp, dirs, dt, dirs), check_lmax(lmax))
+        return _sh_basis_xp(xp, dirs, check_lmax(lmax))
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     K = num_coeffs(lmax)

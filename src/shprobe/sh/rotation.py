@@ -116,7 +116,15 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
         from . import _xp_rotation
 
         return _xp_rotation.from_euler_zyz(xp, alpha, beta, gamma)
-    a, b, g = np.broadcast_arrays(*(np.asarray(t, dtype=np.float64) for t in (alpha, beta, gamma)))
+    angles = [_float64(t, "Euler angles") for t in (alpha, beta, gamma)]
+    try:
+        a, b, g = np.broadcast_arrays(*angles)
+    except ValueError:
+        a, b, g = (t.shape for t in angles)
+        raise ShprobeError(f"Euler angles of shapes {a}, {b} and {g} do not broadcast") from None
+    for t, name in ((a, "alpha"), (b, "beta"), (g, "gamma")):
+        if not np.isfinite(t).all():
+            raise ShprobeError(f"Euler angles ({name}) contain NaN or infinity")
     return _rz(g) @ _ry(b) @ _rz(a)
 
 
