@@ -10,8 +10,10 @@ Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quate
 ``scipy.spatial.transform.Rotation``); ZYZ Euler angles go through :func:`from_euler_zyz`.
 
 The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
-z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
-(``shprobe.sh._kernels_rotation``, compiled once and cached on disk). Run forward in l at a
+z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6): one algorithm, written once
+against the array API (``shprobe.sh._xp_rotation``, the reference, also the torch/JAX path)
+and run here by numba kernels (``shprobe.sh._kernels_rotation``, compiled once and cached on
+disk) tested against it. Run forward in l at a
 general β the recurrence loses accuracy (orthogonality error ~1e-3 by l = 40 at β = 0.5), so
 it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is obtained as
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
@@ -236,8 +238,9 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     leading axes. ``rotation``: (..., 3, 3) matrices, (..., 4) unit quaternions (w, x, y, z),
     or a scipy ``Rotation``; ZYZ Euler angles through :func:`from_euler_zyz`. The dense result
     is limited to ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and
-    JAX arrays take the array-API path (the Ivanic–Ruedenberg recurrence,
-    ``shprobe.sh._xp_rotation``), differentiable in the rotation.
+    JAX arrays take the array-API path (the same algorithm in whole-array steps,
+    ``shprobe.sh._xp_rotation``, the reference the numba kernels are tested against),
+    differentiable in the rotation.
     """
     lmax = check_lmax(lmax, ROTATION_LMAX)
     xp = _xp.namespace(rotation)
