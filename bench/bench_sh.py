@@ -196,11 +196,10 @@ def bench_basis_cores(lmaxes=(2, 6, 10, 20), repeat=11, n=10**6):
         calc = sphericart.SphericalHarmonics(lmax)
         for dt in (np.float64, np.float32):
             d = d64.astype(dt)
-            out = np.zeros((n, (lmax + 1) ** 2), dt)
-            ref = calc.compute(d)
-            assert np.abs(np.abs(sh_basis(d, lmax)) - np.abs(ref)).max() < (
+            few = d[:10000]
+            assert np.abs(np.abs(sh_basis(few, lmax)) - np.abs(calc.compute(few))).max() < (
                 1e-10 if dt == np.float64 else 1e-4)  # same functions up to sign
-            del ref
+            out = np.zeros((n, (lmax + 1) ** 2), dt)
             groups = (
                 {"ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
                  "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,

@@ -38,6 +38,7 @@ def test_blocks_on_several_threads_equal_serial_rows(monkeypatch):
         np.testing.assert_array_equal(sh_basis(dd, lmax), want)  # fresh output
         assert len(started) == 2  # the caller fills the first block
         monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
+        monkeypatch.setattr(basis, "UNROLLED_STREAM_MIN_BYTES", 0)
         K = (lmax + 1) ** 2
         big = np.full(len(d) * K + 7, np.nan, dtype)
         for off in (0, 1, 3):  # streaming stores, each block aligned on its own

@@ -154,6 +154,13 @@ F32_ARITHMETIC_LMAX = 128
 #: table kernel: far larger than the caches, written once, so reading each line in before
 #: overwriting it would only double the memory traffic.
 STREAM_MIN_BYTES = 32 << 20
+#: The same threshold for the unrolled kernels (lmax ≤ 8). Their rows are short and their
+#: plain in-place stores keep pace with memory: on the 2-core AMD EPYC box the streamed
+#: variants (computed into an L1 buffer, copied out non-temporally) took 1.4–1.9× the plain
+#: kernels' CPU time at lmax 2 and 6 into a 10⁶-direction ``out=`` (the table kernel's
+#: streamed copy stays 1.3× faster than its plain one at lmax 10–20), so they stream only
+#: outputs past this (none in practice; ``STREAM_KERNELS`` kept for machines where it pays).
+UNROLLED_STREAM_MIN_BYTES = 1 << 62
 
 #: Outputs of at least this many values per core are filled by one thread per core, each
 #: writing its own block of rows (on 2 cores a thread's start and join, ~0.1 ms, is a tenth
@@ -162,7 +169,8 @@ PARALLEL_MIN_VALUES = 1 << 18
 
 
 def _stream_start(out: NDArray[np.floating]) -> int:
-    """−1 (plain stores) below ``STREAM_MIN_BYTES``; else the first flat index of ``out``
+    """−1 (plain stores) below ``STREAM_MIN_BYTES`` (``UNROLLED_STREAM_MIN_BYTES`` for rows of
+    lmax ≤ 8); else the first flat index of ``out``
     whose address is 64-byte aligned, modulo 64 / itemsize (what the kernel's streaming
     copy needs).
 
@@ -170,7 +178,8 @@ def _stream_start(out: NDArray[np.floating]) -> int:
     pages yet, and the kernel zeroes each (huge) page on first touch, leaving it in the
     cache, where plain stores then land, while streaming stores would write every line
     twice to memory (the zeros and the values)."""
-    if out.nbytes < STREAM_MIN_BYTES or not out.flags.aligned:
+    limit = UNROLLED_STREAM_MIN_BYTES if out.shape[-1] <= 81 else STREAM_MIN_BYTES
+    if out.nbytes < limit or not out.flags.aligned:
         return -1
     return ((-out.ctypes.data) % 64) // out.itemsize
 
