@@ -166,6 +166,9 @@ UNROLLED_STREAM_MIN_BYTES = 1 << 62
 #: writing its own block of rows (on 2 cores a thread's start and join, ~0.1 ms, is a tenth
 #: of what this many values take).
 PARALLEL_MIN_VALUES = 1 << 18
+#: At most this many blocks of rows are shared out among the threads (each block a numba
+#: call of ~10 µs overhead).
+PARALLEL_BLOCKS = 32
 
 
 def _stream_start(out: NDArray[np.floating]) -> int:
@@ -242,7 +245,7 @@ def sh_basis(
 
     Bad directions, the one policy: NaN or infinite components are refused
     (``ShprobeError``); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction, one
-    BLAS pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
+    pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
     such as (1e200, 1e200, 0), are normalised first without overflow
     (``shprobe.sh.rotation.unit_vectors``). The memory of the output is estimated first and
     refused past the limit (``shprobe.limits``), on every path.
@@ -270,7 +273,9 @@ def sh_basis(
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
     with np.errstate(over="ignore", invalid="ignore"):
-        sq = float(np.dot(flat.reshape(-1), flat.reshape(-1)))
+        # einsum's own loop, not BLAS: a threaded BLAS dot leaves its threads spinning on
+        # the cores the kernel's threads are about to use
+        sq = float(np.einsum("i,i->", flat.reshape(-1), flat.reshape(-1)))
     if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
         flat = unit_vectors(flat, "directions").astype(d.dtype)
     _fill_rows(flat, out.reshape(-1, K), lmax, stream and _stream_start(out) >= 0, not stream)
@@ -279,22 +284,33 @@ def sh_basis(
 
 def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int, stream: bool,
                fresh: bool) -> None:
-    """out (N, K) = the basis of flat (N, 3): large outputs split into one block of rows per
-    core, each block filled by the numba kernel in its own thread (the kernels release the
-    GIL); smaller ones in the calling thread (a thread's start costs more than they take)."""
+    """out (N, K) = the basis of flat (N, 3). Large outputs are cut into blocks of rows
+    (up to ``PARALLEL_BLOCKS``) that one thread per core takes in turn, each block filled by
+    the numba kernel (the kernels release the GIL): a thread the shared machine pre-empts
+    holds up one block, not half the output. Smaller outputs stay in the calling thread (a
+    thread's start costs more than they take)."""
     n = flat.shape[0]
-    parts = min(cores(), out.size // PARALLEL_MIN_VALUES, n // 4)
-    if parts <= 1:
+    workers = min(cores(), out.size // PARALLEL_MIN_VALUES, n // 4)
+    if workers <= 1:
         _kernel_rows(flat, out, lmax, stream, fresh)
         return
-    cuts = [n * i // parts // 4 * 4 for i in range(parts)] + [n]
-    threads = [threading.Thread(target=_kernel_rows,
-                                args=(flat[i0:i1], out[i0:i1], lmax, stream, fresh))
-               for i0, i1 in itertools.pairwise(cuts[1:])]
+    blocks = min(PARALLEL_BLOCKS, max(workers, out.size // PARALLEL_MIN_VALUES), n // 4)
+    cuts = [n * i // blocks // 4 * 4 for i in range(blocks)] + [n]
+    spans = list(itertools.pairwise(cuts))
+    taken = itertools.count()  # next() is atomic under the GIL
+
+    def work() -> None:
+        for i in iter(taken.__next__, None):
+            if i >= len(spans):
+                return
+            i0, i1 = spans[i]
+            _kernel_rows(flat[i0:i1], out[i0:i1], lmax, stream, fresh)
+
+    threads = [threading.Thread(target=work) for _ in range(workers - 1)]
     for t in threads:
         t.start()
     try:
-        _kernel_rows(flat[:cuts[1]], out[:cuts[1]], lmax, stream, fresh)
+        work()
     finally:
         for t in threads:
             t.join()
