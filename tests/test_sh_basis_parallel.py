@@ -1,13 +1,16 @@
-"""sh_basis on several cores: a large output is split into one block of rows per core, each
-filled in its own thread; the rows equal those of one call per small batch (bit for bit),
-for the unrolled kernels and the table kernel, plain and streaming stores, any alignment."""
+"""sh_basis on several cores: a large output is cut into blocks of rows that the calling
+thread and pool threads take in turn; the rows equal those of one call per small batch (bit
+for bit), for the unrolled kernels and the table kernel, plain and streaming stores, any
+alignment; an error in a pool thread reaches the caller; small outputs stay serial."""
 
 from __future__ import annotations
 
 import threading
 
 import numpy as np
+import pytest
 
+from shprobe import ShprobeError
 from shprobe.sh import sh_basis
 
 from .conftest import random_dirs
@@ -17,26 +20,38 @@ def _serial(d, lmax):
     return np.concatenate([sh_basis(d[i:i + 64], lmax) for i in range(0, len(d), 64)])
 
 
-def test_blocks_on_several_threads_equal_serial_rows(monkeypatch):
+@pytest.fixture
+def blocks(monkeypatch):
+    """Every output parallel (3 'cores'), and a record of the threads that filled blocks."""
+    import shprobe.sh.basis as basis
+
+    monkeypatch.setattr(basis, "PARALLEL_MIN_VALUES", 1)
+    monkeypatch.setattr(basis, "cores", lambda: 3)
+    seen = []
+    real = basis._kernel_rows
+
+    def spy(flat, out, *args):
+        seen.append((threading.get_ident(), len(flat)))
+        return real(flat, out, *args)
+
+    monkeypatch.setattr(basis, "_kernel_rows", spy)
+    return seen
+
+
+def test_blocks_on_several_threads_equal_serial_rows(blocks, monkeypatch):
     import shprobe.sh.basis as basis
 
     d = random_dirs(2003, seed=5)
     for lmax, dtype in ((0, np.float64), (2, np.float32), (6, np.float64), (9, np.float32),
                         (20, np.float64)):
         dd = d.astype(dtype)
+        monkeypatch.setattr(basis, "cores", lambda: 1)
         want = _serial(dd, lmax)
-        monkeypatch.setattr(basis, "PARALLEL_MIN_VALUES", 1)
-        monkeypatch.setattr(basis, "cores", lambda: 3)  # 3 blocks, odd sizes
-        started = []
-        real_start = threading.Thread.start
-
-        def start(self, started=started, real_start=real_start):
-            started.append(self)
-            real_start(self)
-
-        monkeypatch.setattr(threading.Thread, "start", start)
+        monkeypatch.setattr(basis, "cores", lambda: 3)
+        blocks.clear()
         np.testing.assert_array_equal(sh_basis(dd, lmax), want)  # fresh output
-        assert len(started) == 2  # the caller fills the first block
+        assert len(blocks) == basis.PARALLEL_BLOCKS  # every block once, all rows
+        assert sum(n for _, n in blocks) == len(d)
         monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
         monkeypatch.setattr(basis, "UNROLLED_STREAM_MIN_BYTES", 0)
         K = (lmax + 1) ** 2
@@ -45,14 +60,45 @@ def test_blocks_on_several_threads_equal_serial_rows(monkeypatch):
             out = big[off:off + len(d) * K].reshape(len(d), K)
             np.testing.assert_array_equal(sh_basis(dd, lmax, out=out), want)
         assert np.isnan(big[len(d) * K + 3:]).all()
-        monkeypatch.undo()
+
+
+def test_pool_threads_fill_blocks_and_their_errors_reach_the_caller(monkeypatch):
+    import shprobe.sh.basis as basis
+
+    monkeypatch.setattr(basis, "PARALLEL_MIN_VALUES", 1)
+    monkeypatch.setattr(basis, "cores", lambda: 2)
+    main = threading.get_ident()
+    helper_in = threading.Event()
+    seen = []
+    real = basis._kernel_rows
+
+    def spy(flat, out, *args):
+        # the calling thread waits (at most 10 s) until a pool thread has taken a block
+        if threading.get_ident() == main:
+            helper_in.wait(10)
+        else:
+            helper_in.set()
+            if fail:
+                raise ShprobeError("raised in a pool thread")
+        seen.append(threading.get_ident())
+        return real(flat, out, *args)
+
+    monkeypatch.setattr(basis, "_kernel_rows", spy)
+    fail = False
+    d = random_dirs(4000, seed=2)
+    np.testing.assert_array_equal(sh_basis(d, 2), _serial(d, 2))
+    assert main in seen and len(set(seen)) >= 2  # the caller and at least one pool thread
+    helper_in.clear()
+    fail = True
+    with pytest.raises(ShprobeError, match="pool thread"):
+        sh_basis(d, 2)
 
 
 def test_small_outputs_stay_in_the_calling_thread(monkeypatch):
     import shprobe.sh.basis as basis
 
-    started = []
-    monkeypatch.setattr(threading.Thread, "start", lambda self: started.append(self))
+    submitted = []
+    monkeypatch.setattr(basis, "_pool", lambda n: submitted.append(n))
     n = basis.PARALLEL_MIN_VALUES // 9  # under one block per core at lmax 2
     sh_basis(random_dirs(n, seed=1), 2)
-    assert started == []
+    assert submitted == []

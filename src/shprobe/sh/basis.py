@@ -30,7 +30,7 @@ the LH interior recurrence with the normalising constants K_lm folded into each 
 from __future__ import annotations
 
 import itertools
-import threading
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from typing import Any
 
@@ -244,8 +244,8 @@ def sh_basis(
     ``shprobe.sh._xp`` on NumPy).
 
     Bad directions, the one policy: NaN or infinite components are refused
-    (``ShprobeError``); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction, one
-    pass) are used as given, bit for bit; larger ones, or ones whose squares overflow
+    (``ShprobeError``); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction over
+    each block of rows) are used as given, bit for bit; larger ones, or ones whose squares overflow
     such as (1e200, 1e200, 0), are normalised first without overflow
     (``shprobe.sh.rotation.unit_vectors``). The memory of the output is estimated first and
     refused past the limit (``shprobe.limits``), on every path.
@@ -272,12 +272,6 @@ def sh_basis(
     if out.size == 0:
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
-    with np.errstate(over="ignore", invalid="ignore"):
-        # einsum's own loop, not BLAS: a threaded BLAS dot leaves its threads spinning on
-        # the cores the kernel's threads are about to use
-        sq = float(np.einsum("i,i->", flat.reshape(-1), flat.reshape(-1)))
-    if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
-        flat = unit_vectors(flat, "directions").astype(d.dtype)
     _fill_rows(flat, out.reshape(-1, K), lmax, stream and _stream_start(out) >= 0, not stream)
     return out
 
@@ -285,10 +279,10 @@ def sh_basis(
 def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int, stream: bool,
                fresh: bool) -> None:
     """out (N, K) = the basis of flat (N, 3). Large outputs are cut into blocks of rows
-    (up to ``PARALLEL_BLOCKS``) that one thread per core takes in turn, each block filled by
-    the numba kernel (the kernels release the GIL): a thread the shared machine pre-empts
-    holds up one block, not half the output. Smaller outputs stay in the calling thread (a
-    thread's start costs more than they take)."""
+    (up to ``PARALLEL_BLOCKS``) that the calling thread and ``cores() − 1`` pool threads take
+    in turn, each block filled by the numba kernel (the kernels release the GIL): a thread
+    the shared machine pre-empts, or a pool thread slow to wake, holds up one block, not half
+    the output. Smaller outputs stay in the calling thread."""
     n = flat.shape[0]
     workers = min(cores(), out.size // PARALLEL_MIN_VALUES, n // 4)
     if workers <= 1:
@@ -306,20 +300,39 @@ def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
             i0, i1 = spans[i]
             _kernel_rows(flat[i0:i1], out[i0:i1], lmax, stream, fresh)
 
-    threads = [threading.Thread(target=work) for _ in range(workers - 1)]
-    for t in threads:
-        t.start()
+    helpers = [_pool(workers - 1).submit(work) for _ in range(workers - 1)]
     try:
         work()
     finally:
-        for t in threads:
-            t.join()
+        for f in helpers:  # one not started yet finds no block left: cancel it
+            if not f.cancel():
+                f.result()  # waits for its block; raises what it raised
+
+
+_POOLS: list[ThreadPoolExecutor] = []
+
+
+def _pool(n: int) -> ThreadPoolExecutor:
+    """The helper threads of ``sh_basis`` (at least ``n``), started once per process and
+    reused: starting threads on every call costs a scheduling round trip each, and on a busy
+    machine far more."""
+    if not _POOLS or _POOLS[-1]._max_workers < n:
+        _POOLS.append(ThreadPoolExecutor(n, thread_name_prefix="shprobe-sh_basis"))
+    return _POOLS[-1]
 
 
 def _kernel_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
                  stream: bool, fresh: bool) -> None:
     """One block of rows through the numba kernel of ``lmax`` (streaming stores if
-    ``stream``; ``fresh``: ``out`` was just allocated)."""
+    ``stream``; ``fresh``: ``out`` was just allocated). The block's directions are used as
+    given while their squared lengths sum to at most ``NEAR_UNIT`` per direction (one pass,
+    by einsum's own loop: a threaded BLAS dot would leave its threads spinning on the cores
+    the other blocks' threads use); else, or on NaN, infinity or overflow, they are
+    normalised first (``unit_vectors``, which refuses non-finite ones)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        sq = float(np.einsum("i,i->", flat.reshape(-1), flat.reshape(-1)))
+    if not sq <= NEAR_UNIT * flat.shape[0]:
+        flat = np.ascontiguousarray(unit_vectors(flat, "directions"), dtype=flat.dtype)
     a0 = ((-out.ctypes.data) % 64) // out.itemsize if stream else -1
     if lmax <= 8:
         if a0 >= 0:
