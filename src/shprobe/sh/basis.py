@@ -325,26 +325,34 @@ def _kernel_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: in
                  stream: bool, fresh: bool) -> None:
     """One block of rows through the numba kernel of ``lmax`` (streaming stores if
     ``stream``; ``fresh``: ``out`` was just allocated). The block's directions are used as
-    given while their squared lengths sum to at most ``NEAR_UNIT`` per direction (one pass,
-    by einsum's own loop: a threaded BLAS dot would leave its threads spinning on the cores
-    the other blocks' threads use); else, or on NaN, infinity or overflow, they are
-    normalised first (``unit_vectors``, which refuses non-finite ones)."""
+    given while their squared lengths sum to at most ``NEAR_UNIT`` per direction; else, or
+    on NaN, infinity or overflow, they are normalised first (``unit_vectors``, which refuses
+    non-finite ones) and the rows computed again. The unrolled kernels return that sum from
+    the pass that computes the rows; otherwise it is one pass before (einsum's own loop: a
+    threaded BLAS dot would leave its threads spinning on the cores the other blocks use)."""
+    a0 = ((-out.ctypes.data) % 64) // out.itemsize if stream else -1
+    limit = NEAR_UNIT * flat.shape[0]
+    if lmax <= 8 and a0 < 0:
+        from ._kernels_unrolled import KERNELS
+
+        if not KERNELS[lmax](flat, out) <= limit:
+            KERNELS[lmax](_unit(flat), out)
+        return
     with np.errstate(over="ignore", invalid="ignore"):
         sq = float(np.einsum("i,i->", flat.reshape(-1), flat.reshape(-1)))
-    if not sq <= NEAR_UNIT * flat.shape[0]:
-        flat = np.ascontiguousarray(unit_vectors(flat, "directions"), dtype=flat.dtype)
-    a0 = ((-out.ctypes.data) % 64) // out.itemsize if stream else -1
+    if not sq <= limit:
+        flat = _unit(flat)
     if lmax <= 8:
-        if a0 >= 0:
-            from ._kernels_unrolled import STREAM_KERNELS
+        from ._kernels_unrolled import STREAM_KERNELS
 
-            STREAM_KERNELS[lmax](flat, out, a0)
-        else:
-            from ._kernels_unrolled import KERNELS
-
-            KERNELS[lmax](flat, out)
+        STREAM_KERNELS[lmax](flat, out, a0)
         return
     from ._kernels import sh_rows
 
     f32 = out.dtype == np.float32 and lmax <= F32_ARITHMETIC_LMAX
     sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64), out, a0, fresh)
+
+
+def _unit(flat: NDArray[np.floating]) -> NDArray[np.floating]:
+    """Directions normalised without overflow, in their type (non-finite ones refused)."""
+    return np.ascontiguousarray(unit_vectors(flat, "directions"), dtype=flat.dtype)
