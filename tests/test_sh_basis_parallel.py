@@ -102,3 +102,16 @@ def test_small_outputs_stay_in_the_calling_thread(monkeypatch):
     n = basis.PARALLEL_MIN_VALUES // 9  # under one block per core at lmax 2
     sh_basis(random_dirs(n, seed=1), 2)
     assert submitted == []
+
+
+def test_a_forked_child_fills_blocks_too(blocks):
+    # the child's copy of the pool has no threads: it starts its own (and never waits on
+    # the parent's); the values are the serial ones
+    import multiprocessing
+
+    d = random_dirs(3001, seed=9)
+    want = sh_basis(d, 4)  # the parent's pool now exists
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as p:
+        got = p.apply_async(sh_basis, (d, 4)).get(timeout=60)
+    np.testing.assert_array_equal(got, want)

@@ -30,6 +30,7 @@ the LH interior recurrence with the normalising constants K_lm folded into each 
 from __future__ import annotations
 
 import itertools
+import os
 from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from typing import Any
@@ -309,16 +310,16 @@ def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
                 f.result()  # waits for its block; raises what it raised
 
 
-_POOLS: list[ThreadPoolExecutor] = []
+_POOLS: list[tuple[int, ThreadPoolExecutor]] = []
 
 
 def _pool(n: int) -> ThreadPoolExecutor:
     """The helper threads of ``sh_basis`` (at least ``n``), started once per process and
     reused: starting threads on every call costs a scheduling round trip each, and on a busy
-    machine far more."""
-    if not _POOLS or _POOLS[-1]._max_workers < n:
-        _POOLS.append(ThreadPoolExecutor(n, thread_name_prefix="shprobe-sh_basis"))
-    return _POOLS[-1]
+    machine far more. A forked child (whose copy of the pool has no threads) starts its own."""
+    if not _POOLS or _POOLS[-1][0] != os.getpid() or _POOLS[-1][1]._max_workers < n:
+        _POOLS.append((os.getpid(), ThreadPoolExecutor(n, thread_name_prefix="shprobe-sh")))
+    return _POOLS[-1][1]
 
 
 def _kernel_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
