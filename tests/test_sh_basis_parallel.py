@@ -104,14 +104,28 @@ def test_small_outputs_stay_in_the_calling_thread(monkeypatch):
     assert submitted == []
 
 
-def test_a_forked_child_fills_blocks_too(blocks):
+def test_a_forked_child_fills_blocks_too():
     # the child's copy of the pool has no threads: it starts its own (and never waits on
-    # the parent's); the values are the serial ones
-    import multiprocessing
+    # the parent's); the values are the serial ones. In a fresh interpreter: forking this
+    # one (which may hold JAX's threads) is not safe.
+    import subprocess
+    import sys
 
-    d = random_dirs(3001, seed=9)
-    want = sh_basis(d, 4)  # the parent's pool now exists
-    ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(1) as p:
-        got = p.apply_async(sh_basis, (d, 4)).get(timeout=60)
-    np.testing.assert_array_equal(got, want)
+    code = """
+import multiprocessing, numpy as np
+import shprobe.sh.basis as basis
+from shprobe.sh import sh_basis
+basis.PARALLEL_MIN_VALUES = 1
+basis.cores = lambda: 3
+d = np.random.default_rng(9).normal(size=(3001, 3))
+d /= np.linalg.norm(d, axis=1, keepdims=True)
+want = sh_basis(d, 4)  # the parent's pool now exists
+with multiprocessing.get_context("fork").Pool(1) as p:
+    got = p.apply_async(sh_basis, (d, 4)).get(timeout=60)
+basis.cores = lambda: 1
+assert (got == want).all() and (want == sh_basis(d, 4)).all()
+print("ok")
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
