@@ -1,6 +1,8 @@
 """Benchmark: SH basis and rotation against their peers (issue: foundation).
 
 Run: ``python bench/bench_sh.py`` (``PYTHONPATH=src`` when shprobe is not installed;
+``--cores``: ``sh_basis`` against sphericart on all the cores, both libraries threaded, wall
+time, lmax 2, 6, 10, 20, 10⁶ directions, float64 and float32, ``out=`` and allocating;
 ``--grid``: the lmax 2–32 grid against sphericart only; ``--sweep``: ``out=`` ratios at
 lmax 9–30 (the kernel's switch points); ``--alloc-pairs [--pairs N]``: the allocating calls
 paired (31 pairs), with an interval; ``--lmax 9-32`` or ``--lmax 10,16``: the degrees of
@@ -14,12 +16,17 @@ Timings are the best of several repeats of process CPU time (the machine is shar
 from __future__ import annotations
 
 import os
+import sys
 
+_CORES = len(os.sched_getaffinity(0))
 for _v in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-    os.environ[_v] = "1"
+    # --cores: every library on all the cores this process may use (sphericart's OpenMP
+    # threads, shprobe's one thread per core); otherwise one thread everywhere
+    os.environ[_v] = str(_CORES) if "--cores" in sys.argv else "1"
+if "--cores" not in sys.argv:  # shprobe's threads follow the cores the process may use
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
 
 import subprocess  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -161,6 +168,70 @@ def bench_basis_grid(rows, lmaxes=(2, 6, 10, 16, 20, 32), repeat=9, budget=1 << 
                      {k: (min(v), float(np.median(v))) for k, v in t.items()},
                      {k: (float(np.median(sys_t[k])), float(np.median(flt[k])))
                       for k in ("ours_alloc", "sc_alloc")}, e_ours, e_sc))
+
+
+def bench_basis_cores(lmaxes=(2, 6, 10, 20), repeat=11, n=10**6):
+    """``sh_basis`` and sphericart on all the cores (both threaded), in one run: 10⁶ random
+    unit directions, float64 and float32, into a preallocated ``out`` (touched before, as a
+    reused buffer is) and allocating. Wall time (several threads: process CPU time would sum
+    them), the calls of a pair interleaved in alternating order; per call the best and the
+    median of ``repeat``. Prints a markdown table; × = shprobe / sphericart (best, and median
+    in brackets)."""
+    import sphericart
+
+    from shprobe.sh import sh_basis
+
+    def wall(f):
+        t = time.perf_counter()
+        f()
+        return time.perf_counter() - t
+
+    print(f"### sh_basis against sphericart, {_CORES} cores each, 10⁶ directions\n")
+    print("ms per call, best / median of "
+          f"{repeat} interleaved repeats (wall time); × = shprobe / sphericart, best "
+          "(median).\n")
+    print("| lmax | dtype | shprobe out= | sphericart out | × | shprobe alloc "
+          "| sphericart alloc | × |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for lmax in lmaxes:
+        d64 = unit_dirs(n)
+        calc = sphericart.SphericalHarmonics(lmax)
+        for dt in (np.float64, np.float32):
+            d = d64.astype(dt)
+            few = d[:10000]  # same functions up to sign (sphericart's in float64: its float32
+            # loses digits at high degree)
+            assert np.abs(np.abs(sh_basis(few, lmax)) - np.abs(
+                calc.compute(few.astype(np.float64)))).max() < (
+                1e-10 if dt == np.float64 else 1e-4)
+            out = np.zeros((n, (lmax + 1) ** 2), dt)
+            groups = (
+                {"ours_out": lambda d=d, out=out, lmax=lmax: sh_basis(d, lmax, out=out),
+                 "sc_out": lambda d=d, out=out, calc=calc: calc._compute_numpy(d, out, None,
+                                                                              None)},
+                {"ours_alloc": lambda d=d, lmax=lmax: sh_basis(d, lmax),
+                 "sc_alloc": lambda d=d, calc=calc: calc.compute(d)},
+            )
+            t = {}
+            for calls in groups:
+                for f in calls.values():
+                    f()
+                order = list(calls)
+                for k in calls:
+                    t[k] = []
+                for r in range(repeat):
+                    for k in order if r % 2 == 0 else order[::-1]:
+                        t[k].append(wall(calls[k]) * 1e3)
+            del out
+            b = {k: min(v) for k, v in t.items()}
+            m = {k: float(np.median(v)) for k, v in t.items()}
+            print(f"| {lmax} | {np.dtype(dt).name} "
+                  f"| {b['ours_out']:.1f} / {m['ours_out']:.1f} "
+                  f"| {b['sc_out']:.1f} / {m['sc_out']:.1f} "
+                  f"| {b['ours_out'] / b['sc_out']:.2f} ({m['ours_out'] / m['sc_out']:.2f}) "
+                  f"| {b['ours_alloc']:.1f} / {m['ours_alloc']:.1f} "
+                  f"| {b['sc_alloc']:.1f} / {m['sc_alloc']:.1f} "
+                  f"| {b['ours_alloc'] / b['sc_alloc']:.2f} "
+                  f"({m['ours_alloc'] / m['sc_alloc']:.2f}) |", flush=True)
 
 
 def bench_alloc_pairs(lmaxes=(2, 6, 10, 16, 20, 32), pairs=31, budget=1 << 30):
@@ -359,6 +430,10 @@ def _lmax_arg(default):
 
 def main():
     print(f"Machine: {machine()}\n")
+    if "--cores" in sys.argv:
+        bench_basis_cores(_lmax_arg((2, 6, 10, 20)))
+        print("\nload average at the end: " + " / ".join(f"{x:.2f}" for x in os.getloadavg()))
+        return
     if "--alloc-pairs" in sys.argv:
         print("load average at the start: " + " / ".join(f"{x:.2f}" for x in os.getloadavg())
               + "\n")

@@ -199,6 +199,7 @@ def test_streamed_output_equals_plain_stores(monkeypatch):
         dd = d.astype(dtype)
         plain = sh_basis(dd, lmax)
         monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
+        monkeypatch.setattr(basis, "UNROLLED_STREAM_MIN_BYTES", 0)
         K = (lmax + 1) ** 2
         big = np.full(len(d) * K + 7, np.nan, dtype)
         for off in (0, 1, 3):
@@ -224,6 +225,7 @@ def test_large_out_at_unrolled_degrees_goes_through_the_stream_kernels(monkeypat
 
     monkeypatch.setattr(_unrolled, "STREAM_KERNELS", tuple(spy(k) for k in range(9)))
     monkeypatch.setattr(basis, "STREAM_MIN_BYTES", 0)
+    monkeypatch.setattr(basis, "UNROLLED_STREAM_MIN_BYTES", 0)
     d = random_dirs(100, seed=3)
     out = np.empty((100, 9))
     sh_basis(d, 2, out=out)

@@ -326,26 +326,36 @@ def sh_to_h(sh_coeffs: ArrayLike, n: int = 6,
 def project_h(func, n: int = 6, n_z: int = 48, n_phi: int = 96) -> NDArray[np.float64]:
     """Project a hemispherical function into H: h_i = ∫_Ω+ f Hⁱ dω by quadrature.
 
-    ``func`` maps (N, 3) tangent-frame directions to (N,) or (N, C) values. Exact for
-    polynomials of degree ≤ min(2 n_z − 3, n_phi − 3).
-
     Parameters
     ----------
-    func
-        Maps (N, 3) tangent-frame directions to (N,) or (N, C) values.
-    n
-        4 (H4) or 6 (H6).
-    n_z, n_phi
-        The quadrature's nodes.
+    func : callable
+        Maps (N, 3) tangent-frame directions to (N,) or (N, C) real values.
+    n : int
+        Number of H-basis functions (4, 6 or 9).
+    n_z, n_phi : int
+        Quadrature nodes in z and in azimuth; exact for polynomials of degree
+        ≤ min(2 n_z − 3, n_phi − 3).
 
     Returns
     -------
-    ndarray of shape (n,) or (n, C)
-        h_i = ∫_Ω+ f Hⁱ dω.
+    numpy.ndarray
+        (n,) or (n, C) float64 coefficients. Anything but a callable returning finite real
+        values of the right length is refused in one line (``ShprobeError``).
     """
+    if not callable(func):
+        raise ShprobeError(f"project_h needs a function of (N, 3) directions, got "
+                           f"{type(func).__name__}")
     nodes, w = hemisphere_quadrature(n_z, n_phi)
-    vals = np.asarray(func(np.array(nodes)), dtype=np.float64)
-    if vals.shape[0] != nodes.shape[0]:
+    try:
+        vals = np.asarray(func(np.array(nodes)))
+        if vals.dtype.kind not in "fiub":
+            raise TypeError
+        vals = vals.astype(np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ShprobeError("project_h: the function must return real numbers") from None
+    if not np.isfinite(vals).all():
+        raise ShprobeError("project_h: the function returned NaN or infinity")
+    if vals.ndim == 0 or vals.shape[0] != nodes.shape[0]:
         raise ShprobeError(f"func returned shape {vals.shape} for {nodes.shape[0]} directions")
     b = h_basis(nodes, _check_n(n)) * w[:, None]
     return b.T @ vals

@@ -27,8 +27,10 @@ def _coeffs(xp: Any, coeffs: Any, dt: Any, like: Any) -> Any:
     return c
 
 
-def irradiance(xp: Any, coeffs: Any, normals: Any) -> Any:
-    """E(n) = Σ Â_l L_lm y_lm(n/|n|): (K, C) or (K,) coefficients, (..., 3) normals."""
+def irradiance(xp: Any, coeffs: Any, normals: Any, basis: Any = None) -> Any:
+    """E(n) = Σ Â_l L_lm y_lm(n/|n|): (K, C) or (K,) coefficients, (..., 3) normals.
+    ``basis(n, lmax)``: the SH values of the unit normals (default the reference
+    ``shprobe.sh._xp.sh_basis``; the NumPy path passes the numba ``sh_basis``)."""
     dt = _xp.float_dtype(xp, coeffs, normals)
     like = _xp.first_array(coeffs, normals)
     c = _coeffs(xp, coeffs, dt, like)
@@ -37,7 +39,7 @@ def irradiance(xp: Any, coeffs: Any, normals: Any) -> Any:
     lmax = lmax_of(c.shape[0])
     n = _xp.unit_vectors(xp, _xp.asarray(xp, normals, dt, like), "normal")
     e = _xp.convolve(xp, c, clamped_cosine_factors(lmax))
-    y = _xp.sh_basis(xp, n, lmax)
+    y = _xp.sh_basis(xp, n, lmax) if basis is None else basis(n, lmax)
     return xp.matmul(y, e) if e.ndim == 2 else xp.matmul(y, e[:, None])[..., 0]
 
 
@@ -85,6 +87,8 @@ def project_samples(xp: Any, dirs: Any, values: Any, weights: Any, lmax: int) ->
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ShprobeError(f"directions must have shape (S, 3), got {tuple(d.shape)}")
     d = xp.reshape(d, (-1, 3))
+    if d.shape[0] == 0:
+        raise ShprobeError("project_samples needs at least one sample, got 0 directions")
     one = v.ndim == 1
     v = xp.reshape(v, (d.shape[0], -1)) if v.shape[0] == d.shape[0] else v
     if weights is None:

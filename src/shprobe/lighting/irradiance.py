@@ -29,7 +29,7 @@ from ..probes.layouts import Layout, get_layout
 from ..sh import _xp, lmax_of, sh_basis
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import clamped_cosine_factors, convolve
-from .coeffs import RH_CONSTANTS, as_coeffs, as_rgb, check_coeffs, nine
+from .coeffs import as_coeffs, as_rgb, check_coeffs, nine
 
 __all__ = [
     "irradiance",
@@ -84,13 +84,15 @@ def irradiance(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
         from . import _xp as lx
 
         return lx.irradiance(xp, coeffs, normals)
-    e = irradiance_coeffs(_finite(check_coeffs(coeffs)))
-    lmax = lmax_of(e.shape[0])
+    c = _finite(check_coeffs(coeffs))
     n = unit_normals(normals)
-    check_memory(8.0 * n.size / 3 * (e.shape[0] + 2 * (e.shape[-1] if e.ndim > 1 else 1)),
-                 f"irradiance at {n.size // 3} normals, lmax {lmax}")
-    y = sh_basis(n, lmax)
-    return y @ e
+    check_memory(8.0 * n.size / 3 * (c.shape[0] + 2 * (c.shape[-1] if c.ndim > 1 else 1)),
+                 f"irradiance at {n.size // 3} normals, lmax {lmax_of(c.shape[0])}")
+    from . import _xp as lx
+
+    # the reference formula on NumPy, with the basis from the numba kernel (tested against
+    # the reference basis)
+    return np.asarray(lx.irradiance(_xp.numpy_namespace(), c, n, basis=sh_basis))
 
 
 def unit_normals(normals: ArrayLike) -> NDArray[np.float64]:
@@ -139,15 +141,9 @@ def irradiance_matrix(coeffs: ArrayLike) -> NDArray[np.float64]:
         from . import _xp as lx
 
         return lx.irradiance_matrix(xp, coeffs)
-    c1, c2, c3, c4, c5 = RH_CONSTANTS
-    L = np.moveaxis(_nine(coeffs), -2, 0)  # (9, ..., C)
-    L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = L
-    m = np.empty((*L00.shape, 4, 4))
-    m[..., 0, :] = np.stack([c1 * L22, c1 * L2m2, c1 * L21, c2 * L11], axis=-1)
-    m[..., 1, :] = np.stack([c1 * L2m2, -c1 * L22, c1 * L2m1, c2 * L1m1], axis=-1)
-    m[..., 2, :] = np.stack([c1 * L21, c1 * L2m1, c3 * L20, c2 * L10], axis=-1)
-    m[..., 3, :] = np.stack([c2 * L11, c2 * L1m1, c2 * L10, c4 * L00 - c5 * L20], axis=-1)
-    return m
+    from . import _xp as lx
+
+    return np.asarray(lx.irradiance_matrix(_xp.numpy_namespace(), _nine(coeffs)))
 
 
 def irradiance_from_matrix(m: ArrayLike, normals: ArrayLike) -> NDArray[np.float64]:
@@ -193,13 +189,10 @@ def irradiance_quadratic(coeffs: ArrayLike, normals: ArrayLike) -> NDArray[np.fl
         from . import _xp as lx
 
         return lx.irradiance_quadratic(xp, coeffs, normals)
-    c1, c2, c3, c4, c5 = RH_CONSTANTS
-    L00, L1m1, L10, L11, L2m2, L2m1, L20, L21, L22 = _nine(coeffs)
-    n = unit_normals(normals)[..., None]
-    x, y, z = n[..., 0, :], n[..., 1, :], n[..., 2, :]
-    return (c1 * L22 * (x * x - y * y) + c3 * L20 * z * z + c4 * L00 - c5 * L20
-            + 2.0 * c1 * (L2m2 * x * y + L21 * x * z + L2m1 * y * z)
-            + 2.0 * c2 * (L11 * x + L1m1 * y + L10 * z))
+    from . import _xp as lx
+
+    return np.asarray(lx.irradiance_quadratic(_xp.numpy_namespace(), _nine(coeffs),
+                                              unit_normals(normals)))
 
 
 def irradiance_map(coeffs: ArrayLike, layout: str | Layout = "latlong",

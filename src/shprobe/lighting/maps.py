@@ -96,15 +96,28 @@ def project_latlong(radiance: Any, lmax: int = 2) -> Any:
     if rad.ndim < 3:
         raise ShprobeError(f"radiance must be (..., H, W, C), got shape {tuple(rad.shape)}")
     h, w = LatLong().check_grid(tuple(rad.shape[-3:-1]))
-    check_memory(8.0 * (2 * lmax + 1) * (w + num_coeffs(lmax) * (lmax + 1) + h * (lmax + 2))
-                 * max(1, int(np.prod(rad.shape[:-3]))) * rad.shape[-1],
-                 f"projecting {w}x{h} lat-long maps to lmax {lmax}")
+    batch, nch = tuple(rad.shape[:-3]), int(rad.shape[-1])
+    nb = int(np.prod(batch)) if batch else 1
+    m, k = 2 * lmax + 1, num_coeffs(lmax)
+    # the batch folded into the columns of three 2-D/3-D products (no broadcast copies of
+    # the tables): the maps transposed (W, H·B·C), f (M, H, B·C), g (M·L, B·C), the result
+    # and its transpose; then the tables
+    check_memory(8.0 * (nb * nch * (h * w + m * h + m * (lmax + 1) + 2 * k)
+                        + m * (w + (lmax + 1) * (h + k))),
+                 f"projecting {nb} {w}x{h} lat-long map{'s' * (nb != 1)} to lmax {lmax}")
     trig, lam, dw, A = (_table(xp, t, rad, dt) for t in _latlong_tables(h, w, lmax))
-    f = xp.matmul(trig, rad)  # (..., H, M, C): per row Σ_ψ L trig_m(ψ)
-    f = _moveaxis(xp, f, -3, -2)  # (..., M, H, C)
-    g = xp.matmul(lam * dw, f)  # (..., M, L, C)
-    g = xp.reshape(g, (*g.shape[:-3], g.shape[-3] * g.shape[-2], g.shape[-1]))
-    return xp.matmul(A, g)
+    r = _permute(xp, xp.reshape(rad, (nb, h, w, nch)), (2, 1, 0, 3))  # (W, H, B, C)
+    f = xp.matmul(trig, xp.reshape(r, (w, h * nb * nch)))  # per row Σ_ψ L trig_m(ψ)
+    g = xp.matmul(lam * dw, xp.reshape(f, (m, h, nb * nch)))  # (M, L, B·C)
+    out = xp.matmul(A, xp.reshape(g, (m * (lmax + 1), nb * nch)))  # (K, B·C)
+    out = _permute(xp, xp.reshape(out, (k, nb, nch)), (1, 0, 2))
+    return xp.reshape(out, (*batch, k, nch))
+
+
+def _permute(xp: Any, a: Any, axes: tuple[int, ...]) -> Any:
+    """``permute_dims`` (``transpose`` for NumPy before 2.0)."""
+    f = getattr(xp, "permute_dims", None)
+    return f(a, axes) if f is not None else xp.transpose(a, axes)
 
 
 def latlong_radiance(coeffs: Any, size: int = 64) -> Any:

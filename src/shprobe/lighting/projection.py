@@ -222,6 +222,8 @@ def project_samples(dirs: ArrayLike, values: ArrayLike, weights: ArrayLike | Non
         return lx.project_samples(xp, dirs, values, weights, lmax)
     lmax = check_lmax(lmax)
     d = np.ascontiguousarray(np.asarray(dirs, dtype=np.float64).reshape(-1, 3))
+    if d.shape[0] == 0:
+        raise ShprobeError("project_samples needs at least one sample, got 0 directions")
     v = np.asarray(values, dtype=np.float64)
     one = v.ndim == 1
     v = np.ascontiguousarray(v.reshape(d.shape[0], -1))

@@ -38,6 +38,10 @@ class Env:
     _grid: tuple[int, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        kind = getattr(self.radiance, "dtype", np.asarray(self.radiance).dtype).kind
+        if kind not in "fiub":  # object, string or complex: no radiance (not NaN)
+            raise ShprobeError(f"radiance must be real numbers, got an array of "
+                               f"{np.asarray(self.radiance).dtype}", self.path)
         rad = np.asarray(self.radiance, dtype=np.float32)
         if rad.ndim < 3 or rad.shape[-1] != 3:
             raise ShprobeError(f"radiance must be (*grid, 3), got {rad.shape}", self.path)

@@ -2,9 +2,10 @@
 
 sh_basis kernels unrolled for lmax ≤ 8: the normalised recurrence of ``shprobe.sh`` with
 its constants folded in (√2 included for m > 0), in the arithmetic of the output's type.
-``KERNELS[lmax](dirs (N, 3), out (N, K))``; ``STREAM_KERNELS[lmax](dirs, out, a0)`` the same
-rows copied out of an L1 buffer with streaming stores (``shprobe.sh._kernels.stream_rows``;
-flat index j of ``out`` is 64-byte aligned iff j ≡ a0).
+``KERNELS[lmax](dirs (N, 3), out (N, K))``, returning Σ|d|² (float64, for the caller's
+unit-length check, no second pass over the directions); ``STREAM_KERNELS[lmax](dirs, out,
+a0)`` the same rows copied out of an L1 buffer with streaming stores
+(``shprobe.sh._kernels.stream_rows``; flat index j of ``out`` is 64-byte aligned iff j ≡ a0).
 """
 
 from __future__ import annotations
@@ -19,16 +20,27 @@ UNROLL_MAX = 8
 @nb.njit(cache=True, nogil=True)
 def sh_l0(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         o[0] = T.type(0.28209479177387814)
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l1(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -39,13 +51,19 @@ def sh_l1(dirs, out):
         s = y
         o[3] = T.type(0.4886025119029199) * c
         o[1] = T.type(0.4886025119029199) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l2(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -64,13 +82,19 @@ def sh_l2(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[8] = T.type(0.5462742152960396) * c
         o[4] = T.type(0.5462742152960396) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l3(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -102,13 +126,19 @@ def sh_l3(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[15] = T.type(0.5900435899266435) * c
         o[9] = T.type(0.5900435899266435) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l4(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -158,13 +188,19 @@ def sh_l4(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[24] = T.type(0.6258357354491761) * c
         o[16] = T.type(0.6258357354491761) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l5(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -237,13 +273,19 @@ def sh_l5(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[35] = T.type(0.6563820568401701) * c
         o[25] = T.type(0.6563820568401701) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l6(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -344,13 +386,19 @@ def sh_l6(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[48] = T.type(0.6831841051919143) * c
         o[36] = T.type(0.6831841051919143) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l7(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -484,13 +532,19 @@ def sh_l7(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[63] = T.type(0.7071627325245963) * c
         o[49] = T.type(0.7071627325245963) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)
 def sh_l8(dirs, out):
     T = out.dtype
+    sq = 0.0
     for i in range(dirs.shape[0]):
         o = out[i]
+        dx = float(dirs[i, 0])
+        dy = float(dirs[i, 1])
+        dz = float(dirs[i, 2])
+        sq += dx * dx + dy * dy + dz * dz
         x = T.type(dirs[i, 0])
         y = T.type(dirs[i, 1])
         z = T.type(dirs[i, 2])
@@ -662,6 +716,7 @@ def sh_l8(dirs, out):
         c, s = x * c - y * s, x * s + y * c
         o[80] = T.type(0.72892666017483) * c
         o[64] = T.type(0.72892666017483) * s
+    return sq
 
 
 @nb.njit(cache=True, nogil=True)

@@ -5,7 +5,12 @@ public functions, one implementation written against the array API standard (via
 The public functions dispatch at their top: `namespace` returns ``None`` for NumPy
 input (lists, numbers, ``np.ndarray``), which keeps the numba path untouched, and the
 array-API namespace otherwise. Nothing here imports torch, JAX or array-api-compat until an
-array of theirs arrives, so ``import shprobe`` stays light.
+array of theirs arrives (or a NumPy function runs a reference formula here through
+`numpy_namespace`), so ``import shprobe`` stays light.
+
+These functions are the one definition of each formula: the NumPy public functions run them
+on NumPy (array-api-compat's namespace) or call a numba kernel tested against them
+(docs/architecture.md, "Kernels and their references").
 
 The basis is the normalised recurrence of `shprobe.sh.basis` (Lisle & Huang 2007 §2.1)
 written with whole-array operations: P̄_lm(z) by the interior recurrence, (x + iy)^m by the
@@ -35,19 +40,58 @@ def namespace(*arrays: Any) -> Any:
     except ImportError:  # pragma: no cover - depends on the installed extras
         if any(type(a).__module__.split(".")[0] in ("torch", "jax", "jaxlib", "cupy")
                for a in others):
-            raise ShprobeError("torch/JAX arrays need array-api-compat: "
-                               "pip install 'shprobe[torch]' or 'shprobe[jax]'") from None
+            raise ShprobeError("torch/JAX arrays need array-api-compat (a core dependency "
+                               "of shprobe): pip install array-api-compat") from None
         return None
     arrs = [a for a in others if aac.is_array_api_obj(a) and not aac.is_numpy_array(a)]
     if not arrs:
         return None
+    for a in arrs:
+        _check_storage(a)
     try:
         return aac.array_namespace(*arrs)
     except TypeError as e:
         raise ShprobeError(f"arrays of different libraries cannot be mixed: {e}") from None
 
 
+def _check_storage(a: Any) -> None:
+    """Refuse, in one line, tensors whose values cannot be read or computed with: torch's
+    meta tensors (no data) and sparse layouts (the formulas need strided arrays)."""
+    if getattr(a, "is_meta", False):
+        raise ShprobeError("meta tensors hold no values: move the tensor to a real device "
+                           "(.to('cpu') or a GPU) first")
+    layout = getattr(a, "layout", None)
+    if layout is not None and type(a).__module__.split(".")[0] == "torch":
+        import torch
+
+        if layout != torch.strided:
+            raise ShprobeError(f"{layout} tensors are not supported: pass tensor.to_dense()")
+
+
+def work_dtype(xp: Any, dt: Any) -> Any:
+    """The dtype the formulas compute in for input of dtype ``dt``: float16 and bfloat16 are
+    widened to float32 (their range ends at 65504 / their precision at 3 digits, which the
+    recurrences pass; the result is cast back), other dtypes are kept."""
+    for name in ("float16", "bfloat16"):
+        if getattr(xp, name, None) is not None and dt == getattr(xp, name):
+            return xp.float32
+    if str(dt).rsplit(".", 1)[-1] in ("float16", "bfloat16"):
+        return xp.float32
+    return dt
+
+
+def numpy_namespace() -> Any:
+    """The array-API namespace of NumPy (array-api-compat's wrapper), on which the NumPy
+    public functions run the reference formulas of this module."""
+    import array_api_compat.numpy as npx
+
+    return npx
+
+
 def device_of(x: Any) -> Any:
+    """The device of array ``x`` (None for None: NumPy's host)."""
+    if x is None:
+        return None
     import array_api_compat as aac
 
     return aac.device(x)
@@ -63,18 +107,29 @@ def is_tracing(x: Any) -> bool:
     return isinstance(x, jax.core.Tracer)
 
 
+def _is_numpy(xp: Any) -> bool:
+    return getattr(xp, "__name__", "") == "array_api_compat.numpy"
+
+
 def float_dtype(xp: Any, *arrays: Any) -> Any:
-    """The floating dtype of the first floating array among ``arrays``, else the
-    namespace's default float."""
+    """The floating dtype of the first floating array among ``arrays`` (NumPy arrays count
+    when ``xp`` is NumPy's namespace), else the namespace's default float."""
     for a in arrays:
-        if a is not None and hasattr(a, "dtype") and not isinstance(a, _PLAIN):
-            if xp.isdtype(a.dtype, "real floating"):
+        if a is None or isinstance(a, (list, tuple, int, float, bool)):
+            continue
+        if isinstance(a, (np.ndarray, np.generic)):
+            if _is_numpy(xp) and a.dtype in (np.float32, np.float64):
                 return a.dtype
+            continue
+        if hasattr(a, "dtype") and xp.isdtype(a.dtype, "real floating"):
+            return a.dtype
     return xp.asarray(0.0).dtype
 
 
 def first_array(*arrays: Any) -> Any:
-    return next(a for a in arrays if a is not None and not isinstance(a, _PLAIN))
+    """The first argument that is an array of a non-NumPy library (None when all are
+    NumPy-like: NumPy's namespace)."""
+    return next((a for a in arrays if a is not None and not isinstance(a, _PLAIN)), None)
 
 
 def asarray(xp: Any, x: Any, dtype: Any, like: Any) -> Any:
@@ -161,7 +216,7 @@ def sh_basis(xp: Any, d: Any, lmax: int) -> Any:
 
 
 def _unstack3(xp: Any, d: Any) -> tuple[Any, Any, Any]:
-    flat = xp.reshape(xp.moveaxis(d, -1, 0), (3, -1))
+    flat = xp.asarray(xp.reshape(xp.moveaxis(d, -1, 0), (3, -1)), copy=True)
     shape = tuple(d.shape[:-1])
     return tuple(xp.reshape(flat[i, :], shape) for i in range(3))  # type: ignore[return-value]
 
@@ -191,7 +246,8 @@ def band_factors(xp: Any, factors: Any, lmax: int, dtype: Any, like: Any) -> Any
 
 
 def convolve(xp: Any, coeffs: Any, factors: Any) -> Any:
-    """Band l times ``factors[l]`` for (..., K, C) or (K,) coefficients of ``xp``."""
+    """Band l times ``factors[l]`` for (..., K, C) or (K,) coefficients of ``xp`` (the
+    Funk–Hecke convolution with a zonal kernel); NaN or infinity in either is refused."""
     from .indexing import lmax_of
 
     dt = float_dtype(xp, coeffs, factors)
@@ -199,8 +255,10 @@ def convolve(xp: Any, coeffs: Any, factors: Any) -> Any:
     c = asarray(xp, coeffs, dt, like)
     if c.ndim == 0:
         raise ShprobeError("coefficients must have shape (..., K, C) or (K,)")
+    check_finite(xp, c, "coefficients")
     lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
     per_k = band_factors(xp, factors, lmax, dt, like)
+    check_finite(xp, per_k, "band factors")
     return c * (per_k if c.ndim == 1 else per_k[..., None])
 
 

@@ -2,14 +2,15 @@
 ZYZ Euler angles, real-basis Wigner matrices and the rotation of coefficients, differentiable
 in every argument.
 
-The Wigner blocks come from the recurrence of Ivanic & Ruedenberg 1996 (J. Phys. Chem. 100,
-6342; corrections 1998, 102, 9099): D^l is a polynomial in D^1 and D^(l−1), so it is exact
-and differentiable for every rotation (no Euler angles, no gimbal lock). D^1 is R itself in
-shprobe's l = 1 order (y, z, x). Each band is three matrix products with constant tables:
-D^l = (U₀ P₀ + U₊ P₊ + U₋ P₋) · diag(1/√den_n), where P_i (i = −1, 0, 1) are D^(l−1) with
-its edge columns mixed by row i of D^1 (IR's function P) and the U hold IR's u, v, w weights
-and index shifts. For lmax ≤ 2, `rotate` uses the closed forms of the NumPy path (l = 1:
-a → R a; l = 2: the traceless quadratic form A → R A Rᵀ).
+The Wigner blocks come from the one algorithm of shprobe (Lisle & Huang 2007 §2.2, LH eq. 6):
+d^l(β) by the LH recurrence evaluated once at β = π/2, J = d(π/2) (stable to l > 400, where the
+recurrence run at a general β is not), and every rotation as D(R) = Z(γ+π/2) J Z(β+π) J
+Z(α+π/2), Z(φ) the real-basis z-rotations (2×2 turns by mφ of the (m, −m) pairs). The cos/sin
+of α, β, γ are read algebraically from R (no Euler angles, no trig), guarded at gimbal lock so
+that gradients stay finite. These whole-array functions are the reference; the numba kernels
+of the NumPy path (``shprobe.sh._kernels_rotation``) run the same steps and are tested against
+them. For lmax ≤ 2, `rotate` uses closed forms (l = 1: a → R a; l = 2: the traceless
+quadratic form A → R A Rᵀ), like the NumPy path.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ def from_quaternion(xp: Any, q: Any) -> Any:
     if q.ndim < 1 or q.shape[-1] != 4:
         raise ShprobeError(
             f"quaternions must have shape (..., 4) as (w, x, y, z), got {tuple(q.shape)}")
+    dt = q.dtype
+    if _xp.work_dtype(xp, dt) != dt:
+        return xp.astype(from_quaternion(xp, xp.astype(q, _xp.work_dtype(xp, dt))), dt)
     _xp.check_finite(xp, q, "quaternions")
     n2 = xp.sum(q * q, axis=-1, keepdims=True)
     if not _xp.is_tracing(n2) and bool(xp.any(n2 == 0)):
@@ -48,9 +52,16 @@ def from_quaternion(xp: Any, q: Any) -> Any:
 def from_euler_zyz(xp: Any, alpha: Any, beta: Any, gamma: Any) -> Any:
     """R = Rz(γ) Ry(β) Rz(α) (the NumPy path's convention), broadcast over the angles."""
     dt = _xp.float_dtype(xp, alpha, beta, gamma)
+    work = _xp.work_dtype(xp, dt)
     like = _xp.first_array(alpha, beta, gamma)
-    a, b, g = (_xp.asarray(xp, t, dt, like) for t in (alpha, beta, gamma))
-    shape = np.broadcast_shapes(tuple(a.shape), tuple(b.shape), tuple(g.shape))
+    a, b, g = (_xp.asarray(xp, t, work, like) for t in (alpha, beta, gamma))
+    try:
+        shape = np.broadcast_shapes(tuple(a.shape), tuple(b.shape), tuple(g.shape))
+    except ValueError:
+        raise ShprobeError(f"Euler angles of shapes {tuple(a.shape)}, {tuple(b.shape)} and "
+                           f"{tuple(g.shape)} do not broadcast") from None
+    for t, name in ((a, "alpha"), (b, "beta"), (g, "gamma")):
+        _xp.check_finite(xp, t, f"Euler angles ({name})")
     a, b, g = (xp.broadcast_to(t, shape) for t in (a, b, g))
     zero, one = xp.zeros_like(a), xp.ones_like(a)
 
@@ -63,7 +74,7 @@ def from_euler_zyz(xp: Any, alpha: Any, beta: Any, gamma: Any) -> Any:
 
     cb, sb = xp.cos(b), xp.sin(b)
     ry = mat([[cb, zero, sb], [zero, one, zero], [-sb, zero, cb]])
-    return xp.matmul(xp.matmul(rz(g), ry), rz(a))
+    return xp.astype(xp.matmul(xp.matmul(rz(g), ry), rz(a)), dt)
 
 
 def as_matrix(xp: Any, rotation: Any) -> Any:
@@ -92,76 +103,155 @@ def _np_dtype(xp: Any, dt: Any) -> Any:
     return np.float32 if dt == xp.float32 else np.float64
 
 
-@lru_cache(maxsize=64)
-def _band_tables(l: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Constant tables of band l ≥ 2 (IR 1996 Table 2 with the 1998 corrections): U₀, U₊,
-    U₋ (2l+1, 2l−1) and 1/√den_n (2l+1,), so that D^l = (U₀P₀ + U₊P₊ + U₋P₋) · rden."""
-    n_out, n_in = 2 * l + 1, 2 * l - 1
-    u0, up, um = (np.zeros((n_out, n_in)) for _ in range(3))
+@lru_cache(maxsize=8)
+def d_half_pi(lmax: int) -> tuple[np.ndarray, ...]:
+    """J^l = d^l(π/2) for l ≤ lmax, dense (2l+1, 2l+1) in shprobe's real basis (rows and
+    columns m = −l … l), by the recurrence of Lisle & Huang 2007 §2.2 for d^l(β) at β = π/2
+    (where it is stable to l > 400), read-only.
 
-    def col(a):  # index of order a of band l−1
-        return a + l - 1
+    The recurrence gives the same-sign quadrants P_mn = d_mn and Q_mn = d_−m,−n (m, n ≥ 0;
+    a y-rotation never mixes the cos-type m ≥ 0 and the sin-type m < 0 functions). LH's basis
+    carries the Condon–Shortley phase; without it d_mn is multiplied by (−1)^(m+n), which is
+    d(−β), so the recurrence runs with sin β → −sin β. Each degree is one whole-array step
+    over (m, n) from the two before it; ``shprobe.sh._kernels_rotation.d_tables`` is the
+    compiled copy the NumPy path uses, tested against this."""
+    cb, sb = 0.0, -1.0  # cos, −sin of π/2
+    P = [np.ones((1, 1)), np.array([[cb, sb], [-sb, cb]])]
+    Q = [np.zeros((1, 1)), np.array([[0.0, 0.0], [0.0, 1.0]])]
+    for l in range(2, lmax + 1):
+        fl = float(l)
+        m = np.arange(l)[:, None]
+        n = np.arange(l)[None, :]
+        a = fl * (2 * fl - 1) / np.sqrt((fl * fl - m * m) * (fl * fl - n * n))
+        mn = m * n / (fl * (fl - 1))
+        p1, q1 = P[l - 1][:l, :l], Q[l - 1][:l, :l]
+        p2 = np.zeros((l, l))
+        q2 = np.zeros((l, l))
+        mm, nn = np.arange(l - 1)[:, None], np.arange(l - 1)[None, :]
+        b = np.sqrt(((fl - 1) ** 2 - mm * mm) * ((fl - 1) ** 2 - nn * nn)) / (
+            (fl - 1) * (2 * fl - 1))
+        p2[:l - 1, :l - 1] = b * P[l - 2]
+        q2[:l - 1, :l - 1] = b * Q[l - 2]
+        pl = np.zeros((l + 1, l + 1))
+        ql = np.zeros((l + 1, l + 1))
+        pl[:l, :l] = a * (cb * p1 - mn * q1 - p2)
+        ql[1:l, 1:l] = (a * (-mn * p1 + cb * q1 - q2))[1:, 1:]
+        # the edges (column n = l, and row l by d_n,m = (−1)^(m−n) d_m,n), the corner
+        mr = np.arange(l)
+        e = np.sqrt(fl * (fl - 0.5) / (fl * fl - mr * mr)) * sb
+        pe = e * P[l - 1][:l, l - 1]
+        qe = np.where(mr > 0, e * Q[l - 1][:l, l - 1], 0.0)
+        sgn = np.where((l - mr) % 2 == 0, 1.0, -1.0)
+        pl[:l, l], ql[:l, l] = pe, qe
+        pl[l, :l], ql[l, :l] = sgn * pe, sgn * qe
+        pc, qc = P[l - 1][l - 1, l - 1], Q[l - 1][l - 1, l - 1]
+        pl[l, l] = 0.5 * cb * pc + 0.5 * qc
+        ql[l, l] = 0.5 * pc + 0.5 * cb * qc
+        P.append(pl)
+        Q.append(ql)
+    out = []
+    for l in range(lmax + 1):
+        J = np.zeros((2 * l + 1, 2 * l + 1))
+        J[l:, l:] = P[l]
+        J[:l, :l] = Q[l][1:, 1:][::-1, ::-1]  # rows/columns −l … −1
+        J.flags.writeable = False
+        out.append(J)
+    return tuple(out)
 
-    for m in range(-l, l + 1):
-        d = 1.0 if m == 0 else 0.0
-        am = abs(m)
-        i = m + l
-        cu = np.sqrt((l + m) * (l - m))
-        cv = 0.5 * np.sqrt((1 + d) * (l + am - 1) * (l + am)) * (1 - 2 * d)
-        cw = -0.5 * np.sqrt(max((l - am - 1) * (l - am), 0)) * (1 - d)
-        if abs(m) <= l - 1:
-            u0[i, col(m)] += cu
-        # V
-        if m == 0:
-            up[i, col(1)] += cv
-            um[i, col(-1)] += cv
-        elif m > 0:
-            up[i, col(m - 1)] += cv * np.sqrt(1.0 + (m == 1))
-            if m != 1:
-                um[i, col(-m + 1)] -= cv
-        else:
-            if m != -1:
-                up[i, col(m + 1)] += cv
-            um[i, col(-m - 1)] += cv * np.sqrt(1.0 + (m == -1))
-        # W (zero weight where |m| ≥ l − 1)
-        if cw != 0.0:
-            if m > 0:
-                up[i, col(m + 1)] += cw
-                um[i, col(-m - 1)] += cw
-            elif m < 0:
-                up[i, col(m - 1)] += cw
-                um[i, col(-m + 1)] -= cw
-    n = np.arange(-l, l + 1)
-    den = np.where(np.abs(n) < l, (l + n) * (l - n), 2.0 * l * (2 * l - 1))
-    return u0, up, um, 1.0 / np.sqrt(den)
+
+def _euler_cs(xp: Any, R: Any) -> tuple[Any, ...]:
+    """cos/sin of the ZYZ Euler angles of R = Rz(γ) Ry(β) Rz(α), read algebraically (no trig):
+    β from (R22, |(R02, R12)|), γ from (R02, R12), α from the residual Ry(β)ᵀ Rz(γ)ᵀ R, so at
+    gimbal lock (sin β = 0) the split of α + γ is arbitrary and the product exact. Guarded so
+    that gradients stay finite there (the derivative along a z-rotation is exact)."""
+    r = [[R[..., i, j] for j in range(3)] for i in range(3)]
+    sb2 = r[0][2] * r[0][2] + r[1][2] * r[1][2]
+    lock = sb2 == 0
+    sb_safe = xp.sqrt(xp.where(lock, xp.ones_like(sb2), sb2))
+    sb = xp.where(lock, xp.zeros_like(sb2), sb_safe)
+    cg = xp.where(lock, xp.ones_like(sb2), r[0][2] / sb_safe)
+    sg = xp.where(lock, xp.zeros_like(sb2), r[1][2] / sb_safe)
+    cb = r[2][2]
+    nrm = xp.sqrt(cb * cb + sb * sb)
+    cb, sb = cb / nrm, sb / nrm
+    ca = cb * (cg * r[0][0] + sg * r[1][0]) - sb * r[2][0]
+    sa = -sg * r[0][0] + cg * r[1][0]
+    nrm = xp.sqrt(ca * ca + sa * sa)
+    return ca / nrm, sa / nrm, cb, sb, cg, sg
+
+
+def _multiples(xp: Any, c: Any, s: Any, lmax: int) -> tuple[list[Any], list[Any]]:
+    """[cos mφ], [sin mφ] for m = 0 … lmax from cos φ, sin φ (the algebraic recurrence)."""
+    cm, sm = [xp.ones_like(c), c], [xp.zeros_like(s), s]
+    for _ in range(2, lmax + 1):
+        cm.append(cm[-1] * c - sm[-1] * s)
+        sm.append(sm[-1] * c + cm[-2] * s)
+    return cm, sm
+
+
+def _zrot(xp: Any, x: Any, l: int, cm: Any, sm: Any) -> Any:
+    """Z(φ) x on a degree-l block x (..., 2l+1, C): the (m, −m) pairs turned by mφ;
+    ``cm``, ``sm`` (..., lmax+1) cos/sin multiples of φ."""
+    if l == 0:
+        return x
+    c = cm[..., 1:l + 1, None]
+    s = sm[..., 1:l + 1, None]
+    pos = x[..., l + 1:, :]
+    neg = xp.flip(x[..., :l, :], axis=-2)  # m = 1 … l of the sin-type half
+    new_pos = c * pos - s * neg
+    new_neg = s * pos + c * neg
+    return xp.concat([xp.flip(new_neg, axis=-2), x[..., l:l + 1, :], new_pos], axis=-2)
+
+
+class _Turn:
+    """D^l(R) = Z(γ + π/2) J Z(β + π) J Z(α + π/2) (LH eq. 6 with d(β) = Jᵀ Z(β) J, Jᵀ = S J S,
+    S = diag((−1)^m) = Z(π)), for a batch of rotation matrices R (..., 3, 3): the one Wigner
+    algorithm of shprobe (the numba kernels of the NumPy path run the same steps)."""
+
+    def __init__(self, xp: Any, R: Any, lmax: int) -> None:
+        ca, sa, cb, sb, cg, sg = _euler_cs(xp, R)
+        self.xp, self.R = xp, R
+        self.angles = [self._stack(_multiples(xp, c, s, lmax))
+                       for c, s in ((-sa, ca), (-cb, -sb), (-sg, cg))]
+        self.J = d_half_pi(lmax)
+
+    def _stack(self, cs: tuple[list[Any], list[Any]]) -> tuple[Any, Any]:
+        return tuple(self.xp.stack(v, axis=-1) for v in cs)  # type: ignore[return-value]
+
+    def apply(self, l: int, x: Any) -> Any:
+        """D^l(R) x for a block x (..., 2l+1, C)."""
+        xp = self.xp
+        J = _xp.constant(xp, self.J[l], self.R)
+        (ca, sa), (cb, sb), (cg, sg) = self.angles
+        y = xp.matmul(J, _zrot(xp, x, l, ca, sa))
+        y = xp.matmul(J, _zrot(xp, y, l, cb, sb))
+        return _zrot(xp, y, l, cg, sg)
 
 
 def wigner_blocks(xp: Any, R: Any, lmax: int) -> list[Any]:
-    """[D^0, D^1, …, D^lmax] of rotation matrices R (..., 3, 3), each (..., 2l+1, 2l+1)."""
+    """[D^0, D^1, …, D^lmax] of rotation matrices R (..., 3, 3), each (..., 2l+1, 2l+1):
+    D^1 is R in shprobe's l = 1 order (y, z, x), the higher blocks the turn of the identity."""
     batch = tuple(R.shape[:-2])
     blocks = [xp.ones((*batch, 1, 1), dtype=R.dtype, device=_xp.device_of(R))]
     if lmax == 0:
         return blocks
     perm = xp.asarray(np.array(_PERM), device=_xp.device_of(R))
-    d1 = xp.take(xp.take(R, perm, axis=R.ndim - 2), perm, axis=R.ndim - 1)
-    blocks.append(d1)
-    for l in range(2, lmax + 1):
-        prev = blocks[-1]
-        first, last = prev[..., :, :1], prev[..., :, -1:]
-
-        def p(i: int, prev=prev, first=first, last=last) -> Any:
-            r_m1, r_0, r_p1 = (d1[..., i + 1, j][..., None, None] for j in range(3))
-            return xp.concat([r_p1 * first + r_m1 * last, r_0 * prev,
-                              r_p1 * last - r_m1 * first], axis=-1)
-
-        u0, up, um, rden = (_xp.constant(xp, t, R) for t in _band_tables(l))
-        blk = xp.matmul(u0, p(0)) + xp.matmul(up, p(1)) + xp.matmul(um, p(-1))
-        blocks.append(blk * rden)
+    blocks.append(xp.take(xp.take(R, perm, axis=R.ndim - 2), perm, axis=R.ndim - 1))
+    if lmax >= 2:
+        turn = _Turn(xp, R, lmax)
+        for l in range(2, lmax + 1):
+            eye = xp.eye(2 * l + 1, dtype=R.dtype, device=_xp.device_of(R))
+            blocks.append(turn.apply(l, xp.broadcast_to(eye, (*batch, 2 * l + 1, 2 * l + 1))))
     return blocks
 
 
 def wigner_d(xp: Any, rotation: Any, lmax: int) -> Any:
-    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy `wigner_d`)."""
+    """Dense block-diagonal (..., K, K) Wigner matrices (see the NumPy ``wigner_d``),
+    computed in float32 for float16/bfloat16 rotations and cast back."""
+    dt = rotation.dtype
+    work = _xp.work_dtype(xp, dt)
+    if work != dt:
+        return xp.astype(wigner_d(xp, xp.astype(rotation, work), lmax), dt)
     R = as_matrix(xp, rotation)
     blocks = wigner_blocks(xp, R, lmax)
     batch = tuple(R.shape[:-2])
@@ -201,6 +291,12 @@ def rotate(xp: Any, coeffs: Any, rotation: Any) -> Any:
     if hasattr(rotation, "as_matrix") and not hasattr(rotation, "dtype"):
         rotation = np.asarray(rotation.as_matrix(), dtype=np.float64)  # scipy Rotation
     dt = _xp.float_dtype(xp, coeffs, rotation)
+    work = _xp.work_dtype(xp, dt)
+    if work != dt:  # float16 / bfloat16: computed in float32, cast back
+        like = _xp.first_array(coeffs, rotation)
+        c32, r32 = (x if isinstance(x, np.ndarray) or not hasattr(x, "dtype")
+                    else _xp.asarray(xp, x, work, like) for x in (coeffs, rotation))
+        return xp.astype(rotate(xp, c32, r32), dt)
     like = _xp.first_array(coeffs, rotation)
     c = _xp.asarray(xp, coeffs, dt, like)
     if c.ndim == 0:
@@ -229,8 +325,8 @@ def rotate(xp: Any, coeffs: Any, rotation: Any) -> Any:
     if lmax >= 2:
         parts.append(_rotate_band2(xp, R, c[..., 4:9, :]))
     if lmax >= 3:
-        blocks = wigner_blocks(xp, R, lmax)
+        turn = _Turn(xp, R, lmax)
         for l in range(3, lmax + 1):
-            parts.append(xp.matmul(blocks[l], c[..., l * l:(l + 1) ** 2, :]))
+            parts.append(turn.apply(l, c[..., l * l:(l + 1) ** 2, :]))
     out = xp.concat(parts, axis=-2)
     return out[..., 0] if one_d else out

@@ -29,13 +29,17 @@ the LH interior recurrence with the normalising constants K_lm folded into each 
 
 from __future__ import annotations
 
+import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..limits import check_memory
+from ..limits import check_memory, cores
 from . import _xp
 from .indexing import (
     NEAR_UNIT,
@@ -63,45 +67,54 @@ def _as_dirs(dirs: ArrayLike) -> NDArray[np.floating]:
 
 
 def sh_basis_numpy(dirs: ArrayLike, lmax: int) -> NDArray[np.floating]:
-    """Reference numpy implementation of [`sh_basis`][shprobe.sh.sh_basis] (vectorised over
-    directions).
+    """The reference of ``sh_basis``: the array-API recurrence run on NumPy.
 
     Parameters
     ----------
-    dirs
-        (..., 3) unit directions.
-    lmax
-        The highest degree.
+    dirs : array_like
+        (..., 3) directions, float32 or float64 (other types become float64).
+    lmax : int
+        Maximum degree, 0 ≤ lmax ≤ 1024.
 
     Returns
     -------
-    ndarray of shape (..., (lmax + 1)²)
-        y_lm at the directions, as [`sh_basis`][shprobe.sh.sh_basis].
+    numpy.ndarray
+        (..., (lmax+1)²) values in the type of ``dirs``, computed in float64 by
+        ``shprobe.sh._xp.sh_basis`` (the one definition of the basis, on NumPy through
+        array-api-compat; whole-array operations, no numba: the probe loader uses it).
     """
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
-    out_dtype = d.dtype
-    x, y, z = (np.asarray(d[..., i], dtype=np.float64) for i in range(3))
-    out = np.empty((*d.shape[:-1], num_coeffs(lmax)), dtype=np.float64)
-    a, b = recurrence_tables(lmax)
-    sqrt2 = np.sqrt(2.0)
-    c = np.ones_like(x)  # Re (x+iy)^m
-    s = np.zeros_like(x)  # Im (x+iy)^m
-    pmm = np.full_like(x, 0.5 / np.sqrt(np.pi))
-    for m in range(lmax + 1):
-        if m > 0:
-            c, s = x * c - y * s, x * s + y * c
-            pmm = pmm * np.sqrt((2.0 * m + 1.0) / (2.0 * m))
-        p2 = pmm
-        _store(out, m, m, p2, c, s, sqrt2)
-        if m + 1 <= lmax:
-            p1 = np.sqrt(2.0 * m + 3.0) * z * pmm
-            _store(out, m + 1, m, p1, c, s, sqrt2)
-            for l in range(m + 2, lmax + 1):
-                p = a[l, m] * (z * p1 - b[l, m] * p2)
-                _store(out, l, m, p, c, s, sqrt2)
-                p2, p1 = p1, p
-    return out.astype(out_dtype, copy=False)
+    xp = _xp.numpy_namespace()
+    flat = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    out = np.empty((flat.shape[0], num_coeffs(lmax)), dtype=d.dtype)
+    for i in range(0, flat.shape[0], _REFERENCE_ROWS):  # temporaries that stay in cache
+        out[i:i + _REFERENCE_ROWS] = _xp.sh_basis(xp, flat[i:i + _REFERENCE_ROWS], lmax)
+    return out.reshape(*d.shape[:-1], num_coeffs(lmax))
+
+
+def _sh_basis_xp(xp: Any, dirs: Any, lmax: int) -> Any:
+    """``sh_basis`` of a torch tensor or JAX array: its memory estimated first (the K columns
+    and their stacked copy), computed in float32 for float16/bfloat16 input and in float64
+    for float32 input above ``F32_ARITHMETIC_LMAX`` (where P̄ passes the type's range), then
+    cast back to the input's type."""
+    dt = _xp.float_dtype(xp, dirs)
+    d = _xp.asarray(xp, dirs, dt, dirs)
+    if d.ndim < 1 or d.shape[-1] != 3:
+        raise ShprobeError(f"directions must have shape (..., 3), got {tuple(d.shape)}")
+    work = _xp.work_dtype(xp, dt)
+    if work == xp.float32 and lmax > F32_ARITHMETIC_LMAX:
+        work = xp.float64
+    n = int(np.prod(tuple(d.shape[:-1])))
+    check_memory(3.0 * n * num_coeffs(lmax) * np.dtype(str(work).rsplit(".", 1)[-1]).itemsize,
+                 f"SH values of {n} directions to lmax {lmax}")
+    y = _xp.sh_basis(xp, xp.astype(d, work) if work != dt else d, lmax)
+    return xp.astype(y, dt) if work != dt else y
+
+
+#: Directions per whole-array pass of ``sh_basis_numpy``: its temporaries (32 kB columns)
+#: come from the allocator's free lists, not from fresh pages faulted in.
+_REFERENCE_ROWS = 4096
 
 
 def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
@@ -142,15 +155,6 @@ def sh_basis_scipy(dirs: ArrayLike, lmax: int) -> NDArray[np.float64]:
     return out.reshape(*d.shape[:-1], num_coeffs(lmax))
 
 
-def _store(out, l, m, p, c, s, sqrt2):
-    k0 = l * (l + 1)
-    if m == 0:
-        out[..., k0] = p
-    else:
-        out[..., k0 + m] = sqrt2 * p * c
-        out[..., k0 - m] = sqrt2 * p * s
-
-
 #: Largest degree at which float32 output is computed in float32 arithmetic. The z-polynomials
 #: P̄_lm (the sinᵐθ factor lives in (x + iy)ᵐ) peak at z = ±1 near 10^(0.2 l): 10²⁶ at l = 128,
 #: so float32 (max 3·10³⁸) has room to spare; above this degree float64 arithmetic is used.
@@ -163,10 +167,26 @@ F32_ARITHMETIC_LMAX = 128
 #: table kernel: far larger than the caches, written once, so reading each line in before
 #: overwriting it would only double the memory traffic.
 STREAM_MIN_BYTES = 32 << 20
+#: The same threshold for the unrolled kernels (lmax ≤ 8). Their rows are short and their
+#: plain in-place stores keep pace with memory: on the 2-core AMD EPYC box the streamed
+#: variants (computed into an L1 buffer, copied out non-temporally) took 1.4–1.9× the plain
+#: kernels' CPU time at lmax 2 and 6 into a 10⁶-direction ``out=`` (the table kernel's
+#: streamed copy stays 1.3× faster than its plain one at lmax 10–20), so they stream only
+#: outputs past this (none in practice; ``STREAM_KERNELS`` kept for machines where it pays).
+UNROLLED_STREAM_MIN_BYTES = 1 << 62
+
+#: Outputs of at least this many values per core are filled by one thread per core, each
+#: writing its own block of rows (on 2 cores a thread's start and join, ~0.1 ms, is a tenth
+#: of what this many values take).
+PARALLEL_MIN_VALUES = 1 << 18
+#: At most this many blocks of rows are shared out among the threads (each block a numba
+#: call of ~10 µs overhead).
+PARALLEL_BLOCKS = 32
 
 
 def _stream_start(out: NDArray[np.floating]) -> int:
-    """−1 (plain stores) below ``STREAM_MIN_BYTES``; else the first flat index of ``out``
+    """−1 (plain stores) below ``STREAM_MIN_BYTES`` (``UNROLLED_STREAM_MIN_BYTES`` for rows of
+    lmax ≤ 8); else the first flat index of ``out``
     whose address is 64-byte aligned, modulo 64 / itemsize (what the kernel's streaming
     copy needs).
 
@@ -174,7 +194,8 @@ def _stream_start(out: NDArray[np.floating]) -> int:
     pages yet, and the kernel zeroes each (huge) page on first touch, leaving it in the
     cache, where plain stores then land, while streaming stores would write every line
     twice to memory (the zeros and the values)."""
-    if out.nbytes < STREAM_MIN_BYTES or not out.flags.aligned:
+    limit = UNROLLED_STREAM_MIN_BYTES if out.shape[-1] <= 81 else STREAM_MIN_BYTES
+    if out.nbytes < limit or not out.flags.aligned:
         return -1
     return ((-out.ctypes.data) % 64) // out.itemsize
 
@@ -205,42 +226,48 @@ def sh_basis(
 
     Parameters
     ----------
-    dirs : (..., 3) unit vectors, float32 or float64 (other types become float64). They are
-        used as given (not normalised).
-    lmax : maximum degree, 0 ≤ lmax ≤ 1024.
-    out : optional preallocated C-contiguous (..., (lmax+1)²) array of the same float type
-        as ``dirs``; it is filled and returned.
+    dirs : array_like
+        (..., 3) unit vectors, float32 or float64 (other types become float64), used as
+        given; or a torch tensor / JAX array (the array-API path, differentiable, same
+        device and dtype; float16/bfloat16 computed in float32 and cast back).
+    lmax : int
+        Maximum degree, 0 ≤ lmax ≤ 1024.
+    out : numpy.ndarray, optional
+        Preallocated C-contiguous (..., (lmax+1)²) array of the float type of ``dirs``
+        (NumPy only); it is filled and returned.
 
     Returns
     -------
-    (..., (lmax+1)²) array of the same float type, flat index k = l(l+1)+m, R&H signs.
-    Computed by the normalised algebraic recurrence of Lisle & Huang 2007 §2.1 (no trig; see
-    the module docstring) by a single-threaded numba kernel that writes each direction's row
-    straight into the output: for lmax ≤ 8 one unrolled per degree with the constants folded
-    in (``shprobe.sh._kernels_unrolled``, generated by ``tools/gen_sh_unrolled.py``); above that a
-    loop over column-packed tables (``shprobe.sh._kernels``); both in the output's precision
-    (float32 output up to ``F32_ARITHMETIC_LMAX`` is computed in float32: within (l + 1)
-    float32 epsilons of the band's scale √((2l+1)/4π), tested to l = 64), with streaming
-    stores into a caller's ``out`` of ≥ ``STREAM_MIN_BYTES``.
-    [`sh_basis_numpy`][shprobe.sh.sh_basis_numpy] is the vectorised numpy reference of the same
-    recurrence.
+    array
+        (..., (lmax+1)²) values of the float type of ``dirs``, flat index k = l(l+1)+m, R&H
+        signs.
+
+    Notes
+    -----
+    The normalised algebraic recurrence of Lisle & Huang 2007 §2.1 (no trig; see the module
+    docstring), by numba kernels that write each direction's row straight into the output:
+    for lmax ≤ 8 one unrolled per degree with the constants folded in
+    (``shprobe.sh._kernels_unrolled``, generated by ``tools/gen_sh_unrolled.py``), above that
+    a loop over column-packed tables (``shprobe.sh._kernels``, streaming stores into a
+    caller's ``out`` of ≥ ``STREAM_MIN_BYTES``); both in the output's precision (float32 up
+    to ``F32_ARITHMETIC_LMAX``: within (l + 1) float32 epsilons of the band's scale
+    √((2l+1)/4π), tested to l = 64). Outputs of at least ``PARALLEL_MIN_VALUES`` values per
+    core are split into one block of rows per core, each filled in its own thread. The
+    kernels are tested against ``sh_basis_numpy``, the reference (the array-API recurrence of
+    ``shprobe.sh._xp`` on NumPy).
 
     Bad directions, the one policy: NaN or infinite components are refused
-    ([`ShprobeError`][shprobe.errors.ShprobeError]); directions near unit length (Σ|d|² ≤
-    ``NEAR_UNIT`` per direction, one BLAS pass) are used as given, bit for bit; larger ones, or ones
-    whose squares overflow such as (1e200, 1e200, 0), are normalised first without overflow
-    (`shprobe.sh.rotation.unit_vectors`).
-
-    Torch tensors, JAX arrays (and CuPy) take the array-API path (``shprobe.sh._xp``): the
-    same recurrence in whole-array operations, differentiable, same device and dtype
-    (``out`` is NumPy only).
+    (``ShprobeError``); directions near unit length (Σ|d|² ≤ ``NEAR_UNIT`` per direction over
+    each block of rows) are used as given, bit for bit; larger ones, or ones whose squares overflow
+    such as (1e200, 1e200, 0), are normalised first without overflow
+    (``shprobe.sh.rotation.unit_vectors``). The memory of the output is estimated first and
+    refused past the limit (``shprobe.limits``), on every path.
     """
     xp = _xp.namespace(dirs)
     if xp is not None:
         if out is not None:
             raise ShprobeError("out= is for NumPy arrays only")
-        dt = _xp.float_dtype(xp, dirs)
-        return _xp.sh_basis(xp, _xp.asarray(xp, dirs, dt, dirs), check_lmax(lmax))
+        return _sh_basis_xp(xp, dirs, check_lmax(lmax))
     d = _as_dirs(dirs)
     lmax = check_lmax(lmax)
     K = num_coeffs(lmax)
@@ -258,25 +285,87 @@ def sh_basis(
     if out.size == 0:
         return out
     flat = np.ascontiguousarray(d.reshape(-1, 3))
+    _fill_rows(flat, out.reshape(-1, K), lmax, stream and _stream_start(out) >= 0, not stream)
+    return out
+
+
+def _fill_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int, stream: bool,
+               fresh: bool) -> None:
+    """out (N, K) = the basis of flat (N, 3). Large outputs are cut into blocks of rows
+    (up to ``PARALLEL_BLOCKS``) that the calling thread and ``cores() − 1`` pool threads take
+    in turn, each block filled by the numba kernel (the kernels release the GIL): a thread
+    the shared machine pre-empts, or a pool thread slow to wake, holds up one block, not half
+    the output. Smaller outputs stay in the calling thread."""
+    n = flat.shape[0]
+    workers = min(cores(), out.size // PARALLEL_MIN_VALUES, n // 4)
+    if workers <= 1:
+        _kernel_rows(flat, out, lmax, stream, fresh)
+        return
+    blocks = min(PARALLEL_BLOCKS, max(workers, out.size // PARALLEL_MIN_VALUES), n // 4)
+    cuts = [n * i // blocks // 4 * 4 for i in range(blocks)] + [n]
+    spans = list(itertools.pairwise(cuts))
+    taken = itertools.count()  # next() is atomic under the GIL
+
+    def work() -> None:
+        for i in iter(taken.__next__, None):
+            if i >= len(spans):
+                return
+            i0, i1 = spans[i]
+            _kernel_rows(flat[i0:i1], out[i0:i1], lmax, stream, fresh)
+
+    helpers = [_pool(workers - 1).submit(work) for _ in range(workers - 1)]
+    try:
+        work()
+    finally:
+        for f in helpers:  # one not started yet finds no block left: cancel it
+            if not f.cancel():
+                f.result()  # waits for its block; raises what it raised
+
+
+_POOLS: list[tuple[int, ThreadPoolExecutor]] = []
+
+
+def _pool(n: int) -> ThreadPoolExecutor:
+    """The helper threads of ``sh_basis`` (at least ``n``), started once per process and
+    reused: starting threads on every call costs a scheduling round trip each, and on a busy
+    machine far more. A forked child (whose copy of the pool has no threads) starts its own."""
+    if not _POOLS or _POOLS[-1][0] != os.getpid() or _POOLS[-1][1]._max_workers < n:
+        _POOLS.append((os.getpid(), ThreadPoolExecutor(n, thread_name_prefix="shprobe-sh")))
+    return _POOLS[-1][1]
+
+
+def _kernel_rows(flat: NDArray[np.floating], out: NDArray[np.floating], lmax: int,
+                 stream: bool, fresh: bool) -> None:
+    """One block of rows through the numba kernel of ``lmax`` (streaming stores if
+    ``stream``; ``fresh``: ``out`` was just allocated). The block's directions are used as
+    given while their squared lengths sum to at most ``NEAR_UNIT`` per direction; else, or
+    on NaN, infinity or overflow, they are normalised first (``unit_vectors``, which refuses
+    non-finite ones) and the rows computed again. The unrolled kernels return that sum from
+    the pass that computes the rows; otherwise it is one pass before (einsum's own loop: a
+    threaded BLAS dot would leave its threads spinning on the cores the other blocks use)."""
+    a0 = ((-out.ctypes.data) % 64) // out.itemsize if stream else -1
+    limit = NEAR_UNIT * flat.shape[0]
+    if lmax <= 8 and a0 < 0:
+        from ._kernels_unrolled import KERNELS
+
+        if not KERNELS[lmax](flat, out) <= limit:
+            KERNELS[lmax](_unit(flat), out)
+        return
     with np.errstate(over="ignore", invalid="ignore"):
-        sq = float(np.dot(flat.reshape(-1), flat.reshape(-1)))
-    if not sq <= NEAR_UNIT * flat.shape[0]:  # NaN, inf, overflow or far from unit length
-
-        flat = unit_vectors(flat, "directions").astype(d.dtype)
+        sq = float(np.einsum("i,i->", flat.reshape(-1), flat.reshape(-1)))
+    if not sq <= limit:
+        flat = _unit(flat)
     if lmax <= 8:
-        a0 = _stream_start(out) if stream else -1
-        if a0 >= 0:
-            from ._kernels_unrolled import STREAM_KERNELS
+        from ._kernels_unrolled import STREAM_KERNELS
 
-            STREAM_KERNELS[lmax](flat, out.reshape(-1, K), a0)
-        else:
-            from ._kernels_unrolled import KERNELS
-
-            KERNELS[lmax](flat, out.reshape(-1, K))
-        return out
+        STREAM_KERNELS[lmax](flat, out, a0)
+        return
     from ._kernels import sh_rows
 
     f32 = out.dtype == np.float32 and lmax <= F32_ARITHMETIC_LMAX
-    sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64),
-            out.reshape(-1, K), _stream_start(out) if stream else -1, not stream)
-    return out
+    sh_rows(flat, lmax, *_kernel_tables(lmax, np.float32 if f32 else np.float64), out, a0, fresh)
+
+
+def _unit(flat: NDArray[np.floating]) -> NDArray[np.floating]:
+    """Directions normalised without overflow, in their type (non-finite ones refused)."""
+    return np.ascontiguousarray(unit_vectors(flat, "directions"), dtype=flat.dtype)

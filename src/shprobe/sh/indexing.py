@@ -154,6 +154,9 @@ def check_lmax(lmax: int, limit: int = LMAX_LIMIT) -> int:
     except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
+        if type(lmax).__module__.startswith("jax"):  # a tracer: the value comes at run time
+            raise ShprobeError("SH degree must be a Python int known before tracing (under "
+                               "jax.jit pass it as a static argument), got a traced value")
         raise ShprobeError(f"SH degree must be an integer, got {lmax!r}")
     lmax = int(lmax)
     if lmax < 0 or lmax > limit:

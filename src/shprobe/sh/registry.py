@@ -229,22 +229,21 @@ def convention_matrix(name: str, lmax: int) -> NDArray[np.float64]:
 
 
 def convert(coeffs: Any, from_: str = "shprobe", to: str = "shprobe") -> Any:
-    """Coefficients (..., K, C) or (K,) in convention ``from_`` → convention ``to`` (names in
-    [`CONVENTIONS`][shprobe.sh.registry.CONVENTIONS]). NumPy in: float64 out (float32 stays
-    float32); torch / JAX in: the same kind, device and dtype, differentiable.
+    """Coefficients in convention ``from_`` → convention ``to``.
 
     Parameters
     ----------
-    coeffs
-        (..., K, C) or (K,) coefficients in convention ``from_``.
-    from_, to
-        Convention names (``CONVENTIONS``); "shprobe" is this package's.
+    coeffs : array_like
+        (..., K, C) or (K,) coefficients, NumPy, torch or JAX. NaN or infinity is refused
+        (one ``ShprobeError``).
+    from_, to : str
+        Convention names (the keys of ``CONVENTIONS``).
 
     Returns
     -------
-    ndarray or tensor
-        The coefficients in convention ``to``: float64 for NumPy input (float32 stays
-        float32), the same kind, device and dtype for torch / JAX.
+    array
+        NumPy in: float64 out (float32 stays float32); torch / JAX in: the same kind, device
+        and dtype, differentiable.
     """
     xp = _xp.namespace(coeffs)
     if xp is None:
@@ -259,6 +258,11 @@ def convert(coeffs: Any, from_: str = "shprobe", to: str = "shprobe") -> Any:
     if c.ndim == 0:
         raise ShprobeError("coefficients must have shape (..., K, C) or (K,)")
     lmax = lmax_of(c.shape[-1] if c.ndim == 1 else c.shape[-2])
+    if xp is None:
+        if not np.isfinite(c).all():
+            raise ShprobeError("coefficients contain NaN or infinity")
+    else:
+        _xp.check_finite(xp, c, "coefficients")
     for name, inverse in ((from_, True), (to, False)):
         if name == "shprobe":
             continue

@@ -11,8 +11,10 @@ Rotations are given as (..., 3, 3) proper rotation matrices, (..., 4) unit quate
 [`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz].
 
 The Wigner blocks come from the LH real-basis recurrence for d^l(β) composed with
-z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6), in numba kernels
-(``shprobe.sh._kernels_rotation``, compiled once and cached on disk). Run forward in l at a
+z-rotations, D^l(R) = D^l(Rz(γ)) d^l(β) D^l(Rz(α)) (LH eq. 6): one algorithm, written once
+against the array API (``shprobe.sh._xp_rotation``, the reference, also the torch/JAX path)
+and run here by numba kernels (``shprobe.sh._kernels_rotation``, compiled once and cached on
+disk) tested against it. Run forward in l at a
 general β the recurrence loses accuracy (orthogonality error ~1e-3 by l = 40 at β = 0.5), so
 it is evaluated only at β = π/2, where it is stable to l > 400, and d(β) is obtained as
 Jᵀ Z(β) J with J = d(π/2) and Z a z-rotation: D(R) = Z(γ−π/2) Jᵀ Z(β) J Z(α+π/2). The Euler
@@ -150,7 +152,15 @@ def from_euler_zyz(alpha: ArrayLike, beta: ArrayLike, gamma: ArrayLike) -> NDArr
         from . import _xp_rotation
 
         return _xp_rotation.from_euler_zyz(xp, alpha, beta, gamma)
-    a, b, g = np.broadcast_arrays(*(np.asarray(t, dtype=np.float64) for t in (alpha, beta, gamma)))
+    angles = [_float64(t, "Euler angles") for t in (alpha, beta, gamma)]
+    try:
+        a, b, g = np.broadcast_arrays(*angles)
+    except ValueError:
+        a, b, g = (t.shape for t in angles)
+        raise ShprobeError(f"Euler angles of shapes {a}, {b} and {g} do not broadcast") from None
+    for t, name in ((a, "alpha"), (b, "beta"), (g, "gamma")):
+        if not np.isfinite(t).all():
+            raise ShprobeError(f"Euler angles ({name}) contain NaN or infinity")
     return _rz(g) @ _ry(b) @ _rz(a)
 
 
@@ -285,8 +295,8 @@ def wigner_d(rotation: Any, lmax: int) -> NDArray[np.float64]:
     or a scipy ``Rotation``; ZYZ Euler angles through
     [`from_euler_zyz`][shprobe.sh.rotation.from_euler_zyz]. The dense result is limited to
     ``WIGNER_D_MAX_BYTES`` (lmax ≈ 130 for one rotation). Torch tensors and JAX arrays take the
-    array-API path (the Ivanic–Ruedenberg recurrence, ``shprobe.sh._xp_rotation``), differentiable
-    in the rotation.
+    array-API path (the same algorithm in whole-array steps, ``shprobe.sh._xp_rotation``, the
+    reference the numba kernels are tested against), differentiable in the rotation.
 
     Parameters
     ----------

@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from . import _xp
-from .indexing import check_lmax, degrees, lmax_of
+from .indexing import check_lmax, degrees
 
 
 def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
@@ -57,37 +57,40 @@ def clamped_cosine_factors(lmax: int, like: Any = None) -> NDArray[np.float64]:
 def convolve(coeffs: ArrayLike, factors: ArrayLike) -> NDArray[np.floating]:
     """Funk–Hecke convolution with a zonal kernel: multiply band l by ``factors[l]``.
 
-    ``coeffs`` is (..., K, C) or (K,); ``factors`` has at least lmax+1 entries. With
-    ``factors = clamped_cosine_factors(lmax)`` this turns lighting L_lm into irradiance
-    coefficients E_lm = Â_l L_lm (R&H eq. 7). Torch tensors and JAX arrays (either
-    argument) give that kind, differentiable in both.
+    With ``factors = clamped_cosine_factors(lmax)`` this turns lighting L_lm into irradiance
+    coefficients E_lm = Â_l L_lm (R&H eq. 7). One definition for every array kind
+    (``shprobe.sh._xp.convolve``, on NumPy through array-api-compat).
 
     Parameters
     ----------
-    coeffs
-        (..., K, C) or (K,) coefficients.
-    factors
-        Per-band factors, at least lmax + 1 of them (e.g. Â_l or a window's w_l).
+    coeffs : array_like
+        (..., K, C) or (K,) coefficients; NumPy, torch or JAX (float32 stays float32).
+    factors : array_like
+        At least lmax + 1 band factors.
 
     Returns
     -------
-    ndarray
-        The coefficients with band l multiplied by ``factors[l]``, shaped like ``coeffs``; a
-        torch tensor or JAX array when either argument is one.
+    array
+        The convolved coefficients, the kind, shape and float type of ``coeffs``;
+        differentiable in both arguments for torch tensors and JAX arrays. NaN or infinity in
+        either argument is refused (one ``ShprobeError``).
     """
     xp = _xp.namespace(coeffs, factors)
     if xp is not None:
         return _xp.convolve(xp, coeffs, factors)
-    c = np.asarray(coeffs)
-    if c.dtype not in (np.float32, np.float64):
-        c = c.astype(np.float64)
-    f = np.asarray(factors, dtype=np.float64)
-    kaxis = -1 if c.ndim == 1 else -2
-    lmax = lmax_of(c.shape[kaxis])
-    if f.shape[-1] < lmax + 1:
-        raise ShprobeError(f"need {lmax + 1} band factors, got {f.shape[-1]}")
-    per_k = f[..., degrees(lmax)].astype(c.dtype)
-    return c * (per_k if c.ndim == 1 else per_k[..., None])
+    try:
+        c = np.asarray(coeffs)
+        if c.dtype not in (np.float32, np.float64):
+            if c.dtype.kind not in "fiub":
+                raise TypeError
+            c = c.astype(np.float64)
+        f = np.asarray(factors)
+        if f.dtype.kind not in "fiub":
+            raise TypeError
+        f = f.astype(np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ShprobeError("coefficients and band factors must be real numbers") from None
+    return np.asarray(_xp.convolve(_xp.numpy_namespace(), c, f))
 
 
 def clamped_cosine_H(lmax: int) -> NDArray[np.float64]:
