@@ -8,6 +8,11 @@ stored one implies (:func:`shprobe.lightmaps.derive.implied_encodings`, as RGBA1
 packed like the file's) and a default exposure. It shows one encoding, or H&W's Fig. 1
 (plain lightmap · H6 without albedo · H6 with albedo) and Fig. 5 (H4 beside H6) as panels of
 one camera, with the texel grid as an overlay.
+
+A file with a transfer (``--transfer``) is relit live: the page turns the bake's sky SH
+(stored as the transfer's ``"sky"``; for a file without it, the sky that best reproduces the
+stored coefficients from the transfer, least squares) and sums Σ_j T_j L_j per texel on the GPU
+from the transfer textures it reads out of the .glb.
 """
 
 from __future__ import annotations
@@ -55,7 +60,24 @@ class LightmapView:
         self.layout = [[None if ic is None else [int(ic[0]), int(ic[1])]
                         for ic in t["components"]] for t in ext["textures"]]
         self.encodings = implied_encodings(self.stored.encoding, self.stored.coeffs)
+        self.transfer = ext.get("transfer")
+        self.sky = self._sky(doc, binary) if self.transfer is not None else None
         self._payload: bytes | None = None
+
+    def _sky(self, doc: dict, binary: bytes) -> tuple[list, str]:
+        """The sky SH (9, 3) the transfer relights from, and where it came from."""
+        sky = self.transfer.get("sky")
+        if sky is not None:
+            k = np.asarray(sky, dtype=np.float64)
+            if k.shape == (9, 3) and np.isfinite(k).all():
+                return k.tolist(), "stored"
+        from ..lightmaps.transfer_format import read_transfer
+
+        t = read_transfer(doc, binary, self.name).astype(np.float64)  # (H, W, n, 9, 3)
+        c = self.stored.coeffs.astype(np.float64)  # (H, W, n, 3)
+        fit = [np.linalg.lstsq(t[..., c_].reshape(-1, 9), c[..., c_].ravel(), rcond=None)[0]
+               for c_ in range(3)]
+        return np.stack(fit, axis=1).tolist(), "fitted"
 
     def exposure(self) -> float:
         """Default exposure (stops): the 99.5th percentile of the plain irradiance / π over
@@ -98,6 +120,9 @@ class LightmapView:
                                              for t in layouts[e]] for e in offered}),
                 "meta": {k: v for k, v in s.extra.items()
                          if isinstance(v, str | int | float | bool)}}
+        if self.sky is not None:  # the page reads the transfer textures from the .glb
+            head["transfer"] = {"scale": float(self.transfer["scale"]), "sky": self.sky[0],
+                                "sky_source": self.sky[1]}
         self._payload = pack_binary(head, arrays)
         return self._payload
 

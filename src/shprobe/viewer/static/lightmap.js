@@ -3,11 +3,14 @@
 // coefficient textures) and takes from the server (/api/lightmap) what the library adds: the
 // generated GLSL, the encodings the stored one implies, a default exposure. Layouts: one
 // encoding; Habel & Wimmer's Fig. 1 (plain · H6 without albedo · H6 with albedo); Fig. 5
-// (H4 beside H6). window.__shprobe exposes the state and a float read-back for the tests.
+// (H4 beside H6). A file with a transfer is relit live as the sky turns (lightmap_relight.js).
+// window.__shprobe exposes the state and a float read-back for the tests.
 import * as THREE from 'three';
 import { OrbitControls } from 'three';
 import { unpack } from './wire.js';
-import { parseGlb, primitives, materials, imagePixels, lightmapTextures } from './lightmap_glb.js';
+import { parseGlb, primitives, materials, imagePixels, lightmapTextures, transferTextures }
+  from './lightmap_glb.js';
+import { Relighter, turnedSky } from './lightmap_relight.js';
 import { DEBUG, byteTexture, floatTarget, halfTexture, lightmapMaterial, primitiveGeometry }
   from './lightmap_gl.js';
 
@@ -31,8 +34,10 @@ async function fetchOk(path) {
   return r.arrayBuffer();
 }
 
-const state = { layout: 'single', encoding: null, albedo: true, grid: false, exposure: 0 };
+const state = { layout: 'single', encoding: null, albedo: true, grid: false, exposure: 0,
+  relight: false, sky: { azimuth: 0, elevation: 0, l0: 1, l1: 1, l2: 1, stops: 0 } };
 let renderer, camera, controls, scene, meshes = [], head, coeff = {}, mats = [], maps = [];
+let relighter = null, baked = null;  // the transfer's GPU pass; the stored textures
 const cache = new Map();
 
 function material(enc, m) {
@@ -58,7 +63,22 @@ function panels() {
       { encoding: 'h6', albedo: state.albedo, label: 'H6' }];
   }
   const e = state.encoding;
-  return [{ encoding: e, albedo: state.albedo, label: `${NAMES[e]}${e === head.encoding ? '' : ' (implied by the stored ' + NAMES[head.encoding] + ')'}${state.albedo ? ', with albedo' : ', without albedo'}` }];
+  return [{ encoding: e, albedo: state.albedo, label: `${NAMES[e]}${e === head.encoding ? '' : ' (implied by the stored ' + NAMES[head.encoding] + ')'}${state.albedo ? ', with albedo' : ', without albedo'}${skyLabel(e)}` }];
+}
+
+function skyLabel(e) {
+  if (!relighter) return '';
+  if (!state.relight) return ', baked sky';
+  if (e !== head.encoding) return ', baked sky (only the stored encoding is relit)';
+  const k = state.sky;
+  return `, relit: sky turned ${k.azimuth.toFixed(0)}° about up, tilted ${k.elevation.toFixed(0)}°`;
+}
+
+// the stored encoding's textures: relit from the transfer under the turned sky, or the bake's
+function relight() {
+  if (!relighter) return;
+  if (state.relight) relighter.relight(turnedSky(head.transfer.sky, state.sky));
+  coeff[head.encoding] = state.relight ? relighter.textures : baked;
 }
 
 function draw(target = null, debug = DEBUG.picture) {
@@ -74,6 +94,7 @@ function draw(target = null, debug = DEBUG.picture) {
     camera.updateProjectionMatrix();
     for (const mesh of meshes) {
       const m = material(p.encoding, mesh.userData.material);
+      coeff[p.encoding].forEach((t, i) => { m.uniforms[`t${i}`].value = t; });
       Object.assign(m.uniforms.albedoOn, { value: p.albedo });
       m.uniforms.gridOn.value = state.grid && target === null;
       m.uniforms.exposure.value = state.exposure;
@@ -108,7 +129,9 @@ api.readback = (kind, pixels) => {
   return out;
 };
 api.set = (s) => {
-  Object.assign(state, s);
+  const sky = { ...state.sky, ...(s.sky || {}) };
+  Object.assign(state, s, { sky, relight: relighter ? (s.relight ?? state.relight) : false });
+  if (s.sky || 'relight' in s) relight();
   if (s.eye) camera.position.set(...s.eye);
   if (s.target) controls.target.set(...s.target);
   controls.update();
@@ -124,6 +147,29 @@ function syncControls() {
   $('grid').checked = state.grid;
   $('exposure').value = String(state.exposure);
   $('expval').textContent = state.exposure.toFixed(2);
+  if (!relighter) return;
+  $('relight').checked = state.relight;
+  for (const k of Object.keys(state.sky)) {
+    if (!$(`sky_${k}`)) continue;
+    $(`sky_${k}`).value = String(state.sky[k]);
+    $(`sky_${k}_val`).textContent = state.sky[k].toFixed(k === 'azimuth' || k === 'elevation' ? 0 : 2);
+  }
+}
+
+// the relit coefficient texture t read back as floats (× head.scale: stored units)
+api.relitTexels = (t) => Array.from(relighter.read(t));
+api.turnedSky = () => turnedSky(head.transfer.sky, state.sky);
+
+function skyControls() {
+  $('skybox').hidden = false;
+  $('skysrc').textContent = head.transfer.sky_source === 'stored' ? 'the sky of the bake'
+    : 'the sky fitted to the stored lightmap (the file does not store its sky)';
+  $('relight').addEventListener('change', (ev) => api.set({ relight: ev.target.checked }));
+  for (const k of Object.keys(state.sky)) {
+    $(`sky_${k}`)?.addEventListener('input', (ev) => api.set({ sky: { [k]: Number(ev.target.value) } }));
+  }
+  $('skyreset').addEventListener('click', () => api.set({ sky: { azimuth: 0, elevation: 0, l0: 1,
+    l1: 1, l2: 1, stops: 0 } }));
 }
 
 function buildScene(g) {
@@ -168,6 +214,15 @@ async function start() {
       : head.layouts[e].map((_, t) => msg[`${e}_${t}`]);
     coeff[e] = data.map((d) => halfTexture(d, head.width, head.height));
   }
+  const sets = head.transfer ? transferTextures(g) : null;
+  if (sets) {
+    baked = coeff[head.encoding];
+    relighter = new Relighter(renderer, sets.map((set) => set.map((d) => halfTexture(d,
+      head.width, head.height))), head.layouts[head.encoding], [head.width, head.height],
+    head.transfer.scale, head.scale);
+    state.relight = true;
+    relight();
+  }
   mats = materials(g);
   mats.fallback = { baseColor: [1, 1, 1, 1], normalScale: 1 };
   const images = new Map();
@@ -199,6 +254,7 @@ async function start() {
   $('grid').addEventListener('change', (ev) => api.set({ grid: ev.target.checked }));
   $('exposure').addEventListener('input', (ev) => api.set({ exposure: Number(ev.target.value) }));
   $('autoexp').addEventListener('click', () => api.set({ exposure: head.exposure }));
+  if (relighter) skyControls();
   syncControls();
   draw();
   api.head = head;
