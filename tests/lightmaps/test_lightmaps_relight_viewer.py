@@ -180,3 +180,16 @@ def test_sky_strength_and_band_scales_are_linear(page, baked):
         err = np.abs(got - want).max(axis=1)
         assert np.percentile(err, 95) <= 1e-3 * np.abs(want).max()
     assert page.errors == []
+
+
+def test_a_file_without_its_sky_gets_the_sky_that_reproduces_it(baked, tmp_path):
+    """The transfer without ``"sky"``: the page relights from the least-squares sky, which is
+    the bake's (no sun) to the half-float precision of the textures."""
+    _, sky = _sky(baked)
+    doc, binary = fmt.read_glb(baked)
+    del doc["extensions"][fmt.EXTENSION]["transfer"]["sky"]
+    fmt.write_glb(tmp_path / "nosky.glb", doc, binary)
+    view = load_lightmap_view(tmp_path / "nosky.glb")
+    fitted, source = view.sky
+    assert source == "fitted"
+    np.testing.assert_allclose(fitted, sky, atol=1e-3 * np.abs(sky).max())
