@@ -103,7 +103,17 @@ def test_the_page_turns_the_sky_as_the_library_does(page, baked):
     page.evaluate("() => window.__shprobe.set({sky: {azimuth: 90}})")
     got = np.array(page.evaluate("() => window.__shprobe.turnedSky()"))
     np.testing.assert_allclose(got, _turned(sky, 90), atol=1e-9 * np.abs(sky).max())
-    page.evaluate("() => window.__shprobe.set({sky: {azimuth: 0}})")
+    # the tilt after the turn, the band scales, the strength in stops
+    page.evaluate("() => window.__shprobe.set({sky: {azimuth: 30, elevation: 40, l0: 0.8, "
+                  "l1: 0.5, l2: 1.5, stops: 0.5}})")
+    got = np.array(page.evaluate("() => window.__shprobe.turnedSky()"))
+    from shprobe.sh.rotation import from_axis_angle, rotate
+
+    scaled = sky * np.array([0.8] + [0.5] * 3 + [1.5] * 5)[:, None] * 2**0.5
+    want = rotate(scaled, from_axis_angle([1, 0, 0], 40) @ from_axis_angle([0, 1, 0], 30))
+    np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(sky).max())
+    page.evaluate("() => window.__shprobe.set({sky: {azimuth: 0, elevation: 0, l0: 1, l1: 1, "
+                  "l2: 1, stops: 0}})")
 
 
 def test_relit_texels_at_90_degrees_equal_the_librarys_relight(page, baked):
@@ -137,11 +147,8 @@ def test_float_irradiance_at_90_degrees_equals_the_librarys(page, baked):
     relit = lm.relight(_turned(sky, 90)).coefficients("h6").astype(np.float64)
     want = fmt.evaluate("h6", bilinear(relit, uv), n)
     peak = np.abs(want).max()
-    err = np.abs(e - want).max(axis=1)
-    # bilinear weights in 8 fractional bits on the GPU: beside a chart's seams neighbouring
-    # texels differ most; the bulk agrees to 1e-3 of the peak
-    assert np.median(err) <= 1e-3 * peak
-    assert np.percentile(err, 95) <= 1e-3 * peak and err.max() <= 1e-2 * peak
+    # the relit textures are float render targets, filtered at float precision: every pixel
+    assert np.abs(e - want).max() <= 1e-3 * peak
     unrot = fmt.evaluate("h6", bilinear(lm.coefficients("h6").astype(np.float64), uv), n)
     assert np.abs(unrot - want).max() > 0.05 * peak
 
@@ -157,8 +164,7 @@ def test_at_0_degrees_the_page_shows_the_bake(page, baked):
     page.evaluate("() => window.__shprobe.set({relight: true})")
     want = fmt.evaluate("h6", bilinear(lm.coefficients("h6").astype(np.float64), uv), n)
     peak = np.abs(want).max()
-    err = np.abs(e - want).max(axis=1)
-    assert np.percentile(err, 95) <= 1e-3 * peak and err.max() <= 1e-2 * peak
+    assert np.abs(e - want).max() <= 1e-3 * peak  # the transfer's half floats: ~2e-4
     assert np.percentile(np.abs(e - stored).max(axis=1), 95) <= 1e-3 * peak
 
 
@@ -177,8 +183,7 @@ def test_sky_strength_and_band_scales_are_linear(page, baked):
     want2 = 2 * fmt.evaluate("h6", bilinear(lm.relight(_turned(sky, 30)).coefficients("h6")
                                             .astype(np.float64), uv), n)
     for got, want in ((e0, want0), (e2, want2)):
-        err = np.abs(got - want).max(axis=1)
-        assert np.percentile(err, 95) <= 1e-3 * np.abs(want).max()
+        assert np.abs(got - want).max() <= 1e-3 * np.abs(want).max()
     assert page.errors == []
 
 
