@@ -198,3 +198,34 @@ def test_a_file_without_its_sky_gets_the_sky_that_reproduces_it(baked, tmp_path)
     fitted, source = view.sky
     assert source == "fitted"
     np.testing.assert_allclose(fitted, sky, atol=1e-3 * np.abs(sky).max())
+
+
+def test_the_cli_serves_the_lightmap_page(baked):
+    """``shprobe view --lightmap FILE``: the URL it prints opens the page, its data holds the
+    transfer's sky."""
+    import json
+    import subprocess
+    import sys
+
+    import httpx
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen([sys.executable, "-m", "shprobe", "view", "--lightmap", str(baked),
+                             "--no-browser", "--port", "0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("shprobe view: http://") and "/lightmap?token=" in line, (
+            line + proc.stderr.read() if proc.poll() is not None else line)
+        url = line.split(": ", 1)[1].strip()
+        base, token = url.split("/lightmap?token=")
+        with httpx.Client(base_url=base, params={"token": token}, timeout=60) as c:
+            assert c.get("/lightmap").status_code == 200
+            r = c.get("/api/lightmap")
+            assert r.status_code == 200
+            n = int.from_bytes(r.content[:4], "little")  # pack_binary: length, JSON head
+            head = json.loads(r.content[4:4 + n])
+        assert head["transfer"]["sky_source"] == "stored"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)

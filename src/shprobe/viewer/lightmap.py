@@ -52,6 +52,9 @@ class LightmapView:
         Its name, for the page.
     """
 
+    #: where the page is served (``shprobe.viewer.serve`` announces it)
+    url_path = "/lightmap"
+
     def __init__(self, raw: bytes, name: str) -> None:
         doc, binary = fmt.parse_glb(raw, name)
         self.raw, self.name = raw, name
