@@ -138,6 +138,29 @@ def test_relit_texels_at_90_degrees_equal_the_librarys_relight(page, baked):
     assert "turned 90°" in st["panels"][0]["label"]
 
 
+@pytest.mark.parametrize("encoding", ["h4", "plain"])
+def test_implied_encodings_are_relit_as_the_library_derives_them(page, baked, encoding):
+    """H4 and plain from the relit H6 (lightmaps.derive), texel by texel: the page relights
+    them from the implied encodings of the transfer, which the server sends."""
+    from shprobe.lightmaps.derive import implied_encodings
+
+    lm, sky = _sky(baked)
+    st = page.evaluate("(e) => window.__shprobe.set({layout: 'single', encoding: e, "
+                       "sky: {azimuth: 90}})", encoding)
+    assert "turned 90°" in st["panels"][0]["label"]
+    head = page.evaluate("() => window.__shprobe.head")
+    h, w = head["height"], head["width"]
+    want = implied_encodings("h6", lm.relight(_turned(sky, 90)).coefficients("h6"))[encoding]
+    got = np.zeros(want.shape)
+    for t, chans in enumerate(head["layouts"][encoding]):
+        tex = np.array(page.evaluate("([t, e]) => window.__shprobe.relitTexels(t, e)",
+                                     [t, encoding])).reshape(h, w, 4) * head["scale"]
+        for ch, ic in enumerate(chans):
+            if ic is not None:
+                got[:, :, ic[0], ic[1]] = tex[:, :, ch]
+    assert np.abs(got - want).max() <= 1e-3 * np.abs(want).max()
+
+
 def test_float_irradiance_at_90_degrees_equals_the_librarys(page, baked):
     lm, sky = _sky(baked)
     page.evaluate("() => window.__shprobe.set({layout: 'single', encoding: 'h6', "

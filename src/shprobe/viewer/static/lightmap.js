@@ -37,7 +37,7 @@ async function fetchOk(path) {
 const state = { layout: 'single', encoding: null, albedo: true, grid: false, exposure: 0,
   relight: false, sky: { azimuth: 0, elevation: 0, l0: 1, l1: 1, l2: 1, stops: 0 } };
 let renderer, camera, controls, scene, meshes = [], head, coeff = {}, mats = [], maps = [];
-let relighter = null, baked = null;  // the transfer's GPU pass; the stored textures
+let relighters = {}, baked = {};  // per relit encoding: its GPU pass; its baked textures
 const cache = new Map();
 
 function material(enc, m) {
@@ -67,18 +67,20 @@ function panels() {
 }
 
 function skyLabel(e) {
-  if (!relighter) return '';
+  if (!head.transfer) return '';
   if (!state.relight) return ', baked sky';
-  if (e !== head.encoding) return ', baked sky (only the stored encoding is relit)';
+  if (!relighters[e]) return ', baked sky (this encoding is not relit)';
   const k = state.sky;
   return `, relit: sky turned ${k.azimuth.toFixed(0)}° about up, tilted ${k.elevation.toFixed(0)}°`;
 }
 
-// the stored encoding's textures: relit from the transfer under the turned sky, or the bake's
+// the relit encodings' textures: from the transfer under the turned sky, or the bake's
 function relight() {
-  if (!relighter) return;
-  if (state.relight) relighter.relight(turnedSky(head.transfer.sky, state.sky));
-  coeff[head.encoding] = state.relight ? relighter.textures : baked;
+  const L = head.transfer && state.relight ? turnedSky(head.transfer.sky, state.sky) : null;
+  for (const [e, r] of Object.entries(relighters)) {
+    if (L) r.relight(L);
+    coeff[e] = L ? r.textures : baked[e];
+  }
 }
 
 function draw(target = null, debug = DEBUG.picture) {
@@ -130,7 +132,7 @@ api.readback = (kind, pixels) => {
 };
 api.set = (s) => {
   const sky = { ...state.sky, ...(s.sky || {}) };
-  Object.assign(state, s, { sky, relight: relighter ? (s.relight ?? state.relight) : false });
+  Object.assign(state, s, { sky, relight: head.transfer ? (s.relight ?? state.relight) : false });
   if (s.sky || 'relight' in s) relight();
   if (s.eye) camera.position.set(...s.eye);
   if (s.target) controls.target.set(...s.target);
@@ -147,7 +149,7 @@ function syncControls() {
   $('grid').checked = state.grid;
   $('exposure').value = String(state.exposure);
   $('expval').textContent = state.exposure.toFixed(2);
-  if (!relighter) return;
+  if (!head.transfer) return;
   $('relight').checked = state.relight;
   for (const k of Object.keys(state.sky)) {
     if (!$(`sky_${k}`)) continue;
@@ -156,8 +158,8 @@ function syncControls() {
   }
 }
 
-// the relit coefficient texture t read back as floats (× head.scale: stored units)
-api.relitTexels = (t) => Array.from(relighter.read(t));
+// a relit coefficient texture t read back as floats (× head.scale: coefficients)
+api.relitTexels = (t, e = head.encoding) => Array.from(relighters[e].read(t));
 api.turnedSky = () => turnedSky(head.transfer.sky, state.sky);
 
 function skyControls() {
@@ -214,12 +216,19 @@ async function start() {
       : head.layouts[e].map((_, t) => msg[`${e}_${t}`]);
     coeff[e] = data.map((d) => halfTexture(d, head.width, head.height));
   }
-  const sets = head.transfer ? transferTextures(g) : null;
-  if (sets) {
-    baked = coeff[head.encoding];
-    relighter = new Relighter(renderer, sets.map((set) => set.map((d) => halfTexture(d,
-      head.width, head.height))), head.layouts[head.encoding], [head.width, head.height],
-    head.transfer.scale, head.scale);
+  if (head.transfer) {
+    const half = (d) => halfTexture(d, head.width, head.height);
+    const relighter = (e, sets, scale) => {
+      baked[e] = coeff[e];
+      relighters[e] = new Relighter(renderer, sets.map((set) => set.map(half)), head.layouts[e],
+        [head.width, head.height], scale, head.scale);
+    };
+    relighter(head.encoding, transferTextures(g), head.transfer.scale);
+    for (const [e, scale] of Object.entries(head.transfer.implied)) {
+      if (!head.encodings.includes(e)) continue;
+      relighter(e, Array.from({ length: 9 }, (_, j) => head.layouts[e].map((_, t) =>
+        msg[`${e}_T${j}_${t}`])), scale);
+    }
     state.relight = true;
     relight();
   }
@@ -254,7 +263,7 @@ async function start() {
   $('grid').addEventListener('change', (ev) => api.set({ grid: ev.target.checked }));
   $('exposure').addEventListener('input', (ev) => api.set({ exposure: Number(ev.target.value) }));
   $('autoexp').addEventListener('click', () => api.set({ exposure: head.exposure }));
-  if (relighter) skyControls();
+  if (head.transfer) skyControls();
   syncControls();
   draw();
   api.head = head;
