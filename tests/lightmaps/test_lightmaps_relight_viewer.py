@@ -95,7 +95,7 @@ def test_the_sky_control_shows_for_a_transfer_file(page):
     assert head["transfer"]["sky_source"] == "stored"
     assert page.is_visible("#skybox") and page.is_visible("#sky_azimuth")
     st = page.evaluate("() => window.__shprobe.set({layout: 'single', encoding: 'h6'})")
-    assert st["relight"] and "relit: sky turned 0°" in st["panels"][0]["label"]
+    assert st["relight"] and "sky turned 0° tilted 0°" in st["panels"][0]["label"]
 
 
 def test_the_page_turns_the_sky_as_the_library_does(page, baked):
@@ -135,7 +135,7 @@ def test_relit_texels_at_90_degrees_equal_the_librarys_relight(page, baked):
     peak = np.abs(want).max()
     assert np.abs(got - want).max() <= 1e-3 * peak
     assert np.abs(want - lm.coefficients("h6")).max() > 0.05 * peak  # the turn does relight
-    assert "turned 90°" in st["panels"][0]["label"]
+    assert "sky turned 90° tilted 0°" in st["panels"][0]["label"]
 
 
 @pytest.mark.parametrize("encoding", ["h4", "plain"])
@@ -147,7 +147,7 @@ def test_implied_encodings_are_relit_as_the_library_derives_them(page, baked, en
     lm, sky = _sky(baked)
     st = page.evaluate("(e) => window.__shprobe.set({layout: 'single', encoding: e, "
                        "sky: {azimuth: 90}})", encoding)
-    assert "turned 90°" in st["panels"][0]["label"]
+    assert "sky turned 90° tilted 0°" in st["panels"][0]["label"]
     head = page.evaluate("() => window.__shprobe.head")
     h, w = head["height"], head["width"]
     want = implied_encodings("h6", lm.relight(_turned(sky, 90)).coefficients("h6"))[encoding]

@@ -54,13 +54,13 @@ function material(enc, m) {
 function panels() {
   const has = (e) => head.encodings.includes(e);
   if (state.layout === 'fig1' && has('plain') && has('h6')) {
-    return [{ encoding: 'plain', albedo: false, label: 'plain lightmap (normal map ignored)' },
-      { encoding: 'h6', albedo: false, label: 'H6, without albedo' },
-      { encoding: 'h6', albedo: true, label: 'H6, with albedo' }];
+    return [{ encoding: 'plain', albedo: false, label: `plain lightmap (normal map ignored)${skyLabel('plain')}` },
+      { encoding: 'h6', albedo: false, label: `H6, without albedo${skyLabel('h6')}` },
+      { encoding: 'h6', albedo: true, label: `H6, with albedo${skyLabel('h6')}` }];
   }
   if (state.layout === 'fig5' && has('h4') && has('h6')) {
-    return [{ encoding: 'h4', albedo: state.albedo, label: 'H4' },
-      { encoding: 'h6', albedo: state.albedo, label: 'H6' }];
+    return [{ encoding: 'h4', albedo: state.albedo, label: `H4${skyLabel('h4')}` },
+      { encoding: 'h6', albedo: state.albedo, label: `H6${skyLabel('h6')}` }];
   }
   const e = state.encoding;
   return [{ encoding: e, albedo: state.albedo, label: `${NAMES[e]}${e === head.encoding ? '' : ' (implied by the stored ' + NAMES[head.encoding] + ')'}${state.albedo ? ', with albedo' : ', without albedo'}${skyLabel(e)}` }];
@@ -71,7 +71,7 @@ function skyLabel(e) {
   if (!state.relight) return ', baked sky';
   if (!relighters[e]) return ', baked sky (this encoding is not relit)';
   const k = state.sky;
-  return `, relit: sky turned ${k.azimuth.toFixed(0)}° about up, tilted ${k.elevation.toFixed(0)}°`;
+  return `, sky turned ${k.azimuth.toFixed(0)}° tilted ${k.elevation.toFixed(0)}°`;
 }
 
 // the relit encodings' textures: from the transfer under the turned sky, or the bake's
