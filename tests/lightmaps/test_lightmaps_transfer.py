@@ -57,6 +57,7 @@ def test_the_transfer_survives_the_glb(baked, tmp_path):
     lm.save(tmp_path / "t.glb")
     back = load_lightmap(tmp_path / "t.glb")
     assert back.as_dict()["transfer"]
+    np.testing.assert_array_equal(back.stats["sky"], sky)  # the bake's sky, for viewers
     turned = rotate(sky, from_axis_angle([0, 0, 1], 90))
     want = lm.relight(turned).coefficients("h6")
     np.testing.assert_allclose(back.relight(turned).coefficients("h6"), want,

@@ -82,6 +82,7 @@ def test_page_loads_without_console_errors(page):
     assert page.errors == []
     head = page.evaluate("() => window.__shprobe.head")
     assert head["encoding"] == "h6" and head["encodings"] == ["plain", "h4", "h6"]
+    assert "transfer" not in head and not page.is_visible("#skybox")  # no transfer, no sky
 
 
 def test_a_pixel_is_the_librarys_evaluation(page, lightmap):

@@ -26,19 +26,10 @@ def view_lightmap(path: str, others: tuple[str | None, ...], host: str, port: in
     if any(others):
         raise ShprobeError("--lightmap shows the file's own scene and lighting: give no PROBE, "
                            "--preset, --mesh, --transfer, --grid, --scene or --hbasis with it")
-    from ..viewer import new_token
+    from ..viewer import serve
     from ..viewer.lightmap import load_lightmap_view
-
-    view = load_lightmap_view(path)
-    from ..viewer.app import create_app, listen, make_server
     from .serve import LOCAL_HOSTS, announce
 
-    sock = listen(host, port)
-    port = sock.getsockname()[1]
-    token = new_token()
-    # create_app serves any page object with routes() in place of the designer's: its
-    # ``grid`` argument
-    server = make_server(create_app(None, token, host, port, check_host=host in LOCAL_HOSTS,
-                                    grid=view))
-    announce(host, port, token, "/lightmap", no_browser)
-    server.run(sockets=[sock])
+    view = load_lightmap_view(path)  # a bad file is one line, before any URL
+    serve(view, host, port, lambda url: announce(url, host, no_browser),
+          check_host=host in LOCAL_HOSTS)

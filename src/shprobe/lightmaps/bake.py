@@ -137,6 +137,8 @@ def bake_lightmap(scene: LightmapScene | str | os.PathLike[str], lighting: Any,
         "noise_rel_rms": _rel_rms(g.half_e[0][g.valid, :3], g.half_e[1][g.valid, :3],
                                   g.direct_e[g.valid, :3]) / 2,
         "estimate_seconds": cost.seconds, "estimate_bytes": cost.nbytes}
+    if settings.transfer:  # the sky the transfer was baked under, for viewers that turn it
+        stats["sky"] = sky[:, :3].tolist()
     if settings.denoise:
         with stage(progress, "denoising (Open Image Denoise, RTLightmap)"):
             sh_d, plain_d = denoise_sh(sh_img, plain_img)

@@ -39,8 +39,9 @@ flat index as above): set j's textures (same RGBA16F layout and ``components`` a
 ones, stored value × s) hold T_j, the coefficients the texel would have under a sky of radiance
 y_j(ω) in every colour channel, albedo colours, shadows and bounces included (Lisle & Huang
 2007 §4 per texel). Under a sky with SH coefficients L_jc (per colour c) the coefficients are
-Σ_j T_j[·, c] L_jc; a sun is not part of the transfer. Writer and reader:
-``shprobe.lightmaps.transfer_format`` (``add_transfer``, ``read_transfer``).
+Σ_j T_j[·, c] L_jc; a sun is not part of the transfer. An optional ``"sky"`` (9 × 3 numbers,
+L_jc) is the sky the lightmap was baked under, which a viewer turns and relights with.
+Writer and reader: ``shprobe.lightmaps.transfer_format`` (``add_transfer``, ``read_transfer``).
 
 Coefficient textures
 --------------------

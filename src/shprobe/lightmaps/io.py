@@ -208,5 +208,5 @@ def write_lightmap_glb(lm: Lightmap, path: str | os.PathLike[str],
     if lm.transfer and lm.basis in lm.transfer:
         from .transfer_format import add_transfer
 
-        add_transfer(b.doc, b.bin, lm.transfer[lm.basis])
+        add_transfer(b.doc, b.bin, lm.transfer[lm.basis], lm.stats.get("sky"))
     write_glb(path, b.doc, b.bin, overwrite)

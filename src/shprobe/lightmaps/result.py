@@ -210,6 +210,8 @@ def load_lightmap(path: str | os.PathLike[str]) -> Lightmap:
     valid = np.ones(s.coeffs.shape[:2], bool)
     t = read_transfer(doc, binary, p)
     extra = {k: v for k, v in s.extra.items() if k != "transfer"}
+    if isinstance(s.extra.get("transfer"), dict) and "sky" in s.extra["transfer"]:
+        extra["sky"] = s.extra["transfer"]["sky"]  # the sky of the bake
     return Lightmap({s.encoding: s.coeffs}, s.encoding, valid,
                     {"scale": s.scale, "primitives": [list(x) for x in s.primitives],
                      **extra}, transfer=None if t is None else {s.encoding: t})

@@ -15,7 +15,8 @@ from .format import EXTENSION, N_COEFFS, add_textures, choose_scale, read_lightm
 __all__ = ["add_transfer", "read_transfer"]
 
 
-def add_transfer(doc: dict, binary: bytearray, transfer: ArrayLike) -> dict:
+def add_transfer(doc: dict, binary: bytearray, transfer: ArrayLike,
+                 sky: ArrayLike | None = None) -> dict:
     """Add the transfer of a lightmap already added by `add_lightmap` (module doc).
 
     Parameters
@@ -26,6 +27,8 @@ def add_transfer(doc: dict, binary: bytearray, transfer: ArrayLike) -> dict:
         The BIN chunk, extended in place.
     transfer : array_like, shape (H, W, n, 9, 3)
         Per texel, coefficient i of colour c under sky SH j: [..., i, j, c].
+    sky : array_like (9, 3), optional
+        The sky SH the lightmap was baked under, stored as ``"sky"`` (a viewer turns it).
 
     Returns
     -------
@@ -41,6 +44,11 @@ def add_transfer(doc: dict, binary: bytearray, transfer: ArrayLike) -> dict:
     sets = [{"textures": add_textures(doc, binary, e, t[:, :, :, j], scale)}
             for j in range(9)]
     ext["transfer"] = {"sky_lmax": 2, "scale": scale, "sets": sets}
+    if sky is not None:
+        k = np.asarray(sky, dtype=np.float64)
+        if k.shape != (9, 3) or not np.isfinite(k).all():
+            raise ShprobeError(f"the transfer's sky must be finite (9, 3), got {k.shape}")
+        ext["transfer"]["sky"] = k.tolist()
     return ext["transfer"]
 
 

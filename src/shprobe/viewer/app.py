@@ -88,7 +88,10 @@ def create_app(session: Session | None, token: str, host: str = "127.0.0.1", por
     if grid is not None:  # `shprobe view --grid`: the grid page and its API, not the viewer's
         from .gridhandlers import GridHandlers
 
-        routes = [*GridHandlers(grid, token, COOKIE.format(port=port)).routes(), routes[-1]]
+        cookie = COOKIE.format(port=port)
+        # a page object with its own routes (the lightmap view), else the grid page's model
+        own = grid.routes(csp_of, token, cookie) if hasattr(grid, "routes") else None
+        routes = [*(own or GridHandlers(grid, token, cookie).routes()), routes[-1]]
     app = Starlette(routes=routes)
     hosts = None
     if check_host:

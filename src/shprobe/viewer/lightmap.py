@@ -8,6 +8,13 @@ stored one implies (`shprobe.lightmaps.derive.implied_encodings`, as RGBA16F tex
 packed like the file's) and a default exposure. It shows one encoding, or H&W's Fig. 1
 (plain lightmap · H6 without albedo · H6 with albedo) and Fig. 5 (H4 beside H6) as panels of
 one camera, with the texel grid as an overlay.
+
+A file with a transfer (``--transfer``) is relit live: the page turns the bake's sky SH
+(stored as the transfer's ``"sky"``; for a file without it, the sky that best reproduces the
+stored coefficients from the transfer, least squares) and sums Σ_j T_j L_j per texel on the GPU
+from the transfer textures it reads out of the .glb. The encodings the stored one implies are
+linear in its coefficients, so their transfers are the implied encodings of its transfer's
+(sent packed like theirs, within :data:`MAX_IMPLIED_TRANSFER`): they are relit too.
 """
 
 from __future__ import annotations
@@ -32,6 +39,9 @@ __all__ = ["MAX_LIGHTMAP_FILE", "LightmapView", "load_lightmap_view"]
 
 #: largest .glb the page is sent (bytes); the browser holds it and its textures
 MAX_LIGHTMAP_FILE = 512 << 20
+#: most bytes of implied encodings' transfers (RGBA16F) sent to relight them too; beyond it
+#: only the stored encoding is relit
+MAX_IMPLIED_TRANSFER = 192 << 20
 _log = logging.getLogger("shprobe.viewer")
 
 
@@ -47,6 +57,9 @@ class LightmapView:
         Its name, for the page.
     """
 
+    #: where the page is served (``shprobe.viewer.serve`` announces it)
+    url_path = "/lightmap"
+
     def __init__(self, raw: bytes, name: str) -> None:
         doc, binary = fmt.parse_glb(raw, name)
         self.raw, self.name = raw, name
@@ -55,7 +68,28 @@ class LightmapView:
         self.layout = [[None if ic is None else [int(ic[0]), int(ic[1])]
                         for ic in t["components"]] for t in ext["textures"]]
         self.encodings = implied_encodings(self.stored.encoding, self.stored.coeffs)
+        self.transfer = ext.get("transfer")
+        self.sky = self._sky(doc, binary) if self.transfer is not None else None
         self._payload: bytes | None = None
+
+    def _sky(self, doc: dict, binary: bytes) -> tuple[list, str]:
+        """The sky SH (9, 3) the transfer relights from, and where it came from."""
+        sky = self.transfer.get("sky")
+        if sky is not None:
+            k = np.asarray(sky, dtype=np.float64)
+            if k.shape == (9, 3) and np.isfinite(k).all():
+                return k.tolist(), "stored"
+        from ..lightmaps.transfer_format import read_transfer
+
+        t = read_transfer(doc, binary, self.name)  # (H, W, n, 9, 3)
+        n = t.shape[2]
+        t = t.reshape(-1, n, 9, 3)
+        step = max(1, len(t) // 65536)  # 9 unknowns per colour: a strided 64k texels suffice
+        t = t[::step].astype(np.float64)
+        c = self.stored.coeffs.reshape(-1, n, 3)[::step].astype(np.float64)
+        fit = [np.linalg.lstsq(t[..., c_].reshape(-1, 9), c[..., c_].ravel(), rcond=None)[0]
+               for c_ in range(3)]
+        return np.stack(fit, axis=1).tolist(), "fitted"
 
     def exposure(self) -> float:
         """Default exposure (stops): the 99.5th percentile of the plain irradiance / π over
@@ -98,8 +132,40 @@ class LightmapView:
                                              for t in layouts[e]] for e in offered}),
                 "meta": {k: v for k, v in s.extra.items()
                          if isinstance(v, str | int | float | bool)}}
+        if self.sky is not None:  # the page reads the stored transfer from the .glb
+            implied = self._implied_transfers(offered, layouts, arrays)
+            head["transfer"] = {"scale": float(self.transfer["scale"]), "sky": self.sky[0],
+                                "sky_source": self.sky[1], "implied": implied}
         self._payload = pack_binary(head, arrays)
         return self._payload
+
+    def _implied_transfers(self, offered: list[str], layouts: dict,
+                           arrays: dict) -> dict[str, float]:
+        """Add the implied encodings' transfers to ``arrays`` (``"<e>_T<j>_<t>"``, RGBA16F
+        packed as ``layouts[e]``, stored value × scale) and return their scales."""
+        s = self.stored
+        others = [e for e in offered if e != s.encoding]
+        h, w = s.coeffs.shape[:2]
+        size = 9 * h * w * 8 * sum(len(layouts[e]) for e in others)
+        if not others or size > MAX_IMPLIED_TRANSFER:
+            return {}
+        from ..lightmaps.transfer_format import read_transfer
+
+        doc, binary = fmt.parse_glb(self.raw, self.name)
+        t = read_transfer(doc, binary, self.name)  # (H, W, n, 9, 3)
+        per = [implied_encodings(s.encoding, t[..., j, :]) for j in range(9)]
+        scales = {}
+        for e in others:
+            lay = [[None if ic is None else tuple(ic) for ic in tx] for tx in layouts[e]]
+            te = np.stack([p[e] for p in per])
+            scale = fmt.choose_scale(te)
+            if not np.isfinite(te).all():
+                continue
+            for j in range(9):
+                for k, tex in enumerate(fmt.pack(e, te[j] / scale, lay)):
+                    arrays[f"{e}_T{j}_{k}"] = tex
+            scales[e] = scale
+        return scales
 
     # ------------------------------------------------------------------ HTTP
     def routes(self, csp_of: Any, token: str, cookie: str) -> list[Route]:

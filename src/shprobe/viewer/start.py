@@ -55,10 +55,13 @@ def listen(host: str, port: int) -> socket.socket:
 
 
 def page_path(page: Any) -> str:
-    """The URL path of ``page``: ``/grid`` for a grid view, ``/`` for the designer."""
+    """The URL path of ``page``: ``/grid`` for a grid view, ``/`` for the designer, else the
+    page object's own ``url_path`` (the lightmap view's ``/lightmap``)."""
     from .session import Session
 
-    return "/" if isinstance(page, Session) else "/grid"
+    if isinstance(page, Session):
+        return "/"
+    return getattr(page, "url_path", "/grid")
 
 
 def serve(page: Any, host: str = "127.0.0.1", port: int = 0,

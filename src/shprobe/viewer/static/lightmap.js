@@ -3,11 +3,14 @@
 // coefficient textures) and takes from the server (/api/lightmap) what the library adds: the
 // generated GLSL, the encodings the stored one implies, a default exposure. Layouts: one
 // encoding; Habel & Wimmer's Fig. 1 (plain · H6 without albedo · H6 with albedo); Fig. 5
-// (H4 beside H6). window.__shprobe exposes the state and a float read-back for the tests.
+// (H4 beside H6). A file with a transfer is relit live as the sky turns (lightmap_relight.js).
+// window.__shprobe exposes the state and a float read-back for the tests.
 import * as THREE from 'three';
 import { OrbitControls } from 'three';
 import { unpack } from './wire.js';
-import { parseGlb, primitives, materials, imagePixels, lightmapTextures } from './lightmap_glb.js';
+import { parseGlb, primitives, materials, imagePixels, lightmapTextures, transferTextures }
+  from './lightmap_glb.js';
+import { Relighter, turnedSky } from './lightmap_relight.js';
 import { DEBUG, byteTexture, floatTarget, halfTexture, lightmapMaterial, primitiveGeometry }
   from './lightmap_gl.js';
 
@@ -31,8 +34,10 @@ async function fetchOk(path) {
   return r.arrayBuffer();
 }
 
-const state = { layout: 'single', encoding: null, albedo: true, grid: false, exposure: 0 };
+const state = { layout: 'single', encoding: null, albedo: true, grid: false, exposure: 0,
+  relight: false, sky: { azimuth: 0, elevation: 0, l0: 1, l1: 1, l2: 1, stops: 0 } };
 let renderer, camera, controls, scene, meshes = [], head, coeff = {}, mats = [], maps = [];
+let relighters = {}, baked = {};  // per relit encoding: its GPU pass; its baked textures
 const cache = new Map();
 
 function material(enc, m) {
@@ -49,16 +54,33 @@ function material(enc, m) {
 function panels() {
   const has = (e) => head.encodings.includes(e);
   if (state.layout === 'fig1' && has('plain') && has('h6')) {
-    return [{ encoding: 'plain', albedo: false, label: 'plain lightmap (normal map ignored)' },
-      { encoding: 'h6', albedo: false, label: 'H6, without albedo' },
-      { encoding: 'h6', albedo: true, label: 'H6, with albedo' }];
+    return [{ encoding: 'plain', albedo: false, label: `plain lightmap (normal map ignored)${skyLabel('plain')}` },
+      { encoding: 'h6', albedo: false, label: `H6, without albedo${skyLabel('h6')}` },
+      { encoding: 'h6', albedo: true, label: `H6, with albedo${skyLabel('h6')}` }];
   }
   if (state.layout === 'fig5' && has('h4') && has('h6')) {
-    return [{ encoding: 'h4', albedo: state.albedo, label: 'H4' },
-      { encoding: 'h6', albedo: state.albedo, label: 'H6' }];
+    return [{ encoding: 'h4', albedo: state.albedo, label: `H4${skyLabel('h4')}` },
+      { encoding: 'h6', albedo: state.albedo, label: `H6${skyLabel('h6')}` }];
   }
   const e = state.encoding;
-  return [{ encoding: e, albedo: state.albedo, label: `${NAMES[e]}${e === head.encoding ? '' : ' (implied by the stored ' + NAMES[head.encoding] + ')'}${state.albedo ? ', with albedo' : ', without albedo'}` }];
+  return [{ encoding: e, albedo: state.albedo, label: `${NAMES[e]}${e === head.encoding ? '' : ' (implied by the stored ' + NAMES[head.encoding] + ')'}${state.albedo ? ', with albedo' : ', without albedo'}${skyLabel(e)}` }];
+}
+
+function skyLabel(e) {
+  if (!head.transfer) return '';
+  if (!state.relight) return ', baked sky';
+  if (!relighters[e]) return ', baked sky (this encoding is not relit)';
+  const k = state.sky;
+  return `, sky turned ${k.azimuth.toFixed(0)}° tilted ${k.elevation.toFixed(0)}°`;
+}
+
+// the relit encodings' textures: from the transfer under the turned sky, or the bake's
+function relight() {
+  const L = head.transfer && state.relight ? turnedSky(head.transfer.sky, state.sky) : null;
+  for (const [e, r] of Object.entries(relighters)) {
+    if (L) r.relight(L);
+    coeff[e] = L ? r.textures : baked[e];
+  }
 }
 
 function draw(target = null, debug = DEBUG.picture) {
@@ -74,6 +96,7 @@ function draw(target = null, debug = DEBUG.picture) {
     camera.updateProjectionMatrix();
     for (const mesh of meshes) {
       const m = material(p.encoding, mesh.userData.material);
+      coeff[p.encoding].forEach((t, i) => { m.uniforms[`t${i}`].value = t; });
       Object.assign(m.uniforms.albedoOn, { value: p.albedo });
       m.uniforms.gridOn.value = state.grid && target === null;
       m.uniforms.exposure.value = state.exposure;
@@ -108,7 +131,9 @@ api.readback = (kind, pixels) => {
   return out;
 };
 api.set = (s) => {
-  Object.assign(state, s);
+  const sky = { ...state.sky, ...(s.sky || {}) };
+  Object.assign(state, s, { sky, relight: head.transfer ? (s.relight ?? state.relight) : false });
+  if (s.sky || 'relight' in s) relight();
   if (s.eye) camera.position.set(...s.eye);
   if (s.target) controls.target.set(...s.target);
   controls.update();
@@ -124,6 +149,29 @@ function syncControls() {
   $('grid').checked = state.grid;
   $('exposure').value = String(state.exposure);
   $('expval').textContent = state.exposure.toFixed(2);
+  if (!head.transfer) return;
+  $('relight').checked = state.relight;
+  for (const k of Object.keys(state.sky)) {
+    if (!$(`sky_${k}`)) continue;
+    $(`sky_${k}`).value = String(state.sky[k]);
+    $(`sky_${k}_val`).textContent = state.sky[k].toFixed(k === 'azimuth' || k === 'elevation' ? 0 : 2);
+  }
+}
+
+// a relit coefficient texture t read back as floats (× head.scale: coefficients)
+api.relitTexels = (t, e = head.encoding) => Array.from(relighters[e].read(t));
+api.turnedSky = () => turnedSky(head.transfer.sky, state.sky);
+
+function skyControls() {
+  $('skybox').hidden = false;
+  $('skysrc').textContent = head.transfer.sky_source === 'stored' ? 'the sky of the bake'
+    : 'the sky fitted to the stored lightmap (the file does not store its sky)';
+  $('relight').addEventListener('change', (ev) => api.set({ relight: ev.target.checked }));
+  for (const k of Object.keys(state.sky)) {
+    $(`sky_${k}`)?.addEventListener('input', (ev) => api.set({ sky: { [k]: Number(ev.target.value) } }));
+  }
+  $('skyreset').addEventListener('click', () => api.set({ sky: { azimuth: 0, elevation: 0, l0: 1,
+    l1: 1, l2: 1, stops: 0 } }));
 }
 
 function buildScene(g) {
@@ -168,6 +216,22 @@ async function start() {
       : head.layouts[e].map((_, t) => msg[`${e}_${t}`]);
     coeff[e] = data.map((d) => halfTexture(d, head.width, head.height));
   }
+  if (head.transfer) {
+    const half = (d) => halfTexture(d, head.width, head.height);
+    const relighter = (e, sets, scale) => {
+      baked[e] = coeff[e];
+      relighters[e] = new Relighter(renderer, sets.map((set) => set.map(half)), head.layouts[e],
+        [head.width, head.height], scale, head.scale);
+    };
+    relighter(head.encoding, transferTextures(g), head.transfer.scale);
+    for (const [e, scale] of Object.entries(head.transfer.implied)) {
+      if (!head.encodings.includes(e)) continue;
+      relighter(e, Array.from({ length: 9 }, (_, j) => head.layouts[e].map((_, t) =>
+        msg[`${e}_T${j}_${t}`])), scale);
+    }
+    state.relight = true;
+    relight();
+  }
   mats = materials(g);
   mats.fallback = { baseColor: [1, 1, 1, 1], normalScale: 1 };
   const images = new Map();
@@ -199,6 +263,7 @@ async function start() {
   $('grid').addEventListener('change', (ev) => api.set({ grid: ev.target.checked }));
   $('exposure').addEventListener('input', (ev) => api.set({ exposure: Number(ev.target.value) }));
   $('autoexp').addEventListener('click', () => api.set({ exposure: head.exposure }));
+  if (head.transfer) skyControls();
   syncControls();
   draw();
   api.head = head;

@@ -133,16 +133,32 @@ export function materials(g) {
   });
 }
 
-// the stored coefficient textures: {ext, textures: [Uint16Array (H·W·4)], layout}
-export function lightmapTextures(g) {
-  const ext = g.json.extensions?.[EXTENSION];
-  if (!ext) throw new Error(`the file has no ${EXTENSION} extension`);
+function halfViews(g, ext, list) {  // RGBA16F bufferViews as Uint16Array (H·W·4)
   const n = ext.width * ext.height * 4;
-  const textures = ext.textures.map((t) => {
+  return list.map((t) => {
     const v = viewBytes(g, t.bufferView);
     if (v.length !== n * 2) throw new Error('a lightmap texture has the wrong size');
     return v.offset % 2 === 0 ? new Uint16Array(g.bin.buffer, v.offset, n)
       : new Uint16Array(g.bin.slice(v.offset - g.bin.byteOffset, v.offset - g.bin.byteOffset + 2 * n).buffer);
   });
-  return { ext, textures, layout: ext.textures.map((t) => t.components) };
+}
+
+// the stored coefficient textures: {ext, textures: [Uint16Array (H·W·4)], layout}
+export function lightmapTextures(g) {
+  const ext = g.json.extensions?.[EXTENSION];
+  if (!ext) throw new Error(`the file has no ${EXTENSION} extension`);
+  return { ext, textures: halfViews(g, ext, ext.textures),
+    layout: ext.textures.map((t) => t.components) };
+}
+
+// the transfer's textures, one array per sky SH coefficient j (9), packed like the stored
+// ones (format.py: "Transfer"); null when the file has none
+export function transferTextures(g) {
+  const ext = g.json.extensions?.[EXTENSION], tr = ext?.transfer;
+  if (!tr) return null;
+  if (!Array.isArray(tr.sets) || tr.sets.length !== 9) throw new Error('the transfer needs 9 sets');
+  return tr.sets.map((s) => {
+    if (s.textures?.length !== ext.textures.length) throw new Error('a transfer set has the wrong textures');
+    return halfViews(g, ext, s.textures);
+  });
 }
