@@ -22,10 +22,11 @@ import numpy as np
 from _machine import machine
 from shprobe.grids import GridSettings, bake_grid, estimate_grid_bake
 from shprobe.grids.bake import grid_scene
-from shprobe.grids.trial import trial_fractions
+from shprobe.grids.trial import ASSUMED, TRIAL_FACES, trial_fractions
 
 DATA = Path(os.environ.get("SHPROBE_TEST_DATA", Path(__file__).resolve().parents[2] / "shared"))
 FAR = [[-20, -20, -20], [20, 20, 20]]
+BOX = [[-2, -2, -2], [2, 2, 2]]
 
 CASES = [  # (label, scene, albedo, resolution, samples, bounces, gather, bounds)
     ("room, defaults", "room", (), (4, 4, 4), 4096, 2, 2, None),
@@ -36,6 +37,8 @@ CASES = [  # (label, scene, albedo, resolution, samples, bounces, gather, bounds
     ("bunny on ground", "bunny-on-ground", (), (4, 4, 4), 8192, 3, 6, None),
     ("room", "room", (), (4, 4, 4), 16384, 3, 6, None),
     ("room", "room", (), (6, 4, 6), 8192, 4, 8, None),
+    ("sphere of 81,920 faces in a box twice its size", 6, (), (4, 4, 4), 8192, 3, 6, BOX),
+    ("sphere of 327,680 faces (no trial)", 7, (), (4, 4, 4), 8192, 3, 6, BOX),
 ]
 
 
@@ -53,12 +56,17 @@ def main() -> None:
           "bake wall | bake CPU |")
     for label, scene, albedo, res, d, b, g, bounds in cases:
         path = str(DATA / "meshes" / "bunny.obj") if scene == "BUNNY" else scene
+        if isinstance(scene, int):
+            import trimesh
+
+            path = trimesh.creation.icosphere(subdivisions=scene)
         settings = GridSettings(res, bounds=bounds, samples=d, bounces=b, gather=g)
         sc, settings = grid_scene([path], settings, list(albedo))
         t = time.perf_counter()
         cost = estimate_grid_bake(len(sc.faces), settings, sc)
         te = time.perf_counter() - t
-        fr = trial_fractions(sc.vertices, sc.faces, sc.albedo, settings.bounds, settings)
+        fr = (ASSUMED if len(sc.faces) > TRIAL_FACES else
+              trial_fractions(sc.vertices, sc.faces, sc.albedo, settings.bounds, settings))
         t, c = time.perf_counter(), _cpu()
         bake_grid(sc, sky, settings)
         real, cpu = time.perf_counter() - t, _cpu() - c

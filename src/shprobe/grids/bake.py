@@ -157,8 +157,9 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings,
     Returns
     -------
     Cost
-        Seconds (rays traced, gather rays, grid lookups and the scene's preparation, over this
-        machine's cores) and peak bytes (fitted to measured peaks: bench/bench_estimates.py),
+        Seconds (probe rays and the scene's preparation over this machine's cores, then the
+        bounces' gather rays, grid lookups and projections, which run mostly in one thread)
+        and peak bytes (fitted to measured peaks: bench/bench_estimates.py),
         the figure checked against the memory limit.
     """
     from .trial import ASSUMED, TRIAL_FACES, trial_fractions
