@@ -109,7 +109,7 @@ def bake_cmd(scene, probe, preset, coeffs_file, layout, clamp, resolution, bound
                            probe_flag="--lighting PROBE")
     sc, settings = grid_scene(scene, settings, [parse_albedo(a) for a in albedo])
     nx, ny, nz = settings.resolution
-    estimate(estimate_grid_bake(len(sc.faces), settings),
+    estimate(estimate_grid_bake(len(sc.faces), settings, sc),
              f"bake of a {nx}x{ny}x{nz} grid, {samples} rays per probe")
     g = bake_grid(sc, light, settings, progress=progress())
     save_grid(output, g, overwrite=force)

@@ -44,10 +44,19 @@ from .settings import GridSettings, check_bounds
 
 __all__ = ["bake_grid", "estimate_grid_bake", "grid_bounds", "grid_scene"]
 
-#: Rays per second and core of the probe tracer, and hit-point lookups per second and core of
-#: a bounce (measured on the room and the bunny on a 2-core box, rounded down).
+#: Rays per second and core of the probe tracer (probe, placement and depth rays: Embree
+#: spreads them over the cores).
 RAYS_PER_CORE_SECOND = 1.5e6
-LOOKUPS_PER_CORE_SECOND = 2e5
+#: Work per second of a bounce, which runs mostly in one thread (process CPU seconds on the
+#: room, bench/bench_grid_estimate.py): gather rays (their cosine directions, offsets, trace and
+#: sky), grid lookups with leak control (each lit surface point under the DDGI recursion, each
+#: gather ray meeting a surface from the second bounce), probe rays projected per bounce. A
+#: trial trace (`shprobe.grids.trial`) says how much of this work the scene really makes.
+GATHER_RAYS_PER_SECOND = 1.7e6
+LOOKUPS_PER_SECOND = 6e5
+PROJECTIONS_PER_SECOND = 2e7
+#: Fixed seconds of a bake (compiled kernels loaded, the sky's moments).
+BAKE_BASE_SECONDS = 0.5
 #: Scene triangles prepared per second and core (the ray caster's BVH, face normals, the
 #: scene's hash: 29 s for 5.2 million triangles on the 2-core box), so that a large scene's
 #: bake is announced even with few probes.
@@ -127,9 +136,10 @@ def _fmt(x: NDArray) -> str:
     return "(" + ", ".join(f"{float(a):.4g}" for a in x) + ")"
 
 
-def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
+def estimate_grid_bake(n_faces: int, settings: GridSettings,
+                       scene: BakeScene | None = None) -> Cost:
     """Seconds and peak bytes of [`bake_grid`][shprobe.grids.bake_grid] on this machine, from the
-    arguments.
+    arguments and, given the scene, a trial trace of it.
 
     Parameters
     ----------
@@ -137,21 +147,39 @@ def estimate_grid_bake(n_faces: int, settings: GridSettings) -> Cost:
         Triangles of the scene.
     settings : GridSettings
         The bake's settings.
+    scene : BakeScene, optional
+        The scene: a trial trace (`shprobe.grids.trial`, a few milliseconds, for scenes up to
+        `shprobe.grids.trial.TRIAL_FACES` triangles) measures how many probe rays meet a lit
+        surface and how many gather rays go on to meet another, so that a bake whose probes see
+        mostly sky or back faces is not announced as long. Without it (or for a larger scene)
+        most rays are assumed to.
 
     Returns
     -------
     Cost
-        Seconds (rays traced, hit lookups and the scene's preparation, over this machine's
-        cores) and peak bytes (fitted to measured peaks: bench/bench_estimates.py), the
-        figure checked against the memory limit.
+        Seconds (probe rays and the scene's preparation over this machine's cores, then the
+        bounces' gather rays, grid lookups and projections, which run mostly in one thread)
+        and peak bytes (fitted to measured peaks: bench/bench_estimates.py),
+        the figure checked against the memory limit.
     """
+    from .trial import ASSUMED, TRIAL_FACES, trial_fractions
+
+    fr = ASSUMED
+    if scene is not None and settings.bounces and n_faces <= TRIAL_FACES:
+        bounds = settings.bounds if settings.bounds is not None else grid_bounds(scene, settings)
+        fr = trial_fractions(scene.vertices, scene.faces, scene.albedo, bounds, settings)
     p, d = settings.n_probes, settings.samples
     rays = p * (TEST_RAYS + d + settings.depth_rays)
-    hits = settings.bounces * p * d * 0.6  # about 60 % of rays hit a surface in a scene
-    rays += hits * settings.gather
-    lookups = hits * max(1.0, 0.6 * settings.gather)
-    seconds = (rays / RAYS_PER_CORE_SECOND + lookups / LOOKUPS_PER_CORE_SECOND
-               + n_faces / FACES_PER_CORE_SECOND) / cores()
+    points = p * d * fr.lit  # surface points each bounce lights
+    if settings.gather:
+        gathered = settings.bounces * points * settings.gather
+        lookups = max(settings.bounces - 1, 0) * points * settings.gather * fr.onward
+    else:
+        gathered, lookups = 0.0, settings.bounces * points
+    seconds = (BAKE_BASE_SECONDS
+               + (rays / RAYS_PER_CORE_SECOND + n_faces / FACES_PER_CORE_SECOND) / cores()
+               + gathered / GATHER_RAYS_PER_SECOND + lookups / LOOKUPS_PER_SECOND
+               + settings.bounces * p * d / PROJECTIONS_PER_SECOND)
     seconds *= 1.0 + 0.05 * np.log2(max(n_faces, 2)) / 10  # deeper BVH
     per_probe = (BYTES_PER_PROBE + 8 * settings.depth_resolution ** 2
                  + num_coeffs(settings.lmax) * 3 * 8 * (2 + settings.bounces)
