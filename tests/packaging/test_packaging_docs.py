@@ -39,7 +39,10 @@ def test_every_public_name_has_a_docstring():
 
 def test_each_package_has_its_api_page():
     pkgs = {p.parent.name for p in (REPO / "src" / "shprobe").glob("*/__init__.py")} - {"cli"}
+    base = (DOCS / "api" / "base.md").read_text(encoding="utf-8")
     for pkg in pkgs:
+        if f"<!-- members: shprobe.{pkg} " in base:  # a base module that grew into a package
+            continue
         page = DOCS / "api" / f"{pkg}.md"
         assert page.is_file() and f"::: shprobe.{pkg}" in page.read_text(encoding="utf-8"), pkg
 
