@@ -6,7 +6,7 @@ Run: PYTHONPATH=src python bench/bench_prt_memory.py [--lmax 2 6 10 16]
      [--modes unshadowed shadowed interreflected] [--samples 1024] [--threads 2]
 Prints one markdown row per bake: estimate, peak, peak/estimate, vertices (estimated and
 final) and the bake's seconds; exits 1 when an estimate is off by more than ``--tol``
-(default 20 %) of the peak. ``tests/test_prt_memory.py`` runs the cheap cases.
+(default 20 %) of the peak. ``tests/prt/test_prt_memory.py`` runs the cheap cases.
 """
 
 from __future__ import annotations

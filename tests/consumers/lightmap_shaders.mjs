@@ -1,5 +1,5 @@
 // The lightmap shader functions (shprobe.lightmaps.shaders) run in headless Chromium by
-// tests/test_lightmaps_shaders.py. Every case is N texels in one row: the coefficient
+// tests/lightmaps/test_lightmaps_shaders.py. Every case is N texels in one row: the coefficient
 // textures as RGBA16F (the file's half floats, passed as their uint16 bit patterns), one
 // tangent-space normal per texel (float32); the result is E per texel (float32, RGB).
 //   webgl2(src, call, k, halves, normals, complete): GLSL ES 3.00 in a fragment shader over a

@@ -1,7 +1,7 @@
 """The §5 study on a real scene: the packaged game scene (tools/make_game_scene.py) baked once
 into all six encodings and compared, at the normal-map normals of its texels, with the
-independent path tracer of tests/test_lightmaps_bake.py (same sky, albedo and bounces); the
-denoiser's error with and without it."""
+independent path tracer of tests/lightmaps/test_lightmaps_bake.py (same sky, albedo and
+bounces); the denoiser's error with and without it."""
 
 from __future__ import annotations
 

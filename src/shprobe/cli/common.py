@@ -41,7 +41,7 @@ def parse_floats(text: str, n: int | None = None, what: str = "value") -> list[f
 
 def setting_default(settings_type: type, name: str):
     """The default of field ``name`` of a settings dataclass: the one defaults table the CLI's
-    options read (``tests/test_cli_defaults.py`` checks they agree)."""
+    options read (``tests/cli/test_cli_defaults.py`` checks they agree)."""
     import dataclasses
 
     f = settings_type.__dataclass_fields__[name]

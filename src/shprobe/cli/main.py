@@ -12,7 +12,7 @@ from ..errors import ShprobeError
 #: Each command → the module of ``shprobe.cli`` whose ``register(group)`` adds it. A module is
 #: imported when one of its commands is first looked up (click's lazily loaded subcommands), so
 #: a command pays only for its own layers: ``shprobe view`` forks its file loaders ~0.2 s
-#: sooner than with every module imported first. ``tests/test_cli_basics.py`` checks this map
+#: sooner than with every module imported first. ``tests/cli/test_cli_basics.py`` checks this map
 #: against what the modules register.
 COMMANDS: dict[str, str] = {
     "sh": "sh",

@@ -25,7 +25,7 @@ gltf       ``EXT_lights_image_based`` light with ``irradianceCoefficients`` (9×
            (x, y, −z) — the spec text fixes none of this; it is how its reference
            implementation, Babylon.js, reads them (CS-signed basis constants,
            ``convertIrradianceToLambertianRadiance`` ÷π, and ``REFLECTIONMAP_OPPOSITEZ``),
-           proved against Babylon itself in ``tests/test_export_consumers.py``. The
+           proved against Babylon itself in ``tests/lighting/test_export_consumers.py``. The
            extension's required specular cube (``specularImages``, ``specularImageSize``)
            holds E/π of the same coefficients (8×8, 4 mips, RGBD PNG data URIs, bottom row
            first), a stand-in for a GGX-prefiltered map. The scene has no nodes: merge the
