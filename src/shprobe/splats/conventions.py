@@ -16,9 +16,12 @@ bias of the renderer, not a coefficient: the coefficient of the constant 0.5 wou
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..errors import ShprobeError
 from ..sh.conventions import from_condon_shortley, to_condon_shortley
 
 #: Y_00 = 1 / (2√π), the renderer's C0.
@@ -28,8 +31,31 @@ DC_BIAS = 0.5
 #: Largest SH degree of the 3DGS renderer (16 coefficients per channel).
 MAX_DEGREE = 3
 
-__all__ = ["DC_BIAS", "MAX_DEGREE", "SH_C0", "colour_to_dc", "dc_to_colour", "from_shprobe",
-           "to_shprobe", "view_colour"]
+__all__ = ["DC_BIAS", "MAX_DEGREE", "SH_C0", "check_degree", "colour_to_dc", "dc_to_colour",
+           "from_shprobe", "to_shprobe", "view_colour"]
+
+
+def check_degree(degree: int, what: str, where: Any = None) -> int:
+    """The one check of a splat SH degree: 0 to `MAX_DEGREE`, what the 3DGS renderer evaluates.
+
+    Parameters
+    ----------
+    degree
+        The degree to check.
+    what
+        What holds it, named in the refusal ("sh_degree", "SPZ holds SH degree", ...).
+    where
+        The file concerned, if any.
+
+    Returns
+    -------
+    int
+        ``degree``.
+    """
+    if not 0 <= degree <= MAX_DEGREE:
+        raise ShprobeError(f"{what} {degree}: the 3DGS renderer evaluates SH degree "
+                           f"0–{MAX_DEGREE}", where)
+    return degree
 
 
 def to_shprobe(sh: ArrayLike) -> NDArray[np.floating]:

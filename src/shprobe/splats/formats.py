@@ -29,6 +29,7 @@ from .cloud import (
     concatenate,
     floats_per_splat,
 )
+from .conventions import check_degree
 from .transform import Similarity, apply
 
 FORMATS = (".ply", ".spz", ".glb")
@@ -272,8 +273,7 @@ def _degree(settings: TransformSettings, degree: int, where) -> int:
     d = settings.sh_degree
     if d is None:
         return degree
-    if not 0 <= d <= 3:
-        raise ShprobeError(f"sh_degree must be 0–3, got {d}")
+    check_degree(d, "sh_degree")
     if d > degree:
         raise ShprobeError(f"sh_degree {d} is above the file's SH degree {degree}", where)
     return d

@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import ShprobeError
 from ..limits import check_memory
 from .cloud import READ_BYTES_PER_FLOAT, Splats, floats_per_splat, read_bytes
+from .conventions import check_degree
 from .transform import apply, frame
 
 MAGIC = 0x5053474E
@@ -130,9 +131,7 @@ def _check_header(p: str, version: int, n: int, degree: int, fbits: int = 12) ->
     if version >= 2 and not lo <= fbits <= hi:
         raise ShprobeError(f"SPZ fractionalBits {fbits} is outside {lo}–{hi} (24-bit fixed-"
                            "point positions)", p)
-    if degree > 3:
-        raise ShprobeError(f"SPZ holds SH degree {degree}: the 3DGS renderer evaluates "
-                           "degree ≤ 3; no degree-4 layout is read", p)
+    check_degree(degree, "SPZ holds SH degree", p)
     if n == 0:
         raise ShprobeError("SPZ holds no splats", p)
     check_memory(n * floats_per_splat(degree) * READ_BYTES_PER_FLOAT[".spz"],
