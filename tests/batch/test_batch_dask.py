@@ -154,16 +154,16 @@ class _Poison:
     name = "shprobe-test-poison"
 
     def setup(self, worker):
-        from shprobe.batch import engine
+        from shprobe.batch import cluster
 
-        real = engine.probe_row
+        real = cluster.probe_row
 
         def probe_row(path, *a, **k):
             if os.path.basename(path).startswith("poison"):
                 os._exit(1)
             return real(path, *a, **k)
 
-        engine.probe_row = probe_row
+        cluster.probe_row = probe_row
 
 
 def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
