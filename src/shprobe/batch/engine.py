@@ -47,6 +47,7 @@ from .cluster import (  # noqa: F401  (re-exported: importable from here as befo
 )
 from .inputs import expand_inputs
 from .lock import interruptible, output_lock
+from .result import BatchResult
 from .rows import BatchOptions
 from .settings import BatchSettings, Engine
 from .table import (  # noqa: F401  (re-exported: importable from here as before)
@@ -61,7 +62,7 @@ from .table import (  # noqa: F401  (re-exported: importable from here as before
     table_meta,
 )
 
-__all__ = ["BatchSettings", "Engine", "parts_dir", "read_table", "run_batch"]
+__all__ = ["BatchResult", "BatchSettings", "Engine", "parts_dir", "read_table", "run_batch"]
 
 #: Progress callback: (done, total) after each probe.
 Progress = Callable[[int, int], None]
@@ -71,7 +72,7 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
               output: str | os.PathLike[str] | None = None,
               settings: BatchSettings | None = None, progress: Progress | None = None, *,
               force: bool = False, **changes: Any):
-    """Compute the batch table of INPUTS and return it, sorted by path.
+    """Compute the batch table of INPUTS (sorted by path) and return it with the run's figures.
 
     Parameters
     ----------
@@ -94,10 +95,13 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
 
     Returns
     -------
-    pyarrow.Table
-        Columns [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS], one row per probe.
+    BatchResult
+        ``table``: columns [`shprobe.batch.COLUMNS`][shprobe.batch.COLUMNS], one row per
+        probe; the output, the rows computed, the seconds; ``as_dict()``.
     """
     import numpy as np  # noqa: F401  (fail early if the stack is broken)
+
+    t0 = time.perf_counter()
 
     settings = settings if settings is not None else BatchSettings()
     changes = {k: v for k, v in changes.items() if v is not None}
@@ -119,12 +123,14 @@ def run_batch(inputs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]],
         check_output_path(out, overwrite=True)
     settings = replace(settings, options=options)
     with output_lock(out), interruptible() as interrupted:
-        return _run(inputs, out, settings, meta, force, progress, interrupted)
+        table, computed = _run(inputs, out, settings, meta, force, progress, interrupted)
+    return BatchResult(table, out, computed, time.perf_counter() - t0)
 
 
 def _run(inputs, out: Path | None, settings: BatchSettings, meta: dict[str, Any],
          force: bool, progress: Progress | None, interrupted: list[int]):
-    """[`run_batch`][shprobe.batch.run_batch] once the output is locked."""
+    """[`run_batch`][shprobe.batch.run_batch] once the output is locked: (the table, the
+    rows computed)."""
     layout, options, engine = settings.layout, settings.options, settings.engine
     old: list[dict[str, Any]] = []
     if out is not None:
@@ -215,4 +221,4 @@ def _run(inputs, out: Path | None, settings: BatchSettings, meta: dict[str, Any]
         shutil.rmtree(parts_dir(out), ignore_errors=True)
     if interrupted:
         raise KeyboardInterrupt
-    return table
+    return table, len(fresh)

@@ -17,7 +17,7 @@ whose outline is then a circle; off-centre the true outline is an ellipse).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,11 +33,15 @@ from .ball_geometry import (  # noqa: F401  (importable from here as before)
     parse_ball_camera,
 )
 from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
+from .document import fit_document
 from .solve import MAX_RADIUS as _MAX_RADIUS
 from .solve import FitSettings, LightingFit, check_level, fit_samples
 
 #: Largest ball radius (px) a grey-ball fit works at; bigger balls are block-averaged.
 MAX_RADIUS = _MAX_RADIUS  # the one value, from .solve
+
+if TYPE_CHECKING:
+    from .photo import Photo
 
 __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_grey_ball",
            "parse_ball_camera"]
@@ -127,6 +131,24 @@ class BallFit:
                   f"({self.blind_solid_angle:.3f} sr, "
                   f"{100 * self.blind_solid_angle / (4 * np.pi):.1f} % of the sphere)")
         return s
+
+    def as_dict(self, source: str | None = None, photo: Photo | None = None) -> dict[str, Any]:
+        """The fit's JSON document: the coefficients with the fit's quality
+        (`shprobe.fitting.document.fit_document`, ``shprobe fit --format json``).
+
+        Parameters
+        ----------
+        source
+            The photo's name for the document (None: none).
+        photo
+            The photo read for the fit, for the exposure it recorded (None: not known).
+
+        Returns
+        -------
+        dict
+            JSON-able values.
+        """
+        return fit_document(self, source, photo)
 
     def __repr__(self) -> str:
         return f"BallFit({self.kind}, {self.circle!r}, {self.fit!r})"
