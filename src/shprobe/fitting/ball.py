@@ -205,32 +205,6 @@ def fit_grey_ball(image: NDArray, circle: Circle | None = None,
     loses nothing that matters while the work drops f²-fold. The result (``circle``,
     ``pixels``, the images) is then at that resolution, ``binning`` = f and ``photo`` the
     block-mean image; ``info['circle_full']`` is the circle in the photo's pixels.
-
-    Parameters
-    ----------
-    image
-        (H, W, 3) linear photo of the ball.
-    circle
-        The ball's outline in pixels; None detects it.
-    camera
-        The camera that took the photo (default: orthographic, looking along −Z).
-    albedo
-        The ball's albedo × exposure, by which the coefficients are divided.
-    saturation
-        Pixels with a channel at or above it are clipped and left out.
-    inset
-        Pixels within this many pixels of the outline are left out.
-    robust
-        Reject outliers (IRLS) rather than fit plain least squares.
-    max_radius
-        Above this radius (pixels) the photo is fitted on block means.
-    path
-        The photo's file, named in errors.
-
-    Returns
-    -------
-    BallFit
-        The nine RGB coefficients, their standard errors and conditioning, and the fit's pixels.
     """
     s = settings if settings is not None else FitSettings()
     if changes:

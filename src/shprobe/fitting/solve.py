@@ -77,6 +77,7 @@ def design_factors(model: str) -> NDArray[np.float64]:
         return np.ones(9)
     raise ShprobeError(f"model must be 'diffuse' or 'mirror', got {model!r}")
 
+
 def check_level(value: float | None, name: str) -> None:
     """A clipping level (``saturation``, ``black level``) is None or a finite number: NaN
     would compare false with every pixel and silently clip nothing."""
@@ -117,7 +118,6 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None
 
     Notes
     -----
-
     ``dirs`` (P, 3): unit surface normals (``model="diffuse"``: value = ρ E(n)/π) or
     reflected directions (``model="mirror"``: value = ρ L(ω)). ``values`` (P, 3) linear.
     ``weights`` (P,): prior weights (a chrome ball's solid angle per pixel; default 1).
@@ -131,36 +131,6 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None
     ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets;
     the coefficients and standard errors are that subset's); the weights, rejected pixels,
     fitted values and residuals are over every pixel.
-
-    Parameters
-    ----------
-    dirs
-        (P, 3) unit normals ("diffuse") or reflected directions ("mirror").
-    values
-        (P, 3) linear pixel values.
-    model
-        "diffuse" (value = ρ E(n)/π) or "mirror" (value = ρ L(ω)).
-    weights
-        (P,) prior weights (default 1).
-    albedo
-        A number, or a known (P,) / (P, 3) per-pixel albedo.
-    saturation, black
-        Pixels with a channel at or above ``saturation`` (at or below ``black``) are left out.
-    robust
-        Reject outliers (IRLS) rather than fit plain least squares.
-    scale_floor
-        The smallest residual scale of the IRLS weights, a fraction of the signal.
-    max_iter
-        IRLS iterations at most.
-    irls_samples
-        Pixels the IRLS rounds use (a seeded subset of larger problems).
-    seed
-        The subset's seed.
-
-    Returns
-    -------
-    LightingFit
-        The nine RGB coefficients, residual, rejected fraction, standard errors, conditioning.
     """
     s = settings if settings is not None else FitSettings()
     if changes:
