@@ -175,9 +175,9 @@ def bench_throughput(files: list[Path], repeat: int, workers: int) -> tuple[list
 
     for _ in range(repeat):  # interleaved passes
         decoded = timed("dec", lambda: sum(pool.map(_decode, paths)))
-        table = timed("bat", lambda: run_batch(paths, None, engine=Engine(client=client)))
+        table = timed("bat", lambda: run_batch(paths, None, engine=Engine(client=client)).table)
         timed("now", lambda: run_batch(paths, None, options=BatchOptions(window=False),
-                                       engine=Engine(client=client)))
+                                       engine=Engine(client=client)).table)
     client.close()
     cluster.close()
     pool.shutdown()

@@ -138,7 +138,7 @@ def test_row_against_independent_results(tmp_path):
 
 def test_table_errors_and_schema(library, tmp_path):
     out = tmp_path / "t.parquet"
-    t = run_batch([library], out, options=BatchOptions(lmax=3), engine=INLINE)
+    t = run_batch([library], out, options=BatchOptions(lmax=3), engine=INLINE).table
     assert out.exists() and not parts_dir(out).exists()
     rows = {r["path"].split("/lib/")[1]: r for r in t.to_pylist()}
     assert len(rows) == 7
@@ -171,7 +171,7 @@ def test_table_errors_and_schema(library, tmp_path):
 
 def test_resume_interrupt_and_options(library, tmp_path):
     out = tmp_path / "t.parquet"
-    full = run_batch([library], None, engine=INLINE)
+    full = run_batch([library], None, engine=INLINE).table
     seen = []
 
     class StopAfterThree(Recorder):  # a shprobe.progress reporter
@@ -186,7 +186,7 @@ def test_resume_interrupt_and_options(library, tmp_path):
     kept = pq.read_table(parts_dir(out)).to_pylist()  # parts are whole Parquet files
     assert len(kept) == 3  # one part of 2 rows + the flush on interrupt
     # re-run: finishes the rest; done rows are not recomputed (their timing is kept)
-    t = run_batch([library], out, engine=INLINE)
+    t = run_batch([library], out, engine=INLINE).table
     assert not parts_dir(out).exists()
     drop = ["seconds"]
     assert t.drop(drop).equals(full.drop(drop))
@@ -196,14 +196,14 @@ def test_resume_interrupt_and_options(library, tmp_path):
             assert secs[r["path"]] == r["seconds"]
     # a copy of a done probe under a new name is filled from its hash; a new probe computed
     (library / "copy.exr").write_bytes((library / "a.exr").read_bytes())
-    t2 = run_batch([library], out, engine=INLINE).to_pylist()
+    t2 = run_batch([library], out, engine=INLINE).table.to_pylist()
     by = {r["path"].split("/lib/")[1]: r for r in t2}
     assert len(by) == 8 and by["copy.exr"]["seconds"] == 0.0
     assert by["copy.exr"]["coefficients"] == by["a.exr"]["coefficients"]
     with pytest.raises(ShprobeError, match="other options"):
         run_batch([library], out, options=BatchOptions(lmax=1), engine=INLINE)
     t3 = run_batch([library / "a.exr"], out, options=BatchOptions(lmax=1), engine=INLINE,
-                   force=True)
+                   force=True).table
     assert t3.num_rows == 1 and len(t3.column("coefficients")[0]) == 4
     # a table whose hashes were made by another algorithm (SHA-256 before) is refused by name
     meta = json.loads(t3.schema.metadata[b"shprobe"])

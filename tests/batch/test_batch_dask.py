@@ -48,7 +48,7 @@ def library(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def inline(library):
-    return run_batch([library], None, options=REF4, engine=INLINE)
+    return run_batch([library], None, options=REF4, engine=INLINE).table
 
 
 def _close(x, y, where: str) -> None:
@@ -75,13 +75,14 @@ def _same_rows(a, b) -> None:
 
 def test_cluster_table_equals_inline(cluster, library, inline, tmp_path):
     out = tmp_path / "t.parquet"
-    t = run_batch([library], out, options=REF4, engine=Engine(scheduler=cluster.scheduler_address))
+    t = run_batch([library], out, options=REF4,
+                  engine=Engine(scheduler=cluster.scheduler_address)).table
     assert t.num_rows == 8 and t.column("failure").null_count == 7
     _same_rows(t, inline)
     assert np.isfinite(np.asarray(t.column("seconds"))).all()
     # tasks of 3 probes (8 probes: 3 + 3 + 2): the same rows
     _same_rows(run_batch([library], None, options=REF4,
-                         engine=Engine(scheduler=cluster.scheduler_address, chunk=3)), inline)
+                         engine=Engine(scheduler=cluster.scheduler_address, chunk=3)).table, inline)
     # a user's cluster keeps its heap (Dask's MALLOC_TRIM_THRESHOLD_=65536): a second 16 MiB
     # buffer is mapped afresh, page by page
     with distributed.Client(cluster) as client:
@@ -103,7 +104,7 @@ def test_killed_worker_loses_nothing(cluster, library, inline, tmp_path):
                     killed.append(pid)
 
         t = run_batch([library], tmp_path / "t.parquet", options=REF4,
-                      engine=Engine(client=client), progress=KillOne())
+                      engine=Engine(client=client), progress=KillOne()).table
         assert killed
         client.wait_for_workers(2, timeout=60)  # the nanny restarted it
         assert killed[0] not in client.run(os.getpid).values()
@@ -134,10 +135,11 @@ def test_own_local_cluster(library, inline):
     cluster = _local_cluster(1)
     try:
         with distributed.Client(cluster) as client:
-            t = run_batch([library], None, options=REF4, engine=Engine(client=client))
+            t = run_batch([library], None, options=REF4, engine=Engine(client=client)).table
             state = next(iter(client.run(_worker_state).values()))
             with distributed.get_task_stream(client) as stream:  # chunk below 1: one a task
-                t0 = run_batch([library], None, options=REF4, engine=Engine(client=client, chunk=0))
+                t0 = run_batch([library], None, options=REF4,
+                               engine=Engine(client=client, chunk=0)).table
     finally:
         cluster.close()
     _same_rows(t, inline)
@@ -154,16 +156,16 @@ class _Poison:
     name = "shprobe-test-poison"
 
     def setup(self, worker):
-        from shprobe.batch import engine
+        from shprobe.batch import cluster
 
-        real = engine.probe_row
+        real = cluster.probe_row
 
         def probe_row(path, *a, **k):
             if os.path.basename(path).startswith("poison"):
                 os._exit(1)
             return real(path, *a, **k)
 
-        engine.probe_row = probe_row
+        cluster.probe_row = probe_row
 
 
 def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
@@ -184,7 +186,7 @@ def test_probe_that_kills_workers_is_one_error_row(library, inline, tmp_path):
         with distributed.Client(cluster) as client:
             client.register_plugin(type("Poison", (_Poison, WorkerPlugin), {})())
             t = run_batch([library, poison], None, options=REF4, engine=Engine(client=client,
-                          chunk=3))
+                          chunk=3)).table
     finally:
         cluster.close()
     paths = t.column("path").to_pylist()

@@ -94,7 +94,7 @@ def test_glob_through_symlink_loops(tmp_path):
 def test_missing_output_folders_are_made(tmp_path):
     write_env(tmp_path / "a.hdr", procedural_env(32, 16))
     out = tmp_path / "out" / "new" / "deeper" / "t.parquet"
-    t = run_batch([tmp_path / "a.hdr"], out, engine=INLINE, flush_rows=1)
+    t = run_batch([tmp_path / "a.hdr"], out, engine=INLINE, flush_rows=1).table
     assert t.num_rows == 1 and read_table(out).num_rows == 1
     assert not lock_path(out).exists()
 
@@ -148,7 +148,7 @@ def test_stale_lock_file_of_a_killed_batch_is_no_lock(tmp_path):
     write_env(tmp_path / "a.hdr", procedural_env(32, 16))
     out = tmp_path / "t.parquet"
     lock_path(out).write_text("999999\n")
-    assert run_batch([tmp_path / "a.hdr"], out, engine=INLINE).num_rows == 1
+    assert run_batch([tmp_path / "a.hdr"], out, engine=INLINE).table.num_rows == 1
     assert not lock_path(out).exists()
 
 
@@ -157,7 +157,7 @@ def test_table_of_schema_version_1_is_read_and_resumed(tmp_path):
     write_env(tmp_path / "a.hdr", procedural_env(32, 16))
     (tmp_path / "bad.hdr").write_bytes(b"not an image")
     out = tmp_path / "t.parquet"
-    new = run_batch([tmp_path / "a.hdr", tmp_path / "bad.hdr"], out, engine=INLINE)
+    new = run_batch([tmp_path / "a.hdr", tmp_path / "bad.hdr"], out, engine=INLINE).table
     meta = json.loads(new.schema.metadata[b"shprobe"])
     assert meta["schema_version"] == 2 and "failure" in new.column_names
     assert "error" not in new.column_names
@@ -168,7 +168,7 @@ def test_table_of_schema_version_1_is_read_and_resumed(tmp_path):
     assert t.column_names == new.column_names
     assert t.column("failure").to_pylist() == new.column("failure").to_pylist()
     write_env(tmp_path / "c.hdr", procedural_env(48, 24))
-    t = run_batch([tmp_path], out, engine=INLINE)
+    t = run_batch([tmp_path], out, engine=INLINE).table
     rows = {os.path.basename(r["path"]): r for r in t.to_pylist()}
     assert set(rows) == {"a.hdr", "bad.hdr", "c.hdr"}
     assert rows["a.hdr"]["seconds"] == new.column("seconds")[0].as_py()  # kept, not redone

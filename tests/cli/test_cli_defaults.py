@@ -16,11 +16,12 @@ from shprobe.cli.prt import prt_group
 from shprobe.fitting import FitSettings
 from shprobe.grids import GridSettings
 from shprobe.hbasis import HBasisSettings
+from shprobe.lighting.design_settings import EditSettings, ExportSettings, WindowSettings
 from shprobe.lighting.workflow import IrradianceSettings, PrefilterSettings
 from shprobe.prt import DEFAULT_LMAX, PrtSettings
 from shprobe.prt.view import PrtRenderSettings
 from shprobe.report.probe import ReportSettings
-from shprobe.scene.workflow import RenderSettings
+from shprobe.scene.workflow import BasisImagesSettings, RenderSettings
 
 
 def _command(path: str) -> click.Command:
@@ -77,6 +78,14 @@ WORKFLOWS = [
                                     "saturation": ("saturation", None)}),
     ("report", ReportSettings, {"map_size": ("map_height", None),
                                 "render_size": ("render_size", None)}),
+    ("basis-images", BasisImagesSettings, {
+        "lmax": ("lmax", None), "mode": ("mode", None), "size": ("size", _parse_size),
+        "azimuth": ("azimuth", None), "elevation": ("elevation", None), "fov": ("fov", None),
+        "ortho": ("ortho", None)}),
+    ("edit", EditSettings, {"lmax": ("lmax", None), "weight": ("weight", None),
+                            "window": ("window", None), "fmt": ("format", None)}),
+    ("window", WindowSettings, {"lmax": ("lmax", None), "window": ("window", None)}),
+    ("export", ExportSettings, {"lmax": ("lmax", None), "window": ("window", None)}),
     ("batch", BatchOptions, {
         "lmax": ("lmax", None), "thumbnail": ("thumbnail", None), "window": ("window", None),
         "clamp": ("clamp", None), "reference": ("reference", None)}),

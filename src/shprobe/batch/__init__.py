@@ -6,7 +6,8 @@ See docs/batch.md. Layer: above hbasis / prt / fitting, below the CLI.
 
 from .engine import BatchSettings, Engine, parts_dir, read_table, run_batch
 from .inputs import expand_inputs
+from .result import BatchResult
 from .rows import COLUMNS, BatchOptions, content_hash, probe_row, schema
 
-__all__ = ["COLUMNS", "BatchOptions", "BatchSettings", "Engine", "content_hash",
+__all__ = ["COLUMNS", "BatchOptions", "BatchResult", "BatchSettings", "Engine", "content_hash",
            "expand_inputs", "parts_dir", "probe_row", "read_table", "run_batch", "schema"]

@@ -60,12 +60,12 @@ def batch_cmd(inputs, output, lmax, layout, clamp, reference, thumbnail, window,
     settings = BatchSettings(options=BatchOptions(lmax=lmax, clamp=clamp, reference=reference,
                                                   thumbnail=thumbnail, window=window),
                              layout=layout, engine=Engine(scheduler, workers))
-    table = run_batch(inputs, output, settings, progress(), force=force)
-    bad = table.num_rows - table.column("failure").null_count
-    wrote(output, f"{table.num_rows} probes, {bad} failed"
+    result = run_batch(inputs, output, settings, progress(), force=force)
+    bad = result.failed
+    wrote(output, f"{result.rows} probes, {bad} failed"
           + (" (see the 'failure' column)" if bad else ""))
     if bad and not allow_failures:
-        raise ShprobeError(f"{bad} of {table.num_rows} probes failed (their messages are in "
+        raise ShprobeError(f"{bad} of {result.rows} probes failed (their messages are in "
                            "the table's 'failure' column; --allow-failures exits 0)", output)
 
 

@@ -96,14 +96,14 @@ def _emit(result, photo, source: str, fmt: str, output, images: dict, report, fo
     import json
 
     from ..files import transaction, write_text
-    from ..fitting.report import fit_document, fit_images, fit_table_rows, save_fit_figure
+    from ..fitting.report import fit_images, fit_table_rows, save_fit_figure
     from ..lighting.export import export_coeffs
     from ..probes.images import write_image
 
     if fmt == "table":
         text = _table_text(fit_table_rows(result))
     elif fmt == "json":
-        text = json.dumps(fit_document(result, source, ph), indent=2) + "\n"
+        text = json.dumps(result.as_dict(source, ph), indent=2) + "\n"
     else:
         text = export_coeffs(result.coeffs, fmt, source=source)
     written = []

@@ -10,8 +10,9 @@ from typing import Any
 import click
 
 from ..errors import ShprobeError
+from ..lighting.design_settings import EditSettings, ExportSettings, WindowSettings
 from ..lighting.export import FORMATS
-from ..scene.workflow import RENDER_MODES, RenderSettings
+from ..scene.workflow import RENDER_MODES, BasisImagesSettings, RenderSettings
 from .common import (
     ROTATE_HELP,
     force_option,
@@ -24,8 +25,8 @@ from .output import progress, wrote
 from .sources import coeff_source_options, resolve_coeffs
 
 
-def _default(name: str):
-    return setting_default(RenderSettings, name)
+def _default(name: str, settings_type: type = RenderSettings):
+    return setting_default(settings_type, name)
 
 
 WINDOW_HELP = ("Window the lighting: 'auto' (mildest window giving E >= 0), or KIND:STRENGTH "
@@ -77,25 +78,37 @@ def export_path(output: str | None, source: str, options: dict[str, Any], fmt: s
     return os.path.join(output, name) if output else name
 
 
-def camera_options(fn):
+def camera_options_of(settings_type: type = RenderSettings):
+    """The camera's options, their defaults from ``settings_type``'s fields."""
+
+    def dflt(name: str):
+        return _default(name, settings_type)
+
     opts = [
-        click.option("--size", default="{}x{}".format(*_default("size")), show_default=True,
+        click.option("--size", default="{}x{}".format(*dflt("size")), show_default=True,
                      help="Image size WxH."),
-        click.option("--azimuth", default=_default("azimuth"), show_default=True,
+        click.option("--azimuth", default=dflt("azimuth"), show_default=True,
                      help="Orbit angle about +Y in degrees (0: camera on +Z looking along -Z)."),
-        click.option("--elevation", default=_default("elevation"), show_default=True,
+        click.option("--elevation", default=dflt("elevation"), show_default=True,
                      help="Orbit elevation in degrees."),
-        click.option("--fov", default=_default("fov"), show_default=True,
+        click.option("--fov", default=dflt("fov"), show_default=True,
                      help="Vertical field of view in degrees (perspective)."),
-        click.option("--ortho", is_flag=True, default=_default("ortho"),
+        click.option("--ortho", is_flag=True, default=dflt("ortho"),
                      help="Orthographic camera."),
-        click.option("--mode", type=click.Choice(list(RENDER_MODES)), default=_default("mode"),
+        click.option("--mode", type=click.Choice(list(RENDER_MODES)), default=dflt("mode"),
                      show_default=True,
                      help="Shade per pixel, or per vertex and interpolate (R&H procedural)."),
     ]
-    for o in reversed(opts):
-        fn = o(fn)
-    return fn
+
+    def decorate(fn):
+        for o in reversed(opts):
+            fn = o(fn)
+        return fn
+
+    return decorate
+
+
+camera_options = camera_options_of(RenderSettings)
 
 
 def make_camera(size, azimuth, elevation, fov, ortho):
@@ -200,8 +213,8 @@ def render_cmd(probe, layout, clamp, preset, coeffs_file, mesh, sphere, size, az
 @click.command("basis-images")
 @click.argument("mesh", required=False, type=click.Path(dir_okay=False))
 @click.option("--sphere", is_flag=True, help="Use the unit sphere instead of a mesh.")
-@camera_options
-@click.option("--lmax", default=2, show_default=True)
+@camera_options_of(BasisImagesSettings)
+@click.option("--lmax", default=_default("lmax", BasisImagesSettings), show_default=True)
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Output folder (created).")
 @force_option
@@ -254,7 +267,8 @@ def basis_cmd(mesh, sphere, size, azimuth, elevation, fov, ortho, mode, lmax, ou
 
 @click.command("edit")
 @source_options
-@click.option("--lmax", type=click.IntRange(0, 64), default=2, show_default=True,
+@click.option("--lmax", type=click.IntRange(0, 64), default=_default("lmax", EditSettings),
+              show_default=True,
               help="Degree of the result (a probe is projected to it, at least 2; "
                    "presets and coefficient files are cut or zero-padded; edits above it "
                    "are refused).")
@@ -262,7 +276,7 @@ def basis_cmd(mesh, sphere, size, azimuth, elevation, fov, ortho, mode, lmax, ou
               help="Add another lighting FILE:WEIGHT (a probe image, projected, or "
                    "coefficients in any export format) or preset:NAME:WEIGHT. "
                    "Repeatable.")
-@click.option("--weight", default=1.0, show_default=True,
+@click.option("--weight", default=_default("weight", EditSettings), show_default=True,
               help="Weight of the main source in the blend.")
 @click.option("--directional", multiple=True,
               help="Add a directional light DX,DY,DZ:R,G,B (direction towards the light; "
@@ -279,9 +293,10 @@ def basis_cmd(mesh, sphere, size, azimuth, elevation, fov, ortho, mode, lmax, ou
 @click.option("--negate-band", multiple=True, type=int, help="L.")
 @click.option("--rotate", "rotations", multiple=True,
               help="Turn the lighting. " + ROTATE_HELP + " Repeatable.")
-@click.option("--window", "window", default=None, help=WINDOW_HELP)
-@click.option("--format", "fmt", type=click.Choice(FORMATS), default="json",
-              show_default=True, help="Output format (see `shprobe export`).")
+@click.option("--window", "window", default=_default("window", EditSettings), help=WINDOW_HELP)
+@click.option("--format", "fmt", type=click.Choice(FORMATS),
+              default=_default("format", EditSettings), show_default=True,
+              help="Output format (see `shprobe export`).")
 @click.option("-o", "--output", type=click.Path(),
               help="Output file, or a folder for the default name (default: "
                    "<source>-<edit>-lmax<N>.<ext> here, the viewer's download name).")
@@ -318,8 +333,9 @@ def edit_cmd(probe, layout, clamp, preset, coeffs_file, lmax, blends, weight, di
 
 @click.command("window")
 @source_options
-@click.option("--lmax", default=2, show_default=True)
-@click.option("--window", "window", default="auto", show_default=True, help=WINDOW_HELP)
+@click.option("--lmax", default=_default("lmax", WindowSettings), show_default=True)
+@click.option("--window", "window", default=_default("window", WindowSettings),
+              show_default=True, help=WINDOW_HELP)
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Write the windowed coefficients (JSON).")
 @force_option
@@ -375,11 +391,12 @@ def window_cmd(probe, layout, clamp, preset, coeffs_file, lmax, window, output, 
 
 @click.command("export")
 @source_options
-@click.option("--lmax", default=2, show_default=True)
+@click.option("--lmax", default=_default("lmax", ExportSettings), show_default=True)
 @click.option("--format", "fmt", type=click.Choice(FORMATS), required=True,
               help="glsl/hlsl/wgsl (E(n), eq. 11 and 13), json, three, gltf, cmgen, "
                    "cs-phase; each states its convention.")
-@click.option("--window", "window", default=None, help=WINDOW_HELP)
+@click.option("--window", "window", default=_default("window", ExportSettings),
+              help=WINDOW_HELP)
 @click.option("-o", "--output", type=click.Path(),
               help="Output file, or a folder for the name <source>-<edit>-lmax<N>.<ext> "
                    "(the viewer's download name; default: print).")

@@ -2,10 +2,12 @@
 only the l ≤ 2 part of the lighting, so images of an object of known shape determine the nine
 coefficients L_lm through a linear least-squares problem.
 
-- `shprobe.fitting.solve`: the 9×9 normal equations, IRLS (Huber / Tukey) rejection, conditioning
-  per coefficient ([`LightingFit`][shprobe.fitting.LightingFit]);
+- `shprobe.fitting.solve`: the 9×9 normal equations, IRLS (Huber / Tukey) rejection
+  (`shprobe.fitting.robust`), conditioning per coefficient
+  ([`LightingFit`][shprobe.fitting.LightingFit], `shprobe.fitting.result`);
 - `shprobe.fitting.circle`: a ball's outline, given (``CX,CY,R``) or detected;
-- `shprobe.fitting.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera);
+- `shprobe.fitting.ball`: grey-ball and chrome-ball photos (orthographic or perspective camera,
+  `shprobe.fitting.ball_geometry`);
 - `shprobe.fitting.objects`: any diffuse object — per-pixel normals, or a mesh seen by cameras, with
   optional per-vertex albedo fitted jointly;
 - `shprobe.fitting.photo`: the photo read for a fit, the exposure a shprobe picture records undone.

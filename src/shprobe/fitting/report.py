@@ -4,60 +4,20 @@
 from __future__ import annotations
 
 import os
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..lighting.coeffs import RH_LABELS
-from ..lighting.document import coeffs_document
 from ..lighting.irradiance import irradiance
 from .ball import BallFit
+from .document import fit_document
 from .objects import ObjectFit
-from .photo import Photo
 from .solve import POOR_CONDITION
 
 __all__ = ["fit_document", "fit_images", "fit_table_rows", "save_fit_figure"]
 
 Result = BallFit | ObjectFit
-
-
-def fit_document(result: Result, source: str | None, photo: Photo | None = None
-                 ) -> dict[str, Any]:
-    """The document of ``shprobe prefilter --format json`` (``coefficients`` …) with a
-    ``fit`` object: quality, standard errors and conditioning per coefficient, the circle,
-    and, given the ``photo``, the exposure its metadata recorded (undone before the fit) or
-    null with the scale the coefficients then carry."""
-    f = result.fit
-    doc = coeffs_document(f.coeffs, source, "photo")
-    q: dict[str, Any] = {
-        "model": f.model, "pixels": int(f.weights.size), "rms_residual": f.rms,
-        "rms_relative": f.info.get("rms_relative"), "rejected_fraction": f.rejected_fraction,
-        "clipped": int(f.clipped.sum()), "albedo": f.albedo,
-        "scale_note": "coefficients = L_lm x (albedo x exposure) / albedo",
-        "photo_exposure": None if photo is None else photo.exposure,
-        "stderr": f.stderr.tolist(), "conditioning": dict(zip(RH_LABELS, f.conditioning.tolist(),
-                                                              strict=True)),
-        "condition": f.condition, "poor_condition_threshold": POOR_CONDITION,
-        "poorly_determined": list(f.poorly_determined), "summary": result.summary(),
-    }
-    if isinstance(result, BallFit):
-        full = result.info.get("circle_full", result.circle)
-        q.update(kind=result.kind, circle=[full.cx, full.cy, full.r], binning=result.binning,
-                 camera=str(result.camera), frame="camera: looking along -Z, +Y up, +X right")
-        if result.kind == "chrome":
-            q.update(blind_spot_degrees=result.blind_angle,
-                     blind_spot_sr=result.blind_solid_angle,
-                     clipped_kept=result.info.get("clipped", 0))
-    else:
-        q.update(views=len(result.views), frame="world")
-        if result.vertex_albedo is not None:
-            q.update(albedo_rounds=result.info.get("albedo_iterations"))
-    if photo is not None and photo.exposure is not None:
-        q["scale_note"] = (f"the photo's recorded exposure ({photo.exposure:+.6g} EV) was "
-                           "undone: coefficients = L_lm x albedo / albedo")
-    doc["fit"] = q
-    return doc
 
 
 def fit_table_rows(result: Result) -> list[tuple[str, list[float], list[float], float, bool]]:

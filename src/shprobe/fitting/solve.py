@@ -20,35 +20,36 @@ reported as rejected. Clipped pixels (saturated, or black) are removed before th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
-from ..lighting.coeffs import RH_LABELS
 from ..sh import sh_basis
 from ..sh.zonal import clamped_cosine_factors
+from .result import POOR_CONDITION, LightingFit
+from .robust import (  # noqa: F401  (the constants stay importable from here)
+    CANDIDATE_ITER,
+    CANDIDATE_SAMPLES,
+    LMEDS_TRIALS,
+    LTS_H,
+    TILE_TRIALS,
+    TOP_STARTS,
+    TUKEY_C,
+    _lmeds_start,
+    _scale,
+    _solve,
+    _standardised,
+    _starts,
+    _weights,
+)
 from .settings import IRLS_SAMPLES, MAX_RADIUS, FitSettings
 
-__all__ = ["IRLS_SAMPLES", "MAX_RADIUS", "FitSettings", "LightingFit", "design_factors",
-           "fit_samples"]
+__all__ = ["IRLS_SAMPLES", "MAX_RADIUS", "POOR_CONDITION", "FitSettings", "LightingFit",
+           "design_factors", "fit_samples"]
 
-#: Per-coefficient condition (see :attr:`LightingFit.conditioning`) above which a coefficient
-#: is reported as poorly determined.
-POOR_CONDITION = 10.0
-#: Tukey's biweight constant (95 % efficiency at the normal distribution).
-TUKEY_C = 4.685
-#: Random subsets tried for the least-median-of-squares start of IRLS.
-LMEDS_TRIALS = 300
-#: Pixels and iterations for the competing IRLS starts (see :func:`fit_samples`).
-CANDIDATE_SAMPLES = 8192
-CANDIDATE_ITER = 10
-TILE_TRIALS = 100
-TOP_STARTS = 5
-#: Fraction of the pixels least trimmed squares keeps (breakdown 1 − LTS_H).
-LTS_H = 0.75
 _CHUNK = 1 << 19
 #: Albedos a fit accepts: the lighting is the pixels over the albedo, and outside this range
 #: the quotient of ordinary pixel values leaves the floating-point range.
@@ -77,98 +78,6 @@ def design_factors(model: str) -> NDArray[np.float64]:
     raise ShprobeError(f"model must be 'diffuse' or 'mirror', got {model!r}")
 
 
-@dataclass(repr=False)
-class LightingFit:
-    """Nine RGB lighting coefficients fitted to pixels, with their quality.
-
-    ``coeffs`` (9, 3): L_lm (radiance) divided by ``albedo`` — with ``albedo`` 1 they are
-    albedo × exposure × L_lm, the one scale a photograph cannot separate. ``stderr`` (9, 3):
-    standard errors from the inliers' residual (σ √(G⁻¹)_kk). ``conditioning`` (9,): per
-    coefficient √((Ĝ⁻¹)_kk) of the normal matrix with unit diagonal Ĝ = D G D — 1 when the
-    coefficient's basis image is orthogonal to the others over the pixels used, large when
-    the pixels cannot tell it from a combination of the others (a visible hemisphere).
-    ``condition``: the 2-norm condition number of Ĝ. ``weights`` (P,): final IRLS weights
-    relative to the prior weights (1 = fully used, 0 = rejected or clipped), ``fitted`` and
-    ``residual`` (P, 3) in the pixels' units.
-
-    Attributes
-    ----------
-    coeffs
-        (9, 3) L_lm divided by ``albedo``.
-    albedo
-        The albedo (× exposure) the coefficients were divided by.
-    stderr
-        (9, 3) standard errors.
-    conditioning
-        (9,) how well each coefficient is determined (1: independently of the others).
-    condition
-        The normal matrix's condition number.
-    weights, fitted, residual
-        Per pixel: the final IRLS weights, the model's values, the residuals.
-    clipped
-        Per pixel: left out as clipped.
-    rms
-        The inliers' RMS residual.
-    iterations
-        IRLS iterations run.
-    model
-        "diffuse" or "mirror".
-    info
-        Further figures about the fit.
-    """
-
-    coeffs: NDArray[np.float64]
-    albedo: float
-    stderr: NDArray[np.float64]
-    conditioning: NDArray[np.float64]
-    condition: float
-    weights: NDArray[np.float32]
-    fitted: NDArray[np.float32]
-    residual: NDArray[np.float32]
-    clipped: NDArray[np.bool_]
-    rms: float
-    iterations: int
-    model: str = "diffuse"
-    info: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def rejected(self) -> NDArray[np.bool_]:
-        """(P,) pixels left out of the fit: clipped, or given weight < 0.5 by the M-estimator
-        (Tukey weights fall to 0 beyond 4.685 robust standard deviations)."""
-        return self.clipped | (self.weights < 0.5)
-
-    @property
-    def rejected_fraction(self) -> float:
-        return float(self.rejected.mean()) if self.rejected.size else 0.0
-
-    @property
-    def poorly_determined(self) -> tuple[str, ...]:
-        """Labels (L00 … L22) of the coefficients whose conditioning exceeds
-        `POOR_CONDITION`."""
-        return tuple(RH_LABELS[k] for k in np.flatnonzero(self.conditioning > POOR_CONDITION))
-
-    def summary(self) -> str:
-        """One line: RMS residual, fraction rejected, poorly determined coefficients.
-
-        Returns
-        -------
-        str
-            One line about the fit's quality.
-        """
-        poor = ", ".join(self.poorly_determined) or "none"
-        what = "RMS residual" if self.model == "diffuse" else "RMS detail above l = 2"
-        return (f"{self.weights.size} pixels, {what} {self.rms:.4g} "
-                f"({100 * self.info.get('rms_relative', 0.0):.2f} % of the mean), "
-                f"{100 * self.rejected_fraction:.2f} % rejected "
-                f"({int(self.clipped.sum())} clipped), condition {self.condition:.3g}, "
-                f"poorly determined: {poor}")
-
-    def __repr__(self) -> str:
-        return (f"LightingFit(model={self.model!r}, pixels={self.weights.size}, "
-                f"rms={self.rms:.4g}, rejected={100 * self.rejected_fraction:.2f}%, "
-                f"condition={self.condition:.3g})")
-
-
 def check_level(value: float | None, name: str) -> None:
     """A clipping level (``saturation``, ``black level``) is None or a finite number: NaN
     would compare false with every pixel and silently clip nothing."""
@@ -178,99 +87,6 @@ def check_level(value: float | None, name: str) -> None:
 
 def _design(dirs: NDArray, factors: NDArray) -> NDArray[np.float64]:
     return sh_basis(np.ascontiguousarray(dirs, dtype=np.float64), 2) * factors
-
-
-def _solve(G: NDArray, R: NDArray) -> NDArray[np.float64]:
-    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
-    Gn = G / np.outer(d, d)
-    try:
-        return np.linalg.solve(Gn, R / d[:, None]) / d[:, None]
-    except np.linalg.LinAlgError:
-        raise ShprobeError("the pixels do not determine the lighting (singular normal "
-                           "equations: too few pixels or normals)") from None
-
-
-def _scale(r: NDArray, w: NDArray, floor: NDArray) -> NDArray[np.float64]:
-    """Robust residual scale per channel: 1.4826 × median |r| over the pixels in use."""
-    use = w > 0
-    if not use.any():
-        return floor
-    return np.maximum(1.4826 * np.median(np.abs(r[use]), axis=0), floor)
-
-
-def _standardised(r: NDArray, s: NDArray) -> NDArray[np.float64]:
-    return np.sqrt(np.mean((r / s) ** 2, axis=1))
-
-
-def _weights(u: NDArray, loss: str = "tukey") -> NDArray[np.float64]:
-    t = np.clip(u / TUKEY_C, 0.0, 1.0)
-    return (1.0 - t * t) ** 2
-
-
-def _starts(a: NDArray, d: NDArray, y: NDArray, w: NDArray, tau: NDArray, floor: NDArray,
-            seed: int) -> list[NDArray[np.float64]]:
-    """Starting fits for IRLS and the criterion that ranks fits (the median standardised
-    residual, least median of squares). Candidates: least squares on all pixels; least
-    median of squares over random 10-pixel subsets; and least squares on random 60 % subsets
-    of 4×4 tiles of the normals (the tangent-plane coordinates around their mean; for a ball,
-    tiles of the image), so that some start leaves out a whole shadow. Returns the best
-    `TOP_STARTS` candidates by that criterion. ``a``: the design matrix of the rows."""
-    use = w > 0
-    sw = np.sqrt(w)[:, None]
-
-    def crit(x):
-        r = (y - a @ x) / tau / floor
-        return float(np.median(_standardised(r, 1.0)[use]))
-
-    def ls(sel):
-        aw = a[sel] * sw[sel]
-        return _solve(aw.T @ aw, aw.T @ (y[sel] * sw[sel]))
-
-    cands = [ls(use), _lmeds_start(a, y, w, seed)]
-    m = d[use].mean(axis=0)
-    m = m / (np.linalg.norm(m) or 1.0)
-    u = np.cross(m, [0.0, 0.0, 1.0] if abs(m[2]) < 0.9 else [1.0, 0.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(m, u)
-    pu, pv = d @ u, d @ v
-    qu = np.quantile(pu[use], [0.25, 0.5, 0.75])
-    qv = np.quantile(pv[use], [0.25, 0.5, 0.75])
-    tiles = np.searchsorted(qu, pu) * 4 + np.searchsorted(qv, pv)
-    rng = np.random.default_rng(seed + 3)
-    for _ in range(TILE_TRIALS):
-        keep = rng.choice(16, 6, replace=False)
-        sel = use & np.isin(tiles, keep)
-        if np.count_nonzero(sel) >= 18:
-            cands.append(ls(sel))
-    cands.sort(key=crit)
-    return cands[:TOP_STARTS]
-
-
-def _lmeds_start(a: NDArray, y: NDArray, w: NDArray, seed: int, trials: int = LMEDS_TRIALS,
-                 size: int = 10) -> NDArray[np.float64]:
-    """A start for IRLS that outliers cannot drag: least median of squares over random
-    ``size``-pixel subsets (Rousseeuw 1984), scored on ≤ 1024 pixels. With 30 % outliers a
-    clean 10-pixel subset turns up in 300 trials with probability 0.9998."""
-    rng = np.random.default_rng(seed + 1)
-    good = np.flatnonzero(w > 0)
-    ev = good if good.size <= 1024 else rng.choice(good, 1024, replace=False)
-    a_ev = a[ev]
-    y_ev = y[ev]
-    tau = np.maximum(np.mean(np.abs(y_ev), axis=0), 1e-30)
-    a_all = a[good]
-    picks = np.argsort(rng.random((trials, good.size)), axis=1)[:, :size] \
-        if good.size <= 4 * size else rng.integers(0, good.size, (trials, size))
-    A = a_all[picks]  # (T, size, 9)
-    G = A.transpose(0, 2, 1) @ A + 1e-9 * np.eye(9)
-    R = A.transpose(0, 2, 1) @ y[good][picks]
-    try:
-        X = np.linalg.solve(G, R)  # (T, 9, C)
-    except np.linalg.LinAlgError:
-        X = np.stack([np.linalg.lstsq(g, r, rcond=None)[0] for g, r in zip(G, R, strict=True)])
-    T, _, C = X.shape
-    F = (a_ev @ X.transpose(1, 0, 2).reshape(9, T * C)).reshape(-1, T, C)  # BLAS
-    med = np.median(np.sum(((y_ev[:, None, :] - F) / tau) ** 2, axis=2), axis=0)
-    return X[int(np.argmin(med))]
 
 
 def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None = None, *,
@@ -302,7 +118,6 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None
 
     Notes
     -----
-
     ``dirs`` (P, 3): unit surface normals (``model="diffuse"``: value = ρ E(n)/π) or
     reflected directions (``model="mirror"``: value = ρ L(ω)). ``values`` (P, 3) linear.
     ``weights`` (P,): prior weights (a chrome ball's solid angle per pixel; default 1).
@@ -316,36 +131,6 @@ def fit_samples(dirs: ArrayLike, values: ArrayLike, settings: FitSettings | None
     ``CANDIDATE_SAMPLES`` pixels and IRLS on at most ``irls_samples`` (fixed random subsets;
     the coefficients and standard errors are that subset's); the weights, rejected pixels,
     fitted values and residuals are over every pixel.
-
-    Parameters
-    ----------
-    dirs
-        (P, 3) unit normals ("diffuse") or reflected directions ("mirror").
-    values
-        (P, 3) linear pixel values.
-    model
-        "diffuse" (value = ρ E(n)/π) or "mirror" (value = ρ L(ω)).
-    weights
-        (P,) prior weights (default 1).
-    albedo
-        A number, or a known (P,) / (P, 3) per-pixel albedo.
-    saturation, black
-        Pixels with a channel at or above ``saturation`` (at or below ``black``) are left out.
-    robust
-        Reject outliers (IRLS) rather than fit plain least squares.
-    scale_floor
-        The smallest residual scale of the IRLS weights, a fraction of the signal.
-    max_iter
-        IRLS iterations at most.
-    irls_samples
-        Pixels the IRLS rounds use (a seeded subset of larger problems).
-    seed
-        The subset's seed.
-
-    Returns
-    -------
-    LightingFit
-        The nine RGB coefficients, residual, rejected fraction, standard errors, conditioning.
     """
     s = settings if settings is not None else FitSettings()
     if changes:

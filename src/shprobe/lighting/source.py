@@ -19,6 +19,7 @@ from ..sh import check_lmax, lmax_of, num_coeffs
 from ..sh.rotation import unit_vectors
 from ..sh.zonal import circular_window
 from .coeffs import as_rgb
+from .document import coeffs_document
 from .export import import_coeffs
 from .projection import project, project_file
 
@@ -47,6 +48,17 @@ class Lighting:
     source: str
     layout: str | None = None
     env: Env | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON document of the coefficients (``shprobe prefilter --format json``).
+
+        Returns
+        -------
+        dict
+            [`coeffs_document`][shprobe.lighting.coeffs_document] of the coefficients, their
+            source and layout (JSON-able).
+        """
+        return coeffs_document(self.coeffs, self.source, self.layout)
 
     def __repr__(self) -> str:
         return (f"Lighting({self.source!r}, lmax={lmax_of(self.coeffs.shape[0])}"

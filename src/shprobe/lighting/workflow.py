@@ -102,9 +102,7 @@ def lighting_document(lighting: Lighting) -> dict[str, Any]:
         [`shprobe.lighting.document.coeffs_document`][shprobe.lighting.coeffs_document] of its
         coefficients.
     """
-    from .document import coeffs_document
-
-    return coeffs_document(lighting.coeffs, lighting.source, lighting.layout)
+    return lighting.as_dict()
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,8 @@ from ..errors import ShprobeError
 from ..progress import Progress, Steps
 from .camera import Camera
 
-__all__ = ["RENDER_MODES", "RenderImageResult", "RenderSettings", "render_image"]
+__all__ = ["RENDER_MODES", "BasisImagesSettings", "RenderImageResult", "RenderSettings",
+           "render_image"]
 
 #: Per-pixel shading, or per-vertex shading interpolated (R&H's procedural shader).
 RENDER_MODES = ("pixel", "vertex")
@@ -74,6 +75,48 @@ class RenderSettings:
         w, h = self.size
         return Camera(int(w), int(h), projection="orthographic" if self.ortho else "perspective",
                       azimuth=self.azimuth, elevation=self.elevation, fov=self.fov)
+
+
+@dataclass(frozen=True)
+class BasisImagesSettings:
+    """Settings of the irradiance basis images (``shprobe basis-images``'s defaults): the
+    camera of a render and the degree of the basis.
+
+    Parameters
+    ----------
+    lmax
+        Degree of the basis: one image per (l, m) up to it.
+    mode
+        'pixel' or 'vertex' shading.
+    size
+        Image (width, height) in pixels.
+    azimuth
+        Orbit angle about +Y, degrees.
+    elevation
+        Orbit elevation, degrees.
+    fov
+        Vertical field of view, degrees (perspective).
+    ortho
+        An orthographic camera.
+    """
+
+    lmax: int = 2
+    mode: str = RenderSettings.mode
+    size: tuple[int, int] = RenderSettings.size
+    azimuth: float = RenderSettings.azimuth
+    elevation: float = RenderSettings.elevation
+    fov: float = RenderSettings.fov
+    ortho: bool = RenderSettings.ortho
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            Each field.
+        """
+        return {f: getattr(self, f) for f in self.__dataclass_fields__}
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -262,6 +263,17 @@ class TransformResult:
     degree_in: int
     degree_out: int
     path: Path
+
+    def as_dict(self) -> dict[str, Any]:
+        """What was written, as JSON-able values.
+
+        Returns
+        -------
+        dict
+            ``path``, ``count``, ``sh_degree_in``, ``sh_degree_out``.
+        """
+        return {"path": str(self.path), "count": self.count, "sh_degree_in": self.degree_in,
+                "sh_degree_out": self.degree_out}
 
     def __repr__(self) -> str:
         return (f"TransformResult({self.count} splats, SH degree {self.degree_in}"
