@@ -1,0 +1,67 @@
+"""The gather's per-ray kernels against their NumPy references, and the stratification's
+grid for every sample count."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shprobe.lightmaps.hits import HitTables, directions_numpy, grid, hit_records_numpy
+
+
+@pytest.mark.parametrize("s", [1, 7, 16, 32, 64, 128, 1024])
+def test_the_grid_stratifies_every_count_fully(s):
+    kz, kp = grid(s)
+    assert kz * kp == s and kz <= kp
+    if s in (32, 128):
+        assert (kz, kp) == {32: (4, 8), 128: (8, 16)}[s]
+
+
+@pytest.mark.parametrize("s", [16, 32, 128])
+def test_the_direction_kernel_equals_its_numpy_reference(s):
+    from shprobe.lightmaps._kernels_hits import directions
+
+    rng = np.random.default_rng(3)
+    n = 5
+    rand = rng.random((n, s, 2))
+    frames = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
+    fn = rng.normal(size=(n, 3))
+    dt, dw = np.empty((n, s, 3)), np.empty((n, s, 3))
+    dw32, below = np.empty((n * s, 3), np.float32), np.empty((n, s), bool)
+    directions(rand, *grid(s), frames, fn, dt, dw, dw32, below)
+    want = directions_numpy(rand, frames, fn)
+    np.testing.assert_allclose(dt, want[0], atol=1e-12)
+    np.testing.assert_allclose(dw, want[1], atol=1e-12)
+    np.testing.assert_allclose(dw32, want[1].reshape(-1, 3), atol=1e-6)
+    assert (below == want[2]).all()
+    # uniform on the hemisphere: every (z, φ) cell holds exactly one direction
+    kz, kp = grid(s)
+    cz = np.floor(dt[..., 2] * kz).astype(int)
+    cp = np.floor((np.arctan2(dt[..., 1], dt[..., 0]) % (2 * np.pi)) / (2 * np.pi) * kp)
+    cells = np.sort(cz * kp + cp.astype(int), axis=1)
+    assert (cells == np.arange(s)).all()
+
+
+def test_the_hit_record_kernel_equals_its_numpy_reference():
+    from shprobe.lightmaps._kernels_hits import hit_records
+
+    rng = np.random.default_rng(4)
+    faces, n, s = 12, 7, 9
+    tex = np.where(np.arange(faces) % 3 == 0, -1, np.arange(faces) % 2)
+    t = HitTables(rng.random((faces, 3, 2)), rng.random((faces, 3, 2)) * 3 - 1,
+                  rng.random((faces, 3)), tex,
+                  np.concatenate([rng.random(4 * 5 * 3), rng.random(3 * 2 * 3) * 2]),
+                  np.array([[0, 4, 5], [60, 3, 2]]))
+    f = rng.integers(0, faces, (n, s))
+    u, v = (rng.random((n, s)) * 0.5).astype(np.float32), (rng.random((n, s)) * 0.5).astype(
+        np.float32)
+    front = rng.random((n, s)) < 0.6
+    m = int(front.sum())
+    pi, si = np.empty(m, np.int64), np.empty(m, np.int64)
+    huv, alb = np.empty((m, 2)), np.empty((m, 3))
+    hit_records(f, u, v, front, t.uv1, t.uv0, t.base, t.tex, t.texels, t.tex_info,
+                pi, si, huv, alb)
+    want = hit_records_numpy(t, f, u, v, front)
+    for got, ref in zip((pi, si, huv, alb), want, strict=True):
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+    assert (alb[tex[f[pi, si]] >= 0] < 1).any()  # the textures were read
