@@ -65,3 +65,23 @@ def test_the_hit_record_kernel_equals_its_numpy_reference():
     for got, ref in zip((pi, si, huv, alb), want, strict=True):
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
     assert (alb[tex[f[pi, si]] >= 0] < 1).any()  # the textures were read
+
+
+def test_the_sh_hit_kernel_equals_the_numpy_sums_with_sh_factors():
+    from shprobe.lightmaps._kernels import hit_sums_sh
+    from shprobe.lightmaps.encode import hit_sums_numpy
+    from shprobe.lightmaps.gather import Gathered
+    from shprobe.sh import sh_basis
+
+    rng = np.random.default_rng(5)
+    m, p = 400, 30
+    d = rng.normal(size=(m, 3))
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    g = Gathered(np.zeros((p, 9, 6)), np.zeros((p, 6)), rng.integers(0, p, m),
+                 rng.random((m, 2)).astype(np.float32), rng.random((m, 3)).astype(np.float32),
+                 d, np.ones(p, bool), np.zeros((2, p, 6)))
+    image = rng.normal(size=(6, 8, 6))
+    out = np.zeros((p, 9, 6))
+    hit_sums_sh(g.hit_texel, g.hit_uv, g.hit_weight, g.hit_dir, image, out)
+    want = hit_sums_numpy(g, image, sh_basis(d.astype(np.float64), 2))
+    np.testing.assert_allclose(out, want, rtol=1e-6, atol=1e-9)

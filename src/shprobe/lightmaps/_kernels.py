@@ -151,3 +151,26 @@ def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, ha
                 direct_e[p, ch] -= c * lv * cz
                 half[h, p, ch] -= 2.0 * c * lv * cz
         back[p] = nback / s_count
+
+
+@numba.njit(cache=True, nogil=True)
+def hit_sums_sh(texel, uv, weight, dirs, image, out):  # pragma: no cover - compiled
+    """:func:`hit_sums` with factor = the 9 real SH (l ≤ 2) of each hit's tangent-frame
+    direction, evaluated on the fly (no (M, 9) table)."""
+    h, w, nc = image.shape
+    y = np.empty(9)
+    for m in range(texel.shape[0]):
+        x = min(max(uv[m, 0] * w - 0.5, 0.0), w - 1.0)
+        yy = min(max(uv[m, 1] * h - 0.5, 0.0), h - 1.0)
+        x0 = min(int(np.floor(x)), max(w - 2, 0))
+        y0 = min(int(np.floor(yy)), max(h - 2, 0))
+        x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+        fx, fy = x - x0, yy - y0
+        _y9(np.float64(dirs[m, 0]), np.float64(dirs[m, 1]), np.float64(dirs[m, 2]), y)
+        t = texel[m]
+        for ch in range(nc):
+            v = ((image[y0, x0, ch] * (1 - fx) + image[y0, x1, ch] * fx) * (1 - fy)
+                 + (image[y1, x0, ch] * (1 - fx) + image[y1, x1, ch] * fx) * fy)
+            v *= weight[m, ch % 3]
+            for k in range(9):
+                out[t, k, ch] += y[k] * v

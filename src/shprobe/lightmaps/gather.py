@@ -219,9 +219,9 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     if tables is None:
         tables = hit_tables(atlas, settings.albedo_rgb)
     nodes, w = hemisphere_quadrature(3, 5)
-    l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
-    direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
-    direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
+    l_nodes = _sky(sky, np.matmul(nodes, frames))  # (n, Q, C)
+    direct_sh = np.matmul((w[:, None] * sh_basis(nodes, 2)).T, l_nodes)  # (n, 9, C)
+    direct_e = np.tensordot(w * nodes[:, 2], l_nodes, axes=([0], [1]))  # (n, C)
     c = 2 * np.pi / S
     from ._kernels import blocked_sums
     from ._kernels_hits import directions, hit_records
