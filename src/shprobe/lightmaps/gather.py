@@ -37,8 +37,9 @@ __all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "jo
 
 #: kept per ray that hits a front face (texel, UV, albedo weight, direction)
 BYTES_PER_HIT = 4 + 8 + 12 + 12
-#: rays traced per Embree batch
-RAYS_PER_BATCH = 1 << 18
+#: rays traced per Embree batch (one tile of texels): small enough that even a short bake has
+#: several tiles to share out between the threads, large enough that each call is mostly Embree
+RAYS_PER_BATCH = 1 << 17
 
 
 @dataclass(eq=False)

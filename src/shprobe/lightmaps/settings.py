@@ -44,7 +44,8 @@ class LightmapSettings:
     bounces : int
         Diffuse bounces inside the scene (0: sky and sun only).
     samples : int
-        Hemisphere rays per texel (stratified), a square is best.
+        Hemisphere rays per texel, stratified over a kz × kφ grid of every count (a prime
+        count is stratified in φ only; counts with near-square factors, 64 or 128, are best).
     denoise : bool
         Run Intel Open Image Denoise (RTLightmap filter) on the coefficient maps.
     sun : tuple, optional
