@@ -107,13 +107,13 @@ def _y9(x, y, z, o):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, half,
+def blocked_sums(dt, dw, below, f, face_normals, sky, wt, direct_sh, direct_e, half,
                  front, back):  # pragma: no cover - compiled
     """The control variate's corrections over a tile's rays (the NumPy reference:
     :func:`shprobe.lightmaps.gather.blocked_sums_numpy`): for every blocked ray (a hit, or
     below the face) −c · y_k(tangent dir) · L_sky(world dir) into direct_sh, −c · cos θ · L_sky
-    into direct_e and half[s % 2] (× 2); front[p, s] marks front-face hits, back[p] the share
-    of back-face hits and rays below the face."""
+    into direct_e and half[s % 2] (× 2), c = wt[p, s] the ray's weight; front[p, s] marks
+    front-face hits, back[p] the share of back-face hits and rays below the face."""
     n, s_count = f.shape
     nc = sky.shape[1]
     yt = np.empty(9)
@@ -143,6 +143,7 @@ def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, ha
                     acc += yw[j] * sky[j, ch]
                 lsky[ch] = acc
             cz = dt[p, s, 2]
+            c = wt[p, s]
             h = s % 2
             for ch in range(nc):
                 lv = lsky[ch]

@@ -11,13 +11,17 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def directions(rand, kz, kp, frames, fn, dt, dw, dw32, below):  # pragma: no cover - compiled
-    """Stratified directions: dt (n, S, 3) tangent-frame, dw world (and dw32 its float32
-    copy for Embree), below (n, S) where dw points under the face with normal fn."""
+def directions(rand, kz, kp, a, frames, fn, dt, dw, dw32, below,
+               wt):  # pragma: no cover - compiled
+    """Stratified directions of the mixture density with uniform share ``a``: dt (n, S, 3)
+    tangent-frame, dw world (and dw32 its float32 copy for Embree), below (n, S) where dw
+    points under the face with normal fn, wt (n, S) the weights 1/(S p(ω))."""
     n, s = rand.shape[0], rand.shape[1]
     for p in range(n):
         for i in range(s):
-            z = (i // kp + rand[p, i, 0]) / kz
+            u = (i // kp + rand[p, i, 0]) / kz
+            z = u if a >= 1.0 else (math.sqrt(a * a + 4.0 * (1.0 - a) * u) - a) / (2.0 * (1.0 - a))
+            wt[p, i] = 1.0 / (s * (a / (2.0 * math.pi) + (1.0 - a) * z / math.pi))
             phi = 2.0 * math.pi * (i % kp + rand[p, i, 1]) / kp
             r = math.sqrt(max(0.0, 1.0 - z * z))
             x, y = r * math.cos(phi), r * math.sin(phi)

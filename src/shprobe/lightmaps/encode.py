@@ -189,8 +189,8 @@ def encodings_from_sh(radiance_sh: NDArray, plain: NDArray) -> dict[str, NDArray
         Encoding name → coefficients.
     """
     e_sh = radiance_sh * A_HAT[:, None]
-    h6 = np.einsum("ik,...kc->...ic", sh_to_h_matrix(2, 6), e_sh)
-    hl2 = np.einsum("ik,...kc->...ic", get_basis("HL2").sh_matrix(2), e_sh)
+    h6 = np.matmul(sh_to_h_matrix(2, 6), e_sh)  # (6, 9) @ (..., 9, 3)
+    hl2 = np.matmul(get_basis("HL2").sh_matrix(2), e_sh)
     out = {"plain": plain[..., None, :], "hl2": hl2, "sh4": e_sh[..., :4, :], "sh9": e_sh,
            "h4": h6[..., :4, :], "h6": h6}
     return {k: np.ascontiguousarray(out[k]) for k in ENCODINGS}

@@ -2,11 +2,12 @@
 sky (SH, lmax 2), an optional sun with shadow rays, and diffuse bounces that read the
 previous bounce's lightmap at the hit points.
 
-Estimator, per texel with tangent frame (x, y, z = N) and S stratified uniform directions ωₛ
-(pdf 1/2π) on the tangent hemisphere:
+Estimator, per texel with tangent frame (x, y, z = N) and S stratified directions ωₛ of density
+p on the tangent hemisphere (uniform; for a plain bake mostly cosine-weighted:
+:mod:`shprobe.lightmaps.hits`), each of weight cₛ = 1/(S p(ωₛ)):
 
-    L_lm = ∫_Ω+ L_sky y_lm dω  −  (2π/S) Σ_{ωₛ blocked} L_sky(ωₛ) y_lm(ωₛ)
-           + (2π/S) Σ_{ωₛ hits a front face} ρ(q)/π · E_{k−1}(q) · y_lm(ωₛ)  +  E_sun y_lm(s)
+    L_lm = ∫_Ω+ L_sky y_lm dω  −  Σ_{ωₛ blocked} cₛ L_sky(ωₛ) y_lm(ωₛ)
+           + Σ_{ωₛ hits a front face} cₛ ρ(q)/π · E_{k−1}(q) · y_lm(ωₛ)  +  E_sun y_lm(s)
 
 The first term is exact (a 15-node hemispherical rule; the integrand is a polynomial of degree
 4), so the unoccluded sky is a control variate: an open texel has no noise at all. The plain
@@ -28,7 +29,7 @@ from ..progress import Progress, stage
 from ..scene.raycast import RayCaster
 from ..sh import sh_basis
 from .atlas import Atlas, Texels
-from .hits import HitTables, grid, hit_tables
+from .hits import HitTables, grid, hit_tables, uniform_share
 from .hits import wrap_bilinear as _srgb_free
 from .settings import LightmapSettings
 
@@ -57,7 +58,7 @@ class Gathered:
     hit_uv : ndarray (M, 2)
         Lightmap UV of the hit point.
     hit_weight : ndarray (M, 3)
-        (2π/S) · albedo / π at the hit.
+        The ray's weight 1/(S p(ω)) · albedo / π at the hit.
     hit_dir : ndarray (M, 3)
         Tangent-frame direction of the ray.
     valid : ndarray (P,) bool
@@ -223,14 +224,13 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     l_nodes = _sky(sky, np.matmul(nodes, frames))  # (n, Q, C)
     direct_sh = np.matmul((w[:, None] * sh_basis(nodes, 2)).T, l_nodes)  # (n, 9, C)
     direct_e = np.tensordot(w * nodes[:, 2], l_nodes, axes=([0], [1]))  # (n, C)
-    c = 2 * np.pi / S
     from ._kernels import blocked_sums
     from ._kernels_hits import directions, hit_records
 
-    dt, dw = np.empty((n, S, 3)), np.empty((n, S, 3))
+    dt, dw, wt = np.empty((n, S, 3)), np.empty((n, S, 3)), np.empty((n, S))
     dw32, below = np.empty((n * S, 3), np.float32), np.empty((n, S), bool)
-    directions(rng.random((n, S, 2)), *grid(S), np.ascontiguousarray(frames),
-               np.ascontiguousarray(fn), dt, dw, dw32, below)
+    directions(rng.random((n, S, 2)), *grid(S), uniform_share(settings.basis),
+               np.ascontiguousarray(frames), np.ascontiguousarray(fn), dt, dw, dw32, below, wt)
     f, u, v = caster.first_hit_local(np.repeat(caster.local(origins), S, axis=0), dw32)
     f, u, v = f.reshape(n, S), u.reshape(n, S), v.reshape(n, S)
     direct_sh, direct_e = np.ascontiguousarray(direct_sh), np.ascontiguousarray(direct_e)
@@ -238,7 +238,7 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     front = np.empty((n, S), bool)
     back = np.empty(n)
     blocked_sums(dt, dw, below, f, np.ascontiguousarray(caster.face_normals),
-                 np.ascontiguousarray(sky, dtype=np.float64), c, direct_sh, direct_e,
+                 np.ascontiguousarray(sky, dtype=np.float64), wt, direct_sh, direct_e,
                  half, front, back)
     m = int(front.sum())
     pi, si = np.empty(m, np.int64), np.empty(m, np.int64)
@@ -248,12 +248,13 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     if settings.sun is not None:
         _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
     return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
-                    (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
+                    (alb * (wt[pi, si, None] / np.pi)).astype(np.float32),
+                    dt[pi, si].astype(np.float32),
                     back <= 0.5, half)
 
 
 def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
-                       face_normals: NDArray, sky: NDArray, c: float
+                       face_normals: NDArray, sky: NDArray, c: NDArray
                        ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
     """The control variate's corrections over a tile's rays: the reference of the numba
     kernel ``_kernels.blocked_sums`` (module docstring's estimator).
@@ -270,8 +271,8 @@ def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
         Unit face normals.
     sky : ndarray (9, C)
         World radiance SH.
-    c : float
-        2π / S.
+    c : ndarray (n, S)
+        The rays' weights 1/(S p(ω)).
 
     Returns
     -------
@@ -283,10 +284,10 @@ def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
     backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
                                      face_normals[np.maximum(f, 0)]) > 0)
     yk = sh_basis(dt.reshape(-1, 3), 2).reshape(*dt.shape[:2], 9)
-    ls = _sky(sky, dw) * blocked[..., None]
+    ls = _sky(sky, dw) * (blocked * c)[..., None]
     lz = ls * dt[..., 2:3]
-    return (c * np.matmul(yk.transpose(0, 2, 1), ls), c * lz.sum(1),
-            np.stack([2 * c * lz[:, 0::2].sum(1), 2 * c * lz[:, 1::2].sum(1)]),
+    return (np.matmul(yk.transpose(0, 2, 1), ls), lz.sum(1),
+            np.stack([2 * lz[:, 0::2].sum(1), 2 * lz[:, 1::2].sum(1)]),
             (f >= 0) & ~backface & ~below, (backface | below).mean(1))
 
 

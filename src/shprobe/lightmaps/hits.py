@@ -5,8 +5,17 @@ albedo there). The NumPy functions here are the references of the numba kernels
 
 Stratification: S directions per texel on a kz × kφ grid of (z, φ) cells, kz the largest
 divisor of S not above √S (kz · kφ = S exactly, so every count is stratified fully: 128 is
-8 × 16), each cell jittered uniformly; z uniform in [0, 1] makes every direction uniform on
-the hemisphere (pdf 1/2π), so the estimator is unchanged and only its variance drops.
+8 × 16), each cell jittered uniformly in (u, φ) and z = F⁻¹(u).
+
+Density: a mixture of uniform and cosine-weighted directions, p(ω) = a/(2π) + (1 − a) cos θ/π
+with uniform share ``a`` (:func:`uniform_share`), whose z = cos θ has the CDF
+F(z) = a z + (1 − a) z². Each ray carries the weight 1/(S p(ω)). The directional encodings
+(the SH projection's y_lm, which do not vanish at the horizon) are sampled uniformly (a = 1);
+the plain irradiance, a cosine-weighted integral, with a = ¼: measured on the courtyard
+(128², one bounce, against a 1,024-ray bake), its relative RMS error falls from 15.3 % to
+13.1 % at 16 rays and from 5.4 % to 4.8 % at 64, while the directional encodings, which the
+same bake still derives, rise (H6 from 7.6 % to 9.8 % at 64) — the weights stay bounded
+(≤ 2π/(a S)), which pure cosine sampling's 1/cos θ in the SH sums would not.
 """
 
 from __future__ import annotations
@@ -18,8 +27,48 @@ from numpy.typing import NDArray
 
 from .atlas import Atlas
 
-__all__ = ["HitTables", "directions_numpy", "grid", "hit_records_numpy", "hit_tables",
-           "wrap_bilinear"]
+__all__ = ["PLAIN_UNIFORM_SHARE", "HitTables", "directions_numpy", "grid", "hit_records_numpy",
+           "hit_tables", "uniform_share", "wrap_bilinear", "z_of"]
+
+
+#: the share of uniform directions in the density of a plain bake (module docstring)
+PLAIN_UNIFORM_SHARE = 0.25
+
+
+def uniform_share(basis: str) -> float:
+    """The uniform share of the sampling density for a bake of ``basis`` (module docstring).
+
+    Parameters
+    ----------
+    basis : str
+        The settings' encoding.
+
+    Returns
+    -------
+    float
+        1 (uniform) for the directional encodings, ¼ for plain irradiance.
+    """
+    return PLAIN_UNIFORM_SHARE if basis == "plain" else 1.0
+
+
+def z_of(u: NDArray, a: float) -> NDArray:
+    """F⁻¹(u): cos θ of the mixture density from a uniform number (module docstring).
+
+    Parameters
+    ----------
+    u : ndarray
+        Uniform numbers in [0, 1).
+    a : float
+        The uniform share.
+
+    Returns
+    -------
+    ndarray
+        z in [0, 1).
+    """
+    if a >= 1.0:
+        return np.asarray(u, dtype=np.float64)
+    return (np.sqrt(a * a + 4 * (1 - a) * u) - a) / (2 * (1 - a))
 
 
 def grid(s: int) -> tuple[int, int]:
@@ -39,8 +88,8 @@ def grid(s: int) -> tuple[int, int]:
     return kz, s // kz
 
 
-def directions_numpy(rand: NDArray, frames: NDArray, fn: NDArray
-                     ) -> tuple[NDArray, NDArray, NDArray]:
+def directions_numpy(rand: NDArray, frames: NDArray, fn: NDArray, a: float = 1.0
+                     ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Stratified directions from uniform numbers (module docstring).
 
     Parameters
@@ -51,22 +100,25 @@ def directions_numpy(rand: NDArray, frames: NDArray, fn: NDArray
         Tangent frames (rows x, y, z in world space).
     fn : ndarray (n, 3)
         Geometric normals of the texels' faces.
+    a : float
+        The density's uniform share.
 
     Returns
     -------
     tuple of ndarray
-        Tangent-frame directions (n, S, 3), world directions (n, S, 3) and whether each lies
-        below the face (n, S).
+        Tangent-frame directions (n, S, 3), world directions (n, S, 3), whether each lies
+        below the face (n, S) and each ray's weight 1/(S p(ω)) (n, S).
     """
     s = rand.shape[1]
     kz, kp = grid(s)
     i = np.arange(s)
-    z = (i // kp + rand[..., 0]) / kz
+    z = z_of((i // kp + rand[..., 0]) / kz, a)
     phi = 2 * np.pi * (i % kp + rand[..., 1]) / kp
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     dt = np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
     dw = np.matmul(dt, frames)
-    return dt, dw, np.matmul(dw, fn[:, :, None])[..., 0] <= 0
+    wt = 1.0 / (s * (a / (2 * np.pi) + (1 - a) * z / np.pi))
+    return dt, dw, np.matmul(dw, fn[:, :, None])[..., 0] <= 0, wt
 
 
 @dataclass(eq=False)
