@@ -63,10 +63,9 @@ def test_the_hit_record_kernel_equals_its_numpy_reference():
         np.float32)
     front = rng.random((n, s)) < 0.6
     m = int(front.sum())
-    pi, si = np.empty(m, np.int64), np.empty(m, np.int64)
-    huv, alb = np.empty((m, 2)), np.empty((m, 3))
-    hit_records(f, u, v, front, t.uv1, t.uv0, t.base, t.tex, t.texels, t.tex_info,
-                pi, si, huv, alb)
+    ps, rec = np.empty((m, 2), np.int64), np.empty((m, 5))
+    hit_records(f, u, v, front, t.uv1, t.uv0, t.base, t.tex, t.texels, t.tex_info, ps, rec)
+    pi, si, huv, alb = ps[:, 0], ps[:, 1], rec[:, :2], rec[:, 2:]
     want = hit_records_numpy(t, f, u, v, front)
     for got, ref in zip((pi, si, huv, alb), want, strict=True):
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)

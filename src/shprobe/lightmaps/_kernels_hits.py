@@ -37,9 +37,10 @@ def directions(rand, kz, kp, a, frames, fn, dt, dw, dw32, below,
 
 @numba.njit(cache=True, nogil=True)
 def hit_records(f, u, v, front, uv1, uv0, base, tex, texels, tex_info,
-                pi, si, huv, alb):  # pragma: no cover - compiled
-    """Fill the front-face hits' texel pi, ray si, lightmap UV huv and albedo alb (row-major
-    over (texel, ray)); the textures are bilinear with REPEAT wrapping."""
+                ps, rec):  # pragma: no cover - compiled
+    """Fill the front-face hits' texel and ray ps (M, 2) and their lightmap UV and albedo
+    rec (M, 5) (row-major over (texel, ray)); the textures are bilinear with REPEAT
+    wrapping."""
     n, s = f.shape
     m = 0
     for p in range(n):
@@ -49,13 +50,13 @@ def hit_records(f, u, v, front, uv1, uv0, base, tex, texels, tex_info,
             k = f[p, i]
             b1, b2 = np.float64(u[p, i]), np.float64(v[p, i])
             b0 = 1.0 - b1 - b2
-            pi[m], si[m] = p, i
+            ps[m, 0], ps[m, 1] = p, i
             for j in range(2):
-                huv[m, j] = b0 * uv1[k, 0, j] + b1 * uv1[k, 1, j] + b2 * uv1[k, 2, j]
+                rec[m, j] = b0 * uv1[k, 0, j] + b1 * uv1[k, 1, j] + b2 * uv1[k, 2, j]
             t = tex[k]
             if t < 0:
                 for ch in range(3):
-                    alb[m, ch] = min(1.0, max(0.0, base[k, ch]))
+                    rec[m, 2 + ch] = min(1.0, max(0.0, base[k, ch]))
             else:
                 off, h, w = tex_info[t, 0], tex_info[t, 1], tex_info[t, 2]
                 tu = b0 * uv0[k, 0, 0] + b1 * uv0[k, 1, 0] + b2 * uv0[k, 2, 0]
@@ -72,5 +73,5 @@ def hit_records(f, u, v, front, uv1, uv0, base, tex, texels, tex_info,
                     t11 = texels[off + (yb * w + xb) * 3 + ch]
                     val = ((t00 * (1 - fx) + t01 * fx) * (1 - fy)
                            + (t10 * (1 - fx) + t11 * fx) * fy)
-                    alb[m, ch] = min(1.0, max(0.0, base[k, ch] * val))
+                    rec[m, 2 + ch] = min(1.0, max(0.0, base[k, ch] * val))
             m += 1

@@ -241,10 +241,10 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
                  np.ascontiguousarray(sky, dtype=np.float64), wt, direct_sh, direct_e,
                  half, front, back)
     m = int(front.sum())
-    pi, si = np.empty(m, np.int64), np.empty(m, np.int64)
-    huv, alb = np.empty((m, 2)), np.empty((m, 3))
+    ps, rec = np.empty((m, 2), np.int64), np.empty((m, 5))
     hit_records(f, u, v, front, tables.uv1, tables.uv0, tables.base, tables.tex, tables.texels,
-                tables.tex_info, pi, si, huv, alb)
+                tables.tex_info, ps, rec)
+    pi, si, huv, alb = ps[:, 0], ps[:, 1], rec[:, :2], rec[:, 2:]
     if settings.sun is not None:
         _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
     return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
