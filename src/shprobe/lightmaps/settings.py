@@ -33,7 +33,9 @@ class LightmapSettings:
     ----------
     basis : str
         The encoding written to the .glb: "h6", "h4", "sh9", "sh4", "hl2" or "plain" (all six
-        are computed; this one is saved).
+        are computed; this one is saved). A "plain" bake samples its rays mostly
+        cosine-weighted, which suits it and leaves the other five noisier
+        (:mod:`shprobe.lightmaps.hits`).
     albedo : float or tuple of 3 floats, optional
         Diffuse albedo of every surface for the bounces, replacing the materials' base colour
         (factor × texture) when given.
