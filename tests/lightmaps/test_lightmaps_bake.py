@@ -304,7 +304,8 @@ def test_the_blocked_ray_kernel_equals_its_numpy_reference():
     sky = rng.normal(size=(9, c_count))
     sh, e, half = np.zeros((n, 9, c_count)), np.zeros((n, c_count)), np.zeros((2, n, c_count))
     front, back = np.empty((n, s), bool), np.empty(n)
-    blocked_sums(dt, dw, below, f, fn, sky, 0.3, sh, e, half, front, back)
-    want = blocked_sums_numpy(dt, dw, below, f, fn, sky, 0.3)
+    wt = rng.random((n, s))
+    blocked_sums(dt, dw, below, f, fn, sky, wt, sh, e, half, front, back)
+    want = blocked_sums_numpy(dt, dw, below, f, fn, sky, wt)
     for got, ref in zip((-sh, -e, -half, front, back), want, strict=True):
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)

@@ -107,13 +107,13 @@ def _y9(x, y, z, o):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, half,
+def blocked_sums(dt, dw, below, f, face_normals, sky, wt, direct_sh, direct_e, half,
                  front, back):  # pragma: no cover - compiled
     """The control variate's corrections over a tile's rays (the NumPy reference:
     `shprobe.lightmaps.gather.blocked_sums_numpy`): for every blocked ray (a hit, or
     below the face) −c · y_k(tangent dir) · L_sky(world dir) into direct_sh, −c · cos θ · L_sky
-    into direct_e and half[s % 2] (× 2); front[p, s] marks front-face hits, back[p] the share
-    of back-face hits and rays below the face."""
+    into direct_e and half[s % 2] (× 2), c = wt[p, s] the ray's weight; front[p, s] marks
+    front-face hits, back[p] the share of back-face hits and rays below the face."""
     n, s_count = f.shape
     nc = sky.shape[1]
     yt = np.empty(9)
@@ -143,6 +143,7 @@ def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, ha
                     acc += yw[j] * sky[j, ch]
                 lsky[ch] = acc
             cz = dt[p, s, 2]
+            c = wt[p, s]
             h = s % 2
             for ch in range(nc):
                 lv = lsky[ch]
@@ -151,3 +152,26 @@ def blocked_sums(dt, dw, below, f, face_normals, sky, c, direct_sh, direct_e, ha
                 direct_e[p, ch] -= c * lv * cz
                 half[h, p, ch] -= 2.0 * c * lv * cz
         back[p] = nback / s_count
+
+
+@numba.njit(cache=True, nogil=True)
+def hit_sums_sh(texel, uv, weight, dirs, image, out):  # pragma: no cover - compiled
+    """`hit_sums` with factor = the 9 real SH (l ≤ 2) of each hit's tangent-frame
+    direction, evaluated on the fly (no (M, 9) table)."""
+    h, w, nc = image.shape
+    y = np.empty(9)
+    for m in range(texel.shape[0]):
+        x = min(max(uv[m, 0] * w - 0.5, 0.0), w - 1.0)
+        yy = min(max(uv[m, 1] * h - 0.5, 0.0), h - 1.0)
+        x0 = min(int(np.floor(x)), max(w - 2, 0))
+        y0 = min(int(np.floor(yy)), max(h - 2, 0))
+        x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+        fx, fy = x - x0, yy - y0
+        _y9(np.float64(dirs[m, 0]), np.float64(dirs[m, 1]), np.float64(dirs[m, 2]), y)
+        t = texel[m]
+        for ch in range(nc):
+            v = ((image[y0, x0, ch] * (1 - fx) + image[y0, x1, ch] * fx) * (1 - fy)
+                 + (image[y1, x0, ch] * (1 - fx) + image[y1, x1, ch] * fx) * fy)
+            v *= weight[m, ch % 3]
+            for k in range(9):
+                out[t, k, ch] += y[k] * v

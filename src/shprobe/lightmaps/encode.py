@@ -99,8 +99,7 @@ def hit_sums(g: Gathered, image: NDArray, factor: NDArray) -> NDArray:
 
     out = np.zeros((len(g.direct_e), factor.shape[1], image.shape[2]))
     if len(g.hit_texel):
-        kernel(g.hit_texel, g.hit_uv.astype(np.float64), g.hit_weight.astype(np.float64),
-               np.ascontiguousarray(factor, dtype=np.float64),
+        kernel(g.hit_texel, g.hit_uv, g.hit_weight, np.ascontiguousarray(factor),
                np.ascontiguousarray(image, dtype=np.float64), out)
     return out
 
@@ -143,7 +142,7 @@ def bounce(g: Gathered, rc: NDArray, shape: tuple[int, int], bounces: int
     prev = np.zeros((*shape, e.shape[1]))
     for _ in range(bounces):
         prev = _image(e, rc, g.valid, shape)
-        e = g.direct_e + hit_sums(g, prev, g.hit_dir[:, 2:3].astype(np.float64))[:, 0]
+        e = g.direct_e + hit_sums(g, prev, g.hit_dir[:, 2:3])[:, 0]
     return e, prev
 
 
@@ -166,9 +165,11 @@ def project_sh(g: Gathered, prev: NDArray, bounces: int) -> NDArray[np.float64]:
     """
     out = g.direct_sh.copy()
     if bounces > 0 and len(g.hit_texel):
-        from ..sh import sh_basis
+        # hit_sums(g, prev, sh_basis(g.hit_dir, 2)) with the SH made per hit in the kernel
+        from ._kernels import hit_sums_sh
 
-        out += hit_sums(g, prev, sh_basis(g.hit_dir.astype(np.float64), 2))
+        hit_sums_sh(g.hit_texel, g.hit_uv, g.hit_weight, g.hit_dir,
+                    np.ascontiguousarray(prev, dtype=np.float64), out)
     return out
 
 
@@ -188,8 +189,8 @@ def encodings_from_sh(radiance_sh: NDArray, plain: NDArray) -> dict[str, NDArray
         Encoding name → coefficients.
     """
     e_sh = radiance_sh * A_HAT[:, None]
-    h6 = np.einsum("ik,...kc->...ic", sh_to_h_matrix(2, 6), e_sh)
-    hl2 = np.einsum("ik,...kc->...ic", get_basis("HL2").sh_matrix(2), e_sh)
+    h6 = np.matmul(sh_to_h_matrix(2, 6), e_sh)  # (6, 9) @ (..., 9, 3)
+    hl2 = np.matmul(get_basis("HL2").sh_matrix(2), e_sh)
     out = {"plain": plain[..., None, :], "hl2": hl2, "sh4": e_sh[..., :4, :], "sh9": e_sh,
            "h4": h6[..., :4, :], "h6": h6}
     return {k: np.ascontiguousarray(out[k]) for k in ENCODINGS}

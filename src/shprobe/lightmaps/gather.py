@@ -2,11 +2,12 @@
 sky (SH, lmax 2), an optional sun with shadow rays, and diffuse bounces that read the
 previous bounce's lightmap at the hit points.
 
-Estimator, per texel with tangent frame (x, y, z = N) and S stratified uniform directions ωₛ
-(pdf 1/2π) on the tangent hemisphere:
+Estimator, per texel with tangent frame (x, y, z = N) and S stratified directions ωₛ of density
+p on the tangent hemisphere (uniform; for a plain bake mostly cosine-weighted:
+`shprobe.lightmaps.hits`), each of weight cₛ = 1/(S p(ωₛ)):
 
-    L_lm = ∫_Ω+ L_sky y_lm dω  −  (2π/S) Σ_{ωₛ blocked} L_sky(ωₛ) y_lm(ωₛ)
-           + (2π/S) Σ_{ωₛ hits a front face} ρ(q)/π · E_{k−1}(q) · y_lm(ωₛ)  +  E_sun y_lm(s)
+    L_lm = ∫_Ω+ L_sky y_lm dω  −  Σ_{ωₛ blocked} cₛ L_sky(ωₛ) y_lm(ωₛ)
+           + Σ_{ωₛ hits a front face} cₛ ρ(q)/π · E_{k−1}(q) · y_lm(ωₛ)  +  E_sun y_lm(s)
 
 The first term is exact (a 15-node hemispherical rule; the integrand is a polynomial of degree
 4), so the unoccluded sky is a control variate: an open texel has no noise at all. The plain
@@ -28,6 +29,8 @@ from ..progress import Progress, stage
 from ..scene.raycast import RayCaster
 from ..sh import sh_basis
 from .atlas import Atlas, Texels
+from .hits import HitTables, grid, hit_tables, uniform_share
+from .hits import wrap_bilinear as _srgb_free
 from .settings import LightmapSettings
 
 __all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "join",
@@ -35,8 +38,9 @@ __all__ = ["BYTES_PER_HIT", "Gathered", "bilinear", "gather", "gather_tile", "jo
 
 #: kept per ray that hits a front face (texel, UV, albedo weight, direction)
 BYTES_PER_HIT = 4 + 8 + 12 + 12
-#: rays traced per Embree batch
-RAYS_PER_BATCH = 1 << 18
+#: rays traced per Embree batch (one tile of texels): small enough that even a short bake has
+#: several tiles to share out between the threads, large enough that each call is mostly Embree
+RAYS_PER_BATCH = 1 << 17
 
 
 @dataclass(eq=False)
@@ -54,7 +58,7 @@ class Gathered:
     hit_uv : ndarray (M, 2)
         Lightmap UV of the hit point.
     hit_weight : ndarray (M, 3)
-        (2π/S) · albedo / π at the hit.
+        The ray's weight 1/(S p(ω)) · albedo / π at the hit.
     hit_dir : ndarray (M, 3)
         Tangent-frame direction of the ray.
     valid : ndarray (P,) bool
@@ -71,19 +75,6 @@ class Gathered:
     hit_dir: NDArray[np.float32] = field(repr=False)
     valid: NDArray[np.bool_] = field(repr=False)
     half_e: NDArray[np.float64] = field(repr=False)
-
-
-def _srgb_free(tex: NDArray, uv: NDArray) -> NDArray:
-    """Bilinear lookup with REPEAT wrapping, glTF UVs (v = 0 at the first row)."""
-    h, w = tex.shape[:2]
-    x = np.asarray(uv[:, 0]) * w - 0.5
-    y = np.asarray(uv[:, 1]) * h - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
-    xa, xb, ya, yb = x0 % w, (x0 + 1) % w, y0 % h, (y0 + 1) % h
-    return ((tex[ya, xa] * (1 - fx) + tex[ya, xb] * fx) * (1 - fy)
-            + (tex[yb, xa] * (1 - fx) + tex[yb, xb] * fx) * fy)
 
 
 def sample_albedo(atlas: Atlas, prim: NDArray, face_local: NDArray, bary: NDArray,
@@ -149,34 +140,6 @@ def bilinear(image: NDArray, uv: NDArray) -> NDArray:
             + (image[y1, x0] * (1 - fx) + image[y1, x1] * fx) * fy)
 
 
-def stratified(n: int, s: int, rng: np.random.Generator) -> NDArray[np.float64]:
-    """(n, s, 3) jittered-stratified uniform directions on the upper hemisphere (z up).
-
-    Parameters
-    ----------
-    n : int
-        Sets (texels).
-    s : int
-        Directions per set (a square is stratified fully; the rest are random).
-    rng : numpy.random.Generator
-        The random source.
-
-    Returns
-    -------
-    ndarray (n, s, 3)
-        Unit directions, pdf 1/(2π) each.
-    """
-    k = int(np.sqrt(s))
-    grid = np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), -1).reshape(-1, 2)
-    cells = np.concatenate([grid / k, np.zeros((s - k * k, 2))])
-    size = np.concatenate([np.full(k * k, 1.0 / k), np.ones(s - k * k)])
-    u = cells[None] + rng.random((n, s, 2)) * size[None, :, None]
-    z = u[..., 0]
-    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-    phi = 2 * np.pi * u[..., 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
-
-
 def _sky(coeffs: NDArray, dirs: NDArray) -> NDArray:
     return sh_basis(dirs.reshape(-1, 3), 2).reshape(*dirs.shape[:-1], 9) @ coeffs
 
@@ -220,7 +183,7 @@ def ray_origins(tx: Texels, caster: RayCaster) -> NDArray[np.float64]:
 
 def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
                 settings: LightmapSettings, caster: RayCaster,
-                origins: NDArray | None = None) -> Gathered:
+                origins: NDArray | None = None, tables: HitTables | None = None) -> Gathered:
     """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
 
     Parameters
@@ -240,6 +203,9 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         Over all primitives' faces, in atlas order.
     origins : ndarray (b − a, 3), optional
         The range's ray origins (`ray_origins`), else computed here.
+    tables : HitTables, optional
+        The atlas's per-face tables (`shprobe.lightmaps.hits.hit_tables`), else made
+        here.
 
     Returns
     -------
@@ -252,48 +218,43 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     fn = caster.face_normals[face]
     if origins is None:
         origins, _ = caster.offset_points(tx.points[a:b], fn, 1e-4 / caster.scale, face)
+    if tables is None:
+        tables = hit_tables(atlas, settings.albedo_rgb)
     nodes, w = hemisphere_quadrature(3, 5)
-    l_nodes = _sky(sky, np.einsum("qi,pij->pqj", nodes, frames))  # (n, Q, C)
-    direct_sh = np.einsum("q,qk,pqc->pkc", w, sh_basis(nodes, 2), l_nodes)
-    direct_e = np.einsum("q,q,pqc->pc", w, nodes[:, 2], l_nodes)
-    c = 2 * np.pi / S
-    dt = stratified(n, S, rng)
-    dw = np.matmul(dt, frames)  # rows of the frames are its axes in world space
-    below = np.matmul(dw, fn[:, :, None])[..., 0] <= 0
-    f, u, v = caster.first_hit(np.repeat(origins, S, axis=0), dw.reshape(-1, 3))
-    f = f.reshape(n, S).astype(np.int64)
+    l_nodes = _sky(sky, np.matmul(nodes, frames))  # (n, Q, C)
+    direct_sh = np.matmul((w[:, None] * sh_basis(nodes, 2)).T, l_nodes)  # (n, 9, C)
+    direct_e = np.tensordot(w * nodes[:, 2], l_nodes, axes=([0], [1]))  # (n, C)
+    from ._kernels import blocked_sums
+    from ._kernels_hits import directions, hit_records
+
+    dt, dw, wt = np.empty((n, S, 3)), np.empty((n, S, 3)), np.empty((n, S))
+    dw32, below = np.empty((n * S, 3), np.float32), np.empty((n, S), bool)
+    directions(rng.random((n, S, 2)), *grid(S), uniform_share(settings.basis),
+               np.ascontiguousarray(frames), np.ascontiguousarray(fn), dt, dw, dw32, below, wt)
+    f, u, v = caster.first_hit_local(np.repeat(caster.local(origins), S, axis=0), dw32)
+    f, u, v = f.reshape(n, S), u.reshape(n, S), v.reshape(n, S)
     direct_sh, direct_e = np.ascontiguousarray(direct_sh), np.ascontiguousarray(direct_e)
     half = np.stack([direct_e, direct_e])
     front = np.empty((n, S), bool)
     back = np.empty(n)
-    from ._kernels import blocked_sums
-
-    blocked_sums(np.ascontiguousarray(dt), np.ascontiguousarray(dw), below, f,
-                 np.ascontiguousarray(caster.face_normals),
-                 np.ascontiguousarray(sky, dtype=np.float64), c, direct_sh, direct_e,
+    blocked_sums(dt, dw, below, f, np.ascontiguousarray(caster.face_normals),
+                 np.ascontiguousarray(sky, dtype=np.float64), wt, direct_sh, direct_e,
                  half, front, back)
-    pi, si = np.nonzero(front)
-    gf = f[pi, si]
-    uu, vv = u.reshape(n, S)[pi, si], v.reshape(n, S)[pi, si]
-    bary = np.stack([1 - uu - vv, uu, vv], 1).astype(np.float64)
-    starts = np.cumsum([0] + [len(p.faces) for p in atlas.primitives])
-    prim = np.searchsorted(starts, gf, side="right") - 1
-    local = gf - starts[prim]
-    huv = np.empty((len(gf), 2))
-    for i in np.unique(prim):
-        sel = prim == i
-        p = atlas.primitives[i]
-        huv[sel] = (p.uv1[p.faces[local[sel]]] * bary[sel][:, :, None]).sum(1)
-    alb = sample_albedo(atlas, prim, local, bary, settings.albedo_rgb)
+    m = int(front.sum())
+    ps, rec = np.empty((m, 2), np.int64), np.empty((m, 5))
+    hit_records(f, u, v, front, tables.uv1, tables.uv0, tables.base, tables.tex, tables.texels,
+                tables.tex_info, ps, rec)
+    pi, si, huv, alb = ps[:, 0], ps[:, 1], rec[:, :2], rec[:, 2:]
     if settings.sun is not None:
         _add_sun(frames, settings, caster, origins, fn, direct_sh, direct_e, half)
     return Gathered(direct_sh, direct_e, pi + a, huv.astype(np.float32),
-                    (alb * (c / np.pi)).astype(np.float32), dt[pi, si].astype(np.float32),
+                    (alb * (wt[pi, si, None] / np.pi)).astype(np.float32),
+                    dt[pi, si].astype(np.float32),
                     back <= 0.5, half)
 
 
 def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
-                       face_normals: NDArray, sky: NDArray, c: float
+                       face_normals: NDArray, sky: NDArray, c: NDArray
                        ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
     """The control variate's corrections over a tile's rays: the reference of the numba
     kernel ``_kernels.blocked_sums`` (module docstring's estimator).
@@ -310,8 +271,8 @@ def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
         Unit face normals.
     sky : ndarray (9, C)
         World radiance SH.
-    c : float
-        2π / S.
+    c : ndarray (n, S)
+        The rays' weights 1/(S p(ω)).
 
     Returns
     -------
@@ -323,10 +284,10 @@ def blocked_sums_numpy(dt: NDArray, dw: NDArray, below: NDArray, f: NDArray,
     backface = (f >= 0) & (np.einsum("psj,psj->ps", dw,
                                      face_normals[np.maximum(f, 0)]) > 0)
     yk = sh_basis(dt.reshape(-1, 3), 2).reshape(*dt.shape[:2], 9)
-    ls = _sky(sky, dw) * blocked[..., None]
+    ls = _sky(sky, dw) * (blocked * c)[..., None]
     lz = ls * dt[..., 2:3]
-    return (c * np.matmul(yk.transpose(0, 2, 1), ls), c * lz.sum(1),
-            np.stack([2 * c * lz[:, 0::2].sum(1), 2 * c * lz[:, 1::2].sum(1)]),
+    return (np.matmul(yk.transpose(0, 2, 1), ls), lz.sum(1),
+            np.stack([2 * lz[:, 0::2].sum(1), 2 * lz[:, 1::2].sum(1)]),
             (f >= 0) & ~backface & ~below, (backface | below).mean(1))
 
 
@@ -383,11 +344,13 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     # the ray origins of all texels at once: the caster builds its per-part scenes here, not
     # raced by the threads
     origins = ray_origins(tx, caster)
+    tables = hit_tables(atlas, settings.albedo_rgb)
     # tiles in threads: Embree and NumPy's large operations release the GIL, and every tile
     # has its own seed, so the result does not depend on the order they finish in
     with stage(progress, "tracing texel rays", total=tx.count) as bar, \
             ThreadPoolExecutor(max_workers=min(cores(), len(ranges))) as pool:
-        jobs = [pool.submit(gather_tile, atlas, tx, a, b, sky, settings, caster, origins[a:b])
+        jobs = [pool.submit(gather_tile, atlas, tx, a, b, sky, settings, caster, origins[a:b],
+                            tables)
                 for a, b in ranges]
         parts = []
         for job, (a, b) in zip(jobs, ranges, strict=True):

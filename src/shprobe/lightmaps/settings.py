@@ -34,7 +34,9 @@ class LightmapSettings:
     ----------
     basis : str
         The encoding written to the .glb: "h6", "h4", "sh9", "sh4", "hl2" or "plain" (all six
-        are computed; this one is saved).
+        are computed; this one is saved). A "plain" bake samples its rays mostly
+        cosine-weighted, which suits it and leaves the other five noisier
+        (`shprobe.lightmaps.hits`).
     albedo : float or tuple of 3 floats, optional
         Diffuse albedo of every surface for the bounces, replacing the materials' base colour
         (factor × texture) when given.
@@ -45,7 +47,8 @@ class LightmapSettings:
     bounces : int
         Diffuse bounces inside the scene (0: sky and sun only).
     samples : int
-        Hemisphere rays per texel (stratified), a square is best.
+        Hemisphere rays per texel, stratified over a kz × kφ grid of every count (a prime
+        count is stratified in φ only; counts with near-square factors, 64 or 128, are best).
     denoise : bool
         Run Intel Open Image Denoise (RTLightmap filter) on the coefficient maps.
     sun : tuple, optional

@@ -154,17 +154,17 @@ class RayCaster:
                                f"{self.n_faces}), got shape {on.shape}")
         part = np.where(on >= 0, self._parts[np.maximum(on, 0)], -1)
         for c in np.unique(part):
-            scene = self._others(int(c))
+            i = np.flatnonzero(part == c)
+            scene, ids = self._near_others(int(c), o[i], p[i], off)
             if scene is None:
                 continue
-            i = np.flatnonzero(part == c)
             # from the offset origin back to p and a hair beyond (a surface through p counts)
             reach = np.full(len(i), 1.001 * off * self.scale, dtype=np.float32)
             r = scene.run(self.local(o[i]), self._dirs(-n[i]), dists=reach, output=1)
             hit = r["primID"] >= 0
             if not hit.any():
                 continue
-            i, prim = i[hit], self._other_ids[int(c)][r["primID"][hit]]
+            i, prim = i[hit], ids[r["primID"][hit]]
             t = r["tfar"][hit].astype(np.float64) / self.scale  # world distance back from o
             x = o[i] - t[:, None] * n[i]
             fn = self.face_normals[prim]
@@ -195,6 +195,34 @@ class RayCaster:
         g = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(nv, nv))
         _, label = connected_components(g, directed=False)
         return label[f[:, 0]].astype(np.int64)
+
+    @cached_property
+    def _face_boxes(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        fv = self._vertices[self._faces]
+        return fv.min(axis=1), fv.max(axis=1)
+
+    def _near_others(self, part: int, o: NDArray, p: NDArray, off: float
+                     ) -> tuple[Any, NDArray[np.int64] | None]:
+        """An Embree scene of the faces not in ``part`` whose bounding boxes meet the box of
+        the steps from ``p`` to ``o`` (only they can be crossed: the same hits as the scene of
+        all other faces, without building it per part), and the faces' indices; (None, None)
+        if there are none."""
+        pad = 2.0 * off + 1e-5 / self.scale
+        lo = np.minimum(o.min(axis=0), p.min(axis=0)) - pad
+        hi = np.maximum(o.max(axis=0), p.max(axis=0)) + pad
+        flo, fhi = self._face_boxes
+        near = (self._parts != part) & np.all((fhi >= lo) & (flo <= hi), axis=1)
+        if not near.any():
+            return None, None
+        if near.sum() == (self._parts != part).sum():  # every other face: the cached scene
+            return self._others(part), self._other_ids[part]
+        from embreex import mesh_construction, rtcore_scene
+
+        keep = np.flatnonzero(near)
+        scene = rtcore_scene.EmbreeScene()
+        mesh_construction.TriangleMesh(scene, self._local_vertices,
+                                       np.ascontiguousarray(self._faces[keep]))
+        return scene, keep
 
     def _others(self, part: int) -> Any:
         """An Embree scene of every face not in ``part`` (−1: all faces); None if none, cached."""

@@ -14,7 +14,7 @@ A file with a transfer (``--transfer``) is relit live: the page turns the bake's
 stored coefficients from the transfer, least squares) and sums Σ_j T_j L_j per texel on the GPU
 from the transfer textures it reads out of the .glb. The encodings the stored one implies are
 linear in its coefficients, so their transfers are the implied encodings of its transfer's
-(sent packed like theirs, within :data:`MAX_IMPLIED_TRANSFER`): they are relit too.
+(sent packed like theirs, within `MAX_IMPLIED_TRANSFER`): they are relit too.
 """
 
 from __future__ import annotations
