@@ -1,6 +1,7 @@
 """PRT bake memory: the estimate the bake announces (and its memory check refuses on) against
 the peak resident memory the bake reaches, on the packaged bunny + ground, one subprocess per
-bake (its peak RSS from ``resource.getrusage(RUSAGE_SELF).ru_maxrss``).
+bake (its peak RSS: ``VmHWM`` of /proc/self/status, which unlike ``ru_maxrss`` does not
+inherit the peak of the process that started it).
 
 Run: PYTHONPATH=src python bench/bench_prt_memory.py [--lmax 2 6 10 16]
      [--modes unshadowed shadowed interreflected] [--samples 1024] [--threads 2]
@@ -31,7 +32,11 @@ est = estimate_bake(sc, s)
 t0 = time.perf_counter()
 t = bake(sc, s)
 secs = time.perf_counter() - t0
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+try:  # this process's own high-water mark (ru_maxrss would keep the forking parent's)
+    peak = next(int(l.split()[1]) * 1024 for l in open("/proc/self/status")
+                if l.startswith("VmHWM:"))
+except (OSError, StopIteration):
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 print(json.dumps({"estimate": est.nbytes, "est_seconds": est.seconds,
                   "est_vertices": est.vertices, "vertices": t.n_vertices, "peak": peak,
                   "seconds": secs}))

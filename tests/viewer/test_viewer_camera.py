@@ -140,7 +140,7 @@ def test_refined_bake_ground_found_wherever_its_vertices_are():
     from shprobe.prt import bake
     from shprobe.viewer.payloads import ground_mask
 
-    t = bake(trimesh.creation.icosphere(2), "shadowed", lmax=2, samples=64, ground=True,
+    t = bake(trimesh.creation.icosphere(2), mode="shadowed", lmax=2, samples=64, ground=True,
              refine="quick")
     v = np.asarray(t.vertices)
     flat = ground_mask(v, t.normals, True)

@@ -181,7 +181,7 @@ def ray_origins(tx: Texels, caster: RayCaster) -> NDArray[np.float64]:
     return caster.offset_points(tx.points, fn, 1e-4 / caster.scale, tx.face)[0]
 
 
-def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
+def gather_tile(atlas: Atlas, tx: Texels, span: tuple[int, int], sky: NDArray,
                 settings: LightmapSettings, caster: RayCaster,
                 origins: NDArray | None = None, tables: HitTables | None = None) -> Gathered:
     """Trace the hemispheres of texels ``a`` to ``b`` (module docstring).
@@ -192,8 +192,8 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
         The baked primitives.
     tx : Texels
         Covered texels with points and frames.
-    a, b : int
-        The texel range.
+    span : (int, int)
+        The texel range, first and past-the-end.
     sky : ndarray (9, C)
         World-frame radiance SH of the distant environment, C = 3·k channels: k sets of
         red, green, blue (the bake's transfer adds one set per sky coefficient).
@@ -212,6 +212,7 @@ def gather_tile(atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
     Gathered
         Direct terms of the range and its front-face hits (texel indices global).
     """
+    a, b = span
     S, n = int(settings.samples), b - a
     rng = np.random.default_rng([int(settings.seed), int(a)])
     frames, face = tx.frames[a:b], tx.face[a:b]
@@ -349,7 +350,7 @@ def gather(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,
     # has its own seed, so the result does not depend on the order they finish in
     with stage(progress, "tracing texel rays", total=tx.count) as bar, \
             ThreadPoolExecutor(max_workers=min(cores(), len(ranges))) as pool:
-        jobs = [pool.submit(gather_tile, atlas, tx, a, b, sky, settings, caster, origins[a:b],
+        jobs = [pool.submit(gather_tile, atlas, tx, (a, b), sky, settings, caster, origins[a:b],
                             tables)
                 for a, b in ranges]
         parts = []

@@ -37,7 +37,7 @@ def _caster(key: str, atlas: Atlas) -> Any:
 
 def _task(key: str, atlas: Atlas, tx: Texels, a: int, b: int, sky: NDArray,
           settings: LightmapSettings) -> Gathered:
-    return gather_tile(atlas, tx, a, b, sky, settings, _caster(key, atlas))
+    return gather_tile(atlas, tx, (a, b), sky, settings, _caster(key, atlas))
 
 
 def gather_on_dask(atlas: Atlas, tx: Texels, sky: NDArray, settings: LightmapSettings,

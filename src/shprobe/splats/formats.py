@@ -39,7 +39,7 @@ FORMATS = (".ply", ".spz", ".glb")
 #: float64 temporaries, the packed bytes, and for SPZ the compressed stream too.
 WRITE_BYTES_PER_FLOAT = {".ply": 0.0, ".spz": 24.0, ".glb": 17.0}
 #: Copies of a chunk's records a streamed PLY → PLY transform holds at its peak.
-STREAM_COPIES = 3.2
+STREAM_COPIES = 4.2
 
 
 def estimate_read(count: int, degree: int, kind: str) -> float:
