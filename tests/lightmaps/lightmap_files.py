@@ -4,6 +4,8 @@ smooth, strongly directional coefficient field written by shprobe.lightmaps.form
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -65,3 +67,31 @@ def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     ex = (slice(None),) + (None,) * (img.ndim - 2)
     return ((img[y0, x0] * (1 - fx)[ex] + img[y0, x1] * fx[ex]) * (1 - fy)[ex]
             + (img[y1, x0] * (1 - fx)[ex] + img[y1, x1] * fx[ex]) * fy[ex])
+
+
+@contextmanager
+def lightmap_page(path: Path, height: int) -> Iterator:
+    """The lightmap page of ``path`` served and opened in headless Chromium (1500 px wide),
+    ready; its console and page errors collected in ``page.errors``."""
+    from playwright.sync_api import sync_playwright
+
+    from shprobe.viewer.lightmap import load_lightmap_view
+    from tests.viewer.test_viewer import FLAGS, Served, _need_browser
+
+    _need_browser()
+    served = Served(None, grid=load_lightmap_view(path), page="/lightmap")
+    errors: list[str] = []
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=FLAGS)
+        try:
+            pg = b.new_page(viewport={"width": 1500, "height": height})
+            pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            pg.on("pageerror", lambda e: errors.append(str(e)))
+            pg.goto(served.url)
+            pg.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
+                                 "window.__shprobe.lastError)", timeout=90000)
+            pg.errors = errors
+            yield pg
+        finally:
+            b.close()
+            served.close()

@@ -14,8 +14,7 @@ import pytest
 
 from shprobe.lightmaps import format as fmt
 from shprobe.viewer.lightmap import load_lightmap_view
-from tests.lightmaps.lightmap_files import bilinear
-from tests.viewer.test_viewer import FLAGS, Served, _need_browser
+from tests.lightmaps.lightmap_files import bilinear, lightmap_page
 
 SHOTS = Path(os.environ.get("SHPROBE_VIEWER_SHOTS", "/tmp"))
 pytestmark = pytest.mark.browser
@@ -38,25 +37,8 @@ def baked(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(baked):
-    _need_browser()
-    from playwright.sync_api import sync_playwright
-
-    served = Served(None, grid=load_lightmap_view(baked), page="/lightmap")
-    errors: list[str] = []
-    with sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=FLAGS)
-        try:
-            pg = b.new_page(viewport={"width": 1500, "height": 900})
-            pg.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-            pg.on("pageerror", lambda e: errors.append(str(e)))
-            pg.goto(served.url)
-            pg.wait_for_function("() => window.__shprobe && (window.__shprobe.ready || "
-                                 "window.__shprobe.lastError)", timeout=90000)
-            pg.errors = errors
-            yield pg
-        finally:
-            b.close()
-            served.close()
+    with lightmap_page(baked, 900) as pg:
+        yield pg
 
 
 def _sky(baked):

@@ -1,17 +1,7 @@
 """Grey and chrome balls in photographs: the two fits (the camera model and the ball's
 pixels are `shprobe.fitting.ball_geometry`'s, importable from here too).
 
-Frame: the camera's. It looks along −Z with +Y up and +X to the right of the image (the
-renderer's camera at azimuth 0, elevation 0, and the mirror-ball layout's frame), so the
-coefficients are world coefficients when the world's +Y is the photo's up and the camera
-looks along −Z.
-
-Camera models (``BallCamera``): ``orthographic`` — every pixel looks along −Z, the ball's
-normal at image offset (a, b) (in ball radii, b up) is (a, b, √(1 − a² − b²)); ``perspective``
-with the vertical field of view of the whole image — the ball's centre lies on the ray
-through the circle's centre and its angular radius is the mean angle from that ray to the
-rays through the four extreme points of the circle (exact for a ball at the image centre,
-whose outline is then a circle; off-centre the true outline is an ellipse).
+The frame and the camera models are `shprobe.fitting.ball_geometry`'s (its module docstring).
 """
 
 from __future__ import annotations
@@ -33,7 +23,7 @@ from .ball_geometry import (  # noqa: F401  (importable from here as before)
     parse_ball_camera,
 )
 from .circle import Circle, _reduce, block_extremes, check_circle, detect_circle
-from .document import fit_document
+from .document import FitDocument
 from .solve import MAX_RADIUS as _MAX_RADIUS
 from .solve import FitSettings, LightingFit, check_level, fit_samples
 
@@ -41,7 +31,7 @@ from .solve import FitSettings, LightingFit, check_level, fit_samples
 MAX_RADIUS = _MAX_RADIUS  # the one value, from .solve
 
 if TYPE_CHECKING:
-    from .photo import Photo
+    pass
 
 __all__ = ["BallCamera", "BallPixels", "ball_pixels", "fit_chrome_ball", "fit_grey_ball",
            "parse_ball_camera"]
@@ -59,7 +49,7 @@ def _image(img: NDArray, path=None) -> NDArray[np.float32]:
 
 
 @dataclass(repr=False)
-class BallFit:
+class BallFit(FitDocument):
     """A ball photo's fit: ``fit`` ([`LightingFit`][shprobe.fitting.LightingFit], coefficients in
     the camera frame), ``circle``, ``camera``, ``pixels``
     ([`BallPixels`][shprobe.fitting.BallPixels]), and for a chrome ball the blind spot:
@@ -131,24 +121,6 @@ class BallFit:
                   f"({self.blind_solid_angle:.3f} sr, "
                   f"{100 * self.blind_solid_angle / (4 * np.pi):.1f} % of the sphere)")
         return s
-
-    def as_dict(self, source: str | None = None, photo: Photo | None = None) -> dict[str, Any]:
-        """The fit's JSON document: the coefficients with the fit's quality
-        (`shprobe.fitting.document.fit_document`, ``shprobe fit --format json``).
-
-        Parameters
-        ----------
-        source
-            The photo's name for the document (None: none).
-        photo
-            The photo read for the fit, for the exposure it recorded (None: not known).
-
-        Returns
-        -------
-        dict
-            JSON-able values.
-        """
-        return fit_document(self, source, photo)
 
     def __repr__(self) -> str:
         return f"BallFit({self.kind}, {self.circle!r}, {self.fit!r})"

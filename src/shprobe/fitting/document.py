@@ -13,7 +13,7 @@ from .result import POOR_CONDITION
 if TYPE_CHECKING:
     from .photo import Photo
 
-__all__ = ["fit_document"]
+__all__ = ["FitDocument", "fit_document"]
 
 
 def fit_document(result: Any, source: str | None = None, photo: Photo | None = None
@@ -68,3 +68,25 @@ def fit_document(result: Any, source: str | None = None, photo: Photo | None = N
                            "undone: coefficients = L_lm x albedo / albedo")
     doc["fit"] = q
     return doc
+
+
+class FitDocument:
+    """What every fit result offers: its JSON document (`fit_document`)."""
+
+    def as_dict(self, source: str | None = None, photo: Photo | None = None) -> dict[str, Any]:
+        """The fit's JSON document: the coefficients with the fit's quality
+        (`shprobe.fitting.document.fit_document`, ``shprobe fit --format json``).
+
+        Parameters
+        ----------
+        source
+            The photo's name for the document (None: none).
+        photo
+            The photo read for the fit, for the exposure it recorded (None: not known).
+
+        Returns
+        -------
+        dict
+            JSON-able values.
+        """
+        return fit_document(self, source, photo)

@@ -13,17 +13,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShprobeError
 from ..scene import Camera, trace
-from .document import fit_document
+from .document import FitDocument
 from .solve import FitSettings, LightingFit, fit_samples
 
 if TYPE_CHECKING:
-    from .photo import Photo
+    pass
 
 __all__ = ["ObjectFit", "fit_mesh", "fit_normals", "read_normal_map"]
 
 
 @dataclass(repr=False)
-class ObjectFit:
+class ObjectFit(FitDocument):
     """The fit ([`LightingFit`][shprobe.fitting.LightingFit], world-frame coefficients) and where
     its pixels came from: ``views`` list of (rows, cols) per image, ``shapes`` per image,
     ``normals`` (P, 3) of all views' pixels in order; ``vertex_albedo``
@@ -84,24 +84,6 @@ class ObjectFit:
         if self.vertex_albedo is not None:
             s += f"; per-vertex albedo fitted ({self.info.get('albedo_iterations', 0)} rounds)"
         return s
-
-    def as_dict(self, source: str | None = None, photo: Photo | None = None) -> dict[str, Any]:
-        """The fit's JSON document: the coefficients with the fit's quality
-        (`shprobe.fitting.document.fit_document`, ``shprobe fit --format json``).
-
-        Parameters
-        ----------
-        source
-            The photo's name for the document (None: none).
-        photo
-            The photo read for the fit, for the exposure it recorded (None: not known).
-
-        Returns
-        -------
-        dict
-            JSON-able values.
-        """
-        return fit_document(self, source, photo)
 
     def __repr__(self) -> str:
         return f"ObjectFit({len(self.views)} views, {self.fit!r})"
