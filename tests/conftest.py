@@ -145,3 +145,11 @@ def one_line_message(excinfo) -> str:
     msg = str(getattr(excinfo, "value", excinfo))
     assert "\n" not in msg, msg
     return msg
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Peak-memory measurements run alone (``pytest -m memory``, as .ci/run does): next to
+    another worker the resident peaks come out lower than the process alone reaches."""
+    if item.get_closest_marker("memory") and os.environ.get("PYTEST_XDIST_WORKER"):
+        pytest.skip("measures peak memory: run alone with `pytest -m memory` (.ci/run does); "
+                    "beside a parallel worker the resident peaks come out low")

@@ -10,6 +10,8 @@ from __future__ import annotations
 import pytest
 from bench.bench_prt_memory import measure
 
+pytestmark = pytest.mark.memory
+
 TOLERANCE = 0.2
 
 

@@ -17,6 +17,7 @@ BENCH = Path(__file__).resolve().parents[2] / "bench" / "bench_estimates.py"
 
 
 @pytest.mark.slow
+@pytest.mark.memory
 def test_estimates_are_within_20_percent_of_measured_peaks():
     """Every case within 20 % of its measured peak. On a machine that reclaims idle memory
     while other jobs run (the suite's other worker), a resident peak can only come out low:
