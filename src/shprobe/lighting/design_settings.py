@@ -9,12 +9,22 @@ from typing import Any
 __all__ = ["EditSettings", "ExportSettings", "WindowSettings"]
 
 
-def _as_dict(settings: Any) -> dict[str, Any]:
-    return {f: getattr(settings, f) for f in settings.__dataclass_fields__}
+class _Fields:
+    """What the three settings share: their fields as a JSON-able dict."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as JSON-able values.
+
+        Returns
+        -------
+        dict
+            Each field.
+        """
+        return {f: getattr(self, f) for f in self.__dataclass_fields__}
 
 
 @dataclass(frozen=True)
-class EditSettings:
+class EditSettings(_Fields):
     """How lighting is edited and written (``shprobe edit``'s defaults).
 
     Parameters
@@ -34,19 +44,9 @@ class EditSettings:
     window: str | None = None
     format: str = "json"
 
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as JSON-able values.
-
-        Returns
-        -------
-        dict
-            Each field.
-        """
-        return _as_dict(self)
-
 
 @dataclass(frozen=True)
-class WindowSettings:
+class WindowSettings(_Fields):
     """How lighting is certified and windowed (``shprobe window``'s defaults).
 
     Parameters
@@ -60,19 +60,9 @@ class WindowSettings:
     lmax: int = 2
     window: str = "auto"
 
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as JSON-able values.
-
-        Returns
-        -------
-        dict
-            Each field.
-        """
-        return _as_dict(self)
-
 
 @dataclass(frozen=True)
-class ExportSettings:
+class ExportSettings(_Fields):
     """How lighting is exported (``shprobe export``'s defaults; the format is always given).
 
     Parameters
@@ -85,13 +75,3 @@ class ExportSettings:
 
     lmax: int = 2
     window: str | None = None
-
-    def as_dict(self) -> dict[str, Any]:
-        """The settings as JSON-able values.
-
-        Returns
-        -------
-        dict
-            Each field.
-        """
-        return _as_dict(self)
